@@ -1,0 +1,361 @@
+"""Command line: one thin command per verb. It parses, calls a pipeline and maps errors
+to exit codes in `main()` (the only place that does). No algorithm lives here.
+
+Heavy modules (open3d, gtsam, matplotlib, weasyprint, dask) are imported inside the
+pipelines, so `mrnc-eval --help` stays instant.
+"""
+
+from __future__ import annotations
+
+import json
+import logging
+import sys
+from enum import Enum
+from pathlib import Path
+from typing import Annotated, Any, Optional
+
+import typer
+from typer.exceptions import TyperException
+
+from mrnc_eval import __version__
+from mrnc_eval.errors import MrncError, NotImplementedYet
+
+log = logging.getLogger("mrnc_eval")
+
+app = typer.Typer(
+    name="mrnc-eval",
+    help="Offline log processing and evaluation for skid-steer field robots "
+    "(LIO-SAM-style SLAM replay, pure pursuit + RAID control replay, APE/RPE, HTML/PDF reports).",
+    no_args_is_help=True,
+    add_completion=False,
+    pretty_exceptions_enable=False,
+    rich_markup_mode="markdown",
+    context_settings={"help_option_names": ["-h", "--help"]},
+)
+
+_state: dict[str, Any] = {"debug": False}
+
+# ------------------------------------------------------------------ shared options
+
+ConfigOpt = Annotated[
+    Optional[Path],
+    typer.Option("--config", "-c", help="YAML configuration (safe-loaded); defaults: `mrnc-eval config`."),
+]
+SetOpt = Annotated[
+    Optional[list[str]],
+    typer.Option("--set", help="Override one parameter, KEY=VALUE, e.g. --set control.raid.beta=1.5 (repeatable)."),
+]
+DumpOpt = Annotated[
+    bool, typer.Option("--dump-config", help="Print the effective configuration as YAML and exit.")
+]
+JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON to stdout.")]
+
+
+def _config(path: Path | None, overrides: list[str] | None, dump: bool = False):  # -> Config
+    from mrnc_eval.config import dump_config, load_config
+
+    cfg = load_config(path, overrides or ())
+    if dump:
+        sys.stdout.write(dump_config(cfg))
+        raise typer.Exit(0)
+    return cfg
+
+
+def emit_json(obj: Any) -> None:
+    """Machine output goes to stdout, one JSON document."""
+    sys.stdout.write(json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=_json_default) + "\n")
+
+
+def _json_default(o: Any) -> Any:
+    import numpy as np
+
+    if isinstance(o, np.generic):
+        return o.item()
+    if isinstance(o, np.ndarray):
+        return o.tolist()
+    if isinstance(o, Path):
+        return str(o)
+    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
+
+
+def _pipeline(name: str):
+    """Import a pipeline module lazily; a missing one means the verb is not built yet."""
+    import importlib
+
+    try:
+        return importlib.import_module(f"mrnc_eval.pipelines.{name}")
+    except ModuleNotFoundError as err:
+        if err.name == f"mrnc_eval.pipelines.{name}":
+            raise NotImplementedYet(f"'{name}' is not implemented yet") from err
+        raise
+
+
+# ------------------------------------------------------------------ global callback
+
+
+def _version(value: bool) -> None:
+    if value:
+        sys.stdout.write(f"mrnc-eval {__version__}\n")
+        raise typer.Exit(0)
+
+
+@app.callback()
+def _main(
+    verbose: Annotated[int, typer.Option("--verbose", "-v", count=True, help="More log output on stderr (-vv: debug).")] = 0,
+    quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Only errors on stderr.")] = False,
+    debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")] = False,
+    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")] = False,
+) -> None:
+    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose + (1 if debug else 0), 2)]
+    logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s", force=True)
+    _state["debug"] = debug
+
+
+# ------------------------------------------------------------------ verbs
+
+
+@app.command()
+def config(
+    config: ConfigOpt = None,
+    set_: SetOpt = None,
+) -> None:
+    """Print the effective configuration (defaults, then --config, then --set) as commented YAML."""
+    _config(config, set_, dump=True)
+
+
+@app.command()
+def info(
+    log_path: Annotated[Path, typer.Argument(metavar="LOG", help="ROS 1 .bag, ROS 2 bag directory, .db3 or .mcap file.")],
+    json_out: JsonOpt = False,
+    config: ConfigOpt = None,
+    set_: SetOpt = None,
+) -> None:
+    """Summarise a log: container, duration, topics with type, count, rate and gaps, detected
+    roles, and health findings (IMU rate and gaps, LiDAR fields, per-point time, IMU coverage
+    of each sweep, GNSS fix ratio, duplicate or out-of-order stamps)."""
+    cfg = _config(config, set_)
+    summary = _pipeline("info").run(log_path, cfg)
+    if json_out:
+        emit_json(summary.to_json())
+    else:
+        _pipeline("info").print_summary(summary)
+
+
+@app.command()
+def slam(
+    logs: Annotated[list[Path], typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout.")],
+    method: Annotated[str, typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra).")] = "lio",
+    out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
+    no_loop: Annotated[bool, typer.Option("--no-loop", help="Disable loop closure.")] = False,
+    no_gps: Annotated[bool, typer.Option("--no-gps", help="Do not add GNSS factors.")] = False,
+    json_out: JsonOpt = False,
+    config: ConfigOpt = None,
+    set_: SetOpt = None,
+    dump_config: DumpOpt = False,
+) -> None:
+    """Re-run LIO-SAM-style LiDAR-inertial SLAM on recorded logs; write trajectories (TUM), the
+    map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth."""
+    cfg = _config(config, set_, dump_config)
+    _pipeline("slam").main(logs, cfg, method=method, out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
+
+
+class ControlMode(str, Enum):
+    replay = "replay"
+    simulate = "simulate"
+
+
+@app.command()
+def control(
+    log_path: Annotated[Optional[Path], typer.Argument(metavar="LOG", help="Log to replay (optional with --mode simulate: the paper's scenario).")] = None,
+    mode: Annotated[ControlMode, typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant.")] = ControlMode.replay,
+    controllers: Annotated[str, typer.Option(help="Comma-separated: raid,pid,apc,foptc (apc and foptc are labelled stand-ins).")] = "raid,pid,apc,foptc",
+    out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
+    json_out: JsonOpt = False,
+    config: ConfigOpt = None,
+    set_: SetOpt = None,
+    dump_config: DumpOpt = False,
+) -> None:
+    """Re-run the control chain (pure pursuit -> inverse kinematics -> per-side controller ->
+    hydraulic drive) and compute Table II metrics (settling time s, overshoot %, steady-state
+    error m/s, funnel violations, saturation, safety stops, cross-track error m)."""
+    cfg = _config(config, set_, dump_config)
+    _pipeline("control").main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out)
+
+
+class Align(str, Enum):
+    se3 = "se3"
+    sim3 = "sim3"
+    scale = "scale"
+    origin = "origin"
+    yaw = "yaw"
+    none = "none"
+
+
+class Relation(str, Enum):
+    trans = "trans"
+    rot = "rot"
+    full = "full"
+    angle_deg = "angle_deg"
+    angle_rad = "angle_rad"
+    point = "point"
+
+
+AlignOpt = Annotated[Align, typer.Option(help="Alignment of each estimate to the reference.")]
+NAlignOpt = Annotated[Optional[int], typer.Option("--n-to-align", help="Align on the first N matched poses only (default: all).")]
+RelationOpt = Annotated[Relation, typer.Option(help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m).")]
+MaxDiffOpt = Annotated[float, typer.Option("--max-diff", help="Association: maximum stamp difference, s.")]
+OffsetOpt = Annotated[float, typer.Option(help="Association: added to the estimate's stamps, s.")]
+PlaneOpt = Annotated[Optional[str], typer.Option(help="Project to a plane before the metric: xy, xz or yz.")]
+TableOpt = Annotated[Optional[Path], typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
+PlotOpt = Annotated[Optional[Path], typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
+
+
+@app.command()
+def ape(
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
+    align: AlignOpt = Align.se3,
+    n_to_align: NAlignOpt = None,
+    relation: RelationOpt = Relation.trans,
+    max_diff: MaxDiffOpt = 0.01,
+    offset: OffsetOpt = 0.0,
+    plane: PlaneOpt = None,
+    json_out: JsonOpt = False,
+    table: TableOpt = None,
+    plot: PlotOpt = None,
+) -> None:
+    """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
+    _pipeline("trajectory_eval").ape_main(
+        ref, est, align=align.value, n_to_align=n_to_align, relation=relation.value, max_diff=max_diff,
+        offset=offset, plane=plane, json_out=json_out, table=table, plot=plot,
+    )
+
+
+class DeltaUnit(str, Enum):
+    frames = "frames"
+    m = "m"
+
+
+@app.command()
+def rpe(
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
+    delta: Annotated[float, typer.Option(help="Pair spacing, in --delta-unit.")] = 1.0,
+    delta_unit: Annotated[DeltaUnit, typer.Option(help="frames or m (distance travelled).")] = DeltaUnit.frames,
+    all_pairs: Annotated[bool, typer.Option("--all-pairs", help="Use all pairs instead of consecutive ones.")] = False,
+    align: AlignOpt = Align.none,
+    n_to_align: NAlignOpt = None,
+    relation: RelationOpt = Relation.trans,
+    max_diff: MaxDiffOpt = 0.01,
+    offset: OffsetOpt = 0.0,
+    plane: PlaneOpt = None,
+    json_out: JsonOpt = False,
+    table: TableOpt = None,
+    plot: PlotOpt = None,
+) -> None:
+    """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
+    _pipeline("trajectory_eval").rpe_main(
+        ref, est, delta=delta, delta_unit=delta_unit.value, all_pairs=all_pairs, align=align.value,
+        n_to_align=n_to_align, relation=relation.value, max_diff=max_diff, offset=offset, plane=plane,
+        json_out=json_out, table=table, plot=plot,
+    )
+
+
+@app.command()
+def table(
+    source: Annotated[Path, typer.Argument(metavar="SOURCE", help="A YAML manifest or a directory <seq>/<method>.tum with <seq>/ground_truth.tum.")],
+    out: Annotated[Optional[Path], typer.Option(help="Write the table (.md, .tex, .csv, .html by suffix); default: Markdown on stdout.")] = None,
+    align: AlignOpt = Align.se3,
+    max_diff: MaxDiffOpt = 0.01,
+    json_out: JsonOpt = False,
+) -> None:
+    """Table I layout: APE RMSE (m), sequences as rows, methods as columns, 'Failed' cells,
+    mean row over non-failed cells, best per row marked."""
+    _pipeline("trajectory_eval").table_main(source, out=out, align=align.value, max_diff=max_diff, json_out=json_out)
+
+
+@app.command()
+def report(
+    result_dirs: Annotated[list[Path], typer.Argument(metavar="RESULT_DIR...", help="Result directories written by slam/control.")],
+    out: Annotated[Optional[Path], typer.Option(help="Output directory (default: next to each result).")] = None,
+    pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
+) -> None:
+    """Render HTML (and PDF) reports from result directories; never recomputes."""
+    _pipeline("report").main(result_dirs, out=out, pdf=pdf)
+
+
+@app.command()
+def nightly(
+    log_dir: Annotated[Path, typer.Argument(metavar="LOG_DIR", help="Folder searched recursively for logs.")],
+    out: Annotated[Path, typer.Option(help="Report root: REPORT_ROOT/<date>/index.html, trends, history.")],
+    jobs: Annotated[int, typer.Option(help="Parallel logs: 1 runs in-process, >1 a local process pool.")] = 2,
+    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address tcp://HOST:PORT (dask extra).")] = None,
+    since: Annotated[Optional[str], typer.Option(help="Only logs modified on or after this date (YYYY-MM-DD).")] = None,
+    gates: Annotated[Optional[Path], typer.Option(help="YAML with gate thresholds (overrides config gates).")] = None,
+    date: Annotated[Optional[str], typer.Option(help="Night label YYYY-MM-DD (default: today).")] = None,
+    pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write PDF reports.")] = True,
+    config: ConfigOpt = None,
+    set_: SetOpt = None,
+    dump_config: DumpOpt = False,
+) -> None:
+    """Run slam + control + evaluation on every new log, write per-log reports, a night index and
+    trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise."""
+    cfg = _config(config, set_, dump_config)
+    _pipeline("nightly").main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
+                              gates=gates, date=date, pdf=pdf)
+
+
+@app.command()
+def simulate(
+    out: Annotated[Path, typer.Argument(metavar="OUT", help="Output log path (.mcap, .db3 directory or .bag).")],
+    scene: Annotated[str, typer.Option(help="Scene: yard, forest, corridor, field.")] = "yard",
+    path: Annotated[str, typer.Option(help="Path: circle (paper mission), figure8, loop, line.")] = "circle",
+    duration: Annotated[Optional[float], typer.Option(help="Duration, s (default: until the path is done).")] = None,
+    lidar: Annotated[str, typer.Option(help="LiDAR model: os0-128, os0-64, os0-32.")] = "os0-128",
+    columns: Annotated[int, typer.Option(help="Columns per sweep: 512, 1024 or 2048.")] = 1024,
+    rate: Annotated[float, typer.Option(help="Sweep rate, Hz (10 or 20).")] = 10.0,
+    fmt: Annotated[str, typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1).")] = "mcap",
+    seed: Annotated[int, typer.Option(help="Random seed; the same seed gives byte-identical logs.")] = 0,
+    config: ConfigOpt = None,
+    set_: SetOpt = None,
+    dump_config: DumpOpt = False,
+) -> None:
+    """Generate a synthetic SSWMR recording with exact ground truth (LiDAR, IMU, GNSS, wheel
+    odometry, commands, path) driven in closed loop through the control chain."""
+    cfg = _config(config, set_, dump_config)
+    _pipeline("simulate").main(out, cfg, scene=scene, path=path, duration=duration, lidar=lidar, columns=columns,
+                               rate=rate, fmt=fmt, seed=seed)
+
+
+# ------------------------------------------------------------------ entry point
+
+
+def main(argv: list[str] | None = None) -> int:
+    """Run the CLI; the single place where errors become exit codes."""
+    try:
+        result = app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
+    except typer.Exit as exc:
+        return exc.exit_code
+    except typer.Abort:
+        sys.stderr.write("aborted\n")
+        return 130
+    except TyperException as exc:  # usage errors: missing argument, bad option value
+        show = getattr(exc, "show", None)
+        if callable(show):
+            show()
+        else:
+            sys.stderr.write(f"mrnc-eval: usage error: {exc}\n")
+        return 2
+    except MrncError as exc:
+        if _state["debug"]:
+            log.exception("%s", exc)
+        sys.stderr.write(f"mrnc-eval: error: {exc}\n")
+        return exc.exit_code
+    except KeyboardInterrupt:
+        sys.stderr.write("interrupted\n")
+        return 130
+    return result if isinstance(result, int) else 0
+
+
+if __name__ == "__main__":
+    sys.exit(main())

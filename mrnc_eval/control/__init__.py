@@ -1,0 +1,1 @@
+"""Control chain: pure pursuit, skid-steer inverse kinematics, per-side controllers, plant."""

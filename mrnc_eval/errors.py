@@ -1,0 +1,69 @@
+"""Typed errors. Library code raises these; only `cli.main` turns them into exit codes.
+
+Exit codes (one place, `exit_code` attribute):
+  0 ok, 1 a metric gate failed, 2 usage, 3 some inputs failed, 4 unreadable/invalid input.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+
+class MrncError(Exception):
+    """Base class of every error the CLI reports as a one-line message."""
+
+    exit_code = 4
+
+
+class UsageError(MrncError):
+    """The command line or the configuration asks for something impossible."""
+
+    exit_code = 2
+
+
+class NotImplementedYet(UsageError):
+    """A verb whose capability has not been built yet."""
+
+
+class ConfigError(UsageError):
+    """A configuration file or override is invalid (unknown key, wrong type)."""
+
+
+class InputError(MrncError):
+    """An input file is missing, unreadable or invalid.
+
+    The message always names the file, the topic when there is one, and the problem.
+    """
+
+    exit_code = 4
+
+    def __init__(self, path: str | Path, problem: str, *, topic: str | None = None) -> None:
+        self.path = str(path)
+        self.topic = topic
+        self.problem = problem
+        where = f"{self.path}" + (f" [{topic}]" if topic else "")
+        super().__init__(f"{where}: {problem}")
+
+
+class EvaluationError(MrncError):
+    """An evaluation cannot be computed from valid inputs (no overlap, too few matches...)."""
+
+    exit_code = 4
+
+
+class ProcessingError(MrncError):
+    """A pipeline stage failed on valid input (solver failure, divergence)."""
+
+    exit_code = 4
+
+
+class SomeInputsFailed(MrncError):
+    """A batch finished, but at least one of its inputs failed."""
+
+    exit_code = 3
+
+
+class GateFailed(MrncError):
+    """A metric gate (APE RMSE, funnel violations...) was not met."""
+
+    exit_code = 1

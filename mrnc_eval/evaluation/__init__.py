@@ -1,0 +1,1 @@
+"""Trajectory and control evaluation (pure numpy)."""

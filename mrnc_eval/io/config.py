@@ -1,0 +1,21 @@
+"""Log-reading configuration: topic role overrides and the GNSS local frame."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+from mrnc_eval.params import param
+
+
+@dataclass(frozen=True)
+class IoConfig:
+    roles: dict[str, str] = param(
+        {},
+        "role -> topic overrides (roles: lidar, imu, gnss, wheel_odom, wheel_speeds, "
+        "commands, cmd_vel, path, ground_truth); unset roles are detected by message type",
+    )
+    gnss_origin_lla: tuple[float, float, float] | None = param(
+        None,
+        "geodetic origin (lat deg, lon deg, alt m) of the local ENU frame; "
+        "default: the first valid fix of the log",
+    )

@@ -1,0 +1,1 @@
+"""HTML/PDF reports, figures and tables, rendered from result objects only."""

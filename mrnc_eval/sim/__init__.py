@@ -1,0 +1,1 @@
+"""Synthetic SSWMR recordings with exact ground truth."""

@@ -1,0 +1,1 @@
+"""LIO-SAM-style LiDAR-inertial SLAM (pure computation: arrays and dataclasses in and out)."""

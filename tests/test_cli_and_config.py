@@ -1,0 +1,80 @@
+"""CLI skeleton and configuration: exit codes, lazy imports, strict YAML, overrides."""
+
+from __future__ import annotations
+
+import subprocess
+import sys
+from pathlib import Path
+
+import pytest
+import yaml
+
+from mrnc_eval.cli import main
+from mrnc_eval.config import Config, config_hash, dump_config, load_config
+from mrnc_eval.errors import ConfigError
+
+VERBS = ["info", "slam", "control", "ape", "rpe", "report", "nightly", "simulate"]
+
+
+def test_help_lists_every_verb(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["--help"]) == 0
+    out = capsys.readouterr().out
+    for verb in VERBS:
+        assert verb in out
+
+
+def test_help_does_not_import_heavy_modules() -> None:
+    code = (
+        "import sys\n"
+        "from mrnc_eval.cli import main\n"
+        "rc = main(['--help'])\n"
+        "heavy = [m for m in ('open3d', 'gtsam', 'matplotlib', 'weasyprint', 'dask', 'scipy') if m in sys.modules]\n"
+        "print(rc, heavy)\n"
+    )
+    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout
+    assert out.strip().splitlines()[-1] == "0 []"
+
+
+def test_usage_error_exit_code_is_2() -> None:
+    assert main(["ape"]) == 2
+    assert main(["no-such-verb"]) == 2
+
+
+def test_defaults_carry_paper_values() -> None:
+    cfg = Config()
+    assert cfg.robot.mass_kg == 4836.0
+    assert cfg.robot.max_speed_mps == 0.97
+
+
+def test_yaml_roundtrip_and_override(tmp_path: Path) -> None:
+    cfg = load_config(None, ["robot.track_width_m=1.9", "io.roles={lidar: /points}"])
+    assert cfg.robot.track_width_m == 1.9
+    assert cfg.io.roles == {"lidar": "/points"}
+    dumped = tmp_path / "cfg.yaml"
+    dumped.write_text(dump_config(cfg))
+    again = load_config(dumped)
+    assert again == cfg
+    assert config_hash(again) == config_hash(cfg)
+    assert config_hash(Config()) != config_hash(cfg)
+
+
+@pytest.mark.parametrize(
+    "text, fragment",
+    [
+        ("robot: {no_such_key: 1}\n", "robot.no_such_key"),
+        ("robot: {mass_kg: heavy}\n", "robot.mass_kg"),
+        ("- a list\n", "top level must be a mapping"),
+        ("robot: !!python/object/apply:os.system ['true']\n", "invalid YAML"),
+    ],
+)
+def test_bad_config_is_rejected_with_the_key(tmp_path: Path, text: str, fragment: str) -> None:
+    path = tmp_path / "bad.yaml"
+    path.write_text(text)
+    with pytest.raises(ConfigError, match=fragment.replace(".", r"\.")):
+        load_config(path)
+
+
+def test_config_verb_prints_loadable_yaml(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["config", "--set", "robot.wheel_radius_m=0.4"]) == 0
+    data = yaml.safe_load(capsys.readouterr().out)
+    assert data["robot"]["wheel_radius_m"] == 0.4
