@@ -1,0 +1,145 @@
+"""Build ROS message objects (rosbags typestore classes) from our arrays.
+
+Shared by the writer; one function per message type, ROS 1 and ROS 2 alike (the
+typestore decides the wire format).
+"""
+
+from __future__ import annotations
+
+import numpy as np
+
+OUSTER_FIELDS = (  # ouster-ros "original" layout, as in shared/data (point_step 48)
+    ("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 16, 7), ("t", 20, 6),
+    ("reflectivity", 24, 4), ("ring", 26, 4), ("ambient", 28, 4), ("range", 32, 6),
+)
+OUSTER_POINT_STEP = 48
+
+
+def stamp_msg(ts, t: float, ros1: bool):
+    sec = int(np.floor(t))
+    nsec = int(round((t - sec) * 1e9))
+    if nsec >= 1_000_000_000:
+        sec, nsec = sec + 1, nsec - 1_000_000_000
+    return ts.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
+
+
+def header(ts, t: float, frame_id: str, ros1: bool, seq: int = 0):
+    kwargs = {"stamp": stamp_msg(ts, t, ros1), "frame_id": frame_id}
+    if ros1:
+        kwargs["seq"] = seq
+    return ts.types["std_msgs/msg/Header"](**kwargs)
+
+
+def vector3(ts, v):
+    return ts.types["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
+
+
+def quaternion(ts, q):
+    return ts.types["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
+
+
+def point(ts, p):
+    return ts.types["geometry_msgs/msg/Point"](x=float(p[0]), y=float(p[1]), z=float(p[2]))
+
+
+def pose(ts, p, q):
+    return ts.types["geometry_msgs/msg/Pose"](position=point(ts, p), orientation=quaternion(ts, q))
+
+
+def imu(ts, t, frame_id, acc, gyro, q, ros1, seq=0, acc_var=0.01, gyro_var=6e-4):
+    cov0 = np.zeros(9)
+    ocov = cov0.copy()
+    if q is None:
+        ocov[0] = -1.0  # REP-145: orientation not provided (6-axis IMU)
+        q = (0.0, 0.0, 0.0, 0.0) if not ros1 else (0.0, 0.0, 0.0, 1.0)
+    return ts.types["sensor_msgs/msg/Imu"](
+        header=header(ts, t, frame_id, ros1, seq),
+        orientation=quaternion(ts, q),
+        orientation_covariance=ocov,
+        angular_velocity=vector3(ts, gyro),
+        angular_velocity_covariance=np.diag([gyro_var] * 3).ravel(),
+        linear_acceleration=vector3(ts, acc),
+        linear_acceleration_covariance=np.diag([acc_var] * 3).ravel(),
+    )
+
+
+def ouster_cloud(ts, t, frame_id, xyz, t_ns, range_mm, reflectivity, intensity, ambient, ros1, seq=0):
+    h, w = t_ns.shape
+    buf = np.zeros((h, w, OUSTER_POINT_STEP), dtype=np.uint8)
+    rec = buf.reshape(h * w, OUSTER_POINT_STEP)
+
+    def put(offset, arr, dtype):
+        a = np.ascontiguousarray(np.asarray(arr, dtype=dtype).reshape(h * w))
+        rec[:, offset : offset + a.itemsize] = a.view(np.uint8).reshape(h * w, a.itemsize)
+
+    xyz = np.asarray(xyz, dtype=np.float32).reshape(h * w, 3)
+    put(0, xyz[:, 0], "<f4")
+    put(4, xyz[:, 1], "<f4")
+    put(8, xyz[:, 2], "<f4")
+    put(16, intensity, "<f4")
+    put(20, t_ns, "<u4")
+    put(24, reflectivity, "<u2")
+    put(26, np.repeat(np.arange(h, dtype=np.uint16)[:, None], w, axis=1), "<u2")
+    put(28, ambient, "<u2")
+    put(32, range_mm, "<u4")
+    pf = ts.types["sensor_msgs/msg/PointField"]
+    fields = [pf(name=n, offset=o, datatype=d, count=1) for n, o, d in OUSTER_FIELDS]
+    return ts.types["sensor_msgs/msg/PointCloud2"](
+        header=header(ts, t, frame_id, ros1, seq), height=h, width=w, fields=fields, is_bigendian=False,
+        point_step=OUSTER_POINT_STEP, row_step=OUSTER_POINT_STEP * w, data=buf.reshape(-1), is_dense=False,
+    )
+
+
+def navsatfix(ts, t, frame_id, lla, cov, status, ros1, seq=0):
+    st = ts.types["sensor_msgs/msg/NavSatStatus"](status=int(status), service=1)
+    return ts.types["sensor_msgs/msg/NavSatFix"](
+        header=header(ts, t, frame_id, ros1, seq), status=st, latitude=float(lla[0]), longitude=float(lla[1]),
+        altitude=float(lla[2]), position_covariance=np.asarray(cov, dtype=float).reshape(9),
+        position_covariance_type=3,
+    )
+
+
+def joint_state(ts, t, names, velocity, ros1, seq=0):
+    k = len(names)
+    return ts.types["sensor_msgs/msg/JointState"](
+        header=header(ts, t, "", ros1, seq), name=list(names), position=np.zeros(k),
+        velocity=np.asarray(velocity, dtype=float), effort=np.zeros(k),
+    )
+
+
+def odometry(ts, t, frame_id, child, p, q, lin, ang, ros1, seq=0):
+    cov = np.zeros(36)
+    pwc = ts.types["geometry_msgs/msg/PoseWithCovariance"](pose=pose(ts, p, q), covariance=cov)
+    tw = ts.types["geometry_msgs/msg/Twist"](linear=vector3(ts, lin), angular=vector3(ts, ang))
+    twc = ts.types["geometry_msgs/msg/TwistWithCovariance"](twist=tw, covariance=cov)
+    return ts.types["nav_msgs/msg/Odometry"](
+        header=header(ts, t, frame_id, ros1, seq), child_frame_id=child, pose=pwc, twist=twc)
+
+
+def path(ts, t, frame_id, xy, ros1):
+    ps = ts.types["geometry_msgs/msg/PoseStamped"]
+    poses = [ps(header=header(ts, t, frame_id, ros1, i), pose=pose(ts, (x, y, 0.0), (0.0, 0.0, 0.0, 1.0)))
+             for i, (x, y) in enumerate(np.asarray(xy, dtype=float))]
+    return ts.types["nav_msgs/msg/Path"](header=header(ts, t, frame_id, ros1), poses=poses)
+
+
+def twist_stamped(ts, t, frame_id, v, omega, ros1, seq=0):
+    tw = ts.types["geometry_msgs/msg/Twist"](linear=vector3(ts, (v, 0, 0)), angular=vector3(ts, (0, 0, omega)))
+    return ts.types["geometry_msgs/msg/TwistStamped"](header=header(ts, t, frame_id, ros1, seq), twist=tw)
+
+
+def tf_message(ts, t, transforms, ros1):
+    from scipy.spatial.transform import Rotation
+
+    out = []
+    for parent, child, mat in transforms:
+        mat = np.asarray(mat, dtype=float)
+        q = Rotation.from_matrix(mat[:3, :3]).as_quat()
+        tr = ts.types["geometry_msgs/msg/Transform"](translation=vector3(ts, mat[:3, 3]), rotation=quaternion(ts, q))
+        out.append(ts.types["geometry_msgs/msg/TransformStamped"](
+            header=header(ts, t, parent, ros1), child_frame_id=child, transform=tr))
+    return ts.types["tf2_msgs/msg/TFMessage"](transforms=out)
+
+
+def string(ts, text):
+    return ts.types["std_msgs/msg/String"](data=text)
