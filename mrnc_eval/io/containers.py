@@ -1,0 +1,81 @@
+"""Which container a path is, and opening it with the right library.
+
+An explicit registry keyed by what the path looks like:
+  *.bag (one or several split files)      -> ROS 1 (rosbags)
+  directory with metadata.yaml           -> ROS 2 bag (sqlite3 or MCAP storage)
+  *.db3                                   -> ROS 2 sqlite3 single file
+  *.mcap with ROS 2 profile/encodings     -> ROS 2 MCAP single file (rosbags)
+  *.mcap otherwise                        -> plain MCAP: only channels rosbags can decode;
+                                             others are reported with their encoding
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mrnc_eval.errors import InputError
+
+SUPPORTED = "a ROS 1 .bag, a ROS 2 bag directory (metadata.yaml), a .db3 or an .mcap file"
+
+
+def detect_container(paths: list[Path]) -> str:
+    first = paths[0]
+    for p in paths:
+        if not p.exists():
+            raise InputError(p, "no such file or directory")
+    if first.is_dir():
+        meta = first / "metadata.yaml"
+        if not meta.exists():
+            raise InputError(first, f"directory is not a ROS 2 bag (no metadata.yaml); expected {SUPPORTED}")
+        text = meta.read_text(encoding="utf-8", errors="replace")
+        return "ros2-mcap" if "storage_identifier: mcap" in text else "ros2-sqlite3"
+    suffix = first.suffix.lower()
+    if suffix == ".bag":
+        if any(p.suffix.lower() != ".bag" for p in paths):
+            raise InputError(first, "split logs must all be ROS 1 .bag files")
+        return "ros1"
+    if len(paths) > 1:
+        raise InputError(first, "only ROS 1 bags can be given as several split files")
+    if suffix == ".db3":
+        return "ros2-sqlite3"
+    if suffix == ".mcap":
+        return "ros2-mcap" if _mcap_is_ros2(first) else "mcap"
+    raise InputError(first, f"unrecognised log format; expected {SUPPORTED}")
+
+
+def _mcap_is_ros2(path: Path) -> bool:
+    from mcap.exceptions import McapError
+    from mcap.reader import make_reader
+
+    try:
+        with path.open("rb") as fh:
+            reader = make_reader(fh)
+            header = reader.get_header()
+            if header.profile == "ros2":
+                return True
+            summary = reader.get_summary()
+    except (McapError, ValueError, OSError, EOFError) as err:
+        raise InputError(path, f"not a readable MCAP file: {err}") from err
+    if summary is None:
+        return False
+    schemas = summary.schemas
+    return bool(summary.channels) and all(
+        ch.message_encoding == "cdr" and schemas.get(ch.schema_id) is not None
+        and schemas[ch.schema_id].encoding in ("ros2msg", "ros2idl")
+        for ch in summary.channels.values()
+    )
+
+
+def plain_mcap_channels(path: Path) -> list[tuple[str, str, str]]:
+    """(topic, schema name, message encoding) of each channel of a non-ROS-2 MCAP."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    if summary is None:
+        raise InputError(path, "MCAP file has no summary section (truncated?)")
+    out = []
+    for ch in summary.channels.values():
+        schema = summary.schemas.get(ch.schema_id)
+        out.append((ch.topic, schema.name if schema else "", ch.message_encoding))
+    return out

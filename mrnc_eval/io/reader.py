@@ -1,0 +1,440 @@
+"""LogReader: typed, header-stamped time series out of ROS 1 / ROS 2 logs.
+
+Every library exception is turned into an InputError naming file, topic and problem at
+this boundary. Streams are sorted by header stamp; duplicate and out-of-order stamps are
+counted (StreamHealth), never silently passed on. Sweeps are streamed one at a time.
+"""
+
+from __future__ import annotations
+
+import struct
+from collections.abc import Iterator
+from dataclasses import dataclass
+from pathlib import Path
+
+import numpy as np
+
+from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, StreamHealth, Sweep, Trajectory, Twists, Waypoints
+from mrnc_eval.errors import InputError
+from mrnc_eval.io import geodesy
+from mrnc_eval.io.config import IoConfig
+from mrnc_eval.io.containers import detect_container, plain_mcap_channels
+from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
+from mrnc_eval.io.roles import detect_roles
+
+_STAMPED_FIRST_FIELD = {  # message types whose first field is std_msgs/Header
+    "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Imu", "sensor_msgs/msg/NavSatFix", "sensor_msgs/msg/JointState",
+    "nav_msgs/msg/Odometry", "nav_msgs/msg/Path", "geometry_msgs/msg/PoseStamped",
+    "geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs/msg/TwistStamped",
+    "geometry_msgs/msg/TransformStamped",
+}
+
+
+@dataclass(frozen=True)
+class TopicInfo:
+    topic: str
+    msgtype: str
+    count: int
+    role: str | None
+    rate_hz: float
+    max_gap_s: float
+    first_s: float | None
+    last_s: float | None
+    duplicates: int
+    out_of_order: int
+
+
+def _stamp(msg) -> float:
+    st = msg.header.stamp
+    return float(st.sec) + float(st.nanosec) * 1e-9
+
+
+def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
+    from scipy.spatial.transform import Rotation
+
+    return Rotation.from_quat(q).as_matrix()
+
+
+def _sort_dedup(stamps: np.ndarray, topic: str) -> tuple[np.ndarray, StreamHealth]:
+    """Indices that sort by stamp and drop exact duplicates; the health of the raw stream."""
+    n = stamps.size
+    out_of_order = int(np.count_nonzero(np.diff(stamps) < 0)) if n > 1 else 0
+    order = np.argsort(stamps, kind="stable")
+    s = stamps[order]
+    keep = np.ones(n, dtype=bool)
+    if n > 1:
+        keep[1:] = np.diff(s) > 0
+    dup = int(n - keep.sum())
+    gaps = np.diff(s[keep])
+    health = StreamHealth(topic=topic, count=n, duplicates=dup, out_of_order=out_of_order,
+                          max_gap_s=float(gaps.max()) if gaps.size else 0.0)
+    return order[keep], health
+
+
+class LogReader:
+    """An open log. Use `open_log(path)`; close it (or use `with`)."""
+
+    def __init__(self, paths: list[Path], io_cfg: IoConfig | None = None) -> None:
+        self.paths = paths
+        self.path = paths[0]
+        self.cfg = io_cfg or IoConfig()
+        self.container = detect_container(paths)
+        if self.container == "mcap":
+            for topic, schema, encoding in plain_mcap_channels(self.path):
+                raise InputError(self.path, f"message encoding {encoding!r} (schema {schema!r}) is not supported; "
+                                 "only ROS 1 and ROS 2 (CDR) messages can be decoded", topic=topic)
+            raise InputError(self.path, "MCAP file has no channels")
+        from rosbags.highlevel import AnyReader
+
+        try:
+            self._reader = AnyReader(paths)
+            self._reader.open()
+        except Exception as err:  # rosbags raises several unrelated types for broken files
+            raise InputError(self.path, f"cannot open {self.container} log: {err}") from err
+        self._ros1 = self.container == "ros1"
+        self._conns = {}
+        for c in self._reader.connections:
+            self._conns.setdefault(c.topic, []).append(c)
+        if not self._conns:
+            raise InputError(self.path, "log has no topics (empty bag)")
+        self._stats: dict[str, TopicInfo] | None = None
+        self._health: dict[str, StreamHealth] = {}
+        self._roles: dict[str, str] | None = None
+
+    # ------------------------------------------------------------------ lifecycle
+    def close(self) -> None:
+        try:
+            self._reader.close()
+        except Exception:  # noqa: BLE001 - closing a broken file must not hide the real error
+            pass
+
+    def __enter__(self) -> LogReader:
+        return self
+
+    def __exit__(self, *exc) -> None:
+        self.close()
+
+    # ------------------------------------------------------------------ raw access
+    def _msgtype(self, topic: str) -> str:
+        conns = self._conns.get(topic)
+        if not conns:
+            raise InputError(self.path, "topic not in log", topic=topic)
+        return conns[0].msgtype
+
+    def _raw(self, topic: str) -> Iterator[tuple[int, bytes]]:
+        conns = self._conns.get(topic)
+        if not conns:
+            raise InputError(self.path, f"topic not in log (topics: {', '.join(sorted(self._conns))})", topic=topic)
+        try:
+            for _conn, t_rec, raw in self._reader.messages(connections=conns):
+                yield t_rec, raw
+        except InputError:
+            raise
+        except Exception as err:
+            raise InputError(self.path, f"corrupted or truncated data: {err}", topic=topic) from err
+
+    def _messages(self, topic: str) -> Iterator[object]:
+        msgtype = self._msgtype(topic)
+        for _t, raw in self._raw(topic):
+            try:
+                yield self._reader.deserialize(raw, msgtype)
+            except Exception as err:
+                raise InputError(self.path, f"cannot decode {msgtype} message: {err}", topic=topic) from err
+
+    def _raw_header_stamp(self, raw: bytes) -> float:
+        # CDR: 4-byte encapsulation, then sec i32, nanosec u32. ROS 1: seq u32, sec u32, nsec u32.
+        sec, nsec = struct.unpack_from("<iI" if not self._ros1 else "<II", raw, 4)
+        return sec + nsec * 1e-9
+
+    # ------------------------------------------------------------------ overview
+    @property
+    def topics(self) -> list[TopicInfo]:
+        if self._stats is None:
+            self._scan()
+        return list(self._stats.values())  # type: ignore[union-attr]
+
+    def _scan(self) -> None:
+        stats: dict[str, TopicInfo] = {}
+        joint_names: dict[str, list[str]] = {}
+        for topic, conns in self._conns.items():
+            msgtype = conns[0].msgtype
+            count = sum(c.msgcount for c in conns)
+            stamps = []
+            if msgtype in _STAMPED_FIRST_FIELD:
+                for t_rec, raw in self._raw(topic):
+                    try:
+                        stamps.append(self._raw_header_stamp(raw))
+                    except struct.error as err:
+                        raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
+            else:
+                stamps = [t_rec * 1e-9 for t_rec, _ in self._raw(topic)]
+            if msgtype == "sensor_msgs/msg/JointState" and count:
+                first = next(self._messages(topic))
+                joint_names[topic] = list(first.name)
+            arr = np.asarray(stamps, dtype=float)
+            _, health = _sort_dedup(arr, topic)
+            self._health[topic] = health
+            span = float(arr.max() - arr.min()) if arr.size > 1 else 0.0
+            stats[topic] = TopicInfo(
+                topic=topic, msgtype=msgtype, count=len(stamps), role=None,
+                rate_hz=(arr.size - 1) / span if span > 0 else 0.0, max_gap_s=health.max_gap_s,
+                first_s=float(arr.min()) if arr.size else None, last_s=float(arr.max()) if arr.size else None,
+                duplicates=health.duplicates, out_of_order=health.out_of_order,
+            )
+        roles = detect_roles([(s.topic, s.msgtype, s.count) for s in stats.values()], joint_names, self.cfg.roles)
+        for role, topic in roles.items():
+            if topic not in stats:
+                raise InputError(self.path, f"topic given for role {role!r} is not in the log", topic=topic)
+        by_topic = {}
+        for role, topic in roles.items():
+            by_topic.setdefault(topic, role)
+        self._stats = {t: TopicInfo(**{**s.__dict__, "role": by_topic.get(t)}) for t, s in stats.items()}
+        self._roles = roles
+
+    @property
+    def roles(self) -> dict[str, str]:
+        if self._roles is None:
+            self._scan()
+        return dict(self._roles)  # type: ignore[arg-type]
+
+    def _topic_for(self, role: str, topic: str | None) -> str:
+        if topic is not None:
+            if topic not in self._conns:
+                raise InputError(self.path, "requested topic is absent", topic=topic)
+            return topic
+        found = self.roles.get(role)
+        if found is None:
+            raise InputError(self.path, f"no topic with role {role!r} (set io.roles.{role} to choose one)")
+        return found
+
+    @property
+    def start_s(self) -> float:
+        firsts = [s.first_s for s in self.topics if s.first_s is not None and s.role not in ("tf_static", "path")]
+        return min(firsts) if firsts else 0.0
+
+    @property
+    def end_s(self) -> float:
+        lasts = [s.last_s for s in self.topics if s.last_s is not None and s.role not in ("tf_static", "path")]
+        return max(lasts) if lasts else 0.0
+
+    @property
+    def duration_s(self) -> float:
+        return self.end_s - self.start_s
+
+    def health(self, topic: str) -> StreamHealth:
+        if topic not in self._health:
+            self.topics  # noqa: B018 - fills the health table
+        if topic not in self._health:
+            raise InputError(self.path, "topic not in log", topic=topic)
+        return self._health[topic]
+
+    def has_role(self, role: str) -> bool:
+        return role in self.roles
+
+    # ------------------------------------------------------------------ typed series
+    def imu(self, topic: str | None = None) -> ImuSeries:
+        topic = self._topic_for("imu", topic)
+        t, acc, gyro, quat, frame = [], [], [], [], ""
+        has_orientation = True
+        for m in self._messages(topic):
+            t.append(_stamp(m))
+            a, g, q = m.linear_acceleration, m.angular_velocity, m.orientation
+            acc.append((a.x, a.y, a.z))
+            gyro.append((g.x, g.y, g.z))
+            quat.append((q.x, q.y, q.z, q.w))
+            frame = m.header.frame_id
+            if m.orientation_covariance[0] < 0 or (q.x == q.y == q.z == q.w == 0.0):
+                has_orientation = False
+        if not t:
+            raise InputError(self.path, "IMU topic has no messages", topic=topic)
+        keep, health = _sort_dedup(np.asarray(t), topic)
+        self._health[topic] = health
+        acc_a = np.asarray(acc, float)[keep]
+        gyro_a = np.asarray(gyro, float)[keep]
+        if not (np.isfinite(acc_a).all() and np.isfinite(gyro_a).all()):
+            raise InputError(self.path, "IMU has non-finite values", topic=topic)
+        return ImuSeries(np.asarray(t)[keep], acc_a, gyro_a,
+                         np.asarray(quat, float)[keep] if has_orientation else None, frame)
+
+    def sweeps(self, topic: str | None = None) -> Iterator[Sweep]:
+        topic = self._topic_for("lidar", topic)
+        msgtype = self._msgtype(topic)
+        if msgtype != "sensor_msgs/msg/PointCloud2":
+            raise InputError(self.path, f"expected sensor_msgs/msg/PointCloud2, got {msgtype}", topic=topic)
+        for m in self._messages(topic):
+            try:
+                yield decode_cloud(m, _stamp(m))
+            except CloudFormatError as err:
+                raise InputError(self.path, str(err), topic=topic) from err
+
+    def sweep_stamps(self, topic: str | None = None) -> np.ndarray:
+        topic = self._topic_for("lidar", topic)
+        return np.asarray([self._raw_header_stamp(raw) for _, raw in self._raw(topic)])
+
+    def gnss(self, topic: str | None = None) -> GnssSeries:
+        topic = self._topic_for("gnss", topic)
+        t, lla, cov, no_fix, frame = [], [], [], 0, ""
+        for m in self._messages(topic):
+            if m.status.status < 0 or not np.isfinite([m.latitude, m.longitude, m.altitude]).all():
+                no_fix += 1
+                continue
+            t.append(_stamp(m))
+            lla.append((m.latitude, m.longitude, m.altitude))
+            cov.append(np.asarray(m.position_covariance, float).reshape(3, 3))
+            frame = m.header.frame_id
+        if not t:
+            raise InputError(self.path, f"no valid GNSS fix ({no_fix} without fix)", topic=topic)
+        keep, health = _sort_dedup(np.asarray(t), topic)
+        self._health[topic] = health
+        lla_a = np.asarray(lla)[keep]
+        origin = np.asarray(self.cfg.gnss_origin_lla if self.cfg.gnss_origin_lla is not None else lla_a[0], float)
+        return GnssSeries(np.asarray(t)[keep], lla_a, geodesy.lla_to_enu(lla_a, origin), np.asarray(cov)[keep],
+                          origin, n_no_fix=no_fix, frame_id=frame)
+
+    def _joint_pair(self, role: str, topic: str | None, scale: float, unit: str,
+                    exclude: str | None) -> SidePair:
+        topic = self._topic_for(role, topic)
+        t, left, right = [], [], []
+        for m in self._messages(topic):
+            names = [n.lower() for n in m.name]
+            idx_l = next((i for i, n in enumerate(names) if "left" in n and (exclude is None or exclude not in n)), None)
+            idx_r = next((i for i, n in enumerate(names) if "right" in n and (exclude is None or exclude not in n)), None)
+            if idx_l is None or idx_r is None or len(m.velocity) <= max(idx_l, idx_r):
+                raise InputError(self.path, f"JointState needs left/right joints with velocities, got {list(m.name)}",
+                                 topic=topic)
+            t.append(_stamp(m))
+            left.append(m.velocity[idx_l])
+            right.append(m.velocity[idx_r])
+        if not t:
+            raise InputError(self.path, "topic has no messages", topic=topic)
+        keep, health = _sort_dedup(np.asarray(t), topic)
+        self._health[topic] = health
+        return SidePair(np.asarray(t)[keep], np.asarray(left)[keep] * scale, np.asarray(right)[keep] * scale, unit)
+
+    def wheel_speeds(self, topic: str | None = None, wheel_radius_m: float = 0.35) -> SidePair:
+        """Wheel surface speeds (m/s) from JointState angular velocities (rad/s)."""
+        return self._joint_pair("wheel_speeds", topic, wheel_radius_m, "m/s", exclude="pump")
+
+    def commands(self, topic: str | None = None) -> SidePair:
+        """Per-side pump commands (RPM) from JointState velocities."""
+        return self._joint_pair("commands", topic, 1.0, "RPM", exclude=None)
+
+    def cmd_vel(self, topic: str | None = None) -> Twists:
+        topic = self._topic_for("cmd_vel", topic)
+        t, v, w = [], [], []
+        for m in self._messages(topic):
+            tw = m.twist if hasattr(m, "twist") else m
+            t.append(_stamp(m) if hasattr(m, "header") else 0.0)
+            v.append(tw.linear.x)
+            w.append(tw.angular.z)
+        keep, _ = _sort_dedup(np.asarray(t), topic)
+        return Twists(np.asarray(t)[keep], np.asarray(v)[keep], np.asarray(w)[keep])
+
+    def waypoints(self, topic: str | None = None) -> Waypoints:
+        topic = self._topic_for("path", topic)
+        last = None
+        for m in self._messages(topic):
+            last = m
+        if last is None or not len(last.poses):
+            raise InputError(self.path, "path topic has no poses", topic=topic)
+        xy = np.asarray([(p.pose.position.x, p.pose.position.y) for p in last.poses], float)
+        return Waypoints(xy, _stamp(last), last.header.frame_id)
+
+    def trajectory(self, topic: str) -> Trajectory:
+        """Poses of a PoseStamped / PoseWithCovarianceStamped / Odometry / TransformStamped topic,
+        or of a TF child frame given as "/tf:parent.child"."""
+        if topic.startswith("/tf:") or topic.startswith("/tf_static:"):
+            return self._tf_trajectory(topic)
+        msgtype = self._msgtype(topic)
+        t, p, q, frame, child = [], [], [], "", ""
+        for m in self._messages(topic):
+            if msgtype == "nav_msgs/msg/Odometry":
+                pose, child = m.pose.pose, m.child_frame_id
+            elif msgtype == "geometry_msgs/msg/PoseWithCovarianceStamped":
+                pose = m.pose.pose
+            elif msgtype == "geometry_msgs/msg/PoseStamped":
+                pose = m.pose
+            elif msgtype == "geometry_msgs/msg/TransformStamped":
+                tr = m.transform
+                pose = type("P", (), {"position": tr.translation, "orientation": tr.rotation})
+                child = m.child_frame_id
+            else:
+                raise InputError(self.path, f"{msgtype} is not a pose type (PoseStamped, Odometry, ...)", topic=topic)
+            t.append(_stamp(m))
+            p.append((pose.position.x, pose.position.y, pose.position.z))
+            o = pose.orientation
+            q.append((o.x, o.y, o.z, o.w))
+            frame = m.header.frame_id
+        if not t:
+            raise InputError(self.path, "pose topic has no messages", topic=topic)
+        keep, health = _sort_dedup(np.asarray(t), topic)
+        self._health[topic] = health
+        return Trajectory(np.asarray(t)[keep], np.asarray(p, float)[keep], np.asarray(q, float)[keep],
+                          name=topic, frame_id=frame, child_frame_id=child)
+
+    def _tf_trajectory(self, spec: str) -> Trajectory:
+        tf_topic, _, frames = spec.partition(":")
+        parent, _, child = frames.partition(".")
+        if not parent or not child:
+            raise InputError(self.path, f"TF spec {spec!r} must be /tf:parent.child")
+        t, p, q = [], [], []
+        for m in self._messages(tf_topic):
+            for tr in m.transforms:
+                if tr.header.frame_id.lstrip("/") == parent and tr.child_frame_id.lstrip("/") == child:
+                    t.append(_stamp(tr))
+                    v, r = tr.transform.translation, tr.transform.rotation
+                    p.append((v.x, v.y, v.z))
+                    q.append((r.x, r.y, r.z, r.w))
+        if not t:
+            raise InputError(self.path, f"no transform {parent} -> {child}", topic=tf_topic)
+        keep, _ = _sort_dedup(np.asarray(t), tf_topic)
+        return Trajectory(np.asarray(t)[keep], np.asarray(p)[keep], np.asarray(q)[keep], name=spec,
+                          frame_id=parent, child_frame_id=child)
+
+    def ground_truth(self, topic: str | None = None) -> Trajectory:
+        return self.trajectory(self._topic_for("ground_truth", topic))
+
+    def wheel_odometry(self, topic: str | None = None) -> Trajectory:
+        return self.trajectory(self._topic_for("wheel_odom", topic))
+
+    def static_transforms(self) -> dict[tuple[str, str], np.ndarray]:
+        topic = self.roles.get("tf_static")
+        out: dict[tuple[str, str], np.ndarray] = {}
+        if topic is None:
+            return out
+        for m in self._messages(topic):
+            for tr in m.transforms:
+                v, r = tr.transform.translation, tr.transform.rotation
+                mat = np.eye(4)
+                mat[:3, :3] = _quat_to_matrix(np.array([r.x, r.y, r.z, r.w]))
+                mat[:3, 3] = (v.x, v.y, v.z)
+                out[(tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/"))] = mat
+        return out
+
+    def transform(self, parent: str, child: str) -> np.ndarray:
+        """Pose of `child` in `parent` (4x4), composed along the static TF tree."""
+        edges: dict[str, list[tuple[str, np.ndarray]]] = {}
+        for (a, b), mat in self.static_transforms().items():
+            edges.setdefault(a, []).append((b, mat))
+            edges.setdefault(b, []).append((a, np.linalg.inv(mat)))
+        frontier, seen = [(parent, np.eye(4))], {parent}
+        while frontier:
+            frame, acc = frontier.pop()
+            if frame == child:
+                return acc
+            for nxt, mat in edges.get(frame, []):
+                if nxt not in seen:
+                    seen.add(nxt)
+                    frontier.append((nxt, acc @ mat))
+        raise InputError(self.path, f"no static transform from {parent!r} to {child!r}", topic="/tf_static")
+
+    def strings(self, topic: str) -> list[str]:
+        return [m.data for m in self._messages(topic)]
+
+
+def open_log(path: str | Path | list[str | Path], io_cfg: IoConfig | None = None) -> LogReader:
+    """Open a log (or several split ROS 1 bags); raises InputError on anything unreadable."""
+    paths = [Path(p) for p in path] if isinstance(path, (list, tuple)) else [Path(path)]
+    if not paths:
+        raise InputError("<none>", "no log given")
+    return LogReader(paths, io_cfg)

@@ -1,0 +1,133 @@
+"""`mrnc-eval info`: what is in a log, and is it fit for SLAM and control replay."""
+
+from __future__ import annotations
+
+import logging
+from dataclasses import asdict, dataclass, field
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+
+from mrnc_eval.config import Config
+from mrnc_eval.io import open_log
+
+log = logging.getLogger(__name__)
+
+EXPECTED_LIDAR_FIELDS = ("x", "y", "z", "t", "ring", "range", "reflectivity")
+
+
+@dataclass
+class Finding:
+    level: str  # "ok" | "warning" | "error"
+    topic: str
+    message: str
+
+
+@dataclass
+class InfoSummary:
+    path: str
+    container: str
+    start_s: float
+    end_s: float
+    duration_s: float
+    topics: list[dict[str, Any]]
+    roles: dict[str, str]
+    findings: list[Finding] = field(default_factory=list)
+    lidar: dict[str, Any] = field(default_factory=dict)
+
+    def to_json(self) -> dict[str, Any]:
+        return asdict(self)
+
+
+def run(path: Path, cfg: Config) -> InfoSummary:
+    with open_log(path, cfg.io) as lg:
+        topics = lg.topics
+        summary = InfoSummary(
+            path=str(path), container=lg.container, start_s=lg.start_s, end_s=lg.end_s, duration_s=lg.duration_s,
+            topics=[{"topic": t.topic, "msgtype": t.msgtype, "count": t.count, "role": t.role,
+                     "rate_hz": round(t.rate_hz, 3), "max_gap_s": round(t.max_gap_s, 6),
+                     "duplicates": t.duplicates, "out_of_order": t.out_of_order} for t in topics],
+            roles=lg.roles,
+        )
+        summary.findings.extend(_stream_findings(topics))
+        _lidar_findings(lg, summary)
+        _gnss_findings(lg, summary)
+    return summary
+
+
+def _stream_findings(topics) -> list[Finding]:
+    out = []
+    for t in topics:
+        if t.duplicates:
+            out.append(Finding("warning", t.topic, f"{t.duplicates} duplicate header stamps (dropped when read)"))
+        if t.out_of_order:
+            out.append(Finding("warning", t.topic, f"{t.out_of_order} out-of-order header stamps (sorted when read)"))
+        if t.role == "imu":
+            level = "ok" if t.rate_hz >= 90 else "warning"
+            out.append(Finding(level, t.topic, f"IMU rate {t.rate_hz:.1f} Hz, largest gap {t.max_gap_s * 1e3:.1f} ms"))
+            if t.rate_hz > 0 and t.max_gap_s > 5.0 / t.rate_hz:
+                out.append(Finding("warning", t.topic, f"IMU gap of {t.max_gap_s:.3f} s (> 5 samples)"))
+    return out
+
+
+def _lidar_findings(lg, summary: InfoSummary) -> None:
+    topic = summary.roles.get("lidar")
+    if topic is None:
+        summary.findings.append(Finding("warning", "", "no LiDAR topic (sensor_msgs/PointCloud2)"))
+        return
+    first = next(lg._messages(topic))  # one cloud is enough for the layout
+    fields = [f.name for f in first.fields]
+    has_time = any(f in fields for f in ("t", "time", "timestamp"))
+    summary.lidar = {"topic": topic, "fields": fields, "height": int(first.height), "width": int(first.width),
+                     "per_point_time": has_time, "sweeps": next(t["count"] for t in summary.topics if t["topic"] == topic)}
+    missing = [f for f in ("x", "y", "z") if f not in fields]
+    if missing:
+        summary.findings.append(Finding("error", topic, f"PointCloud2 without {'/'.join(missing)}"))
+    summary.findings.append(Finding("ok" if has_time else "warning", topic,
+                                    "per-point time present" if has_time else
+                                    "no per-point time field: sweeps cannot be deskewed"))
+    summary.findings.append(Finding("ok", topic, f"{summary.lidar['sweeps']} sweeps of {first.height} x {first.width}"
+                                    f", fields {', '.join(fields)}"))
+    imu_topic = summary.roles.get("imu")
+    if imu_topic is None:
+        summary.findings.append(Finding("warning", topic, "no IMU: deskew and preintegration unavailable"))
+        return
+    sweep_t = np.sort(lg.sweep_stamps(topic))
+    imu_t = np.sort(np.asarray([lg._raw_header_stamp(raw) for _, raw in lg._raw(imu_topic)]))
+    period = float(np.median(np.diff(sweep_t))) if sweep_t.size > 1 else 0.1
+    lo = np.searchsorted(imu_t, sweep_t, side="right") > 0  # an IMU sample at or before the sweep start
+    hi = np.searchsorted(imu_t, sweep_t + period, side="left") < imu_t.size  # one at or after its end
+    covered = int(np.count_nonzero(lo & hi))
+    level = "ok" if covered == sweep_t.size else "warning"
+    summary.findings.append(Finding(level, topic, f"IMU covers {covered} of {sweep_t.size} sweeps "
+                                    f"(sweep period {period * 1e3:.0f} ms)"))
+
+
+def _gnss_findings(lg, summary: InfoSummary) -> None:
+    topic = summary.roles.get("gnss")
+    if topic is None:
+        return
+    statuses = np.asarray([m.status.status for m in lg._messages(topic)])
+    fix = int(np.count_nonzero(statuses >= 0))
+    ratio = fix / statuses.size if statuses.size else 0.0
+    summary.findings.append(Finding("ok" if ratio > 0.9 else "warning", topic,
+                                    f"GNSS fix ratio {ratio:.1%} ({statuses.size - fix} without fix)"))
+
+
+def print_summary(summary: InfoSummary) -> None:
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table
+
+    console = Console()
+    console.print(f"[bold]{escape(summary.path)}[/bold]  container {summary.container}, "
+                  f"duration {summary.duration_s:.3f} s ({summary.start_s:.3f} .. {summary.end_s:.3f})")
+    table = Table("topic", "type", "count", "rate Hz", "max gap s", "role")
+    for t in summary.topics:
+        table.add_row(escape(t["topic"]), escape(t["msgtype"]), str(t["count"]), f"{t['rate_hz']:.2f}",
+                      f"{t['max_gap_s']:.3f}", t["role"] or "")
+    console.print(table)
+    colours = {"ok": "green", "warning": "yellow", "error": "red"}
+    for f in summary.findings:
+        console.print(f"[{colours[f.level]}]{f.level:7}[/] {escape(f.topic)} {escape(f.message)}")
