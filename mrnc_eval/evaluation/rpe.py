@@ -1,0 +1,71 @@
+"""Relative pose error: E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j) over index pairs."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+from typing import Literal
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrnc_eval.data import Trajectory
+from mrnc_eval.errors import EvaluationError
+from mrnc_eval.evaluation import lie
+from mrnc_eval.evaluation.ape import aligned_poses, matched_pair
+from mrnc_eval.evaluation.pairs import pairs_by_distance, pairs_by_frames
+from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
+from mrnc_eval.evaluation.stats import error_stats
+
+
+@dataclass(frozen=True)
+class RpeResult:
+    name: str
+    relation: str
+    unit: str
+    delta: float
+    delta_unit: str
+    pairs_from: str
+    stats: dict[str, float]
+    n: int  # pairs
+    span_s: float
+    errors: NDArray[np.float64]
+    stamps: NDArray[np.float64]  # estimate stamps at the pair ends j
+
+    def summary(self) -> dict[str, float | int | str]:
+        return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s}
+
+
+def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: Literal["frames", "m"] = "frames",
+        all_pairs: bool = False, align: str = "none", n_to_align: int | None = None, relation: str = "trans",
+        max_diff: float = 0.01, offset: float = 0.0, plane: str | None = None,
+        pairs_from: Literal["estimate", "reference"] = "estimate", tol: float = 0.1,
+        by_index: bool = False) -> RpeResult:
+    check_relation(relation)
+    ref_m, est_m = matched_pair(ref, est, max_diff=max_diff, offset=offset, by_index=by_index)
+    q, p, _ = aligned_poses(ref_m, est_m, align, n_to_align, plane)
+    source = q if pairs_from == "reference" else p
+    if delta_unit == "frames":
+        if float(delta) != int(delta):
+            raise EvaluationError(f"delta in frames must be a whole number, got {delta}")
+        i, j = pairs_by_frames(len(p), int(delta), all_pairs)
+    elif delta_unit == "m":
+        i, j = pairs_by_distance(source[:, :3, 3], float(delta), all_pairs, tol)
+    else:
+        raise EvaluationError(f"delta unit must be frames or m, got {delta_unit!r}")
+    if i.size == 0:
+        raise EvaluationError(f"no pose pairs for delta {delta} {delta_unit} (trajectory too short)")
+    if relation == "point":
+        errors = np.abs(np.linalg.norm(q[j, :3, 3] - q[i, :3, 3], axis=1) - np.linalg.norm(p[j, :3, 3] - p[i, :3, 3], axis=1))
+    elif relation == "trans":
+        rel_p = np.einsum("nji,nj->ni", p[i, :3, :3], p[j, :3, 3] - p[i, :3, 3])
+        rel_q = np.einsum("nji,nj->ni", q[i, :3, :3], q[j, :3, 3] - q[i, :3, 3])
+        errors = np.linalg.norm(rel_p - rel_q, axis=1)
+    else:
+        dq = lie.compose(lie.inverse(q[i]), q[j])
+        dp = lie.compose(lie.inverse(p[i]), p[j])
+        errors = error_values(lie.compose(lie.inverse(dq), dp), relation)
+    return RpeResult(
+        name=est.name, relation=relation, unit=UNITS[relation], delta=float(delta), delta_unit=delta_unit,
+        pairs_from=pairs_from, stats=error_stats(errors), n=int(errors.size),
+        span_s=float(est_m.stamps[-1] - est_m.stamps[0]), errors=errors, stamps=est_m.stamps[j],
+    )
