@@ -1,0 +1,58 @@
+"""Table I layout: sequences as rows, methods as columns, APE RMSE per cell.
+
+A cell is Failed when the method produced no trajectory, too few matched poses, or a
+matched span shorter than a fraction of the reference (a method that tracked half the
+sequence must not look good). The mean row is over non-failed cells, with the count noted.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mrnc_eval.results import Table
+
+FAILED = "Failed"
+
+
+@dataclass(frozen=True)
+class Cell:
+    value: float | None  # APE RMSE (m); None when failed
+    reason: str = ""  # why it failed
+
+    @property
+    def failed(self) -> bool:
+        return self.value is None
+
+
+def judge(rmse: float, n: int, span_s: float, ref_span_s: float, *, min_matches: int,
+          min_span_fraction: float) -> Cell:
+    if n < min_matches:
+        return Cell(None, f"{n} matched poses < {min_matches}")
+    if ref_span_s > 0 and span_s < min_span_fraction * ref_span_s:
+        return Cell(None, f"covers {span_s:.1f} s of {ref_span_s:.1f} s")
+    return Cell(float(rmse))
+
+
+def table_one(cells: dict[tuple[str, str], Cell], sequences: list[str], methods: list[str], *,
+              title: str = "Absolute pose error (APE RMSE)", precision: int = 6) -> Table:
+    grid: list[list[float | str | None]] = []
+    notes: list[str] = []
+    for seq in sequences:
+        row: list[float | str | None] = []
+        for m in methods:
+            cell = cells.get((seq, m), Cell(None, "no trajectory"))
+            row.append(FAILED if cell.failed else cell.value)
+            if cell.failed and cell.reason:
+                notes.append(f"{seq} / {m}: Failed ({cell.reason})")
+        grid.append(row)
+    means: list[float | str | None] = []
+    counts = []
+    for k, m in enumerate(methods):
+        vals = [r[k] for r in grid if isinstance(r[k], float)]
+        means.append(float(np.mean(vals)) if vals else FAILED)
+        counts.append(f"{m} {len(vals)}/{len(sequences)}")
+    notes.insert(0, "Mean over non-failed sequences: " + ", ".join(counts))
+    return Table(title=title, row_labels=list(sequences) + ["Mean"], column_labels=list(methods),
+                 cells=grid + [means], unit="m", best="min", best_per="row", precision=precision, notes=notes)

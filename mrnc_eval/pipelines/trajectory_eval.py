@@ -1,0 +1,164 @@
+"""CLI glue of `ape`, `rpe` and `table`: read trajectories, evaluate, print, write."""
+
+from __future__ import annotations
+
+import logging
+import sys
+from pathlib import Path
+from typing import Any
+
+import yaml
+
+from mrnc_eval.errors import EvaluationError, InputError, UsageError
+from mrnc_eval.evaluation.ape import ApeResult, ape
+from mrnc_eval.evaluation.comparison import Cell, judge, table_one
+from mrnc_eval.evaluation.config import EvaluationConfig
+from mrnc_eval.evaluation.relations import TITLES
+from mrnc_eval.evaluation.rpe import RpeResult, rpe
+from mrnc_eval.io.trajectory_files import read_trajectory
+from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
+from mrnc_eval.results import Table, atomic_write_text
+
+log = logging.getLogger(__name__)
+STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
+
+
+def _is_kitti(spec: str) -> bool:
+    p = Path(spec)
+    if not p.is_file() or p.suffix.lower() in (".csv", ".tum"):
+        return False
+    with p.open(encoding="utf-8-sig", errors="replace") as fh:
+        first = next((ln for ln in fh if ln.strip() and not ln.startswith("#")), "")
+    return len(first.split()) == 12
+
+
+def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
+    return Table(title=title, row_labels=[r.name for r in results], column_labels=[*STAT_ORDER, "n", "span_s"],
+                 cells=[[r.stats[k] for k in STAT_ORDER] + [r.n, round(r.span_s, 3)] for r in results],
+                 unit=results[0].unit, best=None, precision=6)
+
+
+def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None) -> None:
+    from mrnc_eval.cli import emit_json
+
+    if json_out:
+        emit_json([r.summary() for r in results])
+    else:
+        sys.stdout.write(render_table(_results_table(results, title), "markdown"))
+    if table is not None:
+        fmt = SUFFIX_FORMAT.get(table.suffix.lower())
+        if fmt is None:
+            raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
+        atomic_write_text(table, render_table(_results_table(results, title), fmt))
+    if plot is not None:
+        _plot_errors(results, title, plot)
+
+
+def _plot_errors(results, title: str, path: Path) -> None:
+    from matplotlib.figure import Figure
+
+    fig = Figure(figsize=(8, 3.5), layout="constrained")
+    ax = fig.add_subplot()
+    for r in results:
+        step = max(1, r.errors.size // 20000)  # decimate for the plot; statistics use all poses
+        ax.plot(r.stamps[::step] - r.stamps[0], r.errors[::step], lw=0.8, label=r.name)
+    ax.set_xlabel("time since first match (s)")
+    ax.set_ylabel(f"error ({results[0].unit})" if results[0].unit else "error")
+    ax.set_title(title)
+    ax.legend(loc="upper left", fontsize="small")
+    path.parent.mkdir(parents=True, exist_ok=True)
+    fig.savefig(path)
+
+
+def ape_main(ref: str, est: list[str], *, align: str, n_to_align: int | None, relation: str, max_diff: float,
+             offset: float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None) -> None:
+    reference = read_trajectory(ref)
+    by_index = _is_kitti(ref)
+    results = [ape(reference, read_trajectory(e), align=align, n_to_align=n_to_align, relation=relation,
+                   max_diff=max_diff, offset=offset, plane=plane, by_index=by_index and _is_kitti(e)) for e in est]
+    _emit(results, f"APE w.r.t. {TITLES[relation]} ({align} alignment)", json_out, table, plot)
+
+
+def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: str, all_pairs: bool, align: str,
+             n_to_align: int | None, relation: str, max_diff: float, offset: float, plane: str | None,
+             json_out: bool, table: Path | None, plot: Path | None) -> None:
+    reference = read_trajectory(ref)
+    by_index = _is_kitti(ref)
+    results = [rpe(reference, read_trajectory(e), delta=delta, delta_unit=delta_unit, all_pairs=all_pairs,
+                   align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset,
+                   plane=plane, by_index=by_index and _is_kitti(e)) for e in est]
+    _emit(results, f"RPE w.r.t. {TITLES[relation]}, delta {delta:g} {delta_unit} (pairs from the estimate)",
+          json_out, table, plot)
+
+
+# ------------------------------------------------------------------ Table I comparison
+
+
+def _manifest(source: Path) -> dict[str, dict[str, Any]]:
+    """sequence -> {"reference": path, "methods": {method: path | None}}."""
+    if source.is_dir():
+        out = {}
+        for seq_dir in sorted(p for p in source.iterdir() if p.is_dir()):
+            gt = next((seq_dir / n for n in ("ground_truth.tum", "gt.tum") if (seq_dir / n).exists()), None)
+            if gt is None:
+                log.warning("%s: no ground_truth.tum, skipped", seq_dir)
+                continue
+            methods = {p.stem: str(p) for p in sorted(seq_dir.glob("*.tum")) if p != gt}
+            out[seq_dir.name] = {"reference": str(gt), "methods": methods}
+        if not out:
+            raise InputError(source, "no <sequence>/ground_truth.tum found")
+        return out
+    try:
+        data = yaml.safe_load(source.read_text(encoding="utf-8"))
+    except (OSError, yaml.YAMLError) as err:
+        raise InputError(source, f"cannot read manifest: {err}") from err
+    if not isinstance(data, dict) or not isinstance(data.get("sequences"), dict):
+        raise InputError(source, "manifest needs a 'sequences' mapping: {name: {reference: ..., methods: {...}}}")
+    base = source.parent
+    out = {}
+    for seq, entry in data["sequences"].items():
+        if not isinstance(entry, dict) or "reference" not in entry:
+            raise InputError(source, f"sequence {seq!r} needs a 'reference'")
+        res = lambda p: None if p is None else str(base / p)  # noqa: E731
+        out[str(seq)] = {"reference": res(entry["reference"]),
+                         "methods": {str(m): res(p) for m, p in (entry.get("methods") or {}).items()}}
+    return out
+
+
+def build_table_one(source: Path, *, align: str = "se3", max_diff: float = 0.01,
+                    cfg: EvaluationConfig | None = None) -> Table:
+    cfg = cfg or EvaluationConfig()
+    manifest = _manifest(source)
+    methods = sorted({m for e in manifest.values() for m in e["methods"]})
+    cells: dict[tuple[str, str], Cell] = {}
+    for seq, entry in manifest.items():
+        ref = read_trajectory(entry["reference"])
+        for m in methods:
+            path = entry["methods"].get(m)
+            if path is None or not Path(path).exists():
+                cells[(seq, m)] = Cell(None, "no trajectory")
+                continue
+            try:
+                r = ape(ref, read_trajectory(path), align=align, max_diff=max_diff)
+            except (EvaluationError, InputError) as err:
+                cells[(seq, m)] = Cell(None, str(err))
+                continue
+            cells[(seq, m)] = judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.failed_min_matches,
+                                    min_span_fraction=cfg.failed_min_span_fraction)
+    return table_one(cells, list(manifest), methods)
+
+
+def table_main(source: Path, *, out: Path | None, align: str, max_diff: float, json_out: bool) -> None:
+    from mrnc_eval.cli import emit_json
+    from mrnc_eval.results import _json_safe
+
+    table = build_table_one(source, align=align, max_diff=max_diff)
+    if json_out:
+        emit_json(_json_safe(table.__dict__))
+    elif out is None:
+        sys.stdout.write(render_table(table, "markdown"))
+    if out is not None:
+        fmt = SUFFIX_FORMAT.get(out.suffix.lower())
+        if fmt is None:
+            raise UsageError(f"--out {out}: use a .md, .tex, .csv or .html file")
+        atomic_write_text(out, render_table(table, fmt))
