@@ -2,7 +2,8 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from functools import cached_property
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,7 +16,7 @@ from mrnc_eval.evaluation.stats import error_stats
 from mrnc_eval.evaluation.sync import associate, associate_by_index, check_trajectory, take
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, eq=False)
 class ApeResult:
     name: str
     relation: str
@@ -26,9 +27,21 @@ class ApeResult:
     ref_span_s: float  # time covered by the whole reference
     errors: NDArray[np.float64]
     stamps: NDArray[np.float64]  # the estimate's stamps of the matched poses
-    est_aligned: Trajectory
-    ref_matched: Trajectory
     alignment: Alignment
+    est_poses: NDArray[np.float64] = field(repr=False)  # (N, 4, 4) aligned estimate
+    ref_poses: NDArray[np.float64] = field(repr=False)  # (N, 4, 4) matched reference
+    _est: Trajectory = field(repr=False)
+    _ref: Trajectory = field(repr=False)
+
+    # Trajectories (with quaternions) only when asked for: converting 1e6 rotation matrices
+    # back to quaternions costs more than the whole evaluation.
+    @cached_property
+    def est_aligned(self) -> Trajectory:
+        return lie.from_poses(self.est_poses, self._est)
+
+    @cached_property
+    def ref_matched(self) -> Trajectory:
+        return lie.from_poses(self.ref_poses, self._ref)
 
     def summary(self) -> dict[str, float | int | str]:
         return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s}
@@ -66,6 +79,5 @@ def ape(ref: Trajectory, est: Trajectory, *, align: str = "se3", n_to_align: int
     return ApeResult(
         name=est.name, relation=relation, unit=UNITS[relation], stats=error_stats(errors), n=int(errors.size),
         span_s=float(est_m.stamps[-1] - est_m.stamps[0]), ref_span_s=float(ref.stamps.max() - ref.stamps.min()),
-        errors=errors, stamps=est_m.stamps, est_aligned=lie.from_poses(p, est_m), ref_matched=lie.from_poses(q, ref_m),
-        alignment=a,
+        errors=errors, stamps=est_m.stamps, alignment=a, est_poses=p, ref_poses=q, _est=est_m, _ref=ref_m,
     )
