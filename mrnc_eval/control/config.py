@@ -1,12 +1,170 @@
-"""Control-chain parameters (paper experiment section; resolutions in shared/docs/paper-notes.md)."""
+"""Control-chain parameters (paper experiment section; resolutions in shared/docs/paper-notes.md).
+
+Units are in the names or the help text. Where the paper is ambiguous the option is named
+and its default documented; reports print the effective values.
+"""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
-from mrnc_eval.params import param
+from mrnc_eval.params import param, section
+
+
+@dataclass(frozen=True)
+class PurePursuitConfig:
+    lookahead_m: float = param(1.0, "lookahead distance L (paper: 1 m)", "m")
+    desired_speed_mps: float = param(0.38, "desired forward speed (paper: 0.38 m/s)", "m/s")
+    max_speed_mps: float = param(0.4, "maximum speed setting (paper: 0.4 m/s); also bounds each side's "
+                                 "reference (v and omega scaled together, curvature kept)", "m/s")
+    curvature: Literal["standard", "paper_literal"] = param(
+        "standard", "standard: kappa = 2 sin(alpha)/D (Coulter); paper_literal: delta = atan(2 L sin(alpha)/D), "
+        "omega = v 2 tan(delta)/D as printed")
+    speed_cap: bool = param(True, "apply the paper's cap v <= v_robot_max / (2 (1 + |tan(delta)| Lr / D)) "
+                            "with v_robot_max = robot.max_speed_mps")
+    search_window: int = param(3, "forward search window for the closest segment (segments); never backwards")
+    goal_tolerance_m: float = param(0.25, "stop when the last waypoint is this close", "m")
+    approach_distance_m: float = param(1.0, "slow down linearly inside this remaining distance", "m")
+    min_approach_speed_mps: float = param(0.05, "speed floor while approaching the goal", "m/s")
+    velocity_scaled_lookahead: bool = param(False, "L = clamp(|v| * lookahead_time_s, min, max)")
+    lookahead_time_s: float = param(2.6, "lookahead time for the velocity-scaled lookahead", "s")
+    lookahead_min_m: float = param(0.6, "minimum scaled lookahead", "m")
+    lookahead_max_m: float = param(1.5, "maximum scaled lookahead", "m")
+    rate_hz: float = param(50.0, "pure pursuit update rate (the wheel loop runs faster)", "Hz")
+
+
+@dataclass(frozen=True)
+class KinematicsConfig:
+    reference_accel_limit_mps2: float = param(
+        0.3, "slew limit on each side's reference speed; keeps |e(0)| < o(0) at start-up (not in the paper)", "m/s^2")
+    reference_derivative_tau_s: float = param(0.05, "first-order filter on d(v_ref)/dt used by RAID", "s")
+
+
+@dataclass(frozen=True)
+class FunnelConfig:
+    o_ov_mps: float = param(0.30, "funnel start o(0) = o_ov (paper: 0.19 + 0.11)", "m/s")
+    o_b_mps: float = param(0.11, "funnel floor o_b (steady-state bound)", "m/s")
+    o_star_per_s: float = param(0.09, "funnel decay rate o* (paper: 0.00009 per 1 kHz sample)", "1/s")
+    anchor: Literal["run_start", "reference_change"] = param(
+        "run_start", "where t = 0 of o(t) is: run start, or restarted at each reference change")
+
+
+@dataclass(frozen=True)
+class RaidConfig:
+    beta: float = param(1.2, "beta (paper)")
+    kappa: float = param(5.2, "kappa of the adaptive law (paper)")
+    n_neurons: int = param(9, "RBF neurons N (paper)")
+    gamma: float = param(0.13, "RBF width gamma (paper)")
+    centre_seed: int = param(7, "seed of the RBF centres alpha = 2 rand - 1 (recorded in reports)")
+    phi0: float = param(0.5, "initial adaptive parameter phi(0) (phi = 0 is a fixed point, so non-zero)")
+    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (paper: 1)", "RPM")
+
+
+@dataclass(frozen=True)
+class PidConfig:
+    kp: float = param(4800.0, "proportional gain", "RPM/(m/s)")
+    ki: float = param(12000.0, "integral gain", "RPM/m")
+    kd: float = param(0.0, "derivative gain", "RPM s/(m/s)")
+    anti_windup: Literal["back_calculation", "conditional", "none"] = param("back_calculation", "anti-windup scheme")
+    tracking_time_s: float = param(0.3, "back-calculation tracking time T_t", "s")
+
+
+@dataclass(frozen=True)
+class ApcConfig:
+    """Stand-in for the paper's APC: Hou's CFDL model-free adaptive control (source paper unavailable)."""
+
+    rate_hz: float = param(10.0, "update rate; the command is held between updates", "Hz")
+    phi1: float = param(0.2, "initial pseudo partial derivative (normalised units)")
+    eta: float = param(0.5, "PPD estimator step")
+    mu: float = param(1.0, "PPD estimator regulariser")
+    rho: float = param(0.6, "control step")
+    lam: float = param(1.0, "control move penalty lambda")
+    eps: float = param(1e-5, "reset threshold")
+    rpm_per_unit: float = param(3000.0, "normalisation u_n = U / rpm_per_unit", "RPM")
+
+
+@dataclass(frozen=True)
+class FoptcConfig:
+    """Stand-in for the paper's FOPTC: prescribed-time time-varying gain (Song et al. 2017), restarted per step."""
+
+    k0: float = param(2.5, "base gain", "1/s")
+    c_h: float = param(1.0, "c * h of the prescribed-time gain")
+    horizon_s: float = param(1.0, "prescribed time T", "s")
+    freeze_before_s: float = param(0.25, "gain frozen at T - delta", "s")
+    ki: float = param(4.0, "integral gain", "1/s^2")
+    tau_hat_s: float = param(0.4, "assumed drive time constant", "s")
+    k_hat: float = param(1.0 / 3000.0, "assumed drive gain", "(m/s)/RPM")
+
+
+@dataclass(frozen=True)
+class ActuatorConfig:
+    u_max_rpm: float = param(1250.0, "safety actuator limit |U*| (paper)", "RPM")
+    saturation_applies_to: Literal["total", "feedback"] = param(
+        "total", "whether 1250 RPM bounds the total pump command (default) or only the feedback part")
+    feedforward_rpm_per_mps: float = param(3000.0, "feed-forward f = 3000 v_ref (paper)", "RPM/(m/s)")
+
+
+@dataclass(frozen=True)
+class PlantConfig:
+    gain_mps_per_rpm: float = param(1.0 / 3000.0, "drive gain K", "(m/s)/RPM")
+    tau_s: float = param(0.4, "first-order lag of the hydraulic drive (estimate)", "s")
+    delay_s: float = param(0.04, "transport delay", "s")
+    dead_band_rpm: float = param(60.0, "pump dead band", "RPM")
+    icr_expansion: float = param(1.0, "chi: body yaw rate uses Lr * chi as effective track (1 = same as IK)")
+    speed_noise_mps: float = param(0.002, "white noise on measured wheel speed", "m/s")
+
+
+@dataclass(frozen=True)
+class SlipPatchConfig:
+    x_m: float = param(0.0, "patch centre x", "m")
+    y_m: float = param(0.0, "patch centre y", "m")
+    radius_m: float = param(1.0, "patch radius", "m")
+    slip: float = param(0.15, "slip ratio on the patch (wet/soft ground 0.08-0.20)")
+
+
+@dataclass(frozen=True)
+class ScenarioConfig:
+    circle_radius_m: float = param(5.0, "paper scenario: circle radius", "m")
+    n_waypoints: int = param(8, "paper scenario: waypoints on the circle")
+    centre_xy_m: tuple[float, float] = param((2.0, -3.0), "circle centre; chosen so the paper's slip locations "
+                                              "(2,-8)..(2,-4) and (7,-1) lie on or near the path", "m")
+    slip_patches: list[SlipPatchConfig] = param(
+        [SlipPatchConfig(2.0, -8.0, 1.5, 0.15), SlipPatchConfig(7.0, -1.0, 1.2, 0.18)],
+        "soft, wet ground patches (paper Fig.: slippage from (2,-8) to (2,-4) and at (7,-1))")
+
+
+@dataclass(frozen=True)
+class MetricsConfig:
+    settling_band: float = param(0.02, "settling band relative to |step|")
+    settling_floor_mps: float = param(0.02, "absolute floor of the settling band", "m/s")
+    step_threshold_mps: float = param(1e-3, "a per-sample reference change larger than this restarts a "
+                                      "segment (controller state, funnel anchoring)", "m/s")
+    ramp_rate_mps2: float = param(0.05, "the reference is ramping where |dr/dt| exceeds this", "m/s^2")
+    min_step_mps: float = param(0.1, "a ramp (or jump) changing the reference by at least this is a step "
+                                "for settling/overshoot; the clock starts where the ramp starts", "m/s")
+    steady_window_fraction: float = param(0.2, "steady-state window: this fraction of the segment ...")
+    steady_window_max_s: float = param(2.0, "... but at most this long", "s")
+    step_window_s: float = param(10.0, "a step is evaluated up to this long after its ramp ends (or up to the "
+                                 "next step); later disturbances belong to recovery, not settling", "s")
+    saturation_tolerance_rpm: float = param(1.0, "a command within this of the limit counts as saturated", "RPM")
+    recovery_band_mps: float = param(0.02, "recovered when |e| stays below this after a slip event", "m/s")
+    recovery_hold_s: float = param(1.0, "... for at least this long", "s")
+    recovery_horizon_s: float = param(15.0, "not recovered if it takes longer than this", "s")
 
 
 @dataclass(frozen=True)
 class ControlConfig:
-    rate_hz: float = param(1000.0, "control loop rate of the closed-loop simulation", "Hz")
+    rate_hz: float = param(1000.0, "wheel control loop rate of the closed-loop simulation", "Hz")
+    seed: int = param(0, "seed of the measurement noise")
+    pure_pursuit: PurePursuitConfig = section(PurePursuitConfig, "path following")
+    kinematics: KinematicsConfig = section(KinematicsConfig, "inverse kinematics and reference shaping")
+    funnel: FunnelConfig = section(FunnelConfig, "RAID prescribed-performance funnel o(t)")
+    raid: RaidConfig = section(RaidConfig, "RAID controller (paper)")
+    pid: PidConfig = section(PidConfig, "PID baseline")
+    apc: ApcConfig = section(ApcConfig, "APC baseline (stand-in: CFDL-MFAC)")
+    foptc: FoptcConfig = section(FoptcConfig, "FOPTC baseline (stand-in: prescribed-time gain)")
+    actuator: ActuatorConfig = section(ActuatorConfig, "pump command limits and feed-forward")
+    plant: PlantConfig = section(PlantConfig, "hydraulic in-wheel drive model")
+    scenario: ScenarioConfig = section(ScenarioConfig, "the paper's circle experiment")
+    metrics: MetricsConfig = section(MetricsConfig, "Table II metric definitions")

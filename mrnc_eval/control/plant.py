@@ -1,0 +1,67 @@
+"""Hydraulic in-wheel drive per side and skid-steer body motion (control-reference 4).
+
+Per side, period dt: u_eff = deadband(u(k - d)); v_w <- a v_w + (1 - a) K (1 - s) u_eff with
+a = exp(-dt / tau); the ground moves at (1 - s) v_w. On soft, wet patches (slip s > 0) the
+drive loses speed under load (gain K (1 - s), a disturbance the wheel loop must reject) and
+the body moves slower than the wheels turn (so wheel odometry drifts). Body: v = (vgL + vgR)/2,
+omega = (vgR - vgL) / (chi Lr).
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+
+@dataclass(frozen=True)
+class SlipPatch:
+    x: float
+    y: float
+    radius_m: float
+    slip: float
+
+
+def patches_array(patches: list[SlipPatch]) -> np.ndarray:
+    return np.asarray([[p.x, p.y, p.radius_m, p.slip] for p in patches], dtype=np.float64).reshape(-1, 4)
+
+
+@njit(cache=True)
+def slip_at(x: float, y: float, patches: np.ndarray) -> float:
+    s = 0.0
+    for k in range(patches.shape[0]):
+        if (x - patches[k, 0]) ** 2 + (y - patches[k, 1]) ** 2 <= patches[k, 2] ** 2:
+            s = max(s, patches[k, 3])
+    return s
+
+
+@njit(cache=True)
+def dead_band(u: float, width: float) -> float:
+    if u > width:
+        return u - width
+    if u < -width:
+        return u + width
+    return 0.0
+
+
+@njit(cache=True)
+def drive_step(v_wheel: float, u_delayed: float, slip: float, gain: float, a: float, dz: float) -> float:
+    """Wheel surface speed (m/s) after one period."""
+    return a * v_wheel + (1.0 - a) * gain * (1.0 - slip) * dead_band(u_delayed, dz)
+
+
+@njit(cache=True)
+def body_step(x, y, yaw, vg_left, vg_right, track_eff, dt):
+    v = 0.5 * (vg_left + vg_right)
+    w = (vg_right - vg_left) / track_eff
+    # exact integration of a constant-twist arc over dt
+    if abs(w) < 1e-9:
+        x += v * dt * math.cos(yaw)
+        y += v * dt * math.sin(yaw)
+    else:
+        x += v / w * (math.sin(yaw + w * dt) - math.sin(yaw))
+        y -= v / w * (math.cos(yaw + w * dt) - math.cos(yaw))
+    yaw += w * dt
+    return x, y, yaw, v, w

@@ -1,0 +1,55 @@
+"""The paper's circle experiment and other scripted paths, as waypoints + slip patches."""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass
+
+import numpy as np
+
+from mrnc_eval.control.config import ControlConfig
+from mrnc_eval.control.plant import SlipPatch
+
+
+@dataclass(frozen=True)
+class Scenario:
+    name: str
+    waypoints_xy: np.ndarray  # (N, 2) m
+    slip_patches: tuple[SlipPatch, ...]
+    start_pose: tuple[float, float, float]  # x m, y m, yaw rad
+
+
+def paper_circle_scenario(cfg: ControlConfig) -> Scenario:
+    """8 waypoints on a ~5 m circle, driven once clockwise (the paper: the left side runs faster
+    than the right) and closed back to the start; the robot starts on the circle facing along
+    it. Slip patches as in the paper's figure."""
+    s = cfg.scenario
+    cx, cy = s.centre_xy_m
+    ang = -math.pi / 2 - 2 * math.pi * np.arange(s.n_waypoints + 1) / s.n_waypoints
+    wp = np.c_[cx + s.circle_radius_m * np.cos(ang), cy + s.circle_radius_m * np.sin(ang)]
+    patches = tuple(SlipPatch(p.x_m, p.y_m, p.radius_m, p.slip) for p in s.slip_patches)
+    return Scenario("circle", wp, patches, (float(wp[0, 0]), float(wp[0, 1]), math.pi))
+
+
+def scripted_scenario(name: str, cfg: ControlConfig, *, size_m: float = 10.0) -> Scenario:
+    """figure8, loop (a rounded rectangle that returns to its start), line."""
+    if name == "circle":
+        return paper_circle_scenario(cfg)
+    if name == "figure8":
+        u = np.linspace(0, 2 * math.pi, 33)
+        wp = np.c_[size_m * np.sin(u), size_m / 2 * np.sin(2 * u)]
+    elif name == "loop":
+        a, b, r = size_m, size_m * 0.6, size_m * 0.2
+        pts = []
+        for cx, cy, a0 in ((a - r, r, -math.pi / 2), (a - r, b - r, 0.0), (r, b - r, math.pi / 2), (r, r, math.pi)):
+            for k in range(5):
+                t = a0 + k * (math.pi / 2) / 4
+                pts.append((cx + r * math.cos(t), cy + r * math.sin(t)))
+        wp = np.asarray(pts + [pts[0]])
+        wp = wp - wp[0]
+    elif name == "line":
+        wp = np.c_[np.linspace(0, size_m, 11), np.zeros(11)]
+    else:
+        raise ValueError(f"unknown path {name!r}: circle, figure8, loop, line")
+    yaw0 = math.atan2(wp[1, 1] - wp[0, 1], wp[1, 0] - wp[0, 0])
+    return Scenario(name, wp, (), (float(wp[0, 0]), float(wp[0, 1]), yaw0))

@@ -1,0 +1,183 @@
+"""Control metrics of Table II and beyond (paper-notes 6, control-reference 2). Pure numpy.
+
+Step metrics are segment-based: the run is split where the reference changes by more than
+a threshold; per segment with step delta = r - y0:
+  settling time = first time after which |y - r| stays within max(band |delta|, floor);
+  overshoot %   = 100 max(0, max sign(delta) (y - r)) / |delta|;
+  steady-state error = mean of r - y over the last window of the segment (signed and abs);
+  rise time     = 10 % to 90 % of the normalised response.
+These work for down-steps and non-zero initial values (python-control's step_info assumes
+y(0) = 0 and mishandles both).
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numpy.typing import NDArray
+
+from mrnc_eval.control.config import MetricsConfig
+
+
+@dataclass(frozen=True)
+class StepMetrics:
+    t_start: float
+    delta: float
+    settling_time_s: float  # NaN when not settled by the end of the segment
+    overshoot_pct: float
+    steady_state_error: float  # signed mean of r - y over the window
+    rise_time_s: float
+
+
+def step_response(t: NDArray, y: NDArray, r: NDArray | float, y0: float, cfg: MetricsConfig,
+                  target: float | None = None) -> StepMetrics:
+    """Metrics of one segment: response y to reference r (array or constant) from y0; the step
+    size is target - y0 (target defaults to the final reference value)."""
+    r = np.broadcast_to(np.asarray(r, dtype=float), y.shape)
+    delta = (r[-1] if target is None else target) - y0
+    err = y - r
+    band = max(cfg.settling_band * abs(delta), cfg.settling_floor_mps)
+    outside = np.flatnonzero(np.abs(err) > band)
+    if outside.size == 0:
+        ts = 0.0
+    elif outside[-1] == err.size - 1:
+        ts = float("nan")
+    else:
+        ts = float(t[outside[-1] + 1] - t[0])
+    sgn = np.sign(delta) if delta != 0 else 1.0
+    overshoot = 100.0 * max(0.0, float(np.max(sgn * err))) / abs(delta) if delta != 0 else 0.0
+    duration = t[-1] - t[0]
+    window = min(cfg.steady_window_fraction * duration, cfg.steady_window_max_s)
+    tail = t >= t[-1] - window
+    sse = float(np.mean(r[tail] - y[tail]))
+    rise = float("nan")
+    if delta != 0:
+        yn = (y - y0) / delta
+        i10 = np.flatnonzero(yn >= 0.1)
+        i90 = np.flatnonzero(yn >= 0.9)
+        if i10.size and i90.size:
+            rise = float(t[i90[0]] - t[i10[0]])
+    return StepMetrics(float(t[0]), float(delta), ts, overshoot, sse, rise)
+
+
+def step_segments(t: NDArray, r: NDArray, cfg: MetricsConfig) -> list[tuple[int, int, int]]:
+    """(start, ramp_end, end) of each step: a jump or ramp of the reference changing it by at least
+    min_step, up to the start of the next one. Slew-limited references are ramps, not jumps."""
+    rate = np.abs(np.diff(r)) / np.maximum(np.diff(t), 1e-12)
+    moving = np.concatenate([rate > cfg.ramp_rate_mps2, [False]])
+    edges = np.diff(np.concatenate([[0], moving.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # ramp [s, e]
+    ramps = [(int(a), int(min(b, r.size - 1))) for a, b in zip(starts, ends) if abs(r[min(b, r.size - 1)] - r[a]) >= cfg.min_step_mps]
+    out = []
+    for k, (a, b) in enumerate(ramps):
+        end = ramps[k + 1][0] if k + 1 < len(ramps) else r.size
+        end = min(end, int(np.searchsorted(t, t[b] + cfg.step_window_s)))
+        if end - a > 10:
+            out.append((a, b, end))
+    return out
+
+
+def tracking_metrics(t: NDArray, r: NDArray, y: NDArray, u: NDArray, o: NDArray, *, u_max: float,
+                     slip: NDArray | None, cfg: MetricsConfig) -> dict[str, float]:
+    """Per-side metrics with unit-bearing keys. Reference changes smaller than cfg.min_step_mps
+    (continuous pure-pursuit corrections) are not steps."""
+    dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 0.0))
+    e = y - r
+    ae = np.abs(e)
+    steps = []
+    for a, ramp_end, end in step_segments(t, r, cfg):
+        steps.append(step_response(t[a:end], y[a:end], r[a:end], float(y[a]), cfg, target=float(r[ramp_end])))
+    sat = np.abs(u) >= u_max - cfg.saturation_tolerance_rpm
+    out = {
+        "settling_time_s": _worst([s.settling_time_s for s in steps]),
+        "overshoot_pct": float(max((s.overshoot_pct for s in steps), default=float("nan"))),
+        "rise_time_s": float(np.nanmedian([s.rise_time_s for s in steps])) if steps else float("nan"),
+        # mean |r - y| over the end window of each step segment, worst segment
+        "steady_state_error_mps": float(max((abs(s.steady_state_error) for s in steps), default=float("nan"))),
+        "n_steps": len(steps),
+        "iae": float(np.sum(ae * dt)),
+        "ise": float(np.sum(e * e * dt)),
+        "itae": float(np.sum((t - t[0]) * ae * dt)),
+        "rms_error_mps": float(np.sqrt(np.mean(e * e))),
+        "max_abs_error_mps": float(ae.max()),
+        "funnel_violations": int(np.count_nonzero(ae >= o)),
+        "max_e_over_o": float(np.max(ae / o)),
+        "saturation_ratio": float(np.mean(sat)),
+        "longest_saturation_s": _longest_run(sat, dt),
+        "max_abs_command_rpm": float(np.max(np.abs(u))),
+        "control_effort": float(np.sum(u * u * dt)),
+        "total_variation_rpm": float(np.sum(np.abs(np.diff(u)))),
+    }
+    out["recovery_time_s"] = (recovery_time(t, ae, slip, cfg.recovery_band_mps, cfg.recovery_hold_s, cfg.recovery_horizon_s)
+                              if slip is not None else float("nan"))
+    return out
+
+
+def _worst(values: list[float]) -> float:
+    """Largest value; an unsettled step (NaN) makes the aggregate inf."""
+    if not values:
+        return float("nan")
+    return float("inf") if any(np.isnan(values)) else float(max(values))
+
+
+def _longest_run(mask: NDArray, dt: NDArray) -> float:
+    if not mask.any():
+        return 0.0
+    edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
+    starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)
+    csum = np.concatenate([[0.0], np.cumsum(dt)])
+    return float(np.max(csum[ends] - csum[starts]))
+
+
+def recovery_time(t: NDArray, abs_err: NDArray, slip: NDArray, band: float, hold_s: float = 1.0,
+                  horizon_s: float = 15.0) -> float:
+    """Worst time (s) from a slip event (a patch entered or left) until |e| is back below band
+    and stays there for hold_s; NaN if there was no event, inf if not recovered within horizon_s."""
+    changes = np.flatnonzero(np.diff(slip) != 0) + 1
+    if changes.size == 0:
+        return float("nan")
+    worst = 0.0
+    inside = abs_err <= band
+    for c in changes:
+        stop = np.searchsorted(t, t[c] + horizon_s + hold_s)
+        ok = inside[c:stop]
+        rec = float("inf")
+        run_start = None
+        for k in np.flatnonzero(np.diff(np.concatenate([[0], ok.astype(np.int8), [0]])) != 0):
+            if run_start is None:
+                run_start = k
+                continue
+            if t[c + k - 1] - t[c + run_start] >= hold_s:
+                rec = float(t[c + run_start] - t[c])
+                break
+            run_start = None
+        worst = max(worst, rec)
+    return worst
+
+
+def path_metrics(x: NDArray, y: NDArray, yaw: NDArray, t: NDArray, waypoints: NDArray, completed: bool) -> dict[str, float]:
+    """Signed cross-track error to the nearest path segment (+ = left of the path), heading error."""
+    a, b = waypoints[:-1], waypoints[1:]
+    d = b - a
+    L2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-12)
+    p = np.c_[x, y]
+    s = np.clip(np.einsum("nkj,kj->nk", p[:, None, :] - a[None], d) / L2, 0.0, 1.0)
+    proj = a[None] + s[..., None] * d[None]
+    dist = np.linalg.norm(p[:, None, :] - proj, axis=2)
+    k = np.argmin(dist, axis=1)
+    rows = np.arange(k.size)
+    rel = p - proj[rows, k]
+    cross = d[k, 0] * rel[:, 1] - d[k, 1] * rel[:, 0]
+    cte = np.sign(cross) * dist[rows, k]
+    path_yaw = np.arctan2(d[k, 1], d[k, 0])
+    herr = (yaw - path_yaw + np.pi) % (2 * np.pi) - np.pi
+    return {
+        "cross_track_rms_m": float(np.sqrt(np.mean(cte ** 2))),
+        "cross_track_max_m": float(np.max(np.abs(cte))),
+        "cross_track_p95_m": float(np.percentile(np.abs(cte), 95)),
+        "heading_error_rms_rad": float(np.sqrt(np.mean(herr ** 2))),
+        "completion_time_s": float(t[-1] - t[0]) if completed else float("nan"),
+        "final_position_error_m": float(np.hypot(x[-1] - waypoints[-1, 0], y[-1] - waypoints[-1, 1])),
+        "_cte": cte,
+    }

@@ -1,0 +1,164 @@
+"""Control chain against closed forms and the paper's scenario."""
+
+from __future__ import annotations
+
+import json
+import math
+
+import numpy as np
+import pytest
+
+from mrnc_eval.cli import main
+from mrnc_eval.config import Config
+from mrnc_eval.control.closed_loop import run_closed_loop
+from mrnc_eval.control.config import MetricsConfig, PurePursuitConfig
+from mrnc_eval.control.controllers import CONTROLLERS, WheelController
+from mrnc_eval.control.pure_pursuit import PurePursuit, wrap_angle
+from mrnc_eval.control.saturation import clamp, lambda_construction
+from mrnc_eval.control.scenario import paper_circle_scenario
+from mrnc_eval.evaluation.control_metrics import step_response, tracking_metrics
+
+M = MetricsConfig(settling_floor_mps=0.0)
+
+
+def test_first_order_settling_is_tau_ln50() -> None:
+    tau = 0.5
+    t = np.arange(0, 10, 1e-4)
+    y = 1.0 - np.exp(-t / tau)
+    s = step_response(t, y, 1.0, 0.0, M)
+    assert s.settling_time_s == pytest.approx(tau * math.log(50), abs=2e-4)
+    assert s.overshoot_pct == 0.0
+    assert s.rise_time_s == pytest.approx(tau * math.log(9), abs=2e-4)
+
+
+@pytest.mark.parametrize("zeta", [0.2, 0.5, 0.7])
+def test_second_order_overshoot(zeta: float) -> None:
+    wn = 3.0
+    t = np.arange(0, 20, 1e-4)
+    wd = wn * math.sqrt(1 - zeta ** 2)
+    y = 1 - np.exp(-zeta * wn * t) * (np.cos(wd * t) + zeta / math.sqrt(1 - zeta ** 2) * np.sin(wd * t))
+    s = step_response(t, y, 1.0, 0.0, M)
+    assert s.overshoot_pct == pytest.approx(100 * math.exp(-zeta * math.pi / math.sqrt(1 - zeta ** 2)), rel=1e-4)
+
+
+def test_down_step_from_nonzero_start() -> None:
+    # 1.0 -> 0.5 first order: python-control's step_info (y0 = 0 assumed) calls this 100 % overshoot.
+    tau = 0.4
+    t = np.arange(0, 8, 1e-4)
+    y = 0.5 + 0.5 * np.exp(-t / tau)
+    s = step_response(t, y, 0.5, 1.0, M)
+    assert s.delta == -0.5
+    assert s.overshoot_pct == 0.0
+    assert s.settling_time_s == pytest.approx(tau * math.log(50), abs=2e-4)
+    undershoot = 0.5 - 0.05 * np.sin(np.pi * np.clip(t - 2, 0, 1))  # dips below the target: overshoot of a down-step
+    s2 = step_response(t, np.minimum(y, undershoot), 0.5, 1.0, M)
+    assert s2.overshoot_pct == pytest.approx(10.0, rel=1e-3)
+
+
+def test_lambda_construction_equals_clamp() -> None:
+    u = np.linspace(-5000, 5000, 20001)
+    np.testing.assert_allclose(lambda_construction(u, -1250, 1250), clamp(u, -1250, 1250), atol=1e-9)
+
+
+def test_wrap_angle_range() -> None:
+    for a in np.linspace(-20, 20, 401):
+        w = wrap_angle(a)
+        assert -math.pi < w <= math.pi and math.isclose(math.cos(w), math.cos(a), abs_tol=1e-9)
+
+
+def _kinematic_follow(pp: PurePursuit, x, y, yaw, dt=0.02, n=6000):
+    xs = []
+    for _ in range(n):
+        v, w, _, _ = pp.step(x, y, yaw)
+        x, y, yaw = x + v * math.cos(yaw) * dt, y + v * math.sin(yaw) * dt, yaw + w * dt
+        xs.append((x, y, yaw, v, w))
+    return np.asarray(xs)
+
+
+def test_pure_pursuit_converges_to_a_line_and_stops_at_the_end() -> None:
+    cfg = PurePursuitConfig(speed_cap=False)
+    pp = PurePursuit(np.array([[0.0, 0.0], [30.0, 0.0]]), cfg, 1.6, 0.97)
+    out = _kinematic_follow(pp, 0.0, 1.0, 0.0)
+    assert abs(out[-1, 1]) < 0.02 and pp.done
+    assert np.all(out[-50:, 3] == 0.0) and np.all(out[-50:, 4] == 0.0)
+    assert np.hypot(out[-1, 0] - 30.0, out[-1, 1]) < cfg.goal_tolerance_m + 0.05
+
+
+def test_pure_pursuit_circle_curvature_and_monotonic_index() -> None:
+    r = 5.0
+    ang = np.linspace(0, 2 * np.pi, 361)
+    wp = np.c_[r * np.cos(ang), r * np.sin(ang)]
+    cfg = PurePursuitConfig(speed_cap=False, max_speed_mps=1.0)
+    pp = PurePursuit(wp, cfg, 1.6, 0.97)
+    x, y, yaw = r, 0.0, math.pi / 2
+    indices, kappas = [], []
+    for _ in range(8000):
+        v, w, _, _ = pp.step(x, y, yaw)
+        if pp.done:
+            break
+        indices.append(pp.index)
+        kappas.append(w / v)
+        x, y, yaw = x + v * math.cos(yaw) * 0.02, y + v * math.sin(yaw) * 0.02, yaw + w * 0.02
+    assert np.all(np.diff(indices) >= 0)  # never jumps back across the closed loop
+    assert np.median(kappas[200:-200]) == pytest.approx(1 / r, rel=0.02)
+    assert pp.done and pp.index == len(wp) - 2
+
+
+def test_wheel_controllers_track_a_first_order_drive() -> None:
+    cfg = Config().control
+    for name in CONTROLLERS:
+        c = WheelController(name, cfg)
+        v, dt = 0.0, 0.001
+        for k in range(10000):
+            ref = min(0.3, 0.3 * k * dt)  # 0.3 m/s^2 ramp
+            u, ok = c.step(k * dt, ref, 0.3 if ref < 0.3 else 0.0, v, dt)
+            assert ok and abs(u) <= 1250.0
+            v += dt / 0.4 * (u / 3000.0 - v)
+        assert v == pytest.approx(0.3, abs=0.03), name
+
+
+@pytest.fixture(scope="module")
+def paper_runs():
+    cfg = Config()
+    sc = paper_circle_scenario(cfg.control)
+    return cfg, {n: run_closed_loop(sc, cfg.control, cfg.robot, n) for n in CONTROLLERS}
+
+
+def test_raid_stays_in_the_funnel_on_the_paper_scenario(paper_runs) -> None:
+    cfg, runs = paper_runs
+    tr = runs["raid"]
+    assert tr.completed and not tr.events
+    for side in ("left", "right"):
+        e = getattr(tr, f"v_wheel_{side}") - getattr(tr, f"v_ref_{side}")
+        assert np.all(np.abs(e) < tr.funnel), side
+        assert np.max(np.abs(getattr(tr, f"u_{side}"))) <= 1250.0
+    # the robot went round: it passed the far side of the circle and came back
+    cx, cy = cfg.control.scenario.centre_xy_m
+    assert tr.y.max() > cy + 4.5 and np.hypot(tr.x[-1] - tr.waypoints[-1, 0], tr.y[-1] - tr.waypoints[-1, 1]) < 0.5
+    assert np.any(tr.slip_left > 0) and np.any(tr.slip_right > 0)  # the slip patches were crossed
+
+
+def test_every_controller_finishes_and_respects_the_actuator_limit(paper_runs) -> None:
+    cfg, runs = paper_runs
+    for name, tr in runs.items():
+        assert tr.completed, name
+        assert np.max(np.abs(np.r_[tr.u_left, tr.u_right])) <= 1250.0 + 1e-9
+        m = tracking_metrics(tr.t, tr.v_ref_left, tr.v_wheel_left, tr.u_left, tr.funnel, u_max=1250.0,
+                             slip=tr.slip_left, cfg=cfg.control.metrics)
+        assert m["rms_error_mps"] < 0.1, name
+
+
+def test_control_cli_json_and_table(tmp_path, capsys) -> None:
+    assert main(["control", "--mode", "simulate", "--controllers", "raid,pid", "--out", str(tmp_path), "--json"]) == 0
+    body = json.loads(capsys.readouterr().out)
+    raid = body["controllers"]["raid"]
+    assert raid["left"]["funnel_violations"] == 0 and raid["right"]["safety_stops"] == 0
+    for key in ("settling_time_s", "overshoot_pct", "steady_state_error_mps", "max_abs_command_rpm"):
+        assert key in raid["left"]
+    from mrnc_eval.results import read_result
+
+    result = read_result(next(tmp_path.iterdir()))
+    table = result.tables[0]
+    assert table.column_labels == ["RAID", "PID"]
+    assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]
+    assert main(["control", "--mode", "simulate", "--controllers", "raid,lqr"]) == 2
