@@ -1,0 +1,142 @@
+"""Named scenes as triangle meshes for open3d's RaycastingScene: terrain plus structure.
+
+The terrain is a smooth heightfield h(x, y) (gentle relief + fine roughness) shared with the
+body-pose model, so the robot's pitch and roll follow the ground the LiDAR sees.
+"""
+
+from __future__ import annotations
+
+import math
+from dataclasses import dataclass, field
+
+import numpy as np
+
+SCENES = ("yard", "forest", "corridor", "field")
+
+
+@dataclass(frozen=True)
+class Terrain:
+    amplitude_m: float
+    roughness_m: float
+    seed: int
+
+    def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
+        rng = np.random.default_rng(self.seed)
+        k = rng.uniform(0.05, 0.12, 4)
+        ph = rng.uniform(0, 2 * np.pi, 4)
+        h = self.amplitude_m * 0.5 * (np.sin(k[0] * x + ph[0]) * np.cos(k[1] * y + ph[1])
+                                      + 0.5 * np.sin(k[2] * (x + y) + ph[2]))
+        h += self.roughness_m * np.sin(1.7 * x + ph[3]) * np.sin(2.3 * y)
+        return h
+
+    def gradient(self, x: np.ndarray, y: np.ndarray, eps: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
+        """Slope of the terrain averaged over a wheelbase-sized footprint (m/m)."""
+        gx = (self.height(x + eps, y) - self.height(x - eps, y)) / (2 * eps)
+        gy = (self.height(x, y + eps) - self.height(x, y - eps)) / (2 * eps)
+        return gx, gy
+
+
+@dataclass
+class Scene:
+    name: str
+    terrain: Terrain
+    vertices: list[np.ndarray] = field(default_factory=list)
+    triangles: list[np.ndarray] = field(default_factory=list)
+    reflectivity: list[float] = field(default_factory=list)  # per mesh, 0..1
+
+    def add(self, vertices: np.ndarray, triangles: np.ndarray, reflectivity: float) -> None:
+        self.vertices.append(np.asarray(vertices, np.float32))
+        self.triangles.append(np.asarray(triangles, np.uint32))
+        self.reflectivity.append(reflectivity)
+
+    def raycasting_scene(self):
+        import open3d as o3d
+
+        rs = o3d.t.geometry.RaycastingScene()
+        for v, t in zip(self.vertices, self.triangles):
+            rs.add_triangles(o3d.core.Tensor(v), o3d.core.Tensor(t))
+        return rs
+
+
+def _box(cx, cy, z0, sx, sy, sz, yaw=0.0):
+    c, s = math.cos(yaw), math.sin(yaw)
+    corners = np.array([[dx, dy, dz] for dz in (0, sz) for dy in (-sy / 2, sy / 2) for dx in (-sx / 2, sx / 2)])
+    xy = corners[:, :2] @ np.array([[c, s], [-s, c]])
+    v = np.c_[xy[:, 0] + cx, xy[:, 1] + cy, corners[:, 2] + z0]
+    t = np.array([[0, 2, 1], [1, 2, 3], [4, 5, 6], [5, 7, 6], [0, 1, 4], [1, 5, 4],
+                  [2, 6, 3], [3, 6, 7], [0, 4, 2], [2, 4, 6], [1, 3, 5], [3, 7, 5]])
+    return v, t
+
+
+def _cylinder(cx, cy, z0, radius, height, n=12):
+    a = 2 * np.pi * np.arange(n) / n
+    ring = np.c_[cx + radius * np.cos(a), cy + radius * np.sin(a)]
+    v = np.r_[np.c_[ring, np.full(n, z0)], np.c_[ring, np.full(n, z0 + height)]]
+    t = []
+    for k in range(n):
+        j = (k + 1) % n
+        t += [[k, j, n + k], [j, n + j, n + k]]
+    return v, np.asarray(t)
+
+
+def _sphere(cx, cy, cz, r, n=8):
+    import open3d as o3d
+
+    m = o3d.geometry.TriangleMesh.create_sphere(radius=r, resolution=n)
+    return np.asarray(m.vertices) + [cx, cy, cz], np.asarray(m.triangles)
+
+
+def _ground(terrain: Terrain, half: float, step: float):
+    g = np.arange(-half, half + step, step)
+    X, Y = np.meshgrid(g, g)
+    Z = terrain.height(X, Y)
+    n = g.size
+    v = np.c_[X.ravel(), Y.ravel(), Z.ravel()]
+    idx = np.arange(n * n).reshape(n, n)
+    a, b, c, d = idx[:-1, :-1].ravel(), idx[:-1, 1:].ravel(), idx[1:, :-1].ravel(), idx[1:, 1:].ravel()
+    t = np.r_[np.c_[a, c, b], np.c_[b, c, d]]
+    return v, t
+
+
+def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness_m: float = 0.02,
+                centre=(0.0, 0.0), half_size_m: float = 40.0) -> Scene:
+    if name not in SCENES:
+        raise ValueError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
+    terrain = Terrain(0.0 if name == "corridor" else amplitude_m, roughness_m, seed)
+    scene = Scene(name, terrain)
+    rng = np.random.default_rng(seed + 1000)
+    cx0, cy0 = centre
+    scene.add(*_ground(terrain, half_size_m + max(abs(cx0), abs(cy0)), 0.5), 0.25)
+    h = terrain.height
+
+    def place(n, r_min, r_max):
+        out = []
+        while len(out) < n:
+            r, a = rng.uniform(r_min, r_max), rng.uniform(0, 2 * np.pi)
+            out.append((cx0 + r * math.cos(a), cy0 + r * math.sin(a)))
+        return out
+
+    if name == "yard":
+        for k, (x, y) in enumerate(place(6, 12, 30)):  # buildings / walls
+            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8),
+                            rng.uniform(3, 8), rng.uniform(0, np.pi)), 0.6)
+        for x, y in place(8, 9, 25):  # containers
+            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), 0.8)
+        for x, y in place(10, 9, 28):  # poles
+            scene.add(*_cylinder(x, y, float(h(np.array(x), np.array(y))) - 0.2, 0.12, 6.0), 0.9)
+        for x, y in place(3, 10, 20):  # vehicles
+            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), 0.9)
+    elif name == "forest":
+        for x, y in place(60, 8, 38):
+            z = float(h(np.array(x), np.array(y))) - 0.2
+            r = rng.uniform(0.12, 0.35)
+            ht = rng.uniform(5, 12)
+            scene.add(*_cylinder(x, y, z, r, ht), 0.45)
+            scene.add(*_sphere(x, y, z + ht, rng.uniform(1.5, 3.0)), 0.3)
+        for x, y in place(6, 10, 30):
+            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))) - 0.3, 2.0, 1.0, 1.0, rng.uniform(0, np.pi)), 0.5)
+    elif name == "corridor":  # two long featureless walls: degenerate along the corridor axis
+        for side in (-1, 1):
+            scene.add(*_box(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), 0.6)
+    # "field": open ground only (degenerate: no structure)
+    return scene
