@@ -1,0 +1,233 @@
+"""`mrnc-eval slam`: replay the SLAM (or the kiss-icp peer) on logs, evaluate, write results."""
+
+from __future__ import annotations
+
+import datetime as dt
+import logging
+import sys
+import tempfile
+from pathlib import Path
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mrnc_eval.config import Config, config_hash, dump_config, replace_path
+from mrnc_eval.data import Trajectory
+from mrnc_eval.errors import EvaluationError, InputError, UsageError
+from mrnc_eval.evaluation.comparison import Cell, judge, table_one
+from mrnc_eval.results import Event, Metric, RunResult, log_id_for, write_result
+from mrnc_eval.slam.pipeline import STAGES, SlamOutput
+
+log = logging.getLogger(__name__)
+METHODS = ("lio", "kiss-icp")
+
+
+def _ground_truth(lg, log_path: Path) -> Trajectory | None:
+    from mrnc_eval.io.trajectory_files import read_tum
+    from mrnc_eval.sim.recorder import gt_tum_path
+
+    if lg.has_role("ground_truth"):
+        return lg.ground_truth()
+    beside = gt_tum_path(log_path)
+    return read_tum(beside) if beside.exists() else None
+
+
+def _kiss_icp(sweeps, cfg: Config) -> SlamOutput:
+    """The peer on the same Sweep arrays: KISS-ICP's own deskew and adaptive threshold."""
+    import time
+
+    try:
+        from kiss_icp.config import load_config
+        from kiss_icp.kiss_icp import KissICP
+    except ImportError as err:
+        raise UsageError("--method kiss-icp needs the kiss-icp extra: pip install 'mrnc-eval[kiss-icp]'") from err
+    kcfg = load_config(None)
+    kcfg.data.max_range = 100.0
+    kcfg.data.min_range = cfg.slam.features.min_range_m
+    kcfg.data.deskew = True
+    icp = KissICP(kcfg)
+    stamps, poses = [], []
+    t_match = []
+    wall0 = time.perf_counter()
+    n = 0
+    for s in sweeps:
+        n += 1
+        t0 = time.perf_counter()
+        ts = s.point_time.astype(np.float64) / max(float(s.point_time.max()), 1e-9) if s.point_time is not None else np.zeros(len(s))
+        icp.register_frame(s.points.astype(np.float64), ts)
+        t_match.append((time.perf_counter() - t0) * 1e3)
+        stamps.append(s.stamp)
+        poses.append(np.asarray(icp.last_pose))
+    timing = {st: [0.0] * len(t_match) for st in STAGES}
+    timing["matching"] = t_match
+    return SlamOutput(np.asarray(stamps), np.asarray(poses), np.asarray(stamps), np.asarray(poses), np.zeros((0, 3)),
+                      timing, [], [], n, time.perf_counter() - wall0)
+
+
+def _to_base(out: SlamOutput, base_to_sensor: np.ndarray, name: str) -> Trajectory:
+    base = out.poses @ np.linalg.inv(base_to_sensor)
+    return Trajectory(out.stamps, base[:, :3, 3], Rotation.from_matrix(base[:, :3, :3]).as_quat(), name=name,
+                      frame_id="map", child_frame_id="base_link")
+
+
+def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", progress: bool = False) -> RunResult:
+    from mrnc_eval.evaluation.ape import ape
+    from mrnc_eval.io import open_log
+    from mrnc_eval.io.trajectory_files import write_tum
+    from mrnc_eval.slam.pipeline import run_slam
+
+    if method not in METHODS:
+        raise UsageError(f"--method {method!r}: choose from {', '.join(METHODS)}")
+    result = RunResult(kind="slam", log_path=str(log_path), log_id=log_id_for(log_path), config_hash=config_hash(cfg))
+    with open_log(log_path, cfg.io) as lg:
+        if not lg.has_role("lidar"):
+            raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
+        lidar_frame = "os_sensor"
+        statics = lg.static_transforms()
+        frames = {c for _, c in statics} | {p for p, _ in statics}
+        base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
+        imu = lg.imu() if lg.has_role("imu") else None
+        sensor_to_imu = np.eye(4)
+        if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
+            sensor_to_imu = lg.transform(lidar_frame, imu.frame_id)
+        gnss = lg.gnss() if lg.has_role("gnss") else None
+        gt = _ground_truth(lg, log_path)
+        antenna = lg.transform("base_link", "gnss")[:3, 3] if "gnss" in frames and "base_link" in frames else np.zeros(3)
+        duration = lg.duration_s
+        total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
+        bar = _progress(progress, total)
+        with bar as b:
+            task = b.add_task("SLAM sweeps", total=total) if b else None
+            tick = (lambda n: b.update(task, completed=n)) if b else None
+            if method == "lio":
+                out = run_slam(lg.sweeps(), imu, cfg.slam, sensor_to_imu=sensor_to_imu, gnss=None, progress=tick)
+            else:
+                out = _kiss_icp(lg.sweeps(), cfg)
+    if out.stamps.size < 2:
+        raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s)")
+    est = _to_base(out, base_to_sensor, method)
+    result.warnings += out.warnings
+    if imu is None:
+        result.warnings.append("log has no IMU topic")
+    t_start = float(out.stamps[0])
+    for e in out.events:
+        result.events.append(Event(e.t - t_start, e.kind, e.message, e.data))
+    # ---- metrics
+    rtf = duration / out.wall_s if out.wall_s > 0 else float("inf")
+    result.metrics += [Metric("rtf", rtf, "", "slam", lower_is_better=False,
+                              note="log duration / wall time"),
+                       Metric("sweeps_processed", int(out.stamps.size), "", "slam"),
+                       Metric("keyframes", int(out.kf_stamps.size), "", "slam"),
+                       Metric("loop_closures", sum(e.kind == "loop_closure" for e in out.events), "", "slam"),
+                       Metric("degeneracy_events", sum(e.kind == "degeneracy" for e in out.events), "", "slam")]
+    timing = {}
+    for stage in STAGES:
+        vals = np.asarray(out.timing_ms[stage] or [0.0])
+        timing[stage] = {"mean": float(vals.mean()), "p95": float(np.percentile(vals, 95)), "max": float(vals.max())}
+        result.metrics.append(Metric(f"ms_per_sweep_{stage}", timing[stage]["mean"], "ms", "slam/timing"))
+    result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
+                         "sweeps_in_log": out.n_sweeps})
+    result.series["est_t"] = est.stamps - t_start
+    result.series["est_xyz"] = est.positions
+    result.series["kf_xyz"] = (out.kf_poses @ np.linalg.inv(base_to_sensor))[:, :3, 3] if out.kf_poses.size else np.zeros((0, 3))
+    if gt is not None:
+        try:
+            r = ape(gt, est, align="se3", max_diff=0.02)
+            result.metrics += [Metric("ape_rmse_m", r.stats["rmse"], "m", "slam/ape"),
+                               Metric("ape_mean_m", r.stats["mean"], "m", "slam/ape"),
+                               Metric("ape_max_m", r.stats["max"], "m", "slam/ape"),
+                               Metric("ape_n", r.n, "", "slam/ape"), Metric("ape_span_s", r.span_s, "s", "slam/ape"),
+                               Metric("end_drift_m", float(r.errors[-1]), "m", "slam/ape")]
+            result.series["ape_t"] = r.stamps - t_start
+            result.series["ape_err_m"] = r.errors
+            result.series["ref_xyz"] = r.ref_poses[:, :3, 3]
+            result.series["est_aligned_xyz"] = r.est_poses[:, :3, 3]
+            cell = judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
+                         min_span_fraction=cfg.evaluation.failed_min_span_fraction)
+        except EvaluationError as err:
+            result.warnings.append(f"APE against ground truth failed: {err}")
+            cell = Cell(None, str(err))
+        result.tables.append(table_one({(result.log_id, method): cell}, [result.log_id], [method],
+                                       title="APE RMSE (SE(3) aligned)"))
+    else:
+        result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
+    if gnss is not None and gnss.stamps.size > 3:
+        try:
+            ref = Trajectory(gnss.stamps, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
+            shifted = Trajectory(est.stamps, est.positions + Rotation.from_quat(est.quat_xyzw).apply(antenna),
+                                 est.quat_xyzw, name=method)
+            rg = ape(ref, shifted, align="yaw", relation="point", max_diff=0.1, plane="xy")
+            result.metrics.append(Metric("ape_gnss_rmse_m", rg.stats["rmse"], "m", "slam/ape",
+                                         note="2-D, yaw + translation alignment, against GNSS in ENU"))
+        except EvaluationError as err:
+            result.warnings.append(f"APE against GNSS failed: {err}")
+    # ---- files
+    tmp = Path(tempfile.mkdtemp(prefix=".slam-files-"))
+    write_tum(tmp / "trajectory.tum", est)
+    kf = out.kf_poses @ np.linalg.inv(base_to_sensor)
+    write_tum(tmp / "keyframes.tum", Trajectory(out.kf_stamps, kf[:, :3, 3], Rotation.from_matrix(kf[:, :3, :3]).as_quat()))
+    files = {"trajectory.tum": tmp / "trajectory.tum", "keyframes.tum": tmp / "keyframes.tum"}
+    if out.map_points.size:
+        import open3d as o3d
+
+        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(out.map_points))
+        o3d.io.write_point_cloud(str(tmp / "map.ply"), pc)
+        files["map.ply"] = tmp / "map.ply"
+    write_result(result, out_dir, dump_config(cfg), files)
+    return result
+
+
+class _NoBar:
+    def __enter__(self):
+        return None
+
+    def __exit__(self, *exc):
+        return False
+
+
+def _progress(enabled: bool, total: int):
+    if not enabled or not sys.stderr.isatty():
+        return _NoBar()
+    from rich.progress import Progress
+
+    return Progress(transient=True)
+
+
+def main(logs: list[Path], cfg: Config, *, method: str, out: Path, no_loop: bool, no_gps: bool, json_out: bool) -> None:
+    from mrnc_eval.errors import SomeInputsFailed
+    from mrnc_eval.reports.tables import render_table
+
+    if no_loop:
+        cfg = replace_path(cfg, "slam.use_loop_closure", False)
+    if no_gps:
+        cfg = replace_path(cfg, "slam.use_gps", False)
+    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    results, failed, cells = [], [], {}
+    for path in logs:
+        run_dir = out / f"{log_id_for(path)}-slam-{method}-{stamp}"
+        try:
+            r = run_log(path, cfg, run_dir, method=method, progress=True)
+        except InputError as err:
+            if len(logs) == 1:
+                raise
+            failed.append((path, str(err)))
+            cells[(log_id_for(path), method)] = Cell(None, str(err))
+            continue
+        results.append((run_dir, r))
+        m = r.metric("ape_rmse_m")
+        cells[(r.log_id, method)] = Cell(m.value if m else None, "" if m else "no ground truth")
+    if json_out:
+        from mrnc_eval.cli import emit_json
+        from mrnc_eval.results import _json_safe
+
+        emit_json(_json_safe([{"log": r.log_path, "run_dir": str(d), **{m.name: m.value for m in r.metrics}}
+                              for d, r in results]))
+    else:
+        for d, r in results:
+            vals = {m.name: m.value for m in r.metrics}
+            sys.stdout.write(f"{r.log_id}: APE RMSE {vals.get('ape_rmse_m', float('nan')):.4f} m, RTF {vals['rtf']:.2f}, "
+                             f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
+        if len(logs) > 1:
+            sys.stdout.write(render_table(table_one(cells, [log_id_for(p) for p in logs], [method]), "markdown"))
+    if failed:
+        raise SomeInputsFailed("; ".join(f"{p}: {e}" for p, e in failed))

@@ -1,0 +1,118 @@
+"""Range-image feature extraction (LIO-SAM featureExtraction): smoothness from ranges,
+occlusion and parallel-beam rejection, sectors per ring, edge and planar features."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+from numba import njit
+
+from mrnc_eval.slam.config import FeatureConfig
+
+
+@dataclass(frozen=True)
+class Features:
+    edges: np.ndarray  # (Ne, 3) float64, sensor frame (deskewed)
+    surfs: np.ndarray  # (Ns, 3)
+
+
+@njit(cache=True)
+def _extract(rng, col, ring_start, ring_end, edge_thr, surf_thr, max_edges, sectors, occ_jump, par_ratio):
+    n = rng.size
+    curv = np.zeros(n)
+    picked = np.zeros(n, np.bool_)
+    label = np.zeros(n, np.int8)  # 1 edge, -1 surf
+    for i in range(5, n - 5):
+        d = rng[i - 5] + rng[i - 4] + rng[i - 3] + rng[i - 2] + rng[i - 1] - 10.0 * rng[i] \
+            + rng[i + 1] + rng[i + 2] + rng[i + 3] + rng[i + 4] + rng[i + 5]
+        curv[i] = d * d
+    for i in range(5, n - 6):  # occlusion
+        if abs(col[i + 1] - col[i]) < 10:
+            if rng[i] - rng[i + 1] > occ_jump:
+                for k in range(i - 5, i + 1):
+                    picked[k] = True
+            elif rng[i + 1] - rng[i] > occ_jump:
+                for k in range(i + 1, i + 7):
+                    picked[k] = True
+    for i in range(5, n - 6):  # parallel beams
+        if abs(rng[i - 1] - rng[i]) > par_ratio * rng[i] and abs(rng[i + 1] - rng[i]) > par_ratio * rng[i]:
+            picked[i] = True
+    for r in range(ring_start.size):
+        s, e = ring_start[r], ring_end[r]
+        if e - s < 6 * sectors:
+            continue
+        for j in range(sectors):
+            sp = (s * (sectors - j) + e * j) // sectors
+            ep = (s * (sectors - 1 - j) + e * (j + 1)) // sectors - 1
+            if sp >= ep:
+                continue
+            idx = np.argsort(curv[sp:ep + 1]) + sp
+            count = 0
+            for q in range(idx.size - 1, -1, -1):
+                i = idx[q]
+                if picked[i] or curv[i] <= edge_thr:
+                    continue
+                count += 1
+                if count > max_edges:
+                    break
+                label[i] = 1
+                picked[i] = True
+                for k in range(1, 6):
+                    if i + k < n and abs(col[i + k] - col[i + k - 1]) <= 10:
+                        picked[i + k] = True
+                    else:
+                        break
+                for k in range(1, 6):
+                    if i - k >= 0 and abs(col[i - k] - col[i - k + 1]) <= 10:
+                        picked[i - k] = True
+                    else:
+                        break
+            for q in range(idx.size):
+                i = idx[q]
+                if picked[i] or curv[i] >= surf_thr:
+                    continue
+                label[i] = -1
+                picked[i] = True
+                for k in range(1, 6):
+                    if i + k < n and abs(col[i + k] - col[i + k - 1]) <= 10:
+                        picked[i + k] = True
+                    else:
+                        break
+                for k in range(1, 6):
+                    if i - k >= 0 and abs(col[i - k] - col[i - k + 1]) <= 10:
+                        picked[i - k] = True
+                    else:
+                        break
+            for i in range(sp, ep + 1):  # LIO-SAM: every non-edge point of the sector joins the surf cloud
+                if label[i] == 0:
+                    label[i] = -2
+    return label
+
+
+def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
+    """One point (the centroid) per voxel of size `leaf` (m)."""
+    if points.shape[0] == 0 or leaf <= 0:
+        return points
+    keys = np.floor(points / leaf).astype(np.int64)
+    _, inv, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
+    inv = inv.ravel()
+    out = np.zeros((counts.size, 3))
+    np.add.at(out, inv, points)
+    return out / counts[:, None]
+
+
+def extract_features(points: np.ndarray, ring: np.ndarray, column: np.ndarray, cfg: FeatureConfig) -> Features:
+    """Edges and planes of one (deskewed) sweep; points ordered by ring, then column."""
+    rng = np.linalg.norm(points, axis=1)
+    keep = (rng >= cfg.min_range_m) & (rng <= cfg.max_range_m)
+    points, ring, column, rng = points[keep], ring[keep], column[keep], rng[keep]
+    order = np.lexsort((column, ring))
+    points, ring, column, rng = points[order], ring[order], column[order].astype(np.int64), rng[order]
+    rings, starts, counts = np.unique(ring, return_index=True, return_counts=True)
+    label = _extract(rng.astype(np.float64), column, starts + 5, starts + counts - 6, cfg.edge_threshold,
+                     cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
+                     cfg.parallel_ratio)
+    edges = points[label == 1].astype(np.float64)
+    surfs = voxel_downsample(points[label < 0].astype(np.float64), cfg.surf_leaf_m)
+    return Features(edges, surfs)

@@ -1,0 +1,117 @@
+"""Keyframe factor graph (LIO-SAM graph #1) on gtsam iSAM2 with QR factorisation: prior,
+odometry between-factors (T_i^-1 T_{i+1}), GNSS factors gated on pose uncertainty, and
+loop-closure factors checked by ICP (fitness = mean squared nearest-neighbour distance)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial import cKDTree
+
+from mrnc_eval.errors import ProcessingError
+from mrnc_eval.slam import se3
+from mrnc_eval.slam.config import GpsConfig, GraphConfig, LoopConfig
+
+
+@dataclass
+class KeyframeGraph:
+    cfg: GraphConfig
+    poses: list[np.ndarray] = field(default_factory=list)  # optimised keyframe poses (4x4)
+    stamps: list[float] = field(default_factory=list)
+    loops: list[tuple[int, int, float]] = field(default_factory=list)  # (current, previous, fitness)
+    gps_factors: int = 0
+    last_gps_xy: np.ndarray | None = None
+
+    def __post_init__(self) -> None:
+        import gtsam
+
+        self.gtsam = gtsam
+        params = gtsam.ISAM2Params()
+        params.setRelinearizeThreshold(0.1)
+        params.relinearizeSkip = 1
+        params.setFactorization(self.cfg.factorization)
+        self.isam = gtsam.ISAM2(params)
+
+    def _noise(self, variances) -> object:
+        return self.gtsam.noiseModel.Diagonal.Variances(np.asarray(variances, float))
+
+    def add_keyframe(self, pose: np.ndarray, stamp: float) -> np.ndarray:
+        """Add a keyframe with its scan-to-map pose; returns the optimised pose."""
+        g = self.gtsam
+        graph, values = g.NonlinearFactorGraph(), g.Values()
+        k = len(self.poses)
+        if k == 0:
+            graph.add(g.PriorFactorPose3(k, g.Pose3(pose), self._noise(self.cfg.prior_variances)))
+        else:
+            rel = se3.inv(self.poses[-1]) @ pose
+            graph.add(g.BetweenFactorPose3(k - 1, k, g.Pose3(rel), self._noise(self.cfg.odometry_variances)))
+        values.insert(k, g.Pose3(pose))
+        self.poses.append(pose)
+        self.stamps.append(stamp)
+        self._update(graph, values, extra=0)
+        return self.poses[-1]
+
+    def add_loop(self, cur: int, prev: int, relative: np.ndarray, fitness: float) -> None:
+        g = self.gtsam
+        graph = g.NonlinearFactorGraph()
+        graph.add(g.BetweenFactorPose3(prev, cur, g.Pose3(relative), self._noise([fitness] * 6)))
+        self.loops.append((cur, prev, fitness))
+        self._update(graph, g.Values(), extra=5)
+
+    def add_gps(self, k: int, enu: np.ndarray, variances: np.ndarray) -> None:
+        g = self.gtsam
+        graph = g.NonlinearFactorGraph()
+        graph.add(g.GPSFactor(k, g.Point3(*enu), self._noise(np.maximum(variances, 1.0))))
+        self.gps_factors += 1
+        self.last_gps_xy = enu[:2].copy()
+        self._update(graph, g.Values(), extra=5)
+
+    def xy_variance(self) -> float:
+        cov = self.isam.marginalCovariance(len(self.poses) - 1)  # [rot, trans]
+        return float(max(cov[3, 3], cov[4, 4]))
+
+    def _update(self, graph, values, extra: int) -> None:
+        try:
+            self.isam.update(graph, values)
+            self.isam.update()
+            for _ in range(extra):
+                self.isam.update()
+            est = self.isam.calculateEstimate()
+        except RuntimeError as err:  # gtsam reports an indeterminate system this way
+            raise ProcessingError(f"factor graph update failed at keyframe {len(self.poses) - 1}: {err}") from err
+        self.poses = [est.atPose3(i).matrix() for i in range(len(self.poses))]
+
+
+def icp_fitness(source: np.ndarray, target_tree: cKDTree, max_dist: float) -> float:
+    """PCL's fitness score: mean squared distance to the nearest target point (within max_dist)."""
+    d, _ = target_tree.query(source, k=1, distance_upper_bound=max_dist)
+    d = d[np.isfinite(d)]
+    return float(np.mean(d * d)) if d.size else float("inf")
+
+
+def loop_candidate(graph: KeyframeGraph, cfg: LoopConfig) -> int | None:
+    cur = len(graph.poses) - 1
+    if cur < 1 or any(c == cur for c, _, _ in graph.loops):
+        return None
+    pos = np.array([p[:3, 3] for p in graph.poses])
+    d = np.linalg.norm(pos - pos[cur], axis=1)
+    t = np.asarray(graph.stamps)
+    ok = np.flatnonzero((d < cfg.search_radius_m) & (t[cur] - t > cfg.time_gap_s))
+    return int(ok[np.argmin(d[ok])]) if ok.size else None
+
+
+def register_loop(src: np.ndarray, tgt: np.ndarray, guess: np.ndarray, cfg: LoopConfig) -> tuple[np.ndarray, float, bool]:
+    """Point-to-point ICP (open3d) of the current keyframe cloud onto the submap, both in the
+    map frame; returns the correction, the PCL-style fitness and whether ICP converged."""
+    import open3d as o3d
+
+    s = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(src))
+    t = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(tgt))
+    crit = o3d.pipelines.registration.ICPConvergenceCriteria(relative_fitness=1e-6, relative_rmse=1e-6, max_iteration=100)
+    est = o3d.pipelines.registration.TransformationEstimationPointToPoint()
+    res = o3d.pipelines.registration.registration_icp(s, t, cfg.icp_max_correspondence_m, guess, est, crit)
+    res = o3d.pipelines.registration.registration_icp(s, t, 1.0, res.transformation, est, crit)  # refine
+    T = np.asarray(res.transformation)
+    fitness = icp_fitness(se3.apply(T, src), cKDTree(tgt), cfg.icp_max_correspondence_m)
+    return T, fitness, bool(res.fitness > 0)
