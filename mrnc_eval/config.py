@@ -213,6 +213,9 @@ def load_config(path: str | Path | None = None, overrides: typing.Sequence[str] 
         raise ConfigError(f"{where}{err}") from err
 
 
+CONFIG_FILE_NAME = "config.yaml"
+
+
 def config_hash(cfg: Any) -> str:
     """Short stable hash of the effective configuration (provenance in reports and history)."""
     blob = json.dumps(as_dict(cfg), sort_keys=True, separators=(",", ":"))

@@ -106,7 +106,7 @@ def simulate(cfg: Config, names: tuple[str, ...], scenario: Scenario) -> tuple[d
 def replay(log_path: Path, cfg: Config) -> tuple[dict, dict]:
     """Recompute the references the chain would issue along the recorded pose, and evaluate
     the recorded wheel speeds and pump commands against them."""
-    from mrnc_eval.control.kinematics import inverse_kinematics
+    from mrnc_eval.control.kinematics import inverse_kinematics, slew
     from mrnc_eval.control.pure_pursuit import PurePursuit
     from mrnc_eval.io import open_log
 
@@ -128,14 +128,17 @@ def replay(log_path: Path, cfg: Config) -> tuple[dict, dict]:
     pp = PurePursuit(wp, cfg.control.pure_pursuit, cfg.robot.track_width_m, cfg.robot.max_speed_mps)
     v_ref = np.zeros((t.size, 2))
     cmd = np.zeros((t.size, 2))
-    next_pp, vl, vr = t[0], 0.0, 0.0
-    for k in range(t.size):  # pure pursuit at its own rate along the recorded pose
+    next_pp, tl, tr_, vl, vr = t[0], 0.0, 0.0, 0.0, 0.0
+    accel = cfg.control.kinematics.reference_accel_limit_mps2
+    for k in range(t.size):  # pure pursuit at its own rate along the recorded pose, same reference shaping
         if t[k] >= next_pp:
             v, w, _, _ = pp.step(px[k], py[k], pyaw[k], 0.5 * (speeds.left[k] + speeds.right[k]))
-            vl, vr = inverse_kinematics(v, w, cfg.robot.track_width_m)
+            tl, tr_ = inverse_kinematics(v, w, cfg.robot.track_width_m)
             next_pp = t[k] + 1.0 / cfg.control.pure_pursuit.rate_hz
+        dt_k = t[k] - t[k - 1] if k else 0.0
+        vl, vr = slew(vl, tl, accel, dt_k), slew(vr, tr_, accel, dt_k)
         v_ref[k] = vl, vr
-        cmd[k] = vl, vr
+        cmd[k] = tl, tr_
     f = cfg.control.funnel
     o = (f.o_ov_mps - f.o_b_mps) * np.exp(-f.o_star_per_s * (t - t[0])) + f.o_b_mps
     u_l = np.interp(t, cmds.stamps, cmds.left) if cmds is not None else np.zeros_like(t)
@@ -171,7 +174,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         for side in ("left", "right"):
             group = f"control/{n}/{side}"
             for key, val in metrics[n][side].items():
-                result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), group))
+                result.metrics.append(Metric(key, val if isinstance(val, int) else float(val), UNITS.get(key, ""), group))
             result.series[f"{n}_{side}_v_ref"] = getattr(tr, f"v_ref_{side}")[::step]
             result.series[f"{n}_{side}_v_meas"] = getattr(tr, f"v_wheel_{side}")[::step]
             result.series[f"{n}_{side}_u_rpm"] = getattr(tr, f"u_{side}")[::step]

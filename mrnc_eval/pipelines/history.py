@@ -1,0 +1,94 @@
+"""History of per-log metrics across nights, in SQLite (stdlib, one file, WAL, transactions).
+
+Why SQLite: no server, safe concurrent readers, atomic transactions so a killed night never
+leaves half a log's metrics behind, and it ships with Python. Each (night, log) is written in
+one transaction after its results are complete; re-running a night replaces that night's
+rows only (idempotent); earlier nights are never touched."""
+
+from __future__ import annotations
+
+import sqlite3
+from contextlib import closing
+from dataclasses import dataclass
+from pathlib import Path
+
+SCHEMA = """
+CREATE TABLE IF NOT EXISTS runs (
+  night TEXT NOT NULL, log_id TEXT NOT NULL, run_id TEXT NOT NULL, log_path TEXT NOT NULL,
+  tool_version TEXT NOT NULL, config_hash TEXT NOT NULL, status TEXT NOT NULL, error TEXT NOT NULL,
+  finished_utc TEXT NOT NULL, PRIMARY KEY (night, log_id));
+CREATE TABLE IF NOT EXISTS metrics (
+  night TEXT NOT NULL, log_id TEXT NOT NULL, run_id TEXT NOT NULL, tool_version TEXT NOT NULL,
+  config_hash TEXT NOT NULL, metric TEXT NOT NULL, value REAL, unit TEXT NOT NULL, status TEXT NOT NULL,
+  PRIMARY KEY (night, log_id, metric));
+"""
+
+
+@dataclass(frozen=True)
+class LogRecord:
+    night: str
+    log_id: str
+    run_id: str
+    log_path: str
+    tool_version: str
+    config_hash: str
+    status: str  # "ok" | "failed"
+    error: str
+    finished_utc: str
+    metrics: tuple[tuple[str, float | None, str], ...]  # (name, value, unit)
+
+
+class History:
+    def __init__(self, path: Path) -> None:
+        self.path = path
+        path.parent.mkdir(parents=True, exist_ok=True)
+        with closing(self._connect()) as db:
+            db.executescript(SCHEMA)
+
+    def _connect(self) -> sqlite3.Connection:
+        db = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
+        db.execute("PRAGMA journal_mode=WAL")
+        db.execute("PRAGMA synchronous=FULL")
+        return db
+
+    def record(self, rec: LogRecord) -> None:
+        """Replace this night's rows of this log, all in one transaction."""
+        with closing(self._connect()) as db:
+            db.execute("BEGIN IMMEDIATE")
+            try:
+                db.execute("DELETE FROM metrics WHERE night = ? AND log_id = ?", (rec.night, rec.log_id))
+                db.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?)",
+                           (rec.night, rec.log_id, rec.run_id, rec.log_path, rec.tool_version, rec.config_hash,
+                            rec.status, rec.error, rec.finished_utc))
+                db.executemany("INSERT INTO metrics VALUES (?,?,?,?,?,?,?,?,?)",
+                               [(rec.night, rec.log_id, rec.run_id, rec.tool_version, rec.config_hash, name, value, unit,
+                                 rec.status) for name, value, unit in rec.metrics])
+                db.execute("COMMIT")
+            except BaseException:
+                db.execute("ROLLBACK")
+                raise
+
+    def finished(self, night: str) -> set[str]:
+        with closing(self._connect()) as db:
+            return {r[0] for r in db.execute("SELECT log_id FROM runs WHERE night = ? AND status = 'ok'", (night,))}
+
+    def runs(self, night: str) -> list[tuple]:
+        with closing(self._connect()) as db:
+            return list(db.execute("SELECT log_id, status, error, log_path FROM runs WHERE night = ? ORDER BY log_id",
+                                   (night,)))
+
+    def metric_series(self) -> list[tuple[str, str, str, float]]:
+        """(night, log_id, metric, value) of successful runs, ordered by night."""
+        with closing(self._connect()) as db:
+            return list(db.execute("SELECT night, log_id, metric, value FROM metrics WHERE status = 'ok' AND value IS NOT "
+                                   "NULL ORDER BY night, log_id, metric"))
+
+    def nights(self) -> list[str]:
+        with closing(self._connect()) as db:
+            return [r[0] for r in db.execute("SELECT DISTINCT night FROM runs ORDER BY night")]
+
+    def count(self, night: str) -> tuple[int, int]:
+        with closing(self._connect()) as db:
+            runs = db.execute("SELECT COUNT(*) FROM runs WHERE night = ?", (night,)).fetchone()[0]
+            mets = db.execute("SELECT COUNT(*) FROM metrics WHERE night = ?", (night,)).fetchone()[0]
+        return runs, mets
