@@ -12,7 +12,15 @@ from numba import njit
 
 from mrnc_eval.config import RobotConfig
 from mrnc_eval.control.config import ControlConfig
-from mrnc_eval.control.controllers import CONTROLLER_ID, LABELS, STATE_SIZE, controller_params, controller_step, funnel, rbf_centres
+from mrnc_eval.control.controllers import (
+    CONTROLLER_ID,
+    LABELS,
+    STATE_SIZE,
+    controller_params,
+    controller_step,
+    funnel,
+    rbf_centres,
+)
 from mrnc_eval.control.kinematics import inverse_kinematics, slew
 from mrnc_eval.control.plant import body_step, drive_step, patches_array, slip_at
 from mrnc_eval.control.pure_pursuit import pp_step

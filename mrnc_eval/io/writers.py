@@ -66,7 +66,8 @@ class LogWriter:
             if ros1_compression:
                 self._writer.set_compression(getattr(Writer1.CompressionFormat, ros1_compression.upper()))
         else:
-            from rosbags.rosbag2 import StoragePlugin, Writer as Writer2
+            from rosbags.rosbag2 import StoragePlugin
+            from rosbags.rosbag2 import Writer as Writer2
             from rosbags.rosbag2.enums import CompressionFormat, CompressionMode
 
             name = self.path.name

@@ -6,7 +6,6 @@ from __future__ import annotations
 import logging
 import math
 import sys
-from dataclasses import replace
 from pathlib import Path
 
 import numpy as np
@@ -17,7 +16,7 @@ from mrnc_eval.control.controllers import CONTROLLERS, LABELS, rbf_centres
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import path_metrics, tracking_metrics
-from mrnc_eval.results import Event, Metric, RunResult, Table, log_id_for, safe_name, write_result
+from mrnc_eval.results import Event, Metric, RunResult, Table, log_id_for, write_result
 
 log = logging.getLogger(__name__)
 

@@ -49,7 +49,8 @@ def run_local_pool(jobs: list[Job], workers: int) -> Iterator[dict]:
 
 def run_dask(jobs: list[Job], scheduler: str) -> Iterator[dict]:
     try:
-        from distributed import Client, as_completed as dask_completed
+        from distributed import Client
+        from distributed import as_completed as dask_completed
     except ImportError as err:
         from mrnc_eval.errors import UsageError
 

@@ -95,13 +95,17 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
         return
     sweep_t = np.sort(lg.sweep_stamps(topic))
     imu_t = np.sort(np.asarray([lg._raw_header_stamp(raw) for _, raw in lg._raw(imu_topic)]))
-    period = float(np.median(np.diff(sweep_t))) if sweep_t.size > 1 else 0.1
+    from mrnc_eval.io.pointcloud import decode_cloud
+
+    first_sweep = decode_cloud(first, 0.0)
+    # a sweep lasts until its last point (not until the next recorded sweep: clouds may be throttled)
+    period = float(first_sweep.point_time.max()) if first_sweep.point_time is not None and len(first_sweep) else 0.1
     lo = np.searchsorted(imu_t, sweep_t, side="right") > 0  # an IMU sample at or before the sweep start
     hi = np.searchsorted(imu_t, sweep_t + period, side="left") < imu_t.size  # one at or after its end
     covered = int(np.count_nonzero(lo & hi))
     level = "ok" if covered == sweep_t.size else "warning"
     summary.findings.append(Finding(level, topic, f"IMU covers {covered} of {sweep_t.size} sweeps "
-                                    f"(sweep period {period * 1e3:.0f} ms)"))
+                                    f"(sweep duration {period * 1e3:.0f} ms)"))
 
 
 def _gnss_findings(lg, summary: InfoSummary) -> None:

@@ -15,11 +15,11 @@ from mrnc_eval import __version__
 
 def process_log(log_path: str, config_yaml: str, out_dir: str, pdf: bool = True) -> dict:
     """Never raises: a failure becomes a summary with status "failed" and the error text."""
-    from mrnc_eval.config import build, Config, config_hash, dump_config
+    import yaml
+
+    from mrnc_eval.config import Config, build, config_hash, dump_config
     from mrnc_eval.errors import MrncError
     from mrnc_eval.results import log_id_for
-
-    import yaml
 
     cfg = build(Config, yaml.safe_load(config_yaml) or {})
     log_id = log_id_for(log_path)

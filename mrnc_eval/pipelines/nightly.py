@@ -19,6 +19,7 @@ from mrnc_eval.config import Config, build, dump_config
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
 from mrnc_eval.evaluation.config import GatesConfig
 from mrnc_eval.pipelines.history import History, LogRecord
+from mrnc_eval.pipelines.progress import progress_bar
 from mrnc_eval.results import atomic_write_text, log_id_for
 
 log = logging.getLogger(__name__)
@@ -95,8 +96,7 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
         stream = executors.run_in_process(todo)
     else:
         stream = executors.run_local_pool(todo, jobs)
-    bar = _bar(len(todo))
-    with bar as b:
+    with progress_bar(len(todo)) as b:
         task = b.add_task("logs", total=len(todo)) if b else None
         for summary in stream:
             _record(history, night, summary, ids)
@@ -194,19 +194,3 @@ def _write_trends(history: History, out: Path) -> None:
                                                         regressions=regressions, window=REGRESSION_WINDOW,
                                                         tolerance_pct=int(REGRESSION_TOLERANCE * 100))
     atomic_write_text(out / "trends.html", html)
-
-
-class _NoBar:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
-
-
-def _bar(total: int):
-    if not sys.stderr.isatty() or total == 0:
-        return _NoBar()
-    from rich.progress import Progress
-
-    return Progress(transient=True)

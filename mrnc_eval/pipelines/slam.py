@@ -15,6 +15,7 @@ from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
+from mrnc_eval.pipelines.progress import progress_bar
 from mrnc_eval.results import Event, Metric, RunResult, log_id_for, write_result
 from mrnc_eval.slam.pipeline import STAGES, SlamOutput
 
@@ -95,8 +96,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         antenna = lg.transform("base_link", "gnss")[:3, 3] if "gnss" in frames and "base_link" in frames else np.zeros(3)
         duration = lg.duration_s
         total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
-        bar = _progress(progress, total)
-        with bar as b:
+        with progress_bar(total, progress) as b:
             task = b.add_task("SLAM sweeps", total=total) if b else None
             tick = (lambda n: b.update(task, completed=n)) if b else None
             if method == "lio":
@@ -175,22 +175,6 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         files["map.ply"] = tmp / "map.ply"
     write_result(result, out_dir, dump_config(cfg), files)
     return result
-
-
-class _NoBar:
-    def __enter__(self):
-        return None
-
-    def __exit__(self, *exc):
-        return False
-
-
-def _progress(enabled: bool, total: int):
-    if not enabled or not sys.stderr.isatty():
-        return _NoBar()
-    from rich.progress import Progress
-
-    return Progress(transient=True)
 
 
 def main(logs: list[Path], cfg: Config, *, method: str, out: Path, no_loop: bool, no_gps: bool, json_out: bool) -> None:

@@ -18,6 +18,23 @@ class Features:
 
 
 @njit(cache=True)
+def _mark_neighbours(picked, col, i):
+    """A selected feature blocks its +/-5 neighbours on the ring, up to a column gap > 10."""
+    n = picked.size
+    picked[i] = True
+    for k in range(1, 6):
+        if i + k < n and abs(col[i + k] - col[i + k - 1]) <= 10:
+            picked[i + k] = True
+        else:
+            break
+    for k in range(1, 6):
+        if i - k >= 0 and abs(col[i - k] - col[i - k + 1]) <= 10:
+            picked[i - k] = True
+        else:
+            break
+
+
+@njit(cache=True)
 def _extract(rng, col, ring_start, ring_end, edge_thr, surf_thr, max_edges, sectors, occ_jump, par_ratio):
     n = rng.size
     curv = np.zeros(n)
@@ -57,33 +74,13 @@ def _extract(rng, col, ring_start, ring_end, edge_thr, surf_thr, max_edges, sect
                 if count > max_edges:
                     break
                 label[i] = 1
-                picked[i] = True
-                for k in range(1, 6):
-                    if i + k < n and abs(col[i + k] - col[i + k - 1]) <= 10:
-                        picked[i + k] = True
-                    else:
-                        break
-                for k in range(1, 6):
-                    if i - k >= 0 and abs(col[i - k] - col[i - k + 1]) <= 10:
-                        picked[i - k] = True
-                    else:
-                        break
+                _mark_neighbours(picked, col, i)
             for q in range(idx.size):
                 i = idx[q]
                 if picked[i] or curv[i] >= surf_thr:
                     continue
                 label[i] = -1
-                picked[i] = True
-                for k in range(1, 6):
-                    if i + k < n and abs(col[i + k] - col[i + k - 1]) <= 10:
-                        picked[i + k] = True
-                    else:
-                        break
-                for k in range(1, 6):
-                    if i - k >= 0 and abs(col[i - k] - col[i - k + 1]) <= 10:
-                        picked[i - k] = True
-                    else:
-                        break
+                _mark_neighbours(picked, col, i)
             for i in range(sp, ep + 1):  # LIO-SAM: every non-edge point of the sector joins the surf cloud
                 if label[i] == 0:
                     label[i] = -2

@@ -11,7 +11,7 @@ from scipy.spatial import cKDTree
 
 from mrnc_eval.errors import ProcessingError
 from mrnc_eval.slam import se3
-from mrnc_eval.slam.config import GpsConfig, GraphConfig, LoopConfig
+from mrnc_eval.slam.config import GraphConfig, LoopConfig
 
 
 @dataclass

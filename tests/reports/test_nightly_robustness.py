@@ -10,13 +10,9 @@ import sys
 import time
 from pathlib import Path
 
-import numpy as np
 import pytest
 
 from mrnc_eval.cli import main
-from mrnc_eval.config import Config
-from mrnc_eval.sim.recorder import SimRequest, simulate_log
-from tests.reports.conftest import tiny_cfg
 
 STABLE = ("slam/ape/ape_rmse_m", "slam/slam/keyframes", "control/recorded/left/rms_error_mps",
           "control/recorded/path/cross_track_rms_m")
