@@ -57,7 +57,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     lcfg = replace(scfg.lidar, beams=LIDAR_MODELS[req.lidar], columns=req.columns, rate_hz=req.rate_hz)
     rng = np.random.default_rng(req.seed)
 
-    scenario = scripted_scenario(req.path, cfg.control)
+    scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
     trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=req.seed)
     terrain_centre = scenario.waypoints_xy.mean(axis=0)
     scene = build_scene(req.scene, seed=req.seed, amplitude_m=scfg.terrain_amplitude_m,

@@ -88,25 +88,31 @@ def _extract(rng, col, ring_start, ring_end, edge_thr, surf_thr, max_edges, sect
 
 
 def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
-    """One point (the centroid) per voxel of size `leaf` (m)."""
+    """One point (the centroid) per voxel of size `leaf` (m). Voxel indices are packed into one
+    int64 key (21 bits per axis: +/-1e6 voxels) so the grouping is a 1-D sort."""
     if points.shape[0] == 0 or leaf <= 0:
         return points
-    keys = np.floor(points / leaf).astype(np.int64)
-    _, inv, counts = np.unique(keys, axis=0, return_inverse=True, return_counts=True)
-    inv = inv.ravel()
-    out = np.zeros((counts.size, 3))
-    np.add.at(out, inv, points)
-    return out / counts[:, None]
+    k = np.floor(points / leaf).astype(np.int64) + (1 << 20)
+    key = (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
+    order = np.argsort(key, kind="stable")
+    key_sorted = key[order]
+    starts = np.flatnonzero(np.r_[True, key_sorted[1:] != key_sorted[:-1]])
+    sums = np.add.reduceat(points[order], starts, axis=0)
+    counts = np.diff(np.r_[starts, key_sorted.size])
+    return sums / counts[:, None]
 
 
 def extract_features(points: np.ndarray, ring: np.ndarray, column: np.ndarray, cfg: FeatureConfig) -> Features:
     """Edges and planes of one (deskewed) sweep; points ordered by ring, then column."""
     rng = np.linalg.norm(points, axis=1)
     keep = (rng >= cfg.min_range_m) & (rng <= cfg.max_range_m)
-    points, ring, column, rng = points[keep], ring[keep], column[keep], rng[keep]
-    order = np.lexsort((column, ring))
-    points, ring, column, rng = points[order], ring[order], column[order].astype(np.int64), rng[order]
-    rings, starts, counts = np.unique(ring, return_index=True, return_counts=True)
+    points, ring, column, rng = points[keep], ring[keep], column[keep].astype(np.int64), rng[keep]
+    key = ring.astype(np.int64) * (int(column.max(initial=0)) + 1) + column
+    if key.size > 1 and np.any(np.diff(key) < 0):  # organised clouds arrive ring-major already
+        order = np.argsort(key, kind="stable")
+        points, ring, column, rng = points[order], ring[order], column[order], rng[order]
+    starts = np.flatnonzero(np.r_[True, ring[1:] != ring[:-1]])
+    counts = np.diff(np.r_[starts, ring.size])
     label = _extract(rng.astype(np.float64), column, starts + 5, starts + counts - 6, cfg.edge_threshold,
                      cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
                      cfg.parallel_ratio)

@@ -67,3 +67,19 @@ def test_without_imu_and_point_time_runs_with_warnings(corridor_log: Path) -> No
     assert any("no IMU" in w for w in out.warnings)
     assert any("per-point time" in w for w in out.warnings)
     assert out.stamps.size > 10 and np.all(np.isfinite(out.poses))
+
+
+def test_voxel_downsample_keeps_one_centroid_per_voxel() -> None:
+    from mrnc_eval.slam.features import voxel_downsample
+
+    pts = np.random.default_rng(0).uniform(-30, 30, (20000, 3))
+    out = voxel_downsample(pts, 0.5)
+    keys = np.floor(pts / 0.5).astype(np.int64)
+    uniq, inv = np.unique(keys, axis=0, return_inverse=True)
+    assert out.shape[0] == uniq.shape[0]
+    ref = np.zeros((uniq.shape[0], 3))
+    np.add.at(ref, inv.ravel(), pts)
+    ref /= np.bincount(inv.ravel())[:, None]
+    order_out = np.lexsort(np.floor(out / 0.5).astype(np.int64).T[::-1])
+    order_ref = np.lexsort(uniq.T[::-1])
+    np.testing.assert_allclose(out[order_out], ref[order_ref], atol=1e-9)
