@@ -256,12 +256,24 @@ class LogReader:
         return ImuSeries(np.asarray(t)[keep], acc_a, gyro_a,
                          np.asarray(quat, float)[keep] if has_orientation else None, frame)
 
-    def sweeps(self, topic: str | None = None) -> Iterator[Sweep]:
+    def sweeps(self, topic: str | None = None, *, min_interval_s: float = 0.0) -> Iterator[Sweep]:
+        """Decoded sweeps in log order. With min_interval_s, a sweep closer than that to the last
+        one yielded is skipped before it is decoded (a mapping rate below the sensor rate)."""
         topic = self._topic_for("lidar", topic)
         msgtype = self._msgtype(topic)
         if msgtype != "sensor_msgs/msg/PointCloud2":
             raise InputError(self.path, f"expected sensor_msgs/msg/PointCloud2, got {msgtype}", topic=topic)
-        for m in self._messages(topic):
+        last = -np.inf
+        for _t, raw in self._raw(topic):
+            if min_interval_s > 0:
+                stamp = self._raw_header_stamp(raw)
+                if stamp - last < min_interval_s:
+                    continue
+                last = stamp
+            try:
+                m = self._reader.deserialize(raw, msgtype)
+            except Exception as err:
+                raise InputError(self.path, f"cannot decode {msgtype} message: {err}", topic=topic) from err
             try:
                 yield decode_cloud(m, _stamp(m))
             except CloudFormatError as err:

@@ -156,3 +156,10 @@ def test_failed_write_leaves_nothing(tmp_path: Path) -> None:
         w.write_tf_static([("a", "b", np.eye(4))], 1.0)
         raise RuntimeError("simulated failure")
     assert list(tmp_path.iterdir()) == []
+
+
+def test_sweeps_skipped_before_decoding_at_a_lower_mapping_rate(tmp_path: Path) -> None:
+    write_sample(tmp_path / "a.mcap", "mcap")
+    with open_log(tmp_path / "a.mcap") as log:
+        kept = [s.stamp for s in log.sweeps(min_interval_s=0.15)]
+    assert kept == pytest.approx([100.0, 100.2])
