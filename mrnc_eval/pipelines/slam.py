@@ -4,6 +4,7 @@ from __future__ import annotations
 
 import datetime as dt
 import logging
+import shutil
 import sys
 import tempfile
 from pathlib import Path
@@ -175,7 +176,10 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(out.map_points))
         o3d.io.write_point_cloud(str(tmp / "map.ply"), pc)
         files["map.ply"] = tmp / "map.ply"
-    write_result(result, out_dir, dump_config(cfg), files)
+    try:
+        write_result(result, out_dir, dump_config(cfg), files)
+    finally:
+        shutil.rmtree(tmp, ignore_errors=True)
     return result
 
 
