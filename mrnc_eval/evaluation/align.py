@@ -13,8 +13,9 @@ from typing import Literal
 import numpy as np
 from numpy.typing import NDArray
 
+from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation import lie
+from mrnc_eval.evaluation import lie, sync
 
 AlignMode = Literal["none", "se3", "sim3", "scale", "origin", "yaw"]
 ALIGN_MODES = ("none", "se3", "sim3", "scale", "origin", "yaw")
@@ -35,13 +36,24 @@ class Alignment:
         return t
 
 
+def _sequential_outer_sum(yc: NDArray, xc: NDArray) -> NDArray:
+    """sum_i yc_i xc_i^T added one point after the other, as evo's loop does (cumsum is
+    sequential, sum is pairwise). A BLAS product rounds differently, and for nearly
+    collinear paths the SVD turns that 1e-16 into 1e-12 in R; this order gives evo's bits."""
+    ycc = [np.ascontiguousarray(yc[:, a]) for a in range(3)]
+    xcc = [np.ascontiguousarray(xc[:, b]) for b in range(3)]
+    return np.array([[np.cumsum(ycc[a] * xcc[b])[-1] for b in range(3)] for a in range(3)])
+
+
 def umeyama(x: NDArray[np.float64], y: NDArray[np.float64], with_scale: bool) -> tuple[NDArray, NDArray, float]:
-    """R, t, c minimising sum |y - (c R x + t)|^2; x, y are (n, 3) matched positions."""
+    """R, t, c minimising sum |y - (c R x + t)|^2; x, y are (n, 3) matched positions
+    (Umeyama 1991, eqs. 34-43; same operation order as evo, so the same bits)."""
+    x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)  # the reduction order depends on layout
     n = x.shape[0]
     mx, my = x.mean(axis=0), y.mean(axis=0)
     xc, yc = x - mx, y - my
-    sigma_x = np.einsum("ij,ij->", xc, xc) / n
-    cov = yc.T @ xc / n
+    sigma_x = 1.0 / n * np.linalg.norm(xc) ** 2
+    cov = np.multiply(1.0 / n, _sequential_outer_sum(yc, xc))
     u, d, vt = np.linalg.svd(cov)
     if np.count_nonzero(d > np.finfo(float).eps) < 2:
         raise EvaluationError("degenerate covariance rank: Umeyama alignment is not possible "
@@ -49,9 +61,9 @@ def umeyama(x: NDArray[np.float64], y: NDArray[np.float64], with_scale: bool) ->
     s = np.eye(3)
     if np.linalg.det(u) * np.linalg.det(vt) < 0.0:
         s[2, 2] = -1.0
-    r = u @ s @ vt
-    c = float(np.trace(np.diag(d) @ s) / sigma_x) if with_scale else 1.0
-    t = my - c * r @ mx
+    r = u.dot(s).dot(vt)
+    c = float(1.0 / sigma_x * np.trace(np.diag(d).dot(s))) if with_scale else 1.0
+    t = my - np.multiply(c, r.dot(mx))
     return r, t, c
 
 
@@ -67,18 +79,20 @@ def yaw_align(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray, 
     return r, my - r @ mx
 
 
-def estimate_alignment(ref_poses: NDArray, est_poses: NDArray, mode: str, n_to_align: int | None = None) -> Alignment:
+def estimate_alignment(ref: Trajectory, est: Trajectory, mode: str, n_to_align: int | None = None) -> Alignment:
+    """Alignment of the matched estimate onto the matched reference (same length, paired)."""
     if mode not in ALIGN_MODES:
         raise EvaluationError(f"unknown alignment {mode!r}; choose one of {', '.join(ALIGN_MODES)}")
-    n = ref_poses.shape[0] if n_to_align is None else int(n_to_align)
-    if n < 1 or n > ref_poses.shape[0]:
-        raise EvaluationError(f"n_to_align must be in 1..{ref_poses.shape[0]}, got {n_to_align}")
-    x, y = est_poses[:n, :3, 3], ref_poses[:n, :3, 3]
+    n = len(ref) if n_to_align is None else int(n_to_align)
+    if n < 1 or n > len(ref):
+        raise EvaluationError(f"n_to_align must be in 1..{len(ref)}, got {n_to_align}")
     if mode == "none":
         return Alignment(mode, np.eye(3), np.zeros(3), 1.0)
-    if mode == "origin":
-        t = ref_poses[0] @ lie.inverse(est_poses[0])
+    if mode == "origin":  # T = Q_0 P_0^-1: the first poses coincide
+        q0, p0 = lie.poses(sync.take(ref, [0]))[0], lie.poses(sync.take(est, [0]))[0]
+        t = q0 @ lie.inverse(p0)
         return Alignment(mode, t[:3, :3], t[:3, 3], 1.0)
+    x, y = est.positions[:n], ref.positions[:n]
     if mode == "yaw":
         if n < 2:
             raise EvaluationError("yaw alignment needs at least 2 matched poses")
@@ -92,32 +106,48 @@ def estimate_alignment(ref_poses: NDArray, est_poses: NDArray, mode: str, n_to_a
     return Alignment(mode, r, t, c)
 
 
-def apply_alignment(est_poses: NDArray, a: Alignment) -> NDArray:
-    """p' = c R p + t, R_i' = R R_i (left-multiplied, as evo)."""
-    out = est_poses.copy()
-    out[:, :3, :3] = a.rotation @ est_poses[:, :3, :3]
-    out[:, :3, 3] = a.scale * est_poses[:, :3, 3] @ a.rotation.T + a.translation
-    return out
+def align_positions(xyz: NDArray, a: Alignment) -> NDArray:
+    """p' = c R p + t (scale first, then the rigid part, as evo)."""
+    if a.mode == "none":
+        return xyz
+    return a.scale * xyz @ a.rotation.T + a.translation
 
 
-def project_to_plane(poses: NDArray, plane: str) -> NDArray:
-    """Flatten to a plane after the 3-D alignment: drop the normal coordinate and keep only
-    the rotation about the normal (sxyz Euler angle), as evo's --project_to_plane."""
-    axes = {"xy": 2, "xz": 1, "yz": 0}
-    if plane not in axes:
+def align_rotations(rot: NDArray, a: Alignment) -> NDArray:
+    """R_i' = R R_i (left-multiplied, as evo)."""
+    if a.mode in ("none", "scale"):
+        return rot
+    return np.matmul(a.rotation, rot)
+
+
+_PLANE_NORMAL = {"xy": 2, "xz": 1, "yz": 0}
+
+
+def check_plane(plane: str | None) -> None:
+    if plane is not None and plane not in _PLANE_NORMAL:
         raise EvaluationError(f"plane must be xy, xz or yz, got {plane!r}")
-    out = poses.copy()
-    out[:, axes[plane], 3] = 0.0
-    yaw, pitch, roll = lie.yaw_pitch_roll_sxyz(poses[:, :3, :3])
-    if plane == "xy":
-        out[:, :3, :3] = lie.rot_z(yaw)
-    else:
-        ang = pitch if plane == "xz" else roll
-        c, s = np.cos(ang), np.sin(ang)
-        r = np.zeros((ang.size, 3, 3))
-        if plane == "xz":  # rotation about y
-            r[:, 0, 0], r[:, 0, 2], r[:, 1, 1], r[:, 2, 0], r[:, 2, 2] = c, s, 1.0, -s, c
-        else:  # rotation about x
-            r[:, 0, 0], r[:, 1, 1], r[:, 1, 2], r[:, 2, 1], r[:, 2, 2] = 1.0, c, -s, s, c
-        out[:, :3, :3] = r
+
+
+def project_positions(xyz: NDArray, plane: str) -> NDArray:
+    """Drop the coordinate along the plane normal (z = 0 for xy)."""
+    check_plane(plane)
+    out = xyz.copy()
+    out[:, _PLANE_NORMAL[plane]] = 0.0
     return out
+
+
+def project_rotations(rot: NDArray, plane: str) -> NDArray:
+    """Keep only the rotation about the plane normal (its static-xyz Euler angle), as evo's
+    --project_to_plane; applied after the 3-D alignment, so it is not an SE(2) alignment."""
+    check_plane(plane)
+    yaw, pitch, roll = lie.yaw_pitch_roll_sxyz(rot)
+    if plane == "xy":
+        return lie.rot_z(yaw)
+    ang = pitch if plane == "xz" else roll
+    c, s = np.cos(ang), np.sin(ang)
+    r = np.zeros((ang.size, 3, 3))
+    if plane == "xz":  # rotation about y
+        r[:, 0, 0], r[:, 0, 2], r[:, 1, 1], r[:, 2, 0], r[:, 2, 2] = c, s, 1.0, -s, c
+    else:  # rotation about x
+        r[:, 0, 0], r[:, 1, 1], r[:, 1, 2], r[:, 2, 1], r[:, 2, 2] = 1.0, c, -s, s, c
+    return r

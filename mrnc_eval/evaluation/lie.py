@@ -13,29 +13,64 @@ EPS = np.finfo(float).eps
 def quat_xyzw_to_matrix(q: NDArray[np.float64]) -> NDArray[np.float64]:
     """(N, 4) xyzw -> (N, 3, 3). Quaternions are normalised (scaled by sqrt(2/|q|^2)) as
     evo does; |q|^2 < 4 eps gives the identity."""
-    q = np.asarray(q, dtype=float)
+    q = np.asarray(q, dtype=float).reshape(-1, 4)
     n2 = np.einsum("ij,ij->i", q, q)
     ok = n2 >= 4.0 * EPS
-    qs = np.where(ok[:, None], q * np.sqrt(2.0 / np.where(ok, n2, 1.0))[:, None], 0.0)
-    x, y, z, w = qs[:, 0], qs[:, 1], qs[:, 2], qs[:, 3]
-    r = np.empty((q.shape[0], 3, 3))
-    r[:, 0, 0] = 1.0 - y * y - z * z
-    r[:, 0, 1] = x * y - z * w
-    r[:, 0, 2] = x * z + y * w
-    r[:, 1, 0] = x * y + z * w
-    r[:, 1, 1] = 1.0 - x * x - z * z
-    r[:, 1, 2] = y * z - x * w
-    r[:, 2, 0] = x * z - y * w
-    r[:, 2, 1] = y * z + x * w
-    r[:, 2, 2] = 1.0 - x * x - y * y
+    s = np.sqrt(2.0 / np.where(ok, n2, 1.0))
+    s[~ok] = 0.0
+    # contiguous component columns and one (9, N) block: ~3x faster than strided writes
+    x, y, z, w = (np.ascontiguousarray(q[:, k]) * s for k in range(4))
+    m = np.empty((9, q.shape[0]))
+    m[0] = 1.0 - y * y - z * z
+    m[1] = x * y - z * w
+    m[2] = x * z + y * w
+    m[3] = x * y + z * w
+    m[4] = 1.0 - x * x - z * z
+    m[5] = y * z - x * w
+    m[6] = x * z - y * w
+    m[7] = y * z + x * w
+    m[8] = 1.0 - x * x - y * y
+    r = np.ascontiguousarray(m.T).reshape(-1, 3, 3)
     r[~ok] = np.eye(3)
     return r
 
 
 def matrix_to_quat_xyzw(r: NDArray[np.float64]) -> NDArray[np.float64]:
-    from scipy.spatial.transform import Rotation
+    """(N, 3, 3) -> (N, 4) unit xyzw quaternions (Shepperd's method: each from the largest of
+    w^2, x^2, y^2, z^2, so well conditioned everywhere; the sign is not canonicalised)."""
+    r = np.asarray(r, dtype=float).reshape(-1, 3, 3)
+    diag = np.stack([r[:, 0, 0], r[:, 1, 1], r[:, 2, 2]], axis=1)
+    trace = diag.sum(axis=1)
+    choice = np.argmax(np.column_stack([diag, trace]), axis=1)
+    q = np.empty((r.shape[0], 4))
+    t = choice == 3
+    q[t, 0] = r[t, 2, 1] - r[t, 1, 2]
+    q[t, 1] = r[t, 0, 2] - r[t, 2, 0]
+    q[t, 2] = r[t, 1, 0] - r[t, 0, 1]
+    q[t, 3] = 1.0 + trace[t]
+    for i in range(3):  # three cases, each vectorised over the rotations it covers
+        j, k = (i + 1) % 3, (i + 2) % 3
+        c = choice == i
+        q[c, i] = 1.0 - trace[c] + 2.0 * r[c, i, i]
+        q[c, j] = r[c, j, i] + r[c, i, j]
+        q[c, k] = r[c, k, i] + r[c, i, k]
+        q[c, 3] = r[c, k, j] - r[c, j, k]
+    return q / np.linalg.norm(q, axis=1)[:, None]
 
-    return Rotation.from_matrix(r).as_quat()
+
+def rotations(traj: Trajectory) -> NDArray[np.float64]:
+    """(N, 3, 3) rotation matrices of a trajectory."""
+    return quat_xyzw_to_matrix(traj.quat_xyzw)
+
+
+def transpose(r: NDArray[np.float64]) -> NDArray[np.float64]:
+    return np.swapaxes(r, -1, -2)
+
+
+def relative(r_i: NDArray, p_i: NDArray, r_j: NDArray, p_j: NDArray) -> tuple[NDArray, NDArray]:
+    """Rotation and translation of T_i^-1 T_j for stacks: (R_i^T R_j, R_i^T (p_j - p_i))."""
+    rt = transpose(r_i)
+    return np.matmul(rt, r_j), np.einsum("nij,nj->ni", rt, p_j - p_i)
 
 
 def poses(traj: Trajectory) -> NDArray[np.float64]:
@@ -72,10 +107,13 @@ def rotation_angle(r: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def yaw_pitch_roll_sxyz(r: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
-    """Static-xyz Euler angles (roll about x, pitch about y, yaw about z) of R = Rz Ry Rx."""
-    yaw = np.arctan2(r[:, 1, 0], r[:, 0, 0])
-    pitch = np.arctan2(-r[:, 2, 0], np.hypot(r[:, 0, 0], r[:, 1, 0]))
-    roll = np.arctan2(r[:, 2, 1], r[:, 2, 2])
+    """Static-xyz Euler angles (yaw about z, pitch about y, roll about x) of R = Rz Ry Rx.
+    At gimbal lock (cos pitch <= 4 eps) yaw is 0 and roll takes the whole rotation."""
+    cy = np.sqrt(r[:, 0, 0] * r[:, 0, 0] + r[:, 1, 0] * r[:, 1, 0])
+    lock = cy <= 4.0 * EPS
+    yaw = np.where(lock, 0.0, np.arctan2(r[:, 1, 0], r[:, 0, 0]))
+    pitch = np.arctan2(-r[:, 2, 0], cy)
+    roll = np.where(lock, np.arctan2(-r[:, 1, 2], r[:, 1, 1]), np.arctan2(r[:, 2, 1], r[:, 2, 2]))
     return yaw, pitch, roll
 
 

@@ -49,18 +49,22 @@ def pairs_by_distance(positions: NDArray, delta: float, all_pairs: bool, tol: fl
         raise EvaluationError(f"delta in metres must be > 0, got {delta}")
     if not all_pairs:
         return _pairs_by_distance_incremental(positions, delta)
-    # per i: the first j > i minimising |D_j - D_i - delta|, kept if within delta * tol
+    # evo: per i, the first j > i minimising |(D_j - D_i) - delta|, kept if <= delta * tol.
+    # That error is unimodal in j (D is non-decreasing and rounding is monotone), so the
+    # minimum lies at the start of one of the few distinct D values around the crossing;
+    # runs of equal D (standing still) collapse to their first index, as evo's argmin does.
     d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(positions, axis=0), axis=1))])
     n = d.size
     i = np.arange(n - 1)
-    target = d[i] + delta
-    k = np.searchsorted(d, target, side="left")
-    cand_lo = np.clip(k - 1, 0, n - 1)
-    cand_hi = np.clip(k, 0, n - 1)
-    cand_lo = np.maximum(cand_lo, i + 1)
-    cand_hi = np.maximum(cand_hi, i + 1)
-    err_lo = np.abs(d[cand_lo] - target)
-    err_hi = np.abs(d[cand_hi] - target)
-    j = np.where(err_hi < err_lo, cand_hi, cand_lo)  # ties: the earlier index
-    keep = np.abs(d[j] - target) <= delta * tol
+    k = np.minimum(np.searchsorted(d, d[i] + delta, side="left"), n - 1)
+    run_start = lambda j: np.searchsorted(d, d[j], side="left")  # noqa: E731
+    before = run_start(np.maximum(k - 1, 0))
+    cands = np.stack([run_start(np.maximum(before - 1, 0)), before, run_start(k),
+                      np.searchsorted(d, d[k], side="right")], axis=1)
+    cands = np.clip(np.maximum(cands, (i + 1)[:, None]), 0, n - 1)
+    err = np.abs((d[cands] - d[i][:, None]) - delta)
+    # columns are in index order, so argmin's first minimum is the earliest j, as in evo
+    best = np.argmin(err, axis=1)[:, None]
+    j = np.take_along_axis(cands, best, axis=1)[:, 0]
+    keep = np.take_along_axis(err, best, axis=1)[:, 0] <= delta * tol
     return i[keep], j[keep]

@@ -20,13 +20,14 @@ def check_relation(relation: str) -> None:
         raise EvaluationError(f"unknown pose relation {relation!r}; choose one of {', '.join(RELATIONS)}")
 
 
-def error_values(e: NDArray[np.float64], relation: str) -> NDArray[np.float64]:
-    """Scalar error of each (N, 4, 4) error pose E."""
+def error_values(rot: NDArray[np.float64], trans: NDArray[np.float64], relation: str) -> NDArray[np.float64]:
+    """Scalar error of each error pose E = [rot, trans] ((N, 3, 3) and (N, 3))."""
     if relation in ("trans", "point"):
-        return np.linalg.norm(e[:, :3, 3], axis=1)
-    if relation == "rot":
-        return np.linalg.norm(e[:, :3, :3] - np.eye(3), axis=(1, 2))
-    if relation == "full":
-        return np.linalg.norm(e - np.eye(4), axis=(1, 2))
-    angle = lie.rotation_angle(e[:, :3, :3])
+        return np.linalg.norm(trans, axis=1)
+    if relation == "rot":  # |R_E - I|_F = 2 sqrt(2) sin(theta / 2)
+        return np.linalg.norm(rot - np.eye(3), axis=(1, 2))
+    if relation == "full":  # |E - I_4|_F: mixes metres and radians, as evo
+        d = rot - np.eye(3)
+        return np.sqrt(np.einsum("nij,nij->n", d, d) + np.einsum("ni,ni->n", trans, trans))
+    angle = lie.rotation_angle(rot)
     return np.degrees(angle) if relation == "angle_deg" else angle

@@ -11,7 +11,7 @@ from numpy.typing import NDArray
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
 from mrnc_eval.evaluation import lie
-from mrnc_eval.evaluation.ape import aligned_poses, matched_pair
+from mrnc_eval.evaluation.ape import aligned_pair, matched_pair
 from mrnc_eval.evaluation.pairs import pairs_by_distance, pairs_by_frames
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
@@ -42,28 +42,31 @@ def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: Lit
         by_index: bool = False) -> RpeResult:
     check_relation(relation)
     ref_m, est_m = matched_pair(ref, est, max_diff=max_diff, offset=offset, by_index=by_index)
-    q, p, _ = aligned_poses(ref_m, est_m, align, n_to_align, plane)
-    source = q if pairs_from == "reference" else p
+    pair = aligned_pair(ref_m, est_m, align, n_to_align, plane)
+    q, p = pair.ref_xyz, pair.est_xyz
+    if pairs_from not in ("estimate", "reference"):
+        raise EvaluationError(f"pairs_from must be estimate or reference, got {pairs_from!r}")
     if delta_unit == "frames":
         if float(delta) != int(delta):
             raise EvaluationError(f"delta in frames must be a whole number, got {delta}")
         i, j = pairs_by_frames(len(p), int(delta), all_pairs)
     elif delta_unit == "m":
-        i, j = pairs_by_distance(source[:, :3, 3], float(delta), all_pairs, tol)
+        i, j = pairs_by_distance(q if pairs_from == "reference" else p, float(delta), all_pairs, tol)
     else:
         raise EvaluationError(f"delta unit must be frames or m, got {delta_unit!r}")
     if i.size == 0:
         raise EvaluationError(f"no pose pairs for delta {delta} {delta_unit} (trajectory too short)")
-    if relation == "point":
-        errors = np.abs(np.linalg.norm(q[j, :3, 3] - q[i, :3, 3], axis=1) - np.linalg.norm(p[j, :3, 3] - p[i, :3, 3], axis=1))
-    elif relation == "trans":
-        rel_p = np.einsum("nji,nj->ni", p[i, :3, :3], p[j, :3, 3] - p[i, :3, 3])
-        rel_q = np.einsum("nji,nj->ni", q[i, :3, :3], q[j, :3, 3] - q[i, :3, 3])
+    if relation == "point":  # | |q_j - q_i| - |p_j - p_i| |, no rotations
+        errors = np.abs(np.linalg.norm(q[j] - q[i], axis=1) - np.linalg.norm(p[j] - p[i], axis=1))
+    elif relation == "trans":  # | R_Pi^T (p_j - p_i) - R_Qi^T (q_j - q_i) |
+        rel_p = np.einsum("nji,nj->ni", pair.est_rot[i], p[j] - p[i])
+        rel_q = np.einsum("nji,nj->ni", pair.ref_rot[i], q[j] - q[i])
         errors = np.linalg.norm(rel_p - rel_q, axis=1)
-    else:
-        dq = lie.compose(lie.inverse(q[i]), q[j])
-        dp = lie.compose(lie.inverse(p[i]), p[j])
-        errors = error_values(lie.compose(lie.inverse(dq), dp), relation)
+    else:  # E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)
+        rq, tq = lie.relative(pair.ref_rot[i], q[i], pair.ref_rot[j], q[j])
+        rp, tp = lie.relative(pair.est_rot[i], p[i], pair.est_rot[j], p[j])
+        rot, trans = lie.relative(rq, tq, rp, tp)
+        errors = error_values(rot, trans, relation)
     return RpeResult(
         name=est.name, relation=relation, unit=UNITS[relation], delta=float(delta), delta_unit=delta_unit,
         pairs_from=pairs_from, stats=error_stats(errors), n=int(errors.size),

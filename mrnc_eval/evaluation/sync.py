@@ -3,8 +3,9 @@
 For each stamp of the shorter trajectory (the estimate on equal length), the closest
 stamp of the longer one within `max_diff` is taken; bounds are inclusive and ties go to
 the earlier stamp. Matches need not be one-to-one. `offset` is added to the estimate's
-clock. Unlike evo, duplicate stamps and single-pose trajectories are errors, and unsorted
-input is sorted first (evo falls back to an O(n^2)-ish argmin search).
+clock (applied, as in evo, to the longer trajectory's stamps). Unlike evo, duplicate
+stamps, non-finite values and single-pose trajectories are errors, and unsorted input is
+sorted first (evo falls back to a per-stamp argmin search and keeps the input order).
 """
 
 from __future__ import annotations
@@ -61,11 +62,13 @@ def associate(ref: Trajectory, est: Trajectory, *, max_diff: float = 0.01, offse
     """Match poses by time stamp (evo `associate_trajectories` semantics)."""
     if max_diff < 0:
         raise EvaluationError(f"max_diff must be >= 0, got {max_diff}")
+    # As evo, the offset moves the longer trajectory's stamps (subtracted from the reference,
+    # added to the estimate), so borderline matches round exactly as there.
     est_is_short = len(est) <= len(ref)
     if est_is_short:
-        short_t, long_t = est.stamps + offset, ref.stamps
+        short_t, long_t = est.stamps, ref.stamps - offset
     else:
-        short_t, long_t = ref.stamps - offset, est.stamps
+        short_t, long_t = ref.stamps, est.stamps + offset
     short_idx, long_idx = _nearest_within(long_t, short_t, max_diff)
     if short_idx.size == 0:
         span = lambda t: f"{t.stamps[0]:.3f}..{t.stamps[-1]:.3f} s"  # noqa: E731
@@ -79,6 +82,11 @@ def associate(ref: Trajectory, est: Trajectory, *, max_diff: float = 0.01, offse
 
 
 def take(traj: Trajectory, idx: NDArray[np.int64]) -> Trajectory:
+    """The poses at idx; the trajectory itself when every pose is taken in order (no copy)."""
+    idx = np.asarray(idx)
+    if idx.size == len(traj) and (idx.size == 0 or (idx[0] == 0 and idx[-1] == idx.size - 1
+                                                    and np.all(np.diff(idx) == 1))):
+        return traj
     return Trajectory(traj.stamps[idx], traj.positions[idx], traj.quat_xyzw[idx], traj.name, traj.frame_id,
                       traj.child_frame_id)
 

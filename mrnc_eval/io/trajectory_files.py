@@ -6,6 +6,7 @@ the file and the line. Loading uses pandas' C parser: about 0.3 s per million po
 
 from __future__ import annotations
 
+import math
 from pathlib import Path
 
 import numpy as np
@@ -25,32 +26,38 @@ def _load_table(path: Path, ncols: int, *, delimiter: str = " ", skip_header: bo
     except FileNotFoundError as err:
         raise InputError(path, "no such file") from err
     except pd.errors.EmptyDataError as err:
-        raise InputError(path, "file is empty") from err
+        raise InputError(path, "no poses (the file is empty or only comments)") from err
     except (ValueError, pd.errors.ParserError) as err:
-        raise InputError(path, f"not a table of numbers ({_first_bad_line(path, ncols, delimiter)}): {err}") from err
+        raise InputError(path, _first_bad_line(path, ncols, delimiter)) from err
     if df.shape[1] != ncols:
-        raise InputError(path, f"expected {ncols} columns per row, found {df.shape[1]} ({_first_bad_line(path, ncols, delimiter)})")
+        raise InputError(path, _first_bad_line(path, ncols, delimiter))
     arr = df.to_numpy()
     if not np.isfinite(arr).all():
-        bad = int(np.argwhere(~np.isfinite(arr))[0, 0])
-        detail = _first_bad_line(path, ncols, delimiter)
-        raise InputError(path, detail if detail != "see the first rows" else f"row {bad + 1}: missing or non-finite value")
+        raise InputError(path, _first_bad_line(path, ncols, delimiter))
     return arr
 
 
 def _first_bad_line(path: Path, ncols: int, delimiter: str) -> str:
+    """The first line that breaks the format, said plainly (for the error message)."""
     try:
         with path.open(encoding="utf-8-sig", errors="replace") as fh:
             for k, line in enumerate(fh, 1):
-                if not line.strip() or line.startswith("#"):
+                row = line.rstrip("\r\n")
+                if not row.strip() or row.startswith("#"):
                     continue
-                parts = line.rstrip("\n").split(delimiter)
+                if delimiter == " " and "\t" in row:
+                    return f"line {k} contains a tab; fields must be separated by single spaces"
+                parts = row.split(delimiter)
+                if delimiter == " " and "" in parts:
+                    return f"line {k} has leading, trailing or double spaces"
                 if len(parts) != ncols:
-                    return f"line {k} has {len(parts)} fields"
-                try:
-                    [float(x) for x in parts]
-                except ValueError:
-                    return f"line {k} is not numeric"
+                    return f"line {k} has {len(parts)} fields, expected {ncols}"
+                for x in parts:
+                    try:
+                        if not math.isfinite(float(x)):
+                            return f"line {k} has a non-finite value ({x[:20]!r})"
+                    except ValueError:
+                        return f"line {k} is not numeric ({x[:20]!r})"
     except OSError:
         pass
     return "see the first rows"

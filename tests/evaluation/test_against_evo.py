@@ -32,12 +32,28 @@ def test_ape_equals_evo(align: str, relation: str) -> None:
     assert_stats_equal(ours.stats, theirs, ours.errors, err)
 
 
-@pytest.mark.parametrize("align", ["se3", "sim3"])
-def test_ape_first_n_and_plane_equal_evo(align: str) -> None:
+@pytest.mark.parametrize("align", ["se3", "sim3", "scale"])
+@pytest.mark.parametrize("plane", ["xy", "xz", "yz"])
+@pytest.mark.parametrize("relation", ["trans", "full", "angle_deg"])
+def test_ape_first_n_and_plane_equal_evo(align: str, plane: str, relation: str) -> None:
     ref, est = make_pair(seed=3)
-    ours = ape(ref, est, align=align, n_to_align=100, plane="xy")
-    theirs, err = evo_ape(ref, est, relation="trans", align=align, n_to_align=100, plane="xy")
+    ours = ape(ref, est, align=align, n_to_align=100, plane=plane, relation=relation)
+    theirs, err = evo_ape(ref, est, relation=relation, align=align, n_to_align=100, plane=plane)
     assert_stats_equal(ours.stats, theirs, ours.errors, err)
+
+
+def test_aligned_poses_and_transform_equal_evo() -> None:
+    """The aligned estimate itself (not only the statistics) and the stored Sim(3) transform."""
+    from tests.evaluation.evo_reference import evo_prepare
+
+    ref, est = make_pair(seed=8)
+    ours = ape(ref, est, align="sim3", plane="xy")
+    r, e = evo_prepare(ref, est, align="sim3", max_diff=0.01, offset=0.0, n_to_align=None, plane="xy")
+    np.testing.assert_allclose(ours.est_poses, np.array(e.poses_se3), atol=1e-12)
+    np.testing.assert_allclose(ours.ref_poses, np.array(r.poses_se3), atol=1e-12)
+    theirs = ape(ref, est, align="sim3")
+    np.testing.assert_allclose(theirs.transform[:3, :3] / theirs.scale, theirs.alignment.rotation, atol=1e-15)
+    np.testing.assert_allclose(theirs.est_aligned.positions, theirs.est_xyz, atol=1e-12)
 
 
 @pytest.mark.parametrize("relation", RELATIONS)
@@ -56,3 +72,23 @@ def test_rpe_pairs_from_reference_equals_evo() -> None:
     ours = rpe(ref, est, delta=1.0, delta_unit="m", relation="trans", pairs_from="reference", align="sim3")
     theirs, err = evo_rpe(ref, est, relation="trans", delta=1.0, unit="m", align="sim3", pairs_from_reference=True)
     assert_stats_equal(ours.stats, theirs, ours.errors, err)
+
+
+@pytest.mark.parametrize("n_to_align", [100, None])
+def test_umeyama_is_bit_identical_to_evo(n_to_align: int | None) -> None:
+    """Over the first 100 poses the path is nearly straight: the SVD amplifies any change of
+    summation order ~1e4-fold, so only evo's operation order gives the same R, t, c."""
+    from evo.core import geometry
+
+    from mrnc_eval.evaluation.align import umeyama
+    from mrnc_eval.evaluation.ape import matched_pair
+    from tests.evaluation.evo_reference import evo_prepare
+
+    ref, est = make_pair(seed=0, n=3000)
+    r, e = evo_prepare(ref, est, align="none", max_diff=0.01, offset=0.0, n_to_align=None, plane=None)
+    ref_m, est_m = matched_pair(ref, est, max_diff=0.01, offset=0.0)
+    n = n_to_align or len(ref_m)
+    ours = umeyama(est_m.positions[:n], ref_m.positions[:n], with_scale=True)
+    theirs = geometry.umeyama_alignment(e.positions_xyz[:n].T, r.positions_xyz[:n].T, True)
+    for a, b in zip(ours, theirs):
+        np.testing.assert_array_equal(a, b)
