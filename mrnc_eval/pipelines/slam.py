@@ -84,7 +84,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
-        lidar_frame = "os_sensor"
+        lidar_frame = cfg.slam.sensor.lidar_frame
         statics = lg.static_transforms()
         frames = {c for _, c in statics} | {p for p, _ in statics}
         base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
@@ -95,15 +95,16 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         gnss = lg.gnss() if lg.has_role("gnss") else None
         gt = _ground_truth(lg, log_path)
         antenna = lg.transform("base_link", "gnss")[:3, 3] if "gnss" in frames and "base_link" in frames else np.zeros(3)
+        antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
         duration = lg.duration_s
         total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
         with progress_bar(total, progress) as b:
             task = b.add_task("SLAM sweeps", total=total) if b else None
             tick = (lambda n: b.update(task, completed=n)) if b else None
             if method == "lio":
-                # GNSS factors need the ENU -> map alignment first (see the issue note): off here
                 sweeps = lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s)
-                out = run_slam(sweeps, imu, cfg.slam, sensor_to_imu=sensor_to_imu, gnss=None, progress=tick)
+                out = run_slam(sweeps, imu, cfg.slam, sensor_to_imu=sensor_to_imu, gnss=gnss,
+                               antenna_in_sensor=antenna_in_sensor, progress=tick)
             else:
                 out = _kiss_icp(lg.sweeps(), cfg)
     if out.stamps.size < 2:

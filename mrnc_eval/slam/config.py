@@ -3,8 +3,50 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal, Optional
 
 from mrnc_eval.params import param, section
+
+
+@dataclass(frozen=True)
+class SensorConfig:
+    """The LiDAR (defaults: Ouster OS0-128 x 1024 at 10 Hz, as on the robot)."""
+
+    lidar_frame: str = param("os_sensor", "frame of the point clouds (Ouster driver: os_sensor)")
+    n_scan: int = param(128, "beams (N_SCAN); used only when the cloud carries no ring field")
+    horizon_scan: int = param(1024, "columns per sweep (Horizon_SCAN); used when the cloud has no column")
+    downsample_rate: int = param(1, "keep every n-th ring (downsampleRate)")
+    vertical_fov_deg: tuple[float, float] = param((-45.0, 45.0), "OS0 vertical field of view [min, max], "
+                                                   "for rings computed from elevation", "deg")
+
+
+@dataclass(frozen=True)
+class ImuConfig:
+    """IMU noise model, extrinsics and the preintegration graph (graph #2)."""
+
+    acc_noise: float = param(3.9939570888238808e-03, "accelerometer white noise sigma (imuAccNoise)", "m/s^2")
+    gyro_noise: float = param(1.5636343949698187e-03, "gyroscope white noise sigma (imuGyrNoise)", "rad/s")
+    acc_bias_noise: float = param(6.4356659353532566e-05, "accelerometer bias random walk (imuAccBiasN)", "m/s^3")
+    gyro_bias_noise: float = param(3.5640318696367613e-05, "gyroscope bias random walk (imuGyrBiasN)", "rad/s^2")
+    integration_noise: float = param(1e-4, "integration noise sigma of the preintegration")
+    gravity: float = param(9.80511, "gravity magnitude (imuGravity)", "m/s^2")
+    rpy_weight: float = param(0.01, "slerp weight pulling the matched roll/pitch towards the IMU (imuRPYWeight)")
+    extrinsic_rot: Optional[list[list[float]]] = param(None, "3x3 rotation taking IMU-frame vectors into the "
+                                                       "LiDAR frame (extrinsicRot); None = from /tf_static")
+    extrinsic_trans: Optional[list[float]] = param(None, "IMU position in the LiDAR frame (extrinsicTrans); "
+                                                   "None = from /tf_static", "m")
+    attitude_window_s: float = param(0.5, "6-axis IMU: average the accelerometer over the first seconds "
+                                     "for the initial roll/pitch", "s")
+    use_heading_init: bool = param(False, "start the map yaw at the 9-axis IMU's yaw (useImuHeadingInitialization); "
+                                   "6-axis IMUs have no heading")
+    use_preintegration_graph: bool = param(True, "estimate velocity and biases with gtsam ImuFactors and lidar pose "
+                                           "priors (LIO-SAM imuPreintegration); off = constant-velocity guess")
+    pose_prior_sigmas: tuple[float, float, float, float, float, float] = param(
+        (0.05, 0.05, 0.05, 0.1, 0.1, 0.1), "lidar pose prior sigmas in graph #2 [rot rad, trans m]")
+    degenerate_pose_sigma: float = param(1.0, "... when scan-to-map was degenerate")
+    reset_every: int = param(100, "restart graph #2 from the marginals every n keys")
+    max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
+    max_bias: float = param(1.0, "... or above this bias norm")
 
 
 @dataclass(frozen=True)
@@ -18,6 +60,8 @@ class FeatureConfig:
     occlusion_jump_m: float = param(0.3, "range jump marking an occlusion", "m")
     parallel_ratio: float = param(0.02, "neighbour range differences above this fraction mark a parallel beam")
     surf_leaf_m: float = param(0.4, "voxel size of the planar cloud (odometrySurfLeafSize)", "m")
+    smoothness: Literal["range", "xyz"] = param("range", "smoothness from ranges (LIO-SAM code) or from xyz "
+                                                "differences (the paper's formula)")
 
 
 @dataclass(frozen=True)
@@ -35,6 +79,11 @@ class MatchingConfig:
     converge_trans_cm: float = param(0.05, "convergence: translation update", "cm")
     max_nn_sq_dist_m2: float = param(1.0, "neighbours farther than this (squared) are not used", "m^2")
     kdtree_workers: int = param(2, "threads of the nearest-neighbour queries (scipy cKDTree)")
+    keyframe_density_m: float = param(2.0, "keyframe positions voxelised at this before choosing the local map "
+                                      "(surroundingKeyframeDensity)", "m")
+    min_correspondences: int = param(50, "stop iterating with fewer residuals than this")
+    plane_max_offset_m: float = param(0.2, "a plane is rejected when a neighbour is farther from it", "m")
+    map_cache_size: int = param(1000, "keyframe clouds kept in the map frame (cleared above, and after loops)")
 
 
 @dataclass(frozen=True)
@@ -45,7 +94,10 @@ class GraphConfig:
         (1e-2, 1e-2, 3.141592653589793 ** 2, 1e8, 1e8, 1e8), "first-pose prior variances [rot, trans] (LIO-SAM)")
     odometry_variances: tuple[float, float, float, float, float, float] = param(
         (1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4), "odometry between-factor variances [rot, trans]")
-    factorization: str = param("QR", "iSAM2 factorisation; gtsam 4.3's CHOLESKY rejects the loose prior")
+    factorization: Literal["QR", "CHOLESKY"] = param("QR", "iSAM2 factorisation; gtsam 4.3's CHOLESKY rejects the loose prior")
+    relinearize_threshold: float = param(0.1, "iSAM2 relinearizeThreshold")
+    relinearize_skip: int = param(1, "iSAM2 relinearizeSkip")
+    extra_updates: int = param(5, "extra iSAM2 update() calls after a loop or GNSS factor")
 
 
 @dataclass(frozen=True)
@@ -57,6 +109,11 @@ class LoopConfig:
     fitness_threshold_m2: float = param(0.3, "accept ICP if mean squared NN distance below (historyKeyframeFitnessScore)", "m^2")
     icp_max_correspondence_m: float = param(30.0, "ICP max correspondence distance (first stage)", "m")
     every_n_keyframes: int = param(1, "try a loop closure every n keyframes (LIO-SAM: a 1 Hz thread)")
+    interval_s: float = param(1.0, "at most one loop search per this much log time (loopClosureFrequency 1 Hz)", "s")
+    leaf_m: float = param(0.4, "voxel size of the loop source and target clouds", "m")
+    min_source_points: int = param(300, "skip the check with a smaller source cloud")
+    min_target_points: int = param(1000, "... or target submap")
+    icp_iterations: int = param(100, "ICP iterations")
 
 
 @dataclass(frozen=True)
@@ -66,6 +123,9 @@ class GpsConfig:
     gps_cov_threshold_m2: float = param(2.0, "drop fixes with a larger variance (gpsCovThreshold)", "m^2")
     min_spacing_m: float = param(5.0, "distance between GNSS factors", "m")
     max_time_diff_s: float = param(0.2, "fix must be this close to the keyframe", "s")
+    min_travel_m: float = param(5.0, "no GNSS factor before the first-to-last keyframe distance reaches this", "m")
+    use_elevation: bool = param(False, "use the GNSS height (useGpsElevation); off = keep the estimated z", "")
+    align_min_travel_m: float = param(10.0, "travel needed before the ENU -> map yaw alignment is estimated", "m")
 
 
 @dataclass(frozen=True)
@@ -77,6 +137,8 @@ class SlamConfig:
     deskew_translation: bool = param(True, "also remove the translation during the sweep (constant velocity); "
                                      "LIO-SAM deskews rotation only")
     gyro_bias_init_s: float = param(0.0, "average the gyro over the first seconds as its bias (0 = off)", "s")
+    sensor: SensorConfig = section(SensorConfig, "the LiDAR (OS0 defaults)")
+    imu: ImuConfig = section(ImuConfig, "IMU noise, extrinsics and preintegration (graph #2)")
     features: FeatureConfig = section(FeatureConfig, "range image and feature extraction")
     matching: MatchingConfig = section(MatchingConfig, "scan-to-map matching")
     graph: GraphConfig = section(GraphConfig, "keyframes and the factor graph")

@@ -9,6 +9,7 @@ import numpy as np
 from numba import njit
 
 from mrnc_eval.slam.config import FeatureConfig
+from mrnc_eval.slam.range_image import RangeImage
 
 
 @dataclass(frozen=True)
@@ -35,15 +36,32 @@ def _mark_neighbours(picked, col, i):
 
 
 @njit(cache=True)
-def _extract(rng, col, ring_start, ring_end, edge_thr, surf_thr, max_edges, sectors, occ_jump, par_ratio):
+def _smoothness(rng, xyz, use_xyz):
+    """LIO-SAM: (sum of the 10 neighbour ranges - 10 r_i)^2; the paper: the same on xyz, squared norm."""
     n = rng.size
     curv = np.zeros(n)
+    for i in range(5, n - 5):
+        if use_xyz:
+            acc = 0.0
+            for a in range(3):
+                d = -10.0 * xyz[i, a]
+                for k in range(1, 6):
+                    d += xyz[i - k, a] + xyz[i + k, a]
+                acc += d * d
+            curv[i] = acc
+        else:
+            d = -10.0 * rng[i]
+            for k in range(1, 6):
+                d += rng[i - k] + rng[i + k]
+            curv[i] = d * d
+    return curv
+
+
+@njit(cache=True)
+def _extract(rng, curv, col, ring_start, ring_end, edge_thr, surf_thr, max_edges, sectors, occ_jump, par_ratio):
+    n = rng.size
     picked = np.zeros(n, np.bool_)
     label = np.zeros(n, np.int8)  # 1 edge, -1 surf
-    for i in range(5, n - 5):
-        d = rng[i - 5] + rng[i - 4] + rng[i - 3] + rng[i - 2] + rng[i - 1] - 10.0 * rng[i] \
-            + rng[i + 1] + rng[i + 2] + rng[i + 3] + rng[i + 4] + rng[i + 5]
-        curv[i] = d * d
     for i in range(5, n - 6):  # occlusion
         if abs(col[i + 1] - col[i]) < 10:
             if rng[i] - rng[i + 1] > occ_jump:
@@ -102,20 +120,18 @@ def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
     return sums / counts[:, None]
 
 
-def extract_features(points: np.ndarray, ring: np.ndarray, column: np.ndarray, cfg: FeatureConfig) -> Features:
-    """Edges and planes of one (deskewed) sweep; points ordered by ring, then column."""
-    rng = np.linalg.norm(points, axis=1)
-    keep = (rng >= cfg.min_range_m) & (rng <= cfg.max_range_m)
-    points, ring, column, rng = points[keep], ring[keep], column[keep].astype(np.int64), rng[keep]
-    key = ring.astype(np.int64) * (int(column.max(initial=0)) + 1) + column
-    if key.size > 1 and np.any(np.diff(key) < 0):  # organised clouds arrive ring-major already
-        order = np.argsort(key, kind="stable")
-        points, ring, column, rng = points[order], ring[order], column[order], rng[order]
+def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) -> Features:
+    """Edges and planes of one sweep. `image` gives the ring-major order and the (raw) ranges,
+    `points` (N, 3) the same points deskewed."""
+    if len(image) < 12:
+        return Features(np.zeros((0, 3)), np.zeros((0, 3)))
+    ring, rng = image.ring, image.range_m
     starts = np.flatnonzero(np.r_[True, ring[1:] != ring[:-1]])
     counts = np.diff(np.r_[starts, ring.size])
-    label = _extract(rng.astype(np.float64), column, starts + 5, starts + counts - 6, cfg.edge_threshold,
+    curv = _smoothness(rng, points, cfg.smoothness == "xyz")
+    label = _extract(rng, curv, image.column, starts + 5, starts + counts - 6, cfg.edge_threshold,
                      cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
                      cfg.parallel_ratio)
-    edges = points[label == 1].astype(np.float64)
-    surfs = voxel_downsample(points[label < 0].astype(np.float64), cfg.surf_leaf_m)
+    edges = points[label == 1]
+    surfs = voxel_downsample(points[label < 0], cfg.surf_leaf_m)
     return Features(edges, surfs)

@@ -28,8 +28,8 @@ class KeyframeGraph:
 
         self.gtsam = gtsam
         params = gtsam.ISAM2Params()
-        params.setRelinearizeThreshold(0.1)
-        params.relinearizeSkip = 1
+        params.setRelinearizeThreshold(self.cfg.relinearize_threshold)
+        params.relinearizeSkip = self.cfg.relinearize_skip
         params.setFactorization(self.cfg.factorization)
         self.isam = gtsam.ISAM2(params)
 
@@ -57,15 +57,21 @@ class KeyframeGraph:
         graph = g.NonlinearFactorGraph()
         graph.add(g.BetweenFactorPose3(prev, cur, g.Pose3(relative), self._noise([fitness] * 6)))
         self.loops.append((cur, prev, fitness))
-        self._update(graph, g.Values(), extra=5)
+        self._update(graph, g.Values(), extra=self.cfg.extra_updates)
 
-    def add_gps(self, k: int, enu: np.ndarray, variances: np.ndarray) -> None:
+    def add_gps(self, k: int, position: np.ndarray, variances: np.ndarray, lever_arm: np.ndarray | None = None) -> None:
+        """GNSS position (map frame) of the antenna at `lever_arm` in the LiDAR frame of keyframe k;
+        variances floored at 1 m^2 as LIO-SAM does."""
         g = self.gtsam
         graph = g.NonlinearFactorGraph()
-        graph.add(g.GPSFactor(k, g.Point3(*enu), self._noise(np.maximum(variances, 1.0))))
+        noise = self._noise(np.maximum(variances, 1.0))
+        if lever_arm is not None and np.any(lever_arm != 0):
+            graph.add(g.GPSFactorArm(k, np.asarray(position, float), np.asarray(lever_arm, float), noise))
+        else:
+            graph.add(g.GPSFactor(k, g.Point3(*position), noise))
         self.gps_factors += 1
-        self.last_gps_xy = enu[:2].copy()
-        self._update(graph, g.Values(), extra=5)
+        self.last_gps_xy = np.asarray(position[:2], float).copy()
+        self._update(graph, g.Values(), extra=self.cfg.extra_updates)
 
     def xy_variance(self) -> float:
         cov = self.isam.marginalCovariance(len(self.poses) - 1)  # [rot, trans]
@@ -108,7 +114,7 @@ def register_loop(src: np.ndarray, tgt: np.ndarray, guess: np.ndarray, cfg: Loop
 
     s = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(src))
     t = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(tgt))
-    crit = o3d.pipelines.registration.ICPConvergenceCriteria(relative_fitness=1e-6, relative_rmse=1e-6, max_iteration=100)
+    crit = o3d.pipelines.registration.ICPConvergenceCriteria(relative_fitness=1e-6, relative_rmse=1e-6, max_iteration=cfg.icp_iterations)
     est = o3d.pipelines.registration.TransformationEstimationPointToPoint()
     res = o3d.pipelines.registration.registration_icp(s, t, cfg.icp_max_correspondence_m, guess, est, crit)
     res = o3d.pipelines.registration.registration_icp(s, t, 1.0, res.transformation, est, crit)  # refine

@@ -1,95 +1,240 @@
-"""IMU handling for the replay: extrinsic rotation into the sensor frame, initial attitude
-(6-axis: roll/pitch from the averaged accelerometer; 9-axis: the IMU's orientation), gyro
-orientation track for deskew, and gtsam preintegration for the motion prior between sweeps."""
+"""IMU handling for the replay: extrinsic rotation into the LiDAR frame, initial attitude
+(6-axis: roll/pitch from the averaged accelerometer; 9-axis: the IMU's orientation), the raw
+gyro orientation track used by deskew, and LIO-SAM's graph #2: gtsam ImuFactors between
+mapped sweeps with lidar pose priors and a bias random walk, giving the motion guess,
+velocity and bias estimates."""
 
 from __future__ import annotations
 
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 from scipy.spatial.transform import Rotation
 
 from mrnc_eval.data import ImuSeries
+from mrnc_eval.slam.config import ImuConfig
+
+
+def clean_imu(imu: ImuSeries) -> ImuSeries:
+    """Sorted by stamp, duplicates (same stamp) dropped: gtsam raises on dt <= 0 (LIO-SAM#247)."""
+    order = np.argsort(imu.stamps, kind="stable")
+    s = imu.stamps[order]
+    keep = order[np.r_[True, np.diff(s) > 0]]
+    if keep.size == imu.stamps.size and np.all(keep == np.arange(keep.size)):
+        return imu
+    ori = imu.orientation_xyzw[keep] if imu.orientation_xyzw is not None else None
+    return ImuSeries(imu.stamps[keep], imu.acc[keep], imu.gyro[keep], ori, imu.frame_id)
+
+
+def lidar_to_imu(cfg: ImuConfig, from_tf: np.ndarray | None) -> np.ndarray:
+    """4x4 pose of the IMU in the LiDAR frame: the config's extrinsics when given, else /tf_static.
+    The rotation is re-orthonormalised (a sloppy matrix crashes gtsam, gtsam#2300)."""
+    T = np.eye(4) if from_tf is None else np.array(from_tf, dtype=float)
+    if cfg.extrinsic_rot is not None:
+        T[:3, :3] = np.asarray(cfg.extrinsic_rot, float)
+    if cfg.extrinsic_trans is not None:
+        T[:3, 3] = np.asarray(cfg.extrinsic_trans, float)
+    u, _, vt = np.linalg.svd(T[:3, :3])
+    T[:3, :3] = u @ np.diag([1.0, 1.0, np.linalg.det(u @ vt)]) @ vt
+    return T
+
+
+@njit(cache=True)
+def _integrate_gyro(gyro, dt):
+    """Quaternions (w, x, y, z) of the raw gyro integration, one per sample (first = identity)."""
+    n = gyro.shape[0]
+    q = np.zeros((n, 4))
+    q[0, 0] = 1.0
+    for i in range(n - 1):
+        wx, wy, wz = gyro[i, 0] * dt[i], gyro[i, 1] * dt[i], gyro[i, 2] * dt[i]
+        ang = np.sqrt(wx * wx + wy * wy + wz * wz)
+        if ang > 1e-12:
+            s = np.sin(0.5 * ang) / ang
+            dw, dx, dy, dz = np.cos(0.5 * ang), wx * s, wy * s, wz * s
+        else:
+            dw, dx, dy, dz = 1.0, 0.5 * wx, 0.5 * wy, 0.5 * wz
+        aw, ax, ay, az = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
+        w = aw * dw - ax * dx - ay * dy - az * dz
+        x = aw * dx + ax * dw + ay * dz - az * dy
+        y = aw * dy - ax * dz + ay * dw + az * dx
+        z = aw * dz + ax * dy - ay * dx + az * dw
+        nrm = np.sqrt(w * w + x * x + y * y + z * z)
+        q[i + 1, 0], q[i + 1, 1], q[i + 1, 2], q[i + 1, 3] = w / nrm, x / nrm, y / nrm, z / nrm
+    return q
 
 
 @dataclass(frozen=True)
 class ImuTrack:
-    """IMU samples rotated into the LiDAR sensor frame, with an integrated orientation track."""
+    """IMU samples rotated into the LiDAR frame, with the raw-gyro orientation track
+    (LIO-SAM deskews with the raw gyro, no bias)."""
 
     stamps: np.ndarray
-    acc: np.ndarray  # (N, 3) sensor frame, m/s^2
-    gyro: np.ndarray  # (N, 3) sensor frame, rad/s
-    rot: Rotation  # orientation of the sensor at each stamp relative to the first sample (gyro only)
+    acc: np.ndarray  # (N, 3) LiDAR axes, m/s^2
+    gyro: np.ndarray  # (N, 3) LiDAR axes, rad/s
+    quat_wxyz: np.ndarray  # (N, 4) orientation at each stamp relative to the first sample
+
+    def orientation(self, t: np.ndarray) -> Rotation:
+        """Orientation at times t: the gyro is constant between samples, so R(t) = R_i exp(w_i (t - t_i))
+        exactly; clamped to the track's span."""
+        t = np.clip(np.atleast_1d(np.asarray(t, float)), self.stamps[0], self.stamps[-1])
+        i = np.clip(np.searchsorted(self.stamps, t, side="right") - 1, 0, self.stamps.size - 1)
+        base = Rotation.from_quat(self.quat_wxyz[i][:, [1, 2, 3, 0]])
+        return base * Rotation.from_rotvec(self.gyro[i] * (t - self.stamps[i])[:, None])
 
     def rotation_between(self, t0: float, t1: np.ndarray) -> Rotation:
-        """Rotation of the sensor at times t1 relative to t0 (gyro integration, interpolated)."""
-        return self._at(np.atleast_1d(t0))[0].inv() * self._at(np.atleast_1d(t1))
-
-    def _at(self, t: np.ndarray) -> Rotation:
-        from scipy.spatial.transform import Slerp
-
-        tc = np.clip(t, self.stamps[0], self.stamps[-1])
-        return Slerp(self.stamps, self.rot)(tc)
+        """Rotation of the sensor at times t1 relative to t0."""
+        return self.orientation(np.array([t0]))[0].inv() * self.orientation(t1)
 
     def covers(self, t0: float, t1: float) -> bool:
         return self.stamps.size > 1 and self.stamps[0] <= t0 and self.stamps[-1] >= t1
 
 
-def imu_track(imu: ImuSeries, sensor_to_imu_rot: np.ndarray, gyro_bias: np.ndarray | None = None) -> ImuTrack:
-    r = sensor_to_imu_rot  # rotates IMU-frame vectors into the sensor frame
+def imu_track(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, gyro_bias: np.ndarray | None = None) -> ImuTrack:
+    r = lidar_to_imu_rot  # rotates IMU-frame vectors into the LiDAR frame
     acc = imu.acc @ r.T
     gyro = (imu.gyro - (0 if gyro_bias is None else gyro_bias)) @ r.T
-    dt = np.diff(imu.stamps)
-    steps = Rotation.from_rotvec(gyro[:-1] * dt[:, None])
-    quats = [Rotation.identity()]
-    # sequential composition is the integration itself (N small: 100 Hz)
-    cur = Rotation.identity()
-    for s in steps:
-        cur = cur * s
-        quats.append(cur)
-    return ImuTrack(imu.stamps, acc, gyro, Rotation.concatenate(quats))
+    q = _integrate_gyro(np.ascontiguousarray(gyro), np.r_[np.diff(imu.stamps), 0.0])
+    return ImuTrack(imu.stamps, acc, gyro, q)
 
 
-def initial_attitude(imu: ImuSeries, sensor_to_imu_rot: np.ndarray, window_s: float = 0.5) -> Rotation:
-    """Roll and pitch (yaw = 0) of the sensor from the mean specific force of the first window,
-    or the IMU's own orientation for a 9-axis IMU."""
+def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig, t0: float | None = None) -> Rotation:
+    """Attitude of the LiDAR at t0 (default: the first sample): 9-axis IMU -> its orientation
+    (yaw kept only with use_heading_init); 6-axis -> roll/pitch from the mean specific force
+    of the first window, yaw = 0."""
+    t0 = imu.stamps[0] if t0 is None else t0
     if imu.orientation_xyzw is not None:
-        q = Rotation.from_quat(imu.orientation_xyzw[0]) * Rotation.from_matrix(sensor_to_imu_rot).inv()
-        r, p, _ = q.as_euler("xyz")
-        return Rotation.from_euler("xyz", [r, p, 0.0])
-    sel = imu.stamps <= imu.stamps[0] + window_s
-    f = (imu.acc[sel] @ sensor_to_imu_rot.T).mean(axis=0)
+        i = max(int(np.searchsorted(imu.stamps, t0, side="right")) - 1, 0)  # last orientation <= t0
+        q = Rotation.from_quat(imu.orientation_xyzw[i]) * Rotation.from_matrix(lidar_to_imu_rot).inv()
+        r, p, y = q.as_euler("xyz")
+        return Rotation.from_euler("xyz", [r, p, y if cfg.use_heading_init else 0.0])
+    sel = (imu.stamps >= t0 - cfg.attitude_window_s) & (imu.stamps <= t0 + cfg.attitude_window_s)
+    if not sel.any():
+        sel = imu.stamps <= imu.stamps[0] + cfg.attitude_window_s
+    f = (imu.acc[sel] @ lidar_to_imu_rot.T).mean(axis=0)
     roll = np.arctan2(f[1], f[2])
     pitch = np.arctan2(-f[0], np.hypot(f[1], f[2]))
     return Rotation.from_euler("xyz", [roll, pitch, 0.0])
 
 
-class Preintegrator:
-    """gtsam PreintegratedImuMeasurements between two sweeps: predicts the next sensor pose from
-    the current pose and velocity (bias held at the configured value)."""
+class ImuOdometry:
+    """LIO-SAM graph #2 on iSAM2: states X (body pose), V (velocity), B (bias) at each mapped
+    sweep; ImuFactor between consecutive states from gtsam preintegration, a lidar pose prior on
+    every X, a bias random walk. The body frame has the LiDAR's axes at the IMU's position
+    (accelerations are rotated into LiDAR axes), so body = lidar_pose * [I, t_imu]."""
 
-    def __init__(self, track: ImuTrack, acc_noise: float = 3.99e-3, gyro_noise: float = 1.56e-3,
-                 gravity: float = 9.80511) -> None:
+    def __init__(self, track: ImuTrack, cfg: ImuConfig, imu_in_lidar: np.ndarray) -> None:
         import gtsam
 
-        self.gtsam = gtsam
-        self.track = track
-        p = gtsam.PreintegrationParams.MakeSharedU(gravity)
-        p.setAccelerometerCovariance(np.eye(3) * acc_noise ** 2)
-        p.setGyroscopeCovariance(np.eye(3) * gyro_noise ** 2)
-        p.setIntegrationCovariance(np.eye(3) * 1e-8)
+        self.g = gtsam
+        self.track, self.cfg = track, cfg
+        self.lever = np.eye(4)
+        self.lever[:3, 3] = imu_in_lidar[:3, 3]
+        p = gtsam.PreintegrationParams.MakeSharedU(cfg.gravity)
+        if min(cfg.acc_noise, cfg.gyro_noise, cfg.integration_noise) <= 0:
+            raise ValueError("IMU noise sigmas must be > 0 (zero noise gives NaN, LIO-SAM#427)")
+        p.setAccelerometerCovariance(np.eye(3) * cfg.acc_noise ** 2)
+        p.setGyroscopeCovariance(np.eye(3) * cfg.gyro_noise ** 2)
+        p.setIntegrationCovariance(np.eye(3) * cfg.integration_noise ** 2)
         self.params = p
         self.bias = gtsam.imuBias.ConstantBias()
+        self.velocity = np.zeros(3)
+        self.key = -1
+        self.t_last: float | None = None
+        self.resets = 0
+        self._start_graph()
 
-    def predict(self, pose: np.ndarray, velocity: np.ndarray, t0: float, t1: float) -> tuple[np.ndarray, np.ndarray]:
-        gtsam = self.gtsam
-        pim = gtsam.PreintegratedImuMeasurements(self.params, self.bias)
+    # ---- helpers
+    def _noise(self, sigmas) -> object:
+        return self.g.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, float))
+
+    def _start_graph(self) -> None:
+        params = self.g.ISAM2Params()
+        params.setRelinearizeThreshold(0.1)
+        params.relinearizeSkip = 1
+        params.setFactorization("QR")
+        self.isam = self.g.ISAM2(params)
+        self.key = -1
+
+    def _pim(self, t0: float, t1: float):
+        pim = self.g.PreintegratedImuMeasurements(self.params, self.bias)
         s = self.track.stamps
-        i0, i1 = np.searchsorted(s, t0, side="right") - 1, np.searchsorted(s, t1, side="left")
-        for k in range(max(i0, 0), min(i1, s.size - 1)):
-            a, b = max(s[k], t0), min(s[k + 1], t1)
-            if b > a:  # dt <= 0 would raise in gtsam (LIO-SAM#247)
+        i0 = max(int(np.searchsorted(s, t0, side="right")) - 1, 0)
+        i1 = int(np.searchsorted(s, t1, side="left"))
+        for k in range(i0, min(i1, s.size - 1) + 1):
+            a = max(s[k], t0)
+            b = min(s[k + 1], t1) if k + 1 < s.size else t1
+            if b > a:  # dt <= 0 raises in gtsam
                 pim.integrateMeasurement(self.track.acc[k], self.track.gyro[k], b - a)
-        state = gtsam.NavState(gtsam.Pose3(pose), np.asarray(velocity, float))
+        return pim
+
+    # ---- public
+    def predict(self, lidar_pose: np.ndarray, t0: float, t1: float) -> np.ndarray:
+        """LiDAR pose at t1 from the pose at t0 with the current velocity and bias estimates."""
+        pim = self._pim(t0, t1)
+        state = self.g.NavState(self.g.Pose3(lidar_pose @ self.lever), self.velocity)
         nxt = pim.predict(state, self.bias)
-        return nxt.pose().matrix(), np.asarray(nxt.velocity())
+        return nxt.pose().matrix() @ np.linalg.inv(self.lever)
+
+    def add_lidar_pose(self, lidar_pose: np.ndarray, t: float, degenerate: bool) -> str | None:
+        """Correct the states with a scan-to-map pose; returns a warning text after a reset."""
+        g = self.g
+        body = g.Pose3(lidar_pose @ self.lever)
+        graph, values = g.NonlinearFactorGraph(), g.Values()
+        prior = self._noise([self.cfg.degenerate_pose_sigma] * 6 if degenerate else self.cfg.pose_prior_sigmas)
+        if self.key < 0 or self.key + 1 >= self.cfg.reset_every:
+            # (re)start: priors on pose, velocity (loose) and bias, as LIO-SAM does
+            self._start_graph()
+            k = 0
+            graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
+            graph.add(g.PriorFactorVector(g.symbol("v", k), self.velocity, self._noise([1e4] * 3 if self.t_last is None else [1.0] * 3)))
+            graph.add(g.PriorFactorConstantBias(g.symbol("b", k), self.bias, self._noise([1e-3] * 6)))
+            values.insert(g.symbol("x", k), body)
+            values.insert(g.symbol("v", k), self.velocity)
+            values.insert(g.symbol("b", k), self.bias)
+        else:
+            k = self.key + 1
+            pim = self._pim(self.t_last, t)
+            dt = max(t - self.t_last, 1e-6)
+            graph.add(g.ImuFactor(g.symbol("x", k - 1), g.symbol("v", k - 1), g.symbol("x", k), g.symbol("v", k),
+                                  g.symbol("b", k - 1), pim))
+            walk = np.sqrt(dt) * np.r_[[self.cfg.acc_bias_noise] * 3, [self.cfg.gyro_bias_noise] * 3]
+            graph.add(g.BetweenFactorConstantBias(g.symbol("b", k - 1), g.symbol("b", k), g.imuBias.ConstantBias(),
+                                                  self._noise(walk)))
+            graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
+            pred = pim.predict(g.NavState(self._last_pose, self.velocity), self.bias)
+            values.insert(g.symbol("x", k), pred.pose())
+            values.insert(g.symbol("v", k), pred.velocity())
+            values.insert(g.symbol("b", k), self.bias)
+        try:
+            self.isam.update(graph, values)
+            self.isam.update()
+            est = self.isam.calculateEstimate()
+        except RuntimeError as err:
+            return self._reset(t, body, f"IMU preintegration graph failed ({err}); restarted")
+        self.key, self.t_last = k, t
+        self._last_pose = est.atPose3(g.symbol("x", k))
+        self.velocity = np.asarray(est.atVector(g.symbol("v", k)))
+        self.bias = est.atConstantBias(g.symbol("b", k))
+        bias_vec = np.r_[self.bias.accelerometer(), self.bias.gyroscope()]
+        if np.linalg.norm(self.velocity) > self.cfg.max_velocity_mps or np.linalg.norm(bias_vec) > self.cfg.max_bias:
+            return self._reset(t, body, "Large velocity/bias, reset IMU-preintegration")
+        return None
+
+    def restart(self) -> None:
+        """Start a new graph at the next pose, keeping velocity and bias (after a loop closure moved
+        the global pose)."""
+        self.key = -1
+
+    def _reset(self, t: float, body, why: str) -> str:
+        self.resets += 1
+        self.bias = self.g.imuBias.ConstantBias()
+        self.velocity = np.zeros(3)
+        self.key, self.t_last = -1, None
+        self._last_pose = body
+        return why
+
+    @property
+    def bias_vector(self) -> np.ndarray:
+        """[acc bias (3), gyro bias (3)] in LiDAR axes."""
+        return np.r_[self.bias.accelerometer(), self.bias.gyroscope()]

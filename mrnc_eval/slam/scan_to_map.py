@@ -34,6 +34,7 @@ class MatchResult:
     n_edges: int
     n_surfs: int
     optimised: bool
+    n_degenerate: int = 0  # directions projected out
 
 
 def _skew_cross_rows(q: np.ndarray, n: np.ndarray) -> np.ndarray:
@@ -96,12 +97,12 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
         return MatchResult(guess, 0, False, False, float("nan"), len(edges), len(surfs), False)
     T = guess.copy()
     P = np.eye(6)
-    degenerate, min_eig, converged, it = False, float("nan"), False, 0
+    degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
     for it in range(1, cfg.max_iterations + 1):
         Je, re = _edge_terms(se3.apply(T, edges), local_map, cfg.kdtree_workers, cfg.max_nn_sq_dist_m2)
         Js, rs = _plane_terms(se3.apply(T, surfs), local_map, cfg.kdtree_workers, cfg.max_nn_sq_dist_m2)
         J, r = np.r_[Je, Js], np.r_[re, rs]
-        if r.size < 50:
+        if r.size < cfg.min_correspondences:
             break
         H = J.T @ J
         g = -J.T @ r
@@ -112,7 +113,7 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
             V2 = V.copy()
             bad = w < cfg.degeneracy_eigen_threshold
             if bad.any():
-                degenerate = True
+                degenerate, n_bad = True, int(bad.sum())
                 V2[:, bad] = 0.0
                 P = V2 @ V.T
         if degenerate:
@@ -121,4 +122,4 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
         if np.degrees(np.linalg.norm(dx[:3])) < cfg.converge_rot_deg and np.linalg.norm(dx[3:]) * 100 < cfg.converge_trans_cm:
             converged = True
             break
-    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True)
+    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad)
