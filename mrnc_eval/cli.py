@@ -252,12 +252,18 @@ def rpe(
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: PlotOpt = None,
+    pairs_from_reference: Annotated[bool, typer.Option(
+        "--pairs-from-reference", help="Choose pairs on the reference path (default: on the estimate, as evo); "
+        "a noisy estimate travels farther than the reference, so metre pairs from it are denser.")] = False,
+    drift: Annotated[bool, typer.Option(
+        "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, scaled to short logs).")] = False,
 ) -> None:
     """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
     _pipeline("trajectory_eval").rpe_main(
         ref, est, delta=delta, delta_unit=delta_unit.value, all_pairs=all_pairs, align=align.value,
         n_to_align=n_to_align, relation=relation.value, max_diff=max_diff, offset=offset, plane=plane,
         json_out=json_out, table=table, plot=plot,
+        pairs_from="reference" if pairs_from_reference else "estimate", drift=drift,
     )
 
 

@@ -54,5 +54,12 @@ def table_one(cells: dict[tuple[str, str], Cell], sequences: list[str], methods:
         means.append(float(np.mean(vals)) if vals else FAILED)
         counts.append(f"{m} {len(vals)}/{len(sequences)}")
     notes.insert(0, "Mean over non-failed sequences: " + ", ".join(counts))
+    # A mean over fewer sequences is not comparable with a full one: name the best complete method too.
+    complete = [(means[k], m) for k, m in enumerate(methods)
+                if isinstance(means[k], float) and all(isinstance(r[k], float) for r in grid)]
+    if complete and len(complete) < len(methods):
+        best_mean, best_method = min(complete)
+        notes.insert(1, "Lowest mean among methods without a Failed sequence: "
+                        f"{best_method} ({best_mean:.{precision}f})")
     return Table(title=title, row_labels=list(sequences) + ["Mean"], column_labels=list(methods),
                  cells=grid + [means], unit="m", best="min", best_per="row", precision=precision, notes=notes)

@@ -70,13 +70,34 @@ def read_tum(path: str | Path) -> Trajectory:
 
 
 def read_kitti(path: str | Path) -> Trajectory:
-    """KITTI poses: 12 numbers (3x4, row-major) per line, no stamps (stamps = line index)."""
+    """KITTI poses: 12 numbers (3x4, row-major) per line, no stamps (stamps = line index).
+    Rotation blocks must be orthonormal with det +1 (tolerance 1e-6, evo's SO(3) check):
+    a quaternion would silently hide a broken matrix."""
     from mrnc_eval.evaluation.lie import matrix_to_quat_xyzw
 
     path = Path(path)
     a = _load_table(path, 12).reshape(-1, 3, 4)
-    return Trajectory(np.arange(a.shape[0], dtype=float), a[:, :, 3].copy(), matrix_to_quat_xyzw(a[:, :, :3]),
+    rot = a[:, :, :3]
+    gram = np.matmul(np.swapaxes(rot, 1, 2), rot) - np.eye(3)
+    bad = (np.abs(gram).max(axis=(1, 2)) > 1e-6) | (np.abs(np.linalg.det(rot) - 1.0) > 1e-6)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(path, f"line {_data_line_number(path, k)}: the 3x3 block is not a rotation "
+                               f"(R^T R != I or det != 1 within 1e-6); {int(bad.sum())} such pose(s)")
+    return Trajectory(np.arange(a.shape[0], dtype=float), a[:, :, 3].copy(), matrix_to_quat_xyzw(rot),
                       name=path.stem)
+
+
+def _data_line_number(path: Path, row: int) -> int:
+    """1-based file line of data row `row` (comments and blank lines skipped)."""
+    with path.open(encoding="utf-8-sig", errors="replace") as fh:
+        k = -1
+        for number, line in enumerate(fh, 1):
+            if line.strip() and not line.startswith("#"):
+                k += 1
+                if k == row:
+                    return number
+    return row + 1
 
 
 def read_euroc(path: str | Path) -> Trajectory:
@@ -91,7 +112,8 @@ def read_euroc(path: str | Path) -> Trajectory:
     a = df.to_numpy()
     if a.shape[1] < 8:
         raise InputError(path, f"EuRoC CSV needs at least 8 columns, found {a.shape[1]}")
-    return Trajectory(a[:, 0] * 1e-9, a[:, 1:4].copy(), a[:, [5, 6, 7, 4]].copy(), name=path.parent.parent.name or path.stem)
+    return Trajectory(a[:, 0] * 1e-9, a[:, 1:4].copy(), a[:, [5, 6, 7, 4]].copy(),
+                      name=path.parent.parent.name or path.stem)
 
 
 def write_tum(path: str | Path, traj: Trajectory) -> None:

@@ -3,12 +3,14 @@
 from __future__ import annotations
 
 import logging
+import os
 import sys
 from pathlib import Path
 from typing import Any
 
 import yaml
 
+from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.ape import ApeResult, ape
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
@@ -21,6 +23,7 @@ from mrnc_eval.results import Table, atomic_write_text
 
 log = logging.getLogger(__name__)
 STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
+PLOT_SUFFIXES = (".svg", ".png", ".pdf")
 
 
 def _is_kitti(spec: str) -> bool:
@@ -38,18 +41,26 @@ def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
                  unit=results[0].unit, best=None, precision=6)
 
 
-def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None) -> None:
+def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None) -> None:
+    """Print (JSON or Markdown), then write the table and plot files; all computed before."""
     from mrnc_eval.cli import emit_json
 
+    if table is not None and SUFFIX_FORMAT.get(table.suffix.lower()) is None:
+        raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
+    if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
+        raise UsageError(f"--plot {plot}: use a {', '.join(PLOT_SUFFIXES)} file")
+    summaries = [r.summary() for r in results]
+    if drifts is not None:
+        for s, d in zip(summaries, drifts, strict=True):
+            s["drift"] = d.summary()
     if json_out:
-        emit_json([r.summary() for r in results])
+        emit_json(summaries)
     else:
         sys.stdout.write(render_table(_results_table(results, title), "markdown"))
+        if drifts is not None:
+            sys.stdout.write("\n" + render_table(_drift_table([r.name for r in results], drifts), "markdown"))
     if table is not None:
-        fmt = SUFFIX_FORMAT.get(table.suffix.lower())
-        if fmt is None:
-            raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
-        atomic_write_text(table, render_table(_results_table(results, title), fmt))
+        atomic_write_text(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]))
     if plot is not None:
         _plot_errors(results, title, plot)
 
@@ -67,28 +78,73 @@ def _plot_errors(results, title: str, path: Path) -> None:
     ax.set_title(title)
     ax.legend(loc="upper left", fontsize="small")
     path.parent.mkdir(parents=True, exist_ok=True)
-    fig.savefig(path)
+    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")  # atomic: no half-written plot
+    try:
+        fig.savefig(tmp)
+        os.replace(tmp, path)
+    finally:
+        tmp.unlink(missing_ok=True)
+
+
+def _index_pairing(ref: str, est: str) -> bool:
+    """KITTI files have no stamps: pair them by line, and only with each other."""
+    ref_k, est_k = _is_kitti(ref), _is_kitti(est)
+    if ref_k != est_k:
+        kitti, other = (ref, est) if ref_k else (est, ref)
+        raise UsageError(f"{kitti} is a KITTI pose file (no time stamps) but {other} is not: "
+                         "KITTI files can only be paired line by line with another KITTI file")
+    return ref_k
+
+
+def _load(ref: str, est: list[str]) -> tuple[Any, list[tuple[Any, bool]]]:
+    """The reference and each estimate (with its pairing mode), named uniquely."""
+    reference = read_trajectory(ref)
+    estimates = [(read_trajectory(e), _index_pairing(ref, e)) for e in est]
+    names = [t.name for t, _ in estimates]
+    for k, ((t, by_index), spec) in enumerate(zip(estimates, est, strict=True)):
+        if names.count(t.name) > 1:  # same file stem in different folders: use the path
+            estimates[k] = (Trajectory(t.stamps, t.positions, t.quat_xyzw, str(spec), t.frame_id,
+                                       t.child_frame_id), by_index)
+    return reference, estimates
 
 
 def ape_main(ref: str, est: list[str], *, align: str, n_to_align: int | None, relation: str, max_diff: float,
              offset: float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None) -> None:
-    reference = read_trajectory(ref)
-    by_index = _is_kitti(ref)
-    results = [ape(reference, read_trajectory(e), align=align, n_to_align=n_to_align, relation=relation,
-                   max_diff=max_diff, offset=offset, plane=plane, by_index=by_index and _is_kitti(e)) for e in est]
+    reference, estimates = _load(ref, est)
+    results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
+                   offset=offset, plane=plane, by_index=by_index) for e, by_index in estimates]
     _emit(results, f"APE w.r.t. {TITLES[relation]} ({align} alignment)", json_out, table, plot)
 
 
 def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: str, all_pairs: bool, align: str,
              n_to_align: int | None, relation: str, max_diff: float, offset: float, plane: str | None,
-             json_out: bool, table: Path | None, plot: Path | None) -> None:
-    reference = read_trajectory(ref)
-    by_index = _is_kitti(ref)
-    results = [rpe(reference, read_trajectory(e), delta=delta, delta_unit=delta_unit, all_pairs=all_pairs,
-                   align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset,
-                   plane=plane, by_index=by_index and _is_kitti(e)) for e in est]
-    _emit(results, f"RPE w.r.t. {TITLES[relation]}, delta {delta:g} {delta_unit} (pairs from the estimate)",
-          json_out, table, plot)
+             json_out: bool, table: Path | None, plot: Path | None, pairs_from: str = "estimate",
+             drift: bool = False) -> None:
+    reference, estimates = _load(ref, est)
+    results = [rpe(reference, e, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
+                   n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=plane,
+                   pairs_from=pairs_from, by_index=by_index) for e, by_index in estimates]
+    drifts = None
+    if drift:
+        from mrnc_eval.evaluation.drift import drift as kitti_drift
+
+        drifts = [kitti_drift(reference, e, align=align, max_diff=max_diff, offset=offset, by_index=by_index)
+                  for e, by_index in estimates]
+    title = (f"RPE w.r.t. {TITLES[relation]}, delta {delta:g} {delta_unit}"
+             f"{', all pairs' if all_pairs else ''} (pairs from the {pairs_from})")
+    _emit(results, title, json_out, table, plot, drifts=drifts)
+
+
+def _drift_table(names: list[str], drifts: list) -> Table:
+    lengths = drifts[0].lengths_m
+    cols = [f"{L:g} m" for L in lengths] + ["mean"]
+    trans = [[d.trans_pct.get(L, "n/a") for L in lengths] + [d.mean_trans_pct] for d in drifts]
+    rot = [[d.rot_deg_per_m.get(L, "n/a") for L in lengths] + [d.mean_rot_deg_per_m] for d in drifts]
+    return Table(title="KITTI drift: translation (%) / rotation (deg/m) over segments of the reference path",
+                 row_labels=[f"{n} t%" for n in names] + [f"{n} deg/m" for n in names], column_labels=cols,
+                 cells=trans + rot, best=None, precision=4,
+                 notes=[f"{n}: {d.n_segments} segments, reference path {d.path_length_m:.1f} m"
+                        for n, d in zip(names, drifts, strict=True)])
 
 
 # ------------------------------------------------------------------ Table I comparison

@@ -31,7 +31,8 @@ def best_cells(table: Table) -> set[tuple[int, int]]:
     lines = ([[(r, c) for c in range(cols)] for r in range(rows)] if table.best_per == "row"
              else [[(r, c) for r in range(rows)] for c in range(cols)])
     for line in lines:
-        nums = [(table.cells[r][c], (r, c)) for r, c in line if c < len(table.cells[r]) and is_number(table.cells[r][c])]
+        nums = [(table.cells[r][c], (r, c)) for r, c in line
+                if c < len(table.cells[r]) and is_number(table.cells[r][c])]
         if len(nums) < 2:
             continue
         target = round(pick(v for v, _ in nums), table.precision)
@@ -72,7 +73,8 @@ def _markdown(table: Table) -> str:
     grid = _grid(table, lambda s: f"**{s}**")
     lines = [f"**{esc(_title(table))}**", "", "| " + " | ".join([""] + [esc(c) for c in table.column_labels]) + " |",
              "|" + "---|" * (len(table.column_labels) + 1)]
-    lines += ["| " + " | ".join([esc(label)] + [esc(c) for c in row]) + " |" for label, row in zip(table.row_labels, grid)]
+    lines += ["| " + " | ".join([esc(label)] + [esc(c) for c in row]) + " |"
+              for label, row in zip(table.row_labels, grid, strict=False)]
     lines += [""] + [f"_{esc(n)}_" for n in table.notes]
     return "\n".join(lines).rstrip() + "\n"
 
@@ -97,7 +99,7 @@ def _latex(table: Table) -> str:
     out = ["\\begin{table}[t]", "\\centering", f"\\caption{{{latex_escape(_title(table))}}}",
            f"\\begin{{tabular}}{{{cols}}}", "\\toprule",
            " & ".join([""] + [latex_escape(c) for c in table.column_labels]) + " \\\\", "\\midrule"]
-    for k, (label, row) in enumerate(zip(table.row_labels, grid)):
+    for k, (label, row) in enumerate(zip(table.row_labels, grid, strict=False)):
         if label.lower().startswith("mean") and k == len(grid) - 1:
             out.append("\\midrule")
         out.append(" & ".join([latex_escape(label)] + [cell(c) for c in row]) + " \\\\")
@@ -112,7 +114,7 @@ def _csv(table: Table) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow([_title(table)] + table.column_labels)
-    for label, row in zip(table.row_labels, table.cells):
+    for label, row in zip(table.row_labels, table.cells, strict=False):
         w.writerow([label] + [("" if c is None else (repr(c) if isinstance(c, float) else c)) for c in row])
     return buf.getvalue()
 
@@ -122,7 +124,7 @@ def _html(table: Table) -> str:
     best = best_cells(table)
     head = "".join(f"<th>{e(c)}</th>" for c in table.column_labels)
     rows = []
-    for r, (label, row) in enumerate(zip(table.row_labels, table.cells)):
+    for r, (label, row) in enumerate(zip(table.row_labels, table.cells, strict=False)):
         tds = []
         for k, c in enumerate(row):
             text = e(fmt_cell(c, table.precision))

@@ -90,5 +90,5 @@ def test_umeyama_is_bit_identical_to_evo(n_to_align: int | None) -> None:
     n = n_to_align or len(ref_m)
     ours = umeyama(est_m.positions[:n], ref_m.positions[:n], with_scale=True)
     theirs = geometry.umeyama_alignment(e.positions_xyz[:n].T, r.positions_xyz[:n].T, True)
-    for a, b in zip(ours, theirs):
+    for a, b in zip(ours, theirs, strict=False):
         np.testing.assert_array_equal(a, b)
