@@ -23,7 +23,7 @@ from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, init
 from mrnc_eval.slam.range_image import project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
 
-STAGES = ("deskew", "features", "matching", "graph", "loop")
+STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: waiting for the sweep iterator (decode)
 
 
 @dataclass
@@ -83,6 +83,7 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     st = _State()
     n_sweeps = 0
     use_loop = cfg.use_loop_closure and cfg.loop.enabled
+    t_read = time.perf_counter()
 
     for sweep in sweeps:
         n_sweeps += 1
@@ -91,6 +92,7 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
         if sweep.stamp - st.last_mapped < cfg.mapping_interval_s or len(sweep) == 0:
             continue
         st.last_mapped = sweep.stamp
+        timing["read"].append((time.perf_counter() - t_read) * 1e3)
         clock = _Clock(timing)
         # ---- range image + deskew
         image = project(sweep, cfg.sensor, cfg.features)
@@ -143,6 +145,7 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
         elif st.pose is not None and sweep.stamp > st.t:
             st.velocity = (pose[:3, 3] - st.pose[:3, 3]) / (sweep.stamp - st.t)
         st.pose, st.t = pose, sweep.stamp
+        t_read = time.perf_counter()
 
     kf_poses = np.array(graph.poses) if graph.poses else np.zeros((0, 4, 4))
     poses = np.array([kf_poses[k] @ r for k, r in zip(ref_kf, rel_to_kf)]) if stamps else np.zeros((0, 4, 4))

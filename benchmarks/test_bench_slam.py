@@ -1,0 +1,54 @@
+"""SLAM speed: real-time factor on 60 s of simulated OS0-128 x 1024 at 10 Hz (forest loop), LIO
+replay with loop closure on, side by side with kiss-icp in the same run on the same log, with the
+per-stage profile. Run:
+    .venv/bin/python -m pytest -m benchmark benchmarks/test_bench_slam.py -s
+Set MRNC_BENCH_SLAM_LOG to an existing log to skip the simulation (about 3 minutes).
+"""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+import pytest
+
+from mrnc_eval.config import Config
+
+pytestmark = pytest.mark.benchmark
+
+
+@pytest.fixture(scope="module")
+def log_60s(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    given = os.environ.get("MRNC_BENCH_SLAM_LOG")
+    if given:
+        return Path(given)
+    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+
+    return simulate_log(tmp_path_factory.mktemp("bench") / "forest60.mcap", Config(),
+                        SimRequest(scene="forest", path="loop", duration_s=60.0, lidar="os0-128", columns=1024, seed=0))
+
+
+def test_slam_rtf_vs_kiss_icp(log_60s: Path, tmp_path: Path) -> None:
+    from mrnc_eval.pipelines.slam import run_log
+
+    runs = {}
+    for method in ("lio", "kiss-icp"):
+        t0 = time.perf_counter()
+        r = run_log(log_60s, Config(), tmp_path / method, method=method)
+        runs[method] = (r, time.perf_counter() - t0)
+    val = lambda r, n: r.metric(n).value  # noqa: E731
+    print(f"\n60 s OS0-128 x 1024 @ 10 Hz ({log_60s.name})")
+    print("| method | sweeps processed | processing wall s | RTF | end-to-end wall s | APE RMSE m | loops |")
+    print("|---|---|---|---|---|---|---|")
+    for m, (r, wall) in runs.items():
+        print(f"| {m} | {val(r, 'sweeps_processed')} | {r.extra['wall_s']:.1f} | {val(r, 'rtf'):.2f} | {wall:.1f} | "
+              f"{val(r, 'ape_rmse_m'):.4f} | {val(r, 'loop_closures')} |")
+    lio = runs["lio"][0]
+    print("lio per-stage ms per mapped sweep (mean / p95 / max):")
+    for stage, v in lio.extra["timing_ms"].items():
+        print(f"  {stage:10s} {v['mean']:7.1f} {v['p95']:7.1f} {v['max']:7.1f}")
+    assert val(lio, "loop_closures") >= 1  # loop closure on and used
+    assert val(lio, "ape_rmse_m") < 0.10
+    assert val(lio, "rtf") >= 1.0
+    assert lio.extra["wall_s"] < runs["kiss-icp"][0].extra["wall_s"]
