@@ -274,10 +274,14 @@ def table(
     align: AlignOpt = Align.se3,
     max_diff: MaxDiffOpt = 0.01,
     json_out: JsonOpt = False,
+    min_span_fraction: Annotated[float, typer.Option(
+        help="A method whose matched span is shorter than this fraction of the reference's is Failed.")] = 0.8,
+    min_matches: Annotated[int, typer.Option(help="Fewer matched poses than this is Failed.")] = 10,
 ) -> None:
     """Table I layout: APE RMSE (m), sequences as rows, methods as columns, 'Failed' cells,
     mean row over non-failed cells, best per row marked."""
-    _pipeline("trajectory_eval").table_main(source, out=out, align=align.value, max_diff=max_diff, json_out=json_out)
+    _pipeline("trajectory_eval").table_main(source, out=out, align=align.value, max_diff=max_diff, json_out=json_out,
+                                            min_span_fraction=min_span_fraction, min_matches=min_matches)
 
 
 @app.command()

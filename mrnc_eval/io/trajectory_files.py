@@ -50,7 +50,7 @@ def _first_bad_line(path: Path, ncols: int, delimiter: str) -> str:
                 parts = row.split(delimiter)
                 if delimiter == " " and "" in parts:
                     return f"line {k} has leading, trailing or double spaces"
-                if len(parts) != ncols:
+                if ncols > 0 and len(parts) != ncols:
                     return f"line {k} has {len(parts)} fields, expected {ncols}"
                 for x in parts:
                     try:
@@ -101,19 +101,27 @@ def _data_line_number(path: Path, row: int) -> int:
 
 
 def read_euroc(path: str | Path) -> Trajectory:
-    """EuRoC ground truth data.csv: ns, x, y, z, qw, qx, qy, qz, (velocities, biases...)."""
+    """EuRoC ground truth data.csv: ns, x, y, z, qw, qx, qy, qz, (velocities, biases...).
+    Stamps are ns / 1e9 in float64 as evo (about 0.25 us resolution at today's epochs)."""
     import pandas as pd
 
     path = Path(path)
     try:
         df = pd.read_csv(path, comment="#", header=None, engine="c", dtype=np.float64, encoding="utf-8-sig")
-    except (ValueError, pd.errors.ParserError, FileNotFoundError, pd.errors.EmptyDataError) as err:
-        raise InputError(path, f"not a EuRoC CSV: {err}") from err
+    except FileNotFoundError as err:
+        raise InputError(path, "no such file") from err
+    except pd.errors.EmptyDataError as err:
+        raise InputError(path, "no poses (the file is empty or only comments)") from err
+    except (ValueError, pd.errors.ParserError) as err:
+        raise InputError(path, f"not a EuRoC ground-truth CSV ({_first_bad_line(path, -1, ',')})") from err
     a = df.to_numpy()
     if a.shape[1] < 8:
-        raise InputError(path, f"EuRoC CSV needs at least 8 columns, found {a.shape[1]}")
-    return Trajectory(a[:, 0] * 1e-9, a[:, 1:4].copy(), a[:, [5, 6, 7, 4]].copy(),
-                      name=path.parent.parent.name or path.stem)
+        raise InputError(path, f"EuRoC CSV needs at least 8 columns (ns, x, y, z, qw, qx, qy, qz), found {a.shape[1]}")
+    if not np.isfinite(a[:, :8]).all():
+        row = int(np.flatnonzero(~np.isfinite(a[:, :8]).all(axis=1))[0])
+        raise InputError(path, f"line {_data_line_number(path, row)}: missing or non-finite value")
+    name = path.parent.name if path.stem == "data" and path.parent.name else path.stem
+    return Trajectory(np.divide(a[:, 0], 1e9), a[:, 1:4].copy(), a[:, [5, 6, 7, 4]].copy(), name=name)
 
 
 def write_tum(path: str | Path, traj: Trajectory) -> None:

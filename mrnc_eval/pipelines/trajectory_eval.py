@@ -201,14 +201,30 @@ def build_table_one(source: Path, *, align: str = "se3", max_diff: float = 0.01,
                 continue
             cells[(seq, m)] = judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.failed_min_matches,
                                     min_span_fraction=cfg.failed_min_span_fraction)
-    return table_one(cells, list(manifest), methods)
+    table = table_one(cells, list(manifest), methods)
+    table.notes.append(f"Failed: no trajectory, an evaluation error, fewer than {cfg.failed_min_matches} matched poses, "
+                       f"or a matched span under {cfg.failed_min_span_fraction:.0%} of the reference's; "
+                       f"APE after {align} alignment, max_diff {max_diff} s")
+    return table
 
 
-def table_main(source: Path, *, out: Path | None, align: str, max_diff: float, json_out: bool) -> None:
+def table_main(source: Path, *, out: Path | None, align: str, max_diff: float, json_out: bool,
+               min_span_fraction: float | None = None, min_matches: int | None = None) -> None:
+    import dataclasses
+
     from mrnc_eval.cli import emit_json
     from mrnc_eval.results import _json_safe
 
-    table = build_table_one(source, align=align, max_diff=max_diff)
+    cfg = EvaluationConfig()
+    if min_span_fraction is not None:
+        if not 0.0 <= min_span_fraction <= 1.0:
+            raise UsageError(f"--min-span-fraction must be in [0, 1], got {min_span_fraction}")
+        cfg = dataclasses.replace(cfg, failed_min_span_fraction=min_span_fraction)
+    if min_matches is not None:
+        cfg = dataclasses.replace(cfg, failed_min_matches=max(1, min_matches))
+    if out is not None and SUFFIX_FORMAT.get(out.suffix.lower()) is None:
+        raise UsageError(f"--out {out}: use a .md, .tex, .csv or .html file")
+    table = build_table_one(source, align=align, max_diff=max_diff, cfg=cfg)
     if json_out:
         emit_json(_json_safe(table.__dict__))
     elif out is None:

@@ -131,3 +131,24 @@ def test_table_from_yaml_manifest_with_missing_and_hostile_names(tmp_path: Path)
     assert r"\&" in tex and "\\toprule" in tex and "\\bottomrule" in tex
     assert main(["table", str(tmp_path / "m.yaml"), "--out", str(tmp_path / "t.md")]) == 0
     assert "Failed" in (tmp_path / "t.md").read_text()
+
+
+@pytest.mark.parametrize("fmt, suffix", [("mcap", ".mcap"), ("bag", ".bag")])
+def test_log_topic_spec_reads_odometry_from_a_log(tmp_path: Path, fmt: str, suffix: str,
+                                                  capsys: pytest.CaptureFixture[str]) -> None:
+    from mrnc_eval.io.writers import LogWriter
+
+    ref, est = make_pair(n=200, seed=5)
+    log_path = tmp_path / f"run{suffix}"
+    with LogWriter(log_path, fmt=fmt) as w:
+        w.write_odometry("/ground_truth", ref, "map", "base_link")
+        w.write_odometry("/odom_est", est, "map", "base_link")
+    write_tum(tmp_path / "gt.tum", ref)
+    got = read_trajectory(f"{log_path}:/ground_truth")
+    np.testing.assert_allclose(got.stamps, ref.stamps, atol=1e-9)
+    np.testing.assert_allclose(got.positions, ref.positions, atol=1e-12)
+    assert main(["ape", str(tmp_path / "gt.tum"), f"{log_path}:/odom_est", f"{log_path}:/ground_truth", "--json"]) == 0
+    out = json.loads(capsys.readouterr().out)
+    assert out[1]["max"] < 1e-6 and out[0]["rmse"] > 0.01
+    assert main(["ape", str(tmp_path / "gt.tum"), f"{log_path}:/nope"]) != 0
+    assert "/nope" in capsys.readouterr().err
