@@ -5,8 +5,8 @@ An explicit registry keyed by what the path looks like:
   directory with metadata.yaml           -> ROS 2 bag (sqlite3 or MCAP storage)
   *.db3                                   -> ROS 2 sqlite3 single file
   *.mcap with ROS 2 profile/encodings     -> ROS 2 MCAP single file (rosbags)
-  *.mcap otherwise                        -> plain MCAP: only channels rosbags can decode;
-                                             others are reported with their encoding
+  *.mcap otherwise                        -> plain MCAP (mcap library): ROS 1 and CDR channels
+                                             are decoded, others refused when read
 """
 
 from __future__ import annotations
@@ -65,17 +65,3 @@ def _mcap_is_ros2(path: Path) -> bool:
         for ch in summary.channels.values()
     )
 
-
-def plain_mcap_channels(path: Path) -> list[tuple[str, str, str]]:
-    """(topic, schema name, message encoding) of each channel of a non-ROS-2 MCAP."""
-    from mcap.reader import make_reader
-
-    with path.open("rb") as fh:
-        summary = make_reader(fh).get_summary()
-    if summary is None:
-        raise InputError(path, "MCAP file has no summary section (truncated?)")
-    out = []
-    for ch in summary.channels.values():
-        schema = summary.schemas.get(ch.schema_id)
-        out.append((ch.topic, schema.name if schema else "", ch.message_encoding))
-    return out

@@ -7,6 +7,7 @@ counted (StreamHealth), never silently passed on. Sweeps are streamed one at a t
 
 from __future__ import annotations
 
+import glob
 import struct
 from collections.abc import Iterator
 from dataclasses import dataclass
@@ -18,9 +19,10 @@ from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, StreamHealth, Sweep,
 from mrnc_eval.errors import InputError
 from mrnc_eval.io import geodesy
 from mrnc_eval.io.config import IoConfig
-from mrnc_eval.io.containers import detect_container, plain_mcap_channels
+from mrnc_eval.io.containers import detect_container
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import detect_roles
+from mrnc_eval.io.sources import McapSource, RosbagsSource
 
 _STAMPED_FIRST_FIELD = {  # message types whose first field is std_msgs/Header
     "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Imu", "sensor_msgs/msg/NavSatFix", "sensor_msgs/msg/JointState",
@@ -42,6 +44,7 @@ class TopicInfo:
     last_s: float | None
     duplicates: int
     out_of_order: int
+    problem: str | None = None  # why the topic cannot be decoded (unknown type, unsupported encoding)
 
 
 def _stamp(msg) -> float:
@@ -79,23 +82,18 @@ class LogReader:
         self.path = paths[0]
         self.cfg = io_cfg or IoConfig()
         self.container = detect_container(paths)
-        if self.container == "mcap":
-            for topic, schema, encoding in plain_mcap_channels(self.path):
-                raise InputError(self.path, f"message encoding {encoding!r} (schema {schema!r}) is not supported; "
-                                 "only ROS 1 and ROS 2 (CDR) messages can be decoded", topic=topic)
-            raise InputError(self.path, "MCAP file has no channels")
-        from rosbags.highlevel import AnyReader
-
         try:
-            self._reader = AnyReader(paths)
-            self._reader.open()
-        except Exception as err:  # rosbags raises several unrelated types for broken files
-            raise InputError(self.path, f"cannot open {self.container} log: {err}") from err
-        self._ros1 = self.container == "ros1"
-        self._conns = {}
-        for c in self._reader.connections:
-            self._conns.setdefault(c.topic, []).append(c)
-        if not self._conns:
+            if self.container == "mcap":
+                self._src = McapSource(self.path)
+            else:
+                self._src = RosbagsSource(paths, ros1=self.container == "ros1")
+        except InputError:
+            raise
+        except Exception as err:  # rosbags/mcap/sqlite raise many unrelated types for broken files
+            raise InputError(self.path, f"cannot open {self.container} log: {_one_line(err)}") from err
+        self._channels = self._src.channels
+        if not self._channels:
+            self.close()
             raise InputError(self.path, "log has no topics (empty bag)")
         self._stats: dict[str, TopicInfo] | None = None
         self._health: dict[str, StreamHealth] = {}
@@ -104,7 +102,7 @@ class LogReader:
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
         try:
-            self._reader.close()
+            self._src.close()
         except Exception:  # noqa: BLE001 - closing a broken file must not hide the real error
             pass
 
@@ -115,35 +113,63 @@ class LogReader:
         self.close()
 
     # ------------------------------------------------------------------ raw access
-    def _msgtype(self, topic: str) -> str:
-        conns = self._conns.get(topic)
-        if not conns:
-            raise InputError(self.path, "topic not in log", topic=topic)
-        return conns[0].msgtype
+    def _channel(self, topic: str):
+        ch = self._channels.get(topic)
+        if ch is None:
+            raise InputError(self.path, f"topic not in log (topics: {', '.join(sorted(self._channels))})", topic=topic)
+        return ch
 
-    def _raw(self, topic: str) -> Iterator[tuple[int, bytes]]:
-        conns = self._conns.get(topic)
-        if not conns:
-            raise InputError(self.path, f"topic not in log (topics: {', '.join(sorted(self._conns))})", topic=topic)
+    def _msgtype(self, topic: str) -> str:
+        return self._channel(topic).msgtype
+
+    def _iterate(self, topics: list[str]) -> Iterator[tuple[str, int, bytes]]:
+        """(topic, record time ns, raw message) in log order; library errors become InputError."""
         try:
-            for _conn, t_rec, raw in self._reader.messages(connections=conns):
-                yield t_rec, raw
+            yield from self._src.messages(topics)
         except InputError:
             raise
         except Exception as err:
-            raise InputError(self.path, f"corrupted or truncated data: {err}", topic=topic) from err
+            where = topics[0] if len(topics) == 1 else None
+            raise InputError(self.path, f"corrupted or truncated data: {_one_line(err)}", topic=where) from err
 
-    def _messages(self, topic: str) -> Iterator[object]:
-        msgtype = self._msgtype(topic)
-        for _t, raw in self._raw(topic):
-            try:
-                yield self._reader.deserialize(raw, msgtype)
-            except Exception as err:
-                raise InputError(self.path, f"cannot decode {msgtype} message: {err}", topic=topic) from err
+    def _raw(self, topic: str) -> Iterator[tuple[int, bytes]]:
+        ch = self._channel(topic)
+        if ch.problem:
+            raise InputError(self.path, ch.problem, topic=topic)
+        for _topic, t_rec, raw in self._iterate([topic]):
+            yield t_rec, raw
 
-    def _raw_header_stamp(self, raw: bytes) -> float:
-        # CDR: 4-byte encapsulation, then sec i32, nanosec u32. ROS 1: seq u32, sec u32, nsec u32.
-        sec, nsec = struct.unpack_from("<iI" if not self._ros1 else "<II", raw, 4)
+    def _decode(self, raw: bytes, topic: str) -> object:
+        try:
+            return self._src.deserialize(raw, topic)
+        except Exception as err:
+            raise InputError(self.path, f"cannot decode {self._msgtype(topic)} message: {_one_line(err)}",
+                             topic=topic) from err
+
+    def _messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[object]:
+        for _t, msg in self._timed_messages(topic, expect):
+            yield msg
+
+    def _timed_messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[tuple[float, object]]:
+        """(record time s, message); with `expect`, the topic must carry one of those types."""
+        ch = self._channel(topic)
+        if ch.problem:
+            raise InputError(self.path, ch.problem, topic=topic)
+        msgtype = ch.msgtype
+        if expect is not None and msgtype not in expect:
+            raise InputError(self.path, f"expected {' or '.join(expect)}, got {msgtype}", topic=topic)
+        for t_rec, raw in self._raw(topic):
+            yield t_rec * 1e-9, self._decode(raw, topic)
+
+    def _raw_header_stamp(self, raw: bytes, topic: str | None = None) -> float:
+        """Header stamp straight from the serialised bytes (no full decode).
+        ROS 1: seq u32, then sec u32, nsec u32. CDR: 4-byte encapsulation header (byte 1 odd:
+        little endian), then sec i32, nanosec u32."""
+        ros1 = self._channels[topic].encoding == "ros1" if topic else self.container == "ros1"
+        if ros1:
+            sec, nsec = struct.unpack_from("<II", raw, 4)
+        else:
+            sec, nsec = struct.unpack_from("<iI" if raw[1] & 1 else ">iI", raw, 4)
         return sec + nsec * 1e-9
 
     # ------------------------------------------------------------------ overview
@@ -154,32 +180,34 @@ class LogReader:
         return list(self._stats.values())  # type: ignore[union-attr]
 
     def _scan(self) -> None:
-        stats: dict[str, TopicInfo] = {}
+        """One pass over the whole log: header stamps (record times for unstamped types),
+        counts, gaps, and the joint names of JointState topics (for role detection)."""
+        stamps: dict[str, list[float]] = {t: [] for t in self._channels}
         joint_names: dict[str, list[str]] = {}
-        for topic, conns in self._conns.items():
-            msgtype = conns[0].msgtype
-            count = sum(c.msgcount for c in conns)
-            stamps = []
-            if msgtype in _STAMPED_FIRST_FIELD:
-                for t_rec, raw in self._raw(topic):
-                    try:
-                        stamps.append(self._raw_header_stamp(raw))
-                    except struct.error as err:
-                        raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
+        header_topics = {t for t, ch in self._channels.items()
+                         if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
+        for topic, t_rec, raw in self._iterate(list(self._channels)):
+            if topic in header_topics:
+                try:
+                    stamps[topic].append(self._raw_header_stamp(raw, topic))
+                except (struct.error, IndexError) as err:
+                    raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
             else:
-                stamps = [t_rec * 1e-9 for t_rec, _ in self._raw(topic)]
-            if msgtype == "sensor_msgs/msg/JointState" and count:
-                first = next(self._messages(topic))
-                joint_names[topic] = list(first.name)
-            arr = np.asarray(stamps, dtype=float)
+                stamps[topic].append(t_rec * 1e-9)
+            ch = self._channels[topic]
+            if ch.msgtype == "sensor_msgs/msg/JointState" and topic not in joint_names and not ch.problem:
+                joint_names[topic] = [str(n) for n in self._decode(raw, topic).name]
+        stats: dict[str, TopicInfo] = {}
+        for topic, ch in self._channels.items():
+            arr = np.asarray(stamps[topic], dtype=float)
             _, health = _sort_dedup(arr, topic)
             self._health[topic] = health
             span = float(arr.max() - arr.min()) if arr.size > 1 else 0.0
             stats[topic] = TopicInfo(
-                topic=topic, msgtype=msgtype, count=len(stamps), role=None,
+                topic=topic, msgtype=ch.msgtype, count=int(arr.size), role=None,
                 rate_hz=(arr.size - 1) / span if span > 0 else 0.0, max_gap_s=health.max_gap_s,
                 first_s=float(arr.min()) if arr.size else None, last_s=float(arr.max()) if arr.size else None,
-                duplicates=health.duplicates, out_of_order=health.out_of_order,
+                duplicates=health.duplicates, out_of_order=health.out_of_order, problem=ch.problem,
             )
         roles = detect_roles([(s.topic, s.msgtype, s.count) for s in stats.values()], joint_names, self.cfg.roles)
         for role, topic in roles.items():
@@ -199,7 +227,7 @@ class LogReader:
 
     def _topic_for(self, role: str, topic: str | None) -> str:
         if topic is not None:
-            if topic not in self._conns:
+            if topic not in self._channels:
                 raise InputError(self.path, "requested topic is absent", topic=topic)
             return topic
         found = self.roles.get(role)
@@ -236,7 +264,7 @@ class LogReader:
         topic = self._topic_for("imu", topic)
         t, acc, gyro, quat, frame = [], [], [], [], ""
         has_orientation = True
-        for m in self._messages(topic):
+        for m in self._messages(topic, ("sensor_msgs/msg/Imu",)):
             t.append(_stamp(m))
             a, g, q = m.linear_acceleration, m.angular_velocity, m.orientation
             acc.append((a.x, a.y, a.z))
@@ -266,14 +294,11 @@ class LogReader:
         last = -np.inf
         for _t, raw in self._raw(topic):
             if min_interval_s > 0:
-                stamp = self._raw_header_stamp(raw)
+                stamp = self._raw_header_stamp(raw, topic)
                 if stamp - last < min_interval_s:
                     continue
                 last = stamp
-            try:
-                m = self._reader.deserialize(raw, msgtype)
-            except Exception as err:
-                raise InputError(self.path, f"cannot decode {msgtype} message: {err}", topic=topic) from err
+            m = self._decode(raw, topic)
             try:
                 yield decode_cloud(m, _stamp(m))
             except CloudFormatError as err:
@@ -281,12 +306,12 @@ class LogReader:
 
     def sweep_stamps(self, topic: str | None = None) -> np.ndarray:
         topic = self._topic_for("lidar", topic)
-        return np.asarray([self._raw_header_stamp(raw) for _, raw in self._raw(topic)])
+        return np.asarray([self._raw_header_stamp(raw, topic) for _, raw in self._raw(topic)])
 
     def gnss(self, topic: str | None = None) -> GnssSeries:
         topic = self._topic_for("gnss", topic)
         t, lla, cov, no_fix, frame = [], [], [], 0, ""
-        for m in self._messages(topic):
+        for m in self._messages(topic, ("sensor_msgs/msg/NavSatFix",)):
             if m.status.status < 0 or not np.isfinite([m.latitude, m.longitude, m.altitude]).all():
                 no_fix += 1
                 continue
@@ -307,7 +332,7 @@ class LogReader:
                     exclude: str | None) -> SidePair:
         topic = self._topic_for(role, topic)
         t, left, right = [], [], []
-        for m in self._messages(topic):
+        for m in self._messages(topic, ("sensor_msgs/msg/JointState",)):
             names = [n.lower() for n in m.name]
             idx_l = next((i for i, n in enumerate(names) if "left" in n and (exclude is None or exclude not in n)), None)
             idx_r = next((i for i, n in enumerate(names) if "right" in n and (exclude is None or exclude not in n)), None)
@@ -334,9 +359,9 @@ class LogReader:
     def cmd_vel(self, topic: str | None = None) -> Twists:
         topic = self._topic_for("cmd_vel", topic)
         t, v, w = [], [], []
-        for m in self._messages(topic):
+        for t_rec, m in self._timed_messages(topic, ("geometry_msgs/msg/TwistStamped", "geometry_msgs/msg/Twist")):
             tw = m.twist if hasattr(m, "twist") else m
-            t.append(_stamp(m) if hasattr(m, "header") else 0.0)
+            t.append(_stamp(m) if hasattr(m, "header") else t_rec)  # plain Twist: record time
             v.append(tw.linear.x)
             w.append(tw.angular.z)
         keep, _ = _sort_dedup(np.asarray(t), topic)
@@ -345,7 +370,7 @@ class LogReader:
     def waypoints(self, topic: str | None = None) -> Waypoints:
         topic = self._topic_for("path", topic)
         last = None
-        for m in self._messages(topic):
+        for m in self._messages(topic, ("nav_msgs/msg/Path",)):
             last = m
         if last is None or not len(last.poses):
             raise InputError(self.path, "path topic has no poses", topic=topic)
@@ -390,7 +415,7 @@ class LogReader:
         if not parent or not child:
             raise InputError(self.path, f"TF spec {spec!r} must be /tf:parent.child")
         t, p, q = [], [], []
-        for m in self._messages(tf_topic):
+        for m in self._messages(tf_topic, ("tf2_msgs/msg/TFMessage",)):
             for tr in m.transforms:
                 if tr.header.frame_id.lstrip("/") == parent and tr.child_frame_id.lstrip("/") == child:
                     t.append(_stamp(tr))
@@ -414,7 +439,7 @@ class LogReader:
         out: dict[tuple[str, str], np.ndarray] = {}
         if topic is None:
             return out
-        for m in self._messages(topic):
+        for m in self._messages(topic, ("tf2_msgs/msg/TFMessage",)):
             for tr in m.transforms:
                 v, r = tr.transform.translation, tr.transform.rotation
                 mat = np.eye(4)
@@ -441,12 +466,30 @@ class LogReader:
         raise InputError(self.path, f"no static transform from {parent!r} to {child!r}", topic="/tf_static")
 
     def strings(self, topic: str) -> list[str]:
-        return [m.data for m in self._messages(topic)]
+        return [str(m.data) for m in self._messages(topic, ("std_msgs/msg/String",))]
+
+
+def _one_line(err: BaseException) -> str:
+    text = " ".join(str(err).split()) or type(err).__name__
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
+def _expand(path: str | Path) -> list[Path]:
+    """A path, or a glob pattern for split ROS 1 bags (sorted, so split order is kept)."""
+    text = str(path)
+    if not Path(text).exists() and any(ch in text for ch in "*?["):
+        matches = sorted(glob.glob(text))
+        if not matches:
+            raise InputError(text, "no file matches this pattern")
+        return [Path(m) for m in matches]
+    return [Path(text)]
 
 
 def open_log(path: str | Path | list[str | Path], io_cfg: IoConfig | None = None) -> LogReader:
-    """Open a log (or several split ROS 1 bags); raises InputError on anything unreadable."""
-    paths = [Path(p) for p in path] if isinstance(path, (list, tuple)) else [Path(path)]
+    """Open a log: a file, a ROS 2 bag directory, several split ROS 1 bags (a list or a glob
+    pattern such as "run_*.bag"); raises InputError on anything unreadable."""
+    items = list(path) if isinstance(path, (list, tuple)) else [path]
+    paths = [p for item in items for p in _expand(item)]
     if not paths:
         raise InputError("<none>", "no log given")
     return LogReader(paths, io_cfg)

@@ -47,7 +47,8 @@ def run(path: Path, cfg: Config) -> InfoSummary:
             path=str(path), container=lg.container, start_s=lg.start_s, end_s=lg.end_s, duration_s=lg.duration_s,
             topics=[{"topic": t.topic, "msgtype": t.msgtype, "count": t.count, "role": t.role,
                      "rate_hz": round(t.rate_hz, 3), "max_gap_s": round(t.max_gap_s, 6),
-                     "duplicates": t.duplicates, "out_of_order": t.out_of_order} for t in topics],
+                     "duplicates": t.duplicates, "out_of_order": t.out_of_order, "problem": t.problem}
+                    for t in topics],
             roles=lg.roles,
         )
         summary.findings.extend(_stream_findings(topics))
@@ -59,6 +60,8 @@ def run(path: Path, cfg: Config) -> InfoSummary:
 def _stream_findings(topics) -> list[Finding]:
     out = []
     for t in topics:
+        if t.problem:
+            out.append(Finding("warning", t.topic, f"cannot be decoded: {t.problem}"))
         if t.duplicates:
             out.append(Finding("warning", t.topic, f"{t.duplicates} duplicate header stamps (dropped when read)"))
         if t.out_of_order:
@@ -76,7 +79,7 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
     if topic is None:
         summary.findings.append(Finding("warning", "", "no LiDAR topic (sensor_msgs/PointCloud2)"))
         return
-    first = next(lg._messages(topic))  # one cloud is enough for the layout
+    first = next(lg._messages(topic, ("sensor_msgs/msg/PointCloud2",)))  # one cloud is enough for the layout
     fields = [f.name for f in first.fields]
     has_time = any(f in fields for f in ("t", "time", "timestamp"))
     summary.lidar = {"topic": topic, "fields": fields, "height": int(first.height), "width": int(first.width),
@@ -84,6 +87,7 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
     missing = [f for f in ("x", "y", "z") if f not in fields]
     if missing:
         summary.findings.append(Finding("error", topic, f"PointCloud2 without {'/'.join(missing)}"))
+        return
     summary.findings.append(Finding("ok" if has_time else "warning", topic,
                                     "per-point time present" if has_time else
                                     "no per-point time field: sweeps cannot be deskewed"))
@@ -94,10 +98,14 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
         summary.findings.append(Finding("warning", topic, "no IMU: deskew and preintegration unavailable"))
         return
     sweep_t = np.sort(lg.sweep_stamps(topic))
-    imu_t = np.sort(np.asarray([lg._raw_header_stamp(raw) for _, raw in lg._raw(imu_topic)]))
-    from mrnc_eval.io.pointcloud import decode_cloud
+    imu_t = np.sort(np.asarray([lg._raw_header_stamp(raw, imu_topic) for _, raw in lg._raw(imu_topic)]))
+    from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 
-    first_sweep = decode_cloud(first, 0.0)
+    try:
+        first_sweep = decode_cloud(first, 0.0)
+    except CloudFormatError as err:
+        summary.findings.append(Finding("error", topic, f"first cloud cannot be decoded: {err}"))
+        return
     # a sweep lasts until its last point (not until the next recorded sweep: clouds may be throttled)
     period = float(first_sweep.point_time.max()) if first_sweep.point_time is not None and len(first_sweep) else 0.1
     lo = np.searchsorted(imu_t, sweep_t, side="right") > 0  # an IMU sample at or before the sweep start
@@ -112,7 +120,7 @@ def _gnss_findings(lg, summary: InfoSummary) -> None:
     topic = summary.roles.get("gnss")
     if topic is None:
         return
-    statuses = np.asarray([m.status.status for m in lg._messages(topic)])
+    statuses = np.asarray([m.status.status for m in lg._messages(topic, ("sensor_msgs/msg/NavSatFix",))])
     fix = int(np.count_nonzero(statuses >= 0))
     ratio = fix / statuses.size if statuses.size else 0.0
     summary.findings.append(Finding("ok" if ratio > 0.9 else "warning", topic,

@@ -70,14 +70,16 @@ def test_cloud_without_xyz(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize("fmt, name", [("mcap", "f.mcap"), ("db3", "f.db3"), ("bag", "f.bag")])
-def test_fuzz_truncated_and_flipped(tmp_path: Path, fmt: str, name: str) -> None:
-    """Every damaged copy either reads cleanly or raises InputError: nothing else escapes."""
+def test_fuzz_truncated_and_flipped(tmp_path: Path, fmt: str, name: str,
+                                    capsys: pytest.CaptureFixture[str]) -> None:
+    """Every damaged copy either reads cleanly or raises InputError naming the file (nothing
+    else escapes), and `mrnc-eval info` on it exits 0 or 4 with a single stderr line."""
     src = tmp_path / name
     write_sample(src, fmt)
     data = src.read_bytes()
     rng = np.random.default_rng(7)
     outcomes = {"clean": 0, "error": 0}
-    for k in range(40):
+    for k in range(50):
         damaged = bytearray(data)
         if k % 2 == 0:
             damaged = damaged[: int(rng.integers(0, len(data)))]
@@ -91,10 +93,16 @@ def test_fuzz_truncated_and_flipped(tmp_path: Path, fmt: str, name: str) -> None
             _read_everything(case)
             outcomes["clean"] += 1
         except InputError as err:
-            assert str(case) in str(err)
+            assert str(case) in str(err) and "\n" not in str(err)
             outcomes["error"] += 1
+        capsys.readouterr()
+        rc = main(["info", str(case), "--json"])
+        err_lines = capsys.readouterr().err.strip().splitlines()
+        assert rc in (0, 4), (k, rc, err_lines)
+        if rc == 4:
+            assert len(err_lines) == 1 and str(case) in err_lines[0], err_lines
         shutil.rmtree(case.parent)
-    assert outcomes["error"] > 0  # truncation must be detected at least sometimes
+    assert outcomes["error"] >= 20  # truncation is detected, not read as a shorter log
 
 
 def test_plain_mcap_with_unsupported_encoding(tmp_path: Path) -> None:
@@ -108,5 +116,9 @@ def test_plain_mcap_with_unsupported_encoding(tmp_path: Path) -> None:
         cid = w.register_channel(topic="/pose_json", message_encoding="json", schema_id=sid)
         w.add_message(channel_id=cid, log_time=1, publish_time=1, data=b"{}")
         w.finish()
-    with pytest.raises(InputError, match=r"\[/pose_json\].*'json'"):
-        open_log(p)
+    with open_log(p) as log:
+        assert log.container == "mcap"
+        (info,) = log.topics
+        assert info.topic == "/pose_json" and info.count == 1 and "'json'" in info.problem
+        with pytest.raises(InputError, match=r"\[/pose_json\].*'json'.*not supported"):
+            log.strings("/pose_json")

@@ -1,0 +1,251 @@
+"""Container and message-layout variants: Velodyne/`timestamp` clouds written with rosbags
+directly, split and bz2 ROS 1 bags, plain (ROS 1 encoded) MCAP through the mcap library,
+sqlite3 bags without stored type definitions, unknown types, wrong-type topics, and ENU
+against an independent rotation-based computation."""
+
+from __future__ import annotations
+
+import math
+import sqlite3
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrnc_eval.data import ImuSeries
+from mrnc_eval.errors import InputError
+from mrnc_eval.io import geodesy, open_log
+from mrnc_eval.io.writers import LogWriter, typestore_for
+from tests.io.test_io_roundtrip import write_sample
+
+# ------------------------------------------------------------------ custom clouds
+
+
+def _write_cloud_bag(path: Path, fields: list[tuple[str, int, int]], point_step: int, data: np.ndarray,
+                     stamp: float, *, height: int = 1) -> None:
+    """One PointCloud2 of arbitrary layout in a ROS 2 MCAP bag, via rosbags' writer only."""
+    from rosbags.rosbag2 import StoragePlugin, Writer
+
+    ts = typestore_for(ros1=False)
+    T = ts.types
+    pf = [T["sensor_msgs/msg/PointField"](name=n, offset=o, datatype=d, count=1) for n, o, d in fields]
+    n = data.size // point_step
+    sec = int(stamp)
+    msg = T["sensor_msgs/msg/PointCloud2"](
+        header=T["std_msgs/msg/Header"](stamp=T["builtin_interfaces/msg/Time"](
+            sec=sec, nanosec=round((stamp - sec) * 1e9)), frame_id="velodyne"),
+        height=height, width=n // height, fields=pf, is_bigendian=False, point_step=point_step,
+        row_step=point_step * (n // height), data=data, is_dense=False)
+    with Writer(path, version=8, storage_plugin=StoragePlugin.MCAP) as w:
+        conn = w.add_connection("/points_raw", "sensor_msgs/msg/PointCloud2", typestore=ts)
+        w.write(conn, round(stamp * 1e9), ts.serialize_cdr(msg, "sensor_msgs/msg/PointCloud2"))
+
+
+def test_velodyne_cloud_decoded_by_field_name(tmp_path: Path) -> None:
+    # Velodyne driver layout: x y z intensity f4, ring u2, time f4 (s relative to the stamp)
+    dtype = np.dtype({"names": ["x", "y", "z", "intensity", "ring", "time"],
+                      "formats": ["<f4", "<f4", "<f4", "<f4", "<u2", "<f4"],
+                      "offsets": [0, 4, 8, 12, 16, 18], "itemsize": 22})
+    rng = np.random.default_rng(3)
+    pts = np.zeros(200, dtype=dtype)
+    for k in "xyz":
+        pts[k] = rng.uniform(-30, 30, 200)
+    pts["ring"] = np.arange(200) % 16
+    pts["time"] = np.linspace(-0.1, 0.0, 200)  # VLP-16 stamps at the sweep end: negative offsets
+    pts["intensity"] = rng.uniform(0, 100, 200)
+    pts["x"][[5, 17]] = np.nan  # no-return points
+    fields = [("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("ring", 16, 4), ("time", 18, 7)]
+    _write_cloud_bag(tmp_path / "velo", fields, 22, pts.view(np.uint8), 50.25)
+    with open_log(tmp_path / "velo") as log:
+        assert log.roles["lidar"] == "/points_raw"
+        (sweep,) = list(log.sweeps())
+    keep = np.isfinite(pts["x"])
+    assert sweep.stamp == pytest.approx(50.25) and len(sweep) == 198 and sweep.frame_id == "velodyne"
+    np.testing.assert_array_equal(sweep.points[:, 0], pts["x"][keep])
+    np.testing.assert_array_equal(sweep.ring, pts["ring"][keep])
+    np.testing.assert_allclose(sweep.point_time, pts["time"][keep], atol=1e-7)
+    np.testing.assert_allclose(sweep.intensity, pts["intensity"][keep])
+
+
+@pytest.mark.parametrize("absolute", [True, False])
+def test_timestamp_f64_absolute_or_relative_and_ring_u8(tmp_path: Path, absolute: bool) -> None:
+    dtype = np.dtype({"names": ["timestamp", "x", "y", "z", "ring"], "formats": ["<f8", "<f4", "<f4", "<f4", "u1"],
+                      "offsets": [0, 8, 12, 16, 20], "itemsize": 24})
+    stamp = 1_700_000_000.5
+    pts = np.zeros(64, dtype=dtype)
+    pts["x"], pts["y"], pts["z"] = 1.0, np.arange(64), 2.0
+    rel = np.arange(64) * 1e-3
+    pts["timestamp"] = stamp + rel if absolute else rel
+    pts["ring"] = np.arange(64) % 32
+    pts["x"][0] = pts["y"][0] = pts["z"][0] = 0.0  # no return
+    fields = [("timestamp", 0, 8), ("x", 8, 7), ("y", 12, 7), ("z", 16, 7), ("ring", 20, 2)]
+    _write_cloud_bag(tmp_path / "hesai", fields, 24, pts.view(np.uint8), stamp)
+    with open_log(tmp_path / "hesai") as log:
+        (sweep,) = list(log.sweeps())
+    np.testing.assert_allclose(sweep.point_time, rel[1:], atol=1e-6)  # s since the sweep start
+    np.testing.assert_array_equal(sweep.ring, pts["ring"][1:])
+
+
+def test_cloud_without_time_field_has_no_point_time(tmp_path: Path) -> None:
+    pts = np.arange(30, dtype="<f4").reshape(10, 3) + 1
+    _write_cloud_bag(tmp_path / "xyz", [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], 12, pts.view(np.uint8).reshape(-1), 1.0)
+    with open_log(tmp_path / "xyz") as log:
+        (sweep,) = list(log.sweeps())
+    assert sweep.point_time is None and sweep.ring is None
+    np.testing.assert_array_equal(sweep.points, pts)
+
+
+# ------------------------------------------------------------------ ROS 1 variants
+
+
+def _imu(t0: float, n: int) -> ImuSeries:
+    t = t0 + np.arange(n) * 0.01
+    return ImuSeries(t, np.column_stack([t, -t, np.full(n, 9.81)]), np.zeros((n, 3)), None, "imu")
+
+
+def test_split_ros1_bags_as_list_and_glob(tmp_path: Path) -> None:
+    for k in range(3):
+        with LogWriter(tmp_path / f"run_{k}.bag", "bag") as w:
+            w.write_imu("/imu", _imu(10.0 + k, 100))
+    with open_log([tmp_path / "run_2.bag", tmp_path / "run_0.bag", tmp_path / "run_1.bag"]) as log:
+        imu = log.imu()
+        assert log.container == "ros1" and log.topics[0].count == 300
+    np.testing.assert_allclose(imu.stamps, 10.0 + np.arange(300) * 0.01, atol=1e-9)  # merged and sorted
+    np.testing.assert_allclose(imu.acc[:, 0], imu.stamps)
+    with open_log(str(tmp_path / "run_*.bag")) as log:
+        assert log.duration_s == pytest.approx(2.99)
+    with pytest.raises(InputError, match="no file matches"):
+        open_log(str(tmp_path / "nothing_*.bag"))
+
+
+@pytest.mark.parametrize("compression", ["bz2", "lz4", None])
+def test_ros1_chunk_compression(tmp_path: Path, compression: str | None) -> None:
+    with LogWriter(tmp_path / "c.bag", "bag", ros1_compression=compression) as w:
+        w.write_imu("/imu", _imu(5.0, 500))
+    raw = (tmp_path / "c.bag").read_bytes()
+    assert (b"compression=" + (compression or "none").encode()) in raw  # really that chunk format
+    with open_log(tmp_path / "c.bag") as log:
+        np.testing.assert_allclose(log.imu().acc[:, 1], -(5.0 + np.arange(500) * 0.01))
+
+
+def test_plain_mcap_with_ros1_encoded_channels(tmp_path: Path) -> None:
+    """An MCAP written by a ROS 1 recorder (profile ros1) goes through the mcap library."""
+    from mcap.writer import Writer
+
+    from mrnc_eval.io import messages as M
+
+    ts = typestore_for(ros1=True)
+    msgdef, _md5 = ts.generate_msgdef("sensor_msgs/msg/Imu")
+    p = tmp_path / "ros1.mcap"
+    with p.open("wb") as fh:
+        w = Writer(fh)
+        w.start(profile="ros1", library="test")
+        sid = w.register_schema(name="sensor_msgs/Imu", encoding="ros1msg", data=msgdef.encode())
+        cid = w.register_channel(topic="/imu", message_encoding="ros1", schema_id=sid)
+        for k in range(20):
+            t = 3.0 + 0.01 * k
+            msg = M.imu(ts, t, "imu", (k, 0, 9.81), (0, 0, 0.1 * k), None, ros1=True, seq=k)
+            w.add_message(channel_id=cid, log_time=round(t * 1e9), publish_time=round(t * 1e9),
+                          data=bytes(ts.serialize_ros1(msg, "sensor_msgs/msg/Imu")))
+        w.finish()
+    with open_log(p) as log:
+        assert log.container == "mcap" and log.roles["imu"] == "/imu"
+        assert log.topics[0].msgtype == "sensor_msgs/msg/Imu" and log.topics[0].count == 20
+        imu = log.imu()
+    np.testing.assert_allclose(imu.stamps, 3.0 + 0.01 * np.arange(20), atol=1e-9)
+    np.testing.assert_allclose(imu.gyro[:, 2], 0.1 * np.arange(20))
+
+
+# ------------------------------------------------------------------ types
+
+
+def test_sqlite3_bag_without_type_definitions_uses_humble_types(tmp_path: Path) -> None:
+    """ROS 2 Humble's recorder stores no message definitions in .db3 files."""
+    write_sample(tmp_path / "h.db3", "db3")
+    with sqlite3.connect(tmp_path / "h.db3") as db:
+        tables = {r[0] for r in db.execute("select name from sqlite_master where type='table'")}
+        assert "message_definitions" in tables
+        db.execute("delete from message_definitions")
+    with open_log(tmp_path / "h.db3") as log:
+        assert log.imu().stamps.size == 50
+        assert len(list(log.sweeps())) == 3
+
+
+def test_unknown_message_type_is_listed_and_refused_when_read(tmp_path: Path) -> None:
+    from rosbags.rosbag2 import StoragePlugin, Writer
+    from rosbags.typesys import get_types_from_msg
+
+    ts = typestore_for(ros1=False)
+    ts.register(get_types_from_msg("float64 pressure_bar\nuint8 mode", "acme_msgs/msg/PumpState"))
+    with Writer(tmp_path / "u", version=8, storage_plugin=StoragePlugin.SQLITE3) as w:
+        conn = w.add_connection("/pump_state", "acme_msgs/msg/PumpState", typestore=ts)
+        msg = ts.types["acme_msgs/msg/PumpState"](pressure_bar=180.0, mode=2)
+        w.write(conn, 1_000_000_000, ts.serialize_cdr(msg, "acme_msgs/msg/PumpState"))
+    # the definition was stored: the custom type decodes
+    db3 = tmp_path / "u" / "u.db3"  # the single file, opened on its own
+    with open_log(db3) as log:
+        assert log.topics[0].problem is None and log.topics[0].count == 1
+    # a recorder that stored no definition: the type is unknown, listed, refused by name when read
+    with sqlite3.connect(db3) as db:
+        db.execute("delete from message_definitions")
+    with open_log(db3) as log:
+        (info,) = log.topics
+        assert info.msgtype == "acme_msgs/msg/PumpState" and "unknown message type" in info.problem
+        with pytest.raises(InputError, match=r"\[/pump_state\]: unknown message type acme_msgs/msg/PumpState"):
+            log.trajectory("/pump_state")
+
+
+def test_typed_reader_on_a_topic_of_another_type(tmp_path: Path) -> None:
+    write_sample(tmp_path / "a.bag", "bag")
+    with open_log(tmp_path / "a.bag") as log:
+        with pytest.raises(InputError, match=r"\[/gnss/fix\]: expected sensor_msgs/msg/Imu, got sensor_msgs/msg/NavSatFix"):
+            log.imu("/gnss/fix")
+        with pytest.raises(InputError, match=r"\[/ouster/imu\].*PointCloud2"):
+            next(log.sweeps("/ouster/imu"))
+        with pytest.raises(InputError, match=r"\[/cmd_vel\].*not a pose type"):
+            log.trajectory("/cmd_vel")
+
+
+def test_plain_twist_uses_record_time(tmp_path: Path) -> None:
+    from mrnc_eval.io import messages as M
+
+    w = LogWriter(tmp_path / "tw.mcap", "mcap")
+    T = w.ts.types
+    conn = w._conn("/cmd_vel", "geometry_msgs/msg/Twist")
+    for k in range(3):
+        msg = T["geometry_msgs/msg/Twist"](linear=M.vector3(w.ts, (0.1 * k, 0, 0)), angular=M.vector3(w.ts, (0, 0, -k)))
+        w._writer.write(conn, (7 + k) * 10**9, w._serialize(msg, "geometry_msgs/msg/Twist"))
+    w.close()
+    with open_log(tmp_path / "tw.mcap") as log:
+        tw = log.cmd_vel()
+    np.testing.assert_allclose(tw.stamps, [7, 8, 9])
+    np.testing.assert_allclose(tw.v, [0, 0.1, 0.2])
+    np.testing.assert_allclose(tw.omega, [0, -1, -2])
+
+
+# ------------------------------------------------------------------ ENU
+
+
+def test_enu_against_independent_rotation_composition() -> None:
+    """ENU axes = ECEF rotated by Rz(lon + 90 deg) then Rx(90 deg - lat) (scipy), ECEF from the
+    geocentric formula with the prime-vertical radius written out independently."""
+    from scipy.spatial.transform import Rotation
+
+    origin = np.array([-33.8688, 151.2093, 58.0])
+    rng = np.random.default_rng(11)
+    lla = origin + np.column_stack([rng.uniform(-0.02, 0.02, 50), rng.uniform(-0.02, 0.02, 50),
+                                    rng.uniform(-30, 30, 50)])
+    a, b = 6378137.0, 6356752.314245179  # WGS-84 semi-axes, m
+
+    def ecef(lat_deg, lon_deg, h):
+        lat, lon = np.radians(lat_deg), np.radians(lon_deg)
+        n = a**2 / np.sqrt(a**2 * np.cos(lat) ** 2 + b**2 * np.sin(lat) ** 2)
+        return np.column_stack([(n + h) * np.cos(lat) * np.cos(lon), (n + h) * np.cos(lat) * np.sin(lon),
+                                (b**2 / a**2 * n + h) * np.sin(lat)])
+
+    enu_from_ecef = Rotation.from_euler("ZX", [origin[1] + 90.0, 90.0 - origin[0]], degrees=True).inv()
+    expected = enu_from_ecef.apply(ecef(*lla.T) - ecef(*origin[:, None]))
+    got = geodesy.lla_to_enu(lla, origin)
+    np.testing.assert_allclose(got, expected, atol=1e-6)
+    assert np.abs(got[:, :2]).max() > 1000  # kilometres from the origin, not a trivial case
+    assert math.isclose(float(np.linalg.norm(got[0])), float(np.linalg.norm(expected[0])), rel_tol=1e-12)
