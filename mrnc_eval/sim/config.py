@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Literal
 
 from mrnc_eval.params import param, section
 
@@ -15,7 +16,19 @@ class LidarSimConfig:
     vertical_fov_deg: float = param(90.0, "vertical field of view, symmetric (OS0: 90)", "deg")
     max_range_m: float = param(50.0, "maximum range; farther returns are no-return zeros", "m")
     min_range_m: float = param(0.3, "minimum range", "m")
-    range_noise_m: float = param(0.01, "range noise (1 sigma)", "m")
+    range_noise_m: float = param(0.01, "range noise (1 sigma); ranges are then quantised to 1 mm", "m")
+    detect_range_10pct_m: float = param(35.0, "range at which a 10 % Lambertian target at normal incidence is "
+                                        "still detected (OS0 datasheet class); weaker returns are no-return zeros", "m")
+    beam_azimuth_offsets_deg: tuple[float, ...] = param(
+        (4.2, 1.4, -1.4, -4.2), "per-ring azimuth offsets, cycled over the rings (staggered columns as ouster-ros "
+        "publishes them; the pattern of the shared OS1-128 metadata, 0 = no stagger)", "deg")
+    lidar_origin_to_beam_origin_mm: float = param(27.67, "beam origin offset from the lidar axis (OS0)", "mm")
+    lidar_to_sensor_z_m: float = param(0.03618, "os_sensor -> os_lidar height (ouster-ros tf; lidar rotated "
+                                       "180 deg about z)", "m")
+    sun_elevation_deg: float = param(35.0, "sun elevation for the ambient (NIR) channel", "deg")
+    ambient_sunlit_photons: float = param(300.0, "ambient (NIR) count of a white surface facing the sun "
+                                          "(overcast daylight; Poisson noise)", "photons")
+    ambient_sky_photons: float = param(200.0, "ambient count of a no-return pixel looking at the sky", "photons")
     mount_xyz_m: tuple[float, float, float] = param((1.2, 0.0, 1.9), "base_link -> os_sensor translation", "m")
     record_every: int = param(1, "record every n-th sweep (a throttled recording, like topic_tools throttle)")
 
@@ -28,6 +41,7 @@ class ImuSimConfig:
     acc_bias_walk: float = param(1e-4, "accelerometer bias random walk", "m/s^3/sqrt(Hz)")
     gyro_bias_walk: float = param(1e-5, "gyro bias random walk", "rad/s^2/sqrt(Hz)")
     chassis_rate_hz: float = param(0.0, "chassis IMU rate (ADIS16475: 1000); 0 = no chassis IMU", "Hz")
+    chassis_mount_xyz_m: tuple[float, float, float] = param((0.0, 0.0, 0.3), "base_link -> chassis_imu", "m")
     mount_xyz_m: tuple[float, float, float] = param((0.006253, -0.011775, 0.007645),
                                                     "os_sensor -> os_imu translation (Ouster)", "m")
 
@@ -48,6 +62,8 @@ class GnssSimConfig:
 @dataclass(frozen=True)
 class SimConfig:
     seed: int = param(0, "random seed; the same seed gives byte-identical logs")
+    bag_compression: Literal["lz4", "bz2", "none"] = param("lz4", "ROS 1 bag chunk compression (rosbag record "
+                                                           "--lz4 / --bz2)")
     lidar: LidarSimConfig = section(LidarSimConfig, "Ouster OS0 model")
     imu: ImuSimConfig = section(ImuSimConfig, "IMU model")
     gnss: GnssSimConfig = section(GnssSimConfig, "GNSS model")

@@ -1,71 +1,147 @@
-"""Ouster OS0 sweep by ray casting: each column is cast from the sensor pose at its own time
-(motion distortion is real), points are expressed in the sensor frame at that time, and the
-organised H x W arrays are laid out as ouster-ros publishes them."""
+"""Ouster OS0 sweep by ray casting (open3d RaycastingScene, one batch per sweep).
+
+Geometry follows the Ouster sensor model: column j fires at encoder angle 2 pi (1 - j / W) in the
+os_lidar frame (rotated 180 deg about z from os_sensor, so column 0 looks backwards), each ring
+has its altitude and a small azimuth offset (staggered columns, as ouster-ros publishes them),
+rays start at the beam origin `n` off the axis and range = n + distance. Each column is cast from
+the sensor pose at its own time (motion distortion is real) and its points are expressed in
+os_sensor at that time. Ranges are quantised to mm and xyz derived from them, like the driver.
+
+Returns: detection needs albedo * cos(incidence) / r^2 above what a 10 % target gives at the
+detection range; intensity is the photon signal (Poisson); reflectivity is the calibrated
+0-100 % Lambertian scale (falls at grazing incidence); ambient is sunlight NIR (Poisson)."""
 
 from __future__ import annotations
 
+import json
+import math
 from dataclasses import dataclass
 
 import numpy as np
 
 from mrnc_eval.sim.config import LidarSimConfig
-from mrnc_eval.sim.motion import BodyMotion
+from mrnc_eval.sim.trajectory import BodyTrajectory
+
+SIGNAL_AT_DETECTION_LIMIT = 30.0  # photon signal of the weakest detected return
+MAX_U16 = 65535
 
 
 @dataclass(frozen=True)
 class OrganisedSweep:
-    stamp: float
-    xyz: np.ndarray  # (H, W, 3) float32, sensor frame, zeros for no return
+    stamp: float  # s, time of column 0 (header stamp)
+    xyz: np.ndarray  # (H, W, 3) float32, os_sensor at each column's time, zeros for no return
     t_ns: np.ndarray  # (H, W) uint32, ns since stamp
-    range_mm: np.ndarray
-    reflectivity: np.ndarray
-    intensity: np.ndarray
-    ambient: np.ndarray
+    range_mm: np.ndarray  # (H, W) uint32
+    reflectivity: np.ndarray  # (H, W) uint16
+    intensity: np.ndarray  # (H, W) float32
+    ambient: np.ndarray  # (H, W) uint16
+
+
+@dataclass(frozen=True)
+class BeamModel:
+    """Per-pixel ray geometry in os_sensor (constant over sweeps)."""
+
+    altitude_deg: np.ndarray  # (H,) ring 0 = top beam
+    azimuth_offset_deg: np.ndarray  # (H,)
+    origins: np.ndarray  # (W, 3) m, beam origin of each column
+    directions: np.ndarray  # (H, W, 3) unit
+    beam_offset_m: float
+
+
+def beam_model(cfg: LidarSimConfig) -> BeamModel:
+    half = cfg.vertical_fov_deg / 2
+    altitude = np.linspace(half, -half, cfg.beams)
+    pattern = np.asarray(cfg.beam_azimuth_offsets_deg or (0.0,), float)
+    az_off = pattern[np.arange(cfg.beams) % pattern.size]
+    enc = 2 * np.pi * (1.0 - np.arange(cfg.columns) / cfg.columns)  # encoder angle, os_lidar
+    n = cfg.lidar_origin_to_beam_origin_mm / 1000.0
+    phi = np.radians(altitude)[:, None]
+    theta = enc[None, :] - np.radians(az_off)[:, None]
+    # os_lidar -> os_sensor: rotation of pi about z (x, y negated), then up by lidar_to_sensor_z_m
+    dirs = np.stack([-np.cos(theta) * np.cos(phi), -np.sin(theta) * np.cos(phi),
+                     np.broadcast_to(np.sin(phi), theta.shape)], axis=2)
+    origins = np.c_[-n * np.cos(enc), -n * np.sin(enc), np.full(enc.size, cfg.lidar_to_sensor_z_m)]
+    return BeamModel(altitude, az_off, origins, dirs, n)
 
 
 def beam_directions(cfg: LidarSimConfig) -> np.ndarray:
-    """(H, W, 3) unit directions in the sensor frame. Ring 0 is the top beam; column 0 looks
-    backwards and the azimuth decreases with the column (the sensor spins clockwise)."""
-    half = np.radians(cfg.vertical_fov_deg) / 2
-    el = np.linspace(half, -half, cfg.beams)
-    az = np.pi - 2 * np.pi * np.arange(cfg.columns) / cfg.columns
-    ce = np.cos(el)[:, None]
-    return np.stack([ce * np.cos(az)[None], ce * np.sin(az)[None], np.repeat(np.sin(el)[:, None], cfg.columns, 1)],
-                    axis=2)
+    """(H, W, 3) unit ray directions in os_sensor."""
+    return beam_model(cfg).directions
 
 
 class LidarSimulator:
     def __init__(self, scene, cfg: LidarSimConfig, base_to_sensor: np.ndarray, rng: np.random.Generator) -> None:
         import open3d as o3d
 
-        self.o3d = o3d
-        self.rs = scene.raycasting_scene()
-        self.refl = np.asarray(scene.reflectivity + [0.0], np.float32)
+        self._o3d = o3d
+        self._rs = scene.raycasting_scene()
+        self._albedo = np.asarray(list(scene.reflectivity) + [0.0], np.float64)  # last = nothing hit
         self.cfg = cfg
-        self.dirs = beam_directions(cfg)
+        self.beams = beam_model(cfg)
         self.base_to_sensor = base_to_sensor
         self.rng = rng
         self.col_dt = 1.0 / (cfg.rate_hz * cfg.columns)
+        self._t_ns = np.ascontiguousarray(np.broadcast_to(
+            np.round(np.arange(cfg.columns) * self.col_dt * 1e9).astype(np.uint32), (cfg.beams, cfg.columns)))
+        el = math.radians(cfg.sun_elevation_deg)
+        sun_az = rng.uniform(0.0, 2 * np.pi)
+        self._sun = np.array([math.cos(el) * math.cos(sun_az), math.cos(el) * math.sin(sun_az), math.sin(el)])
+        # weakest detectable albedo * cos / r^2 (10 % target, normal incidence, at the detection range)
+        self._min_return = 0.1 / cfg.detect_range_10pct_m ** 2
 
-    def sweep(self, motion: BodyMotion, stamp: float) -> OrganisedSweep:
-        c = self.cfg
+    def sweep(self, traj: BodyTrajectory, stamp: float) -> OrganisedSweep:
+        c, bm = self.cfg, self.beams
         col_t = stamp + np.arange(c.columns) * self.col_dt
-        p, r = motion.pose(col_t)
-        rot_ws = r.as_matrix() @ self.base_to_sensor[:3, :3]  # (W, 3, 3)
-        origin = p + r.apply(self.base_to_sensor[:3, 3])  # (W, 3)
-        d_world = np.einsum("wij,hwj->hwi", rot_ws, self.dirs)
-        rays = np.concatenate([np.broadcast_to(origin[None], d_world.shape), d_world], axis=2).reshape(-1, 6)
-        hit = self.rs.cast_rays(self.o3d.core.Tensor(rays.astype(np.float32)))
-        rng_m = hit["t_hit"].numpy().reshape(c.beams, c.columns).astype(np.float64)
+        p, r = traj.pose(col_t)
+        rot_ws = r.as_matrix() @ self.base_to_sensor[:3, :3]  # (W, 3, 3) os_sensor in map
+        sensor_w = p + r.apply(self.base_to_sensor[:3, 3])
+        origin_w = sensor_w + np.einsum("wij,wj->wi", rot_ws, bm.origins)
+        d_world = np.einsum("wij,hwj->hwi", rot_ws, bm.directions)
+        rays = np.concatenate([np.broadcast_to(origin_w[None], d_world.shape), d_world], axis=2)
+        hit = self._rs.cast_rays(self._o3d.core.Tensor(np.ascontiguousarray(rays, np.float32).reshape(-1, 6)))
+        dist = hit["t_hit"].numpy().reshape(c.beams, c.columns).astype(np.float64)
         gid = hit["geometry_ids"].numpy().reshape(c.beams, c.columns)
-        rng_m = rng_m + self.rng.normal(0.0, c.range_noise_m, rng_m.shape)
-        valid = np.isfinite(rng_m) & (rng_m <= c.max_range_m) & (rng_m >= c.min_range_m)
-        rng_m = np.where(valid, rng_m, 0.0)
-        xyz = (self.dirs * rng_m[..., None]).astype(np.float32)
-        gid = np.where(valid, np.minimum(gid, len(self.refl) - 1), len(self.refl) - 1)
-        refl = (self.refl[gid] * 255).astype(np.uint16)
-        intensity = np.where(valid, refl * 40.0 / np.maximum(rng_m, 1.0), 0.0).astype(np.float32)
-        ambient = self.rng.integers(0, 40, rng_m.shape).astype(np.uint16)
-        t_ns = np.broadcast_to((np.arange(c.columns) * self.col_dt * 1e9).astype(np.uint32), rng_m.shape)
-        return OrganisedSweep(stamp, xyz, np.ascontiguousarray(t_ns), (rng_m * 1000).astype(np.uint32), refl,
-                              intensity, ambient)
+        normal = hit["primitive_normals"].numpy().reshape(c.beams, c.columns, 3).astype(np.float64)
+        found = np.isfinite(dist)
+        gid = np.where(found, np.minimum(gid, self._albedo.size - 1), self._albedo.size - 1)
+        albedo = self._albedo[gid]
+        cos_inc = np.abs(np.einsum("hwi,hwi->hw", normal, d_world))
+        safe = np.where(found, np.maximum(dist + bm.beam_offset_m, 0.1), 1.0)
+        strength = albedo * cos_inc / safe ** 2
+        rng_m = safe + self.rng.normal(0.0, c.range_noise_m, dist.shape)
+        valid = found & (strength >= self._min_return) & (rng_m <= c.max_range_m) & (rng_m >= c.min_range_m)
+        range_mm = np.where(valid, np.round(rng_m * 1000.0), 0.0).astype(np.uint32)
+        along = np.where(valid, range_mm / 1000.0 - bm.beam_offset_m, 0.0)
+        xyz = np.where(valid[..., None], bm.origins[None] + bm.directions * along[..., None], 0.0).astype(np.float32)
+        signal = self.rng.poisson(np.where(valid, SIGNAL_AT_DETECTION_LIMIT * strength / self._min_return, 0.0))
+        intensity = np.minimum(signal, MAX_U16).astype(np.float32)
+        refl = np.where(valid, np.round(100.0 * albedo * np.sqrt(cos_inc) + self.rng.normal(0.0, 1.0, dist.shape)), 0)
+        sunlit = np.clip(np.einsum("hwi,i->hw", normal, self._sun), 0.0, 1.0)
+        looking_up = d_world[..., 2] > 0
+        ambient_mean = np.where(found, c.ambient_sunlit_photons * (0.05 + albedo * sunlit),
+                                np.where(looking_up, c.ambient_sky_photons, 0.0))
+        ambient = np.minimum(self.rng.poisson(ambient_mean), MAX_U16).astype(np.uint16)
+        return OrganisedSweep(stamp, xyz, self._t_ns, range_mm, np.clip(refl, 0, 255).astype(np.uint16), intensity,
+                              ambient)
+
+
+def ouster_metadata(cfg: LidarSimConfig, sensor_to_imu: np.ndarray, model: str) -> str:
+    """The sensor metadata JSON ouster-ros publishes on /ouster/metadata (fields of the real one)."""
+    bm = beam_model(cfg)
+    shift = np.round((bm.azimuth_offset_deg - bm.azimuth_offset_deg.min()) * cfg.columns / 360.0).astype(int)
+    imu_mm = sensor_to_imu.copy()
+    imu_mm[:3, 3] *= 1000.0
+    lidar_to_sensor = np.diag([-1.0, -1.0, 1.0, 1.0])
+    lidar_to_sensor[2, 3] = cfg.lidar_to_sensor_z_m * 1000.0
+    return json.dumps({
+        "prod_line": f"OS-0-{cfg.beams}", "prod_pn": "simulated", "prod_sn": "0", "build_rev": "mrnc-eval-sim",
+        "status": "RUNNING", "lidar_mode": f"{cfg.columns}x{int(cfg.rate_hz)}",
+        "beam_altitude_angles": [round(float(a), 4) for a in bm.altitude_deg],
+        "beam_azimuth_angles": [round(float(a), 4) for a in bm.azimuth_offset_deg],
+        "lidar_origin_to_beam_origin_mm": cfg.lidar_origin_to_beam_origin_mm,
+        "lidar_to_sensor_transform": [round(float(v), 6) for v in lidar_to_sensor.ravel()],
+        "imu_to_sensor_transform": [round(float(v), 6) for v in imu_mm.ravel()],
+        "data_format": {"columns_per_frame": cfg.columns, "columns_per_packet": 16, "pixels_per_column": cfg.beams,
+                        "column_window": [0, cfg.columns - 1], "pixel_shift_by_row": [int(s) for s in shift],
+                        "udp_profile_lidar": "RNG19_RFL8_SIG16_NIR16", "udp_profile_imu": "LEGACY"},
+    }, sort_keys=True)

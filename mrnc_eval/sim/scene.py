@@ -16,23 +16,33 @@ SCENES = ("yard", "forest", "corridor", "field")
 
 @dataclass(frozen=True)
 class Terrain:
+    """h(x, y) = gentle relief (wavelengths 50-125 m) + fine roughness (wavelengths 2.7-3.7 m), m.
+    Analytic, so the body pose and its derivatives are smooth and exact."""
+
     amplitude_m: float
     roughness_m: float
     seed: int
+    _k: np.ndarray = field(init=False, repr=False, compare=False)
+    _ph: np.ndarray = field(init=False, repr=False, compare=False)
+
+    def __post_init__(self) -> None:
+        rng = np.random.default_rng(self.seed)
+        object.__setattr__(self, "_k", rng.uniform(0.05, 0.12, 4))
+        object.__setattr__(self, "_ph", rng.uniform(0, 2 * np.pi, 4))
 
     def height(self, x: np.ndarray, y: np.ndarray) -> np.ndarray:
-        rng = np.random.default_rng(self.seed)
-        k = rng.uniform(0.05, 0.12, 4)
-        ph = rng.uniform(0, 2 * np.pi, 4)
-        h = self.amplitude_m * 0.5 * (np.sin(k[0] * x + ph[0]) * np.cos(k[1] * y + ph[1])
-                                      + 0.5 * np.sin(k[2] * (x + y) + ph[2]))
-        h += self.roughness_m * np.sin(1.7 * x + ph[3]) * np.sin(2.3 * y)
-        return h
+        k, ph, a = self._k, self._ph, self.amplitude_m * 0.5
+        return (a * (np.sin(k[0] * x + ph[0]) * np.cos(k[1] * y + ph[1]) + 0.5 * np.sin(k[2] * (x + y) + ph[2]))
+                + self.roughness_m * np.sin(1.7 * x + ph[3]) * np.sin(2.3 * y))
 
-    def gradient(self, x: np.ndarray, y: np.ndarray, eps: float = 0.05) -> tuple[np.ndarray, np.ndarray]:
-        """Slope of the terrain averaged over a wheelbase-sized footprint (m/m)."""
-        gx = (self.height(x + eps, y) - self.height(x - eps, y)) / (2 * eps)
-        gy = (self.height(x, y + eps) - self.height(x, y - eps)) / (2 * eps)
+    def gradient(self, x: np.ndarray, y: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Exact slope (dh/dx, dh/dy), m/m."""
+        k, ph, a, r = self._k, self._ph, self.amplitude_m * 0.5, self.roughness_m
+        diag = 0.5 * k[2] * np.cos(k[2] * (x + y) + ph[2])
+        gx = a * (k[0] * np.cos(k[0] * x + ph[0]) * np.cos(k[1] * y + ph[1]) + diag) \
+            + r * 1.7 * np.cos(1.7 * x + ph[3]) * np.sin(2.3 * y)
+        gy = a * (-k[1] * np.sin(k[0] * x + ph[0]) * np.sin(k[1] * y + ph[1]) + diag) \
+            + r * 2.3 * np.sin(1.7 * x + ph[3]) * np.cos(2.3 * y)
         return gx, gy
 
 
@@ -53,7 +63,7 @@ class Scene:
         import open3d as o3d
 
         rs = o3d.t.geometry.RaycastingScene()
-        for v, t in zip(self.vertices, self.triangles):
+        for v, t in zip(self.vertices, self.triangles, strict=True):
             rs.add_triangles(o3d.core.Tensor(v), o3d.core.Tensor(t))
         return rs
 
@@ -98,45 +108,59 @@ def _ground(terrain: Terrain, half: float, step: float):
     return v, t
 
 
+# NIR (865 nm) albedo of each material, 0..1; drives calibrated reflectivity and signal
+MATERIALS = {"soil": 0.25, "concrete": 0.4, "container": 0.55, "metal_pole": 0.6, "vehicle": 0.45,
+             "bark": 0.3, "foliage": 0.5, "rock": 0.35}
+
+
 def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness_m: float = 0.02,
                 centre=(0.0, 0.0), half_size_m: float = 40.0) -> Scene:
+    """A named scene around `centre` (m): yard (buildings, containers, poles, vehicles), forest
+    (a forest edge: dense trees on one side, open ground with shrubs and rocks on the other),
+    corridor (two long featureless walls: degenerate along its axis) or field (open ground only:
+    degenerate). The layout is a pure function of `seed`."""
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
     terrain = Terrain(0.0 if name == "corridor" else amplitude_m, roughness_m, seed)
     scene = Scene(name, terrain)
     rng = np.random.default_rng(seed + 1000)
     cx0, cy0 = centre
-    scene.add(*_ground(terrain, half_size_m + max(abs(cx0), abs(cy0)), 0.5), 0.25)
-    h = terrain.height
+    scene.add(*_ground(terrain, half_size_m + max(abs(cx0), abs(cy0)), 0.5), MATERIALS["soil"])
 
-    def place(n, r_min, r_max):
+    def z(x: float, y: float) -> float:
+        return float(terrain.height(np.array(x), np.array(y)))
+
+    def place(n, r_min, r_max, sector=(0.0, 2 * np.pi)):
         out = []
-        while len(out) < n:
-            r, a = rng.uniform(r_min, r_max), rng.uniform(0, 2 * np.pi)
+        for _ in range(n):
+            r, a = rng.uniform(r_min, r_max), rng.uniform(*sector)
             out.append((cx0 + r * math.cos(a), cy0 + r * math.sin(a)))
         return out
 
+    def tree(x, y, trunk_r, height, crown_r):
+        scene.add(*_cylinder(x, y, z(x, y) - 0.2, trunk_r, height), MATERIALS["bark"])
+        scene.add(*_sphere(x, y, z(x, y) + height, crown_r), MATERIALS["foliage"])
+
     if name == "yard":
-        for k, (x, y) in enumerate(place(6, 12, 30)):  # buildings / walls
-            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8),
-                            rng.uniform(3, 8), rng.uniform(0, np.pi)), 0.6)
-        for x, y in place(8, 9, 25):  # containers
-            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), 0.8)
-        for x, y in place(10, 9, 28):  # poles
-            scene.add(*_cylinder(x, y, float(h(np.array(x), np.array(y))) - 0.2, 0.12, 6.0), 0.9)
-        for x, y in place(3, 10, 20):  # vehicles
-            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), 0.9)
-    elif name == "forest":
-        for x, y in place(60, 8, 38):
-            z = float(h(np.array(x), np.array(y))) - 0.2
-            r = rng.uniform(0.12, 0.35)
-            ht = rng.uniform(5, 12)
-            scene.add(*_cylinder(x, y, z, r, ht), 0.45)
-            scene.add(*_sphere(x, y, z + ht, rng.uniform(1.5, 3.0)), 0.3)
-        for x, y in place(6, 10, 30):
-            scene.add(*_box(x, y, float(h(np.array(x), np.array(y))) - 0.3, 2.0, 1.0, 1.0, rng.uniform(0, np.pi)), 0.5)
-    elif name == "corridor":  # two long featureless walls: degenerate along the corridor axis
+        for x, y in place(6, 12, 30):  # buildings / walls
+            scene.add(*_box(x, y, z(x, y) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8), rng.uniform(3, 8),
+                            rng.uniform(0, np.pi)), MATERIALS["concrete"])
+        for x, y in place(8, 9, 25):  # 20 ft containers
+            scene.add(*_box(x, y, z(x, y) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), MATERIALS["container"])
+        for x, y in place(10, 9, 28):  # lamp poles
+            scene.add(*_cylinder(x, y, z(x, y) - 0.2, 0.12, 6.0), MATERIALS["metal_pole"])
+        for x, y in place(3, 10, 20):  # parked vehicles
+            scene.add(*_box(x, y, z(x, y), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), MATERIALS["vehicle"])
+    elif name == "forest":  # the forest occupies a 200 deg sector; the rest is open ground
+        for x, y in place(70, 8, 38, (0.0, np.radians(200))):
+            tree(x, y, rng.uniform(0.12, 0.35), rng.uniform(5, 12), rng.uniform(1.5, 3.0))
+        for x, y in place(5, 10, 30, (np.radians(200), 2 * np.pi)):  # lone trees in the open
+            tree(x, y, rng.uniform(0.15, 0.3), rng.uniform(4, 8), rng.uniform(1.5, 2.5))
+        for x, y in place(8, 9, 30, (np.radians(200), 2 * np.pi)):  # rocks and stumps
+            scene.add(*_box(x, y, z(x, y) - 0.3, rng.uniform(0.8, 2.0), rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.2),
+                            rng.uniform(0, np.pi)), MATERIALS["rock"])
+    elif name == "corridor":  # two long featureless walls 8 m apart, along x
         for side in (-1, 1):
-            scene.add(*_box(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), 0.6)
+            scene.add(*_box(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), MATERIALS["concrete"])
     # "field": open ground only (degenerate: no structure)
     return scene
