@@ -95,3 +95,24 @@ def test_consecutive_pairs_by_distance_with_standstills_equal_evo() -> None:
         theirs = np.array(filters.filter_pairs_by_path(poses, delta, 0.0, all_pairs=False))
         i, j = pairs_by_distance(pos, delta, all_pairs=False)
         np.testing.assert_array_equal(np.c_[i, j], theirs, err_msg=str(delta))
+
+
+def test_degenerate_umeyama_is_a_clear_error_like_evo() -> None:
+    """A straight-line path: evo raises GeometryException; we raise EvaluationError saying why.
+    Yaw alignment of a path standing still is refused too."""
+    from evo.core import geometry
+
+    from mrnc_eval.errors import EvaluationError
+    from mrnc_eval.evaluation.ape import ape
+
+    n = 50
+    line = Trajectory(np.arange(n) * 0.1, np.c_[np.arange(n, dtype=float), np.zeros(n), np.zeros(n)],
+                      np.tile([0.0, 0.0, 0.0, 1.0], (n, 1)), name="line")
+    with pytest.raises(geometry.GeometryException):
+        geometry.umeyama_alignment(line.positions.T, line.positions.T + 1.0, False)
+    with pytest.raises(EvaluationError, match="collinear"):
+        ape(line, line, align="se3")
+    still = Trajectory(line.stamps, np.zeros((n, 3)), line.quat_xyzw, name="still")
+    with pytest.raises(EvaluationError, match="degenerate yaw"):
+        ape(still, still, align="yaw")
+    assert ape(line, line, align="origin").stats["max"] == 0.0  # origin alignment needs no spread
