@@ -203,7 +203,8 @@ def build_table_one(source: Path, *, align: str = "se3", max_diff: float = 0.01,
                                     min_span_fraction=cfg.failed_min_span_fraction)
     table = table_one(cells, list(manifest), methods)
     table.notes.append("Failed: no trajectory, an evaluation error, "
-                       f"fewer than {cfg.failed_min_matches} matched poses, or a matched span under {cfg.failed_min_span_fraction:.0%} of the reference's; "
+                       f"fewer than {cfg.failed_min_matches} matched poses, "
+                       f"or a matched span under {cfg.failed_min_span_fraction:.0%} of the reference's; "
                        f"APE after {align} alignment, max_diff {max_diff} s")
     return table
 
