@@ -152,3 +152,12 @@ def test_log_topic_spec_reads_odometry_from_a_log(tmp_path: Path, fmt: str, suff
     assert out[1]["max"] < 1e-6 and out[0]["rmse"] > 0.01
     assert main(["ape", str(tmp_path / "gt.tum"), f"{log_path}:/nope"]) != 0
     assert "/nope" in capsys.readouterr().err
+
+
+def test_plot_decimation_keeps_the_peak() -> None:
+    from mrnc_eval.pipelines.trajectory_eval import _decimated_max
+
+    e = np.zeros(1_000_003)
+    e[777_777] = 5.0
+    t, d = _decimated_max(np.arange(e.size, dtype=float), e)
+    assert d.size == 10000 and d.max() == 5.0 and t.size == d.size
