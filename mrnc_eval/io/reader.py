@@ -181,9 +181,8 @@ class LogReader:
 
     def _scan(self) -> None:
         """One pass over the whole log: header stamps (record times for unstamped types),
-        counts, gaps, and the joint names of JointState topics (for role detection)."""
+        counts and gaps per topic."""
         stamps: dict[str, list[float]] = {t: [] for t in self._channels}
-        joint_names: dict[str, list[str]] = {}
         header_topics = {t for t, ch in self._channels.items()
                          if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
         for topic, t_rec, raw in self._iterate(list(self._channels)):
@@ -194,9 +193,6 @@ class LogReader:
                     raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
             else:
                 stamps[topic].append(t_rec * 1e-9)
-            ch = self._channels[topic]
-            if ch.msgtype == "sensor_msgs/msg/JointState" and topic not in joint_names and not ch.problem:
-                joint_names[topic] = [str(n) for n in self._decode(raw, topic).name]
         stats: dict[str, TopicInfo] = {}
         for topic, ch in self._channels.items():
             arr = np.asarray(stamps[topic], dtype=float)
@@ -209,21 +205,32 @@ class LogReader:
                 first_s=float(arr.min()) if arr.size else None, last_s=float(arr.max()) if arr.size else None,
                 duplicates=health.duplicates, out_of_order=health.out_of_order, problem=ch.problem,
             )
-        roles = detect_roles([(s.topic, s.msgtype, s.count) for s in stats.values()], joint_names, self.cfg.roles)
-        for role, topic in roles.items():
-            if topic not in stats:
-                raise InputError(self.path, f"topic given for role {role!r} is not in the log", topic=topic)
-        by_topic = {}
-        for role, topic in roles.items():
+        by_topic: dict[str, str] = {}
+        for role, topic in self.roles.items():
             by_topic.setdefault(topic, role)
         self._stats = {t: TopicInfo(**{**s.__dict__, "role": by_topic.get(t)}) for t, s in stats.items()}
-        self._roles = roles
 
     @property
     def roles(self) -> dict[str, str]:
+        """role -> topic, from message types and the container's index (no scan of the log:
+        only the first message of each JointState topic is read, for its joint names)."""
         if self._roles is None:
-            self._scan()
-        return dict(self._roles)  # type: ignore[arg-type]
+            self._roles = self._detect_roles()
+        return dict(self._roles)
+
+    def _detect_roles(self) -> dict[str, str]:
+        joint_names: dict[str, list[str]] = {}
+        for topic, ch in self._channels.items():
+            if ch.msgtype == "sensor_msgs/msg/JointState" and not ch.problem and ch.count != 0:
+                for _t, raw in self._raw(topic):
+                    joint_names[topic] = [str(n) for n in self._decode(raw, topic).name]
+                    break
+        candidates = [(t, ch.msgtype, ch.count) for t, ch in self._channels.items()]
+        roles = detect_roles(candidates, joint_names, self.cfg.roles)
+        for role, topic in roles.items():
+            if topic not in self._channels:
+                raise InputError(self.path, f"topic given for role {role!r} is not in the log", topic=topic)
+        return roles
 
     def _topic_for(self, role: str, topic: str | None) -> str:
         if topic is not None:

@@ -28,7 +28,7 @@ from mrnc_eval.errors import InputError
 class Channel:
     topic: str
     msgtype: str  # ROS 2 style, pkg/msg/Name
-    count: int  # from the container's index; LogReader recounts while scanning
+    count: int  # from the container's index (-1: unknown); LogReader recounts while scanning
     encoding: str  # "ros1" | "cdr" | anything else (undecodable)
     problem: str | None = None  # why this topic cannot be decoded, if it cannot
 
@@ -111,7 +111,7 @@ class McapSource:
             self._fh.close()
             raise InputError(path, "MCAP file has no summary section (truncated or still being written?)")
         self._stores = {"ros1": get_typestore(Stores.EMPTY), "cdr": get_typestore(Stores.EMPTY)}
-        counts = summary.statistics.channel_message_counts if summary.statistics else {}
+        counts = summary.statistics.channel_message_counts if summary.statistics else None
         self.channels: dict[str, Channel] = {}
         for cid, ch in summary.channels.items():
             schema = summary.schemas.get(ch.schema_id)
@@ -127,8 +127,9 @@ class McapSource:
             else:
                 problem = (f"message encoding {ch.message_encoding!r} (schema {schema_enc or 'none'!r}) is not "
                            "supported; only ROS 1 and ROS 2 (CDR) messages can be decoded")
+            count = int(counts.get(cid, 0)) if counts is not None else -1  # -1: no statistics record
             self.channels[ch.topic] = Channel(ch.topic, msgtype or f"<{ch.message_encoding}>",
-                                              int(counts.get(cid, 0)), ch.message_encoding, problem)
+                                              count, ch.message_encoding, problem)
 
     @staticmethod
     def _register(store, types: dict) -> None:
