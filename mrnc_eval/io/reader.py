@@ -197,7 +197,7 @@ class LogReader:
         for topic, ch in self._channels.items():
             arr = np.asarray(stamps[topic], dtype=float)
             _, health = _sort_dedup(arr, topic)
-            self._health[topic] = health
+            self._set_health(health)
             span = float(arr.max() - arr.min()) if arr.size > 1 else 0.0
             stats[topic] = TopicInfo(
                 topic=topic, msgtype=ch.msgtype, count=int(arr.size), role=None,
@@ -257,8 +257,10 @@ class LogReader:
         return self.end_s - self.start_s
 
     def health(self, topic: str) -> StreamHealth:
-        if topic not in self._health:
-            self.topics  # noqa: B018 - fills the health table
+        """Counts of the raw stream (duplicates, out-of-order stamps, largest gap) and notes
+        from reading it (e.g. sweeps skipped)."""
+        if self._stats is None:
+            self._scan()
         if topic not in self._health:
             raise InputError(self.path, "topic not in log", topic=topic)
         return self._health[topic]
@@ -283,7 +285,7 @@ class LogReader:
         if not t:
             raise InputError(self.path, "IMU topic has no messages", topic=topic)
         keep, health = _sort_dedup(np.asarray(t), topic)
-        self._health[topic] = health
+        self._set_health(health)
         acc_a = np.asarray(acc, float)[keep]
         gyro_a = np.asarray(gyro, float)[keep]
         if not (np.isfinite(acc_a).all() and np.isfinite(gyro_a).all()):
@@ -292,24 +294,50 @@ class LogReader:
                          np.asarray(quat, float)[keep] if has_orientation else None, frame)
 
     def sweeps(self, topic: str | None = None, *, min_interval_s: float = 0.0) -> Iterator[Sweep]:
-        """Decoded sweeps in log order. With min_interval_s, a sweep closer than that to the last
-        one yielded is skipped before it is decoded (a mapping rate below the sensor rate)."""
+        """Decoded sweeps in log order, streamed one at a time. A sweep whose header stamp is not
+        after the last one yielded (a duplicate or out-of-order cloud) is skipped and counted in
+        `health(topic).notes`. With min_interval_s, a sweep closer than that to the last one
+        yielded is skipped before it is decoded (a mapping rate below the sensor rate)."""
         topic = self._topic_for("lidar", topic)
         msgtype = self._msgtype(topic)
         if msgtype != "sensor_msgs/msg/PointCloud2":
             raise InputError(self.path, f"expected sensor_msgs/msg/PointCloud2, got {msgtype}", topic=topic)
         last = -np.inf
-        for _t, raw in self._raw(topic):
-            if min_interval_s > 0:
-                stamp = self._raw_header_stamp(raw, topic)
+        skipped = 0
+        try:
+            for _t, raw in self._raw(topic):
+                try:
+                    stamp = self._raw_header_stamp(raw, topic)
+                except (struct.error, IndexError) as err:
+                    raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
+                if stamp <= last:
+                    skipped += 1
+                    continue
                 if stamp - last < min_interval_s:
                     continue
+                m = self._decode(raw, topic)
+                try:
+                    sweep = decode_cloud(m, _stamp(m))
+                except CloudFormatError as err:
+                    raise InputError(self.path, str(err), topic=topic) from err
                 last = stamp
-            m = self._decode(raw, topic)
-            try:
-                yield decode_cloud(m, _stamp(m))
-            except CloudFormatError as err:
-                raise InputError(self.path, str(err), topic=topic) from err
+                yield sweep
+        finally:
+            if skipped:
+                self._note(topic, f"{skipped} sweep(s) skipped: header stamp not after the previous sweep")
+
+    def _set_health(self, health: StreamHealth) -> None:
+        """Store a stream's counts, keeping notes made while reading it earlier."""
+        from dataclasses import replace
+
+        old = self._health.get(health.topic)
+        self._health[health.topic] = replace(health, notes=old.notes) if old and old.notes else health
+
+    def _note(self, topic: str, note: str) -> None:
+        from dataclasses import replace
+
+        base = self._health.get(topic) or StreamHealth(topic=topic, count=0)
+        self._health[topic] = replace(base, notes=(*base.notes, note))
 
     def sweep_stamps(self, topic: str | None = None) -> np.ndarray:
         topic = self._topic_for("lidar", topic)
@@ -329,7 +357,7 @@ class LogReader:
         if not t:
             raise InputError(self.path, f"no valid GNSS fix ({no_fix} without fix)", topic=topic)
         keep, health = _sort_dedup(np.asarray(t), topic)
-        self._health[topic] = health
+        self._set_health(health)
         lla_a = np.asarray(lla)[keep]
         origin = np.asarray(self.cfg.gnss_origin_lla if self.cfg.gnss_origin_lla is not None else lla_a[0], float)
         return GnssSeries(np.asarray(t)[keep], lla_a, geodesy.lla_to_enu(lla_a, origin), np.asarray(cov)[keep],
@@ -341,8 +369,9 @@ class LogReader:
         t, left, right = [], [], []
         for m in self._messages(topic, ("sensor_msgs/msg/JointState",)):
             names = [n.lower() for n in m.name]
-            idx_l = next((i for i, n in enumerate(names) if "left" in n and (exclude is None or exclude not in n)), None)
-            idx_r = next((i for i, n in enumerate(names) if "right" in n and (exclude is None or exclude not in n)), None)
+            usable = [i for i, n in enumerate(names) if exclude is None or exclude not in n]
+            idx_l = next((i for i in usable if "left" in names[i]), None)
+            idx_r = next((i for i in usable if "right" in names[i]), None)
             if idx_l is None or idx_r is None or len(m.velocity) <= max(idx_l, idx_r):
                 raise InputError(self.path, f"JointState needs left/right joints with velocities, got {list(m.name)}",
                                  topic=topic)
@@ -352,7 +381,7 @@ class LogReader:
         if not t:
             raise InputError(self.path, "topic has no messages", topic=topic)
         keep, health = _sort_dedup(np.asarray(t), topic)
-        self._health[topic] = health
+        self._set_health(health)
         return SidePair(np.asarray(t)[keep], np.asarray(left)[keep] * scale, np.asarray(right)[keep] * scale, unit)
 
     def wheel_speeds(self, topic: str | None = None, wheel_radius_m: float = 0.35) -> SidePair:
@@ -412,7 +441,7 @@ class LogReader:
         if not t:
             raise InputError(self.path, "pose topic has no messages", topic=topic)
         keep, health = _sort_dedup(np.asarray(t), topic)
-        self._health[topic] = health
+        self._set_health(health)
         return Trajectory(np.asarray(t)[keep], np.asarray(p, float)[keep], np.asarray(q, float)[keep],
                           name=topic, frame_id=frame, child_frame_id=child)
 

@@ -123,7 +123,8 @@ class McapSource:
                 types = get_types_from_msg(text, msgtype) if schema_enc == "ros2msg" else get_types_from_idl(text)
                 self._register(self._stores["cdr"], types)
             elif ch.message_encoding == "ros1" and schema_enc == "ros1msg":
-                self._register(self._stores["ros1"], get_types_from_msg(schema.data.decode("utf-8", "replace"), msgtype))
+                text = schema.data.decode("utf-8", errors="replace")
+                self._register(self._stores["ros1"], get_types_from_msg(text, msgtype))
             else:
                 problem = (f"message encoding {ch.message_encoding!r} (schema {schema_enc or 'none'!r}) is not "
                            "supported; only ROS 1 and ROS 2 (CDR) messages can be decoded")

@@ -23,11 +23,14 @@ from mrnc_eval.io import messages as M
 
 Format = Literal["mcap", "db3", "bag"]
 
-LATCHED_QOS = (
-    "- history: 3\n  depth: 0\n  reliability: 1\n  durability: 1\n  deadline:\n    sec: 2147483647\n"
-    "    nsec: 4294967295\n  lifespan:\n    sec: 2147483647\n    nsec: 4294967295\n  liveliness: 1\n"
-    "  liveliness_lease_duration:\n    sec: 2147483647\n    nsec: 4294967295\n  avoid_ros_namespace_conventions: false"
-)
+
+def _latched_qos():
+    """ROS 2 QoS of a latched topic (/tf_static): reliable, transient local, keep last 1."""
+    from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
+
+    infinite = QosTime(2147483647, 4294967295)
+    return [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, infinite,
+                infinite, QosLiveliness.AUTOMATIC, infinite, False)]
 
 
 def typestore_for(*, ros1: bool):
@@ -53,7 +56,8 @@ class LogWriter:
         self.fmt = fmt
         self.ros1 = fmt == "bag"
         self.ts = typestore_for(ros1=self.ros1)
-        self._tmpdir = Path(tempfile.mkdtemp(prefix=".mrnc-write-", dir=self.path.parent if self.path.parent.exists() else None))
+        parent = self.path.parent if self.path.parent.exists() else None  # same filesystem: the final move is a rename
+        self._tmpdir = Path(tempfile.mkdtemp(prefix=".mrnc-write-", dir=parent))
         self._pending: list[tuple[int, int, object, bytes]] = []  # heap of (stamp ns, order, conn, raw)
         self._order = 0
         self._conns: dict[str, object] = {}
@@ -89,8 +93,8 @@ class LogWriter:
             if self.ros1:
                 conn = self._writer.add_connection(topic, msgtype, typestore=self.ts, latching=1 if latched else None)
             else:
-
-                conn = self._writer.add_connection(topic, msgtype, typestore=self.ts)
+                conn = self._writer.add_connection(topic, msgtype, typestore=self.ts,
+                                                   offered_qos_profiles=_latched_qos() if latched else ())
             self._conns[topic] = conn
         return conn
 

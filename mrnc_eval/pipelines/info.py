@@ -83,7 +83,8 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
     fields = [f.name for f in first.fields]
     has_time = any(f in fields for f in ("t", "time", "timestamp"))
     summary.lidar = {"topic": topic, "fields": fields, "height": int(first.height), "width": int(first.width),
-                     "per_point_time": has_time, "sweeps": next(t["count"] for t in summary.topics if t["topic"] == topic)}
+                     "per_point_time": has_time,
+                     "sweeps": next(t["count"] for t in summary.topics if t["topic"] == topic)}
     missing = [f for f in ("x", "y", "z") if f not in fields]
     if missing:
         summary.findings.append(Finding("error", topic, f"PointCloud2 without {'/'.join(missing)}"))

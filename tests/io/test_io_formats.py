@@ -198,7 +198,8 @@ def test_unknown_message_type_is_listed_and_refused_when_read(tmp_path: Path) ->
 def test_typed_reader_on_a_topic_of_another_type(tmp_path: Path) -> None:
     write_sample(tmp_path / "a.bag", "bag")
     with open_log(tmp_path / "a.bag") as log:
-        with pytest.raises(InputError, match=r"\[/gnss/fix\]: expected sensor_msgs/msg/Imu, got sensor_msgs/msg/NavSatFix"):
+        expected = r"\[/gnss/fix\]: expected sensor_msgs/msg/Imu, got sensor_msgs/msg/NavSatFix"
+        with pytest.raises(InputError, match=expected):
             log.imu("/gnss/fix")
         with pytest.raises(InputError, match=r"\[/ouster/imu\].*PointCloud2"):
             next(log.sweeps("/ouster/imu"))

@@ -50,7 +50,8 @@ def write_sample(path: Path, fmt: str, *, duplicate_imu: bool = False) -> dict:
         w.write_navsatfix("/gnss/fix", 100.0 + np.arange(4) * 0.1, lla, np.tile(np.eye(3) * 0.04, (4, 1, 1)),
                           np.array([0, 0, 0, -1]))
         w.write_joint_state("/wheel_speeds", [100.0, 100.1], ["left_wheel", "right_wheel"], [[1.0, 2.0], [1.5, 2.5]])
-        w.write_joint_state("/pump_cmd", [100.0, 100.1], ["left_pump", "right_pump"], [[900.0, 1100.0], [950.0, 1000.0]])
+        w.write_joint_state("/pump_cmd", [100.0, 100.1], ["left_pump", "right_pump"],
+                            [[900.0, 1100.0], [950.0, 1000.0]])
         w.write_odometry("/ground_truth", gt)
         w.write_path("/plan", Waypoints(np.array([[0.0, 0.0], [5.0, 0.0], [5.0, 5.0]]), frame_id="map"), 100.0)
         w.write_twist_stamped("/cmd_vel", Twists(np.array([100.0]), np.array([0.38]), np.array([0.07])))
@@ -128,7 +129,8 @@ def test_role_override_by_topic(tmp_path: Path) -> None:
     write_sample(tmp_path / "a.mcap", "mcap")
     with open_log(tmp_path / "a.mcap", IoConfig(roles={"ground_truth": "/wheel_speeds"})) as log:
         assert log.roles["ground_truth"] == "/wheel_speeds"
-    with pytest.raises(InputError, match="not in the log"), open_log(tmp_path / "a.mcap", IoConfig(roles={"imu": "/nope"})) as log:
+    bad = IoConfig(roles={"imu": "/nope"})
+    with pytest.raises(InputError, match="not in the log"), open_log(tmp_path / "a.mcap", bad) as log:
         log.roles  # noqa: B018
 
 
@@ -136,7 +138,8 @@ def test_enu_matches_closed_form() -> None:
     # 0.001 deg north at latitude phi: north = M * dphi with the meridian radius of curvature M.
     phi = math.radians(ORIGIN[0])
     m = geodesy.A * (1 - geodesy.E2) / (1 - geodesy.E2 * math.sin(phi) ** 2) ** 1.5
-    enu = geodesy.lla_to_enu(np.array([[ORIGIN[0] + 1e-3, ORIGIN[1], ORIGIN[2]], [*ORIGIN[:2], ORIGIN[2] + 10]]), ORIGIN)
+    north_and_up = np.array([[ORIGIN[0] + 1e-3, ORIGIN[1], ORIGIN[2]], [*ORIGIN[:2], ORIGIN[2] + 10]])
+    enu = geodesy.lla_to_enu(north_and_up, ORIGIN)
     assert enu[0, 1] == pytest.approx((m + ORIGIN[2]) * math.radians(1e-3), rel=1e-6)
     assert abs(enu[0, 0]) < 1e-6
     np.testing.assert_allclose(enu[1], [0, 0, 10], atol=1e-6)
