@@ -71,12 +71,18 @@ def _run(code: str, ref: Path, est: Path, home: Path) -> dict:
 def test_ape_1m_poses_vs_evo(tmp_path: Path) -> None:
     pytest.importorskip("evo")
     ref, est = _write_pair(tmp_path)
-    ours = _run(OURS, ref, est, tmp_path)
+    # ours before and after evo: the mean brackets evo's (long) run, so load from other
+    # processes on a shared machine is averaged rather than hitting one side only
+    before = _run(OURS, ref, est, tmp_path)
     evo = _run(EVO, ref, est, tmp_path)
-    ratio = evo["wall"] / ours["wall"]
-    print(f"\nAPE 1e6 poses: ours {ours['wall']:.2f} s / {ours['rss_kb'] / 1024:.0f} MB, "
-          f"evo {evo['wall']:.2f} s / {evo['rss_kb'] / 1024:.0f} MB, speed-up {ratio:.1f}x")
-    assert ours["n"] == evo["n"]
-    assert ours["rmse"] == pytest.approx(evo["rmse"], rel=1e-9)
+    after = _run(OURS, ref, est, tmp_path)
+    ours_wall = (before["wall"] + after["wall"]) / 2
+    ours_rss = max(before["rss_kb"], after["rss_kb"])
+    ratio = evo["wall"] / ours_wall
+    print(f"\nAPE 1e6 poses: ours {before['wall']:.2f} / {after['wall']:.2f} s (mean {ours_wall:.2f} s), "
+          f"{ours_rss / 1024:.0f} MB peak; evo {evo['wall']:.2f} s, {evo['rss_kb'] / 1024:.0f} MB peak; "
+          f"speed-up {ratio:.1f}x; rmse ours {before['rmse']:.12f} evo {evo['rmse']:.12f}")
+    assert before["n"] == evo["n"] == after["n"]
+    assert before["rmse"] == pytest.approx(evo["rmse"], rel=1e-9)
     assert ratio >= 20.0
-    assert ours["rss_kb"] <= evo["rss_kb"]
+    assert ours_rss <= evo["rss_kb"]
