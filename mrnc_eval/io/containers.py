@@ -18,6 +18,13 @@ from mrnc_eval.errors import InputError
 SUPPORTED = "a ROS 1 .bag, a ROS 2 bag directory (metadata.yaml), a .db3 or an .mcap file"
 
 
+def describe_error(err: BaseException) -> str:
+    """A library exception as one short line (its text, or its type when it has none)."""
+    text = " ".join(str(err).split())
+    text = text or type(err).__name__
+    return text if len(text) <= 300 else text[:297] + "..."
+
+
 def detect_container(paths: list[Path]) -> str:
     first = paths[0]
     for p in paths:
@@ -44,7 +51,6 @@ def detect_container(paths: list[Path]) -> str:
 
 
 def _mcap_is_ros2(path: Path) -> bool:
-    from mcap.exceptions import McapError
     from mcap.reader import make_reader
 
     try:
@@ -54,8 +60,8 @@ def _mcap_is_ros2(path: Path) -> bool:
             if header.profile == "ros2":
                 return True
             summary = reader.get_summary()
-    except (McapError, ValueError, OSError, EOFError) as err:
-        raise InputError(path, f"not a readable MCAP file: {err}") from err
+    except Exception as err:  # McapError, struct.error, EOFError, decompression errors...
+        raise InputError(path, f"not a readable MCAP file: {describe_error(err)}") from err
     if summary is None:
         return False
     schemas = summary.schemas

@@ -19,7 +19,7 @@ from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, StreamHealth, Sweep,
 from mrnc_eval.errors import InputError
 from mrnc_eval.io import geodesy
 from mrnc_eval.io.config import IoConfig
-from mrnc_eval.io.containers import detect_container
+from mrnc_eval.io.containers import describe_error, detect_container
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import detect_roles
 from mrnc_eval.io.sources import McapSource, RosbagsSource
@@ -90,7 +90,7 @@ class LogReader:
         except InputError:
             raise
         except Exception as err:  # rosbags/mcap/sqlite raise many unrelated types for broken files
-            raise InputError(self.path, f"cannot open {self.container} log: {_one_line(err)}") from err
+            raise InputError(self.path, f"cannot open {self.container} log: {describe_error(err)}") from err
         self._channels = self._src.channels
         if not self._channels:
             self.close()
@@ -130,7 +130,7 @@ class LogReader:
             raise
         except Exception as err:
             where = topics[0] if len(topics) == 1 else None
-            raise InputError(self.path, f"corrupted or truncated data: {_one_line(err)}", topic=where) from err
+            raise InputError(self.path, f"corrupted or truncated data: {describe_error(err)}", topic=where) from err
 
     def _raw(self, topic: str) -> Iterator[tuple[int, bytes]]:
         ch = self._channel(topic)
@@ -143,7 +143,7 @@ class LogReader:
         try:
             return self._src.deserialize(raw, topic)
         except Exception as err:
-            raise InputError(self.path, f"cannot decode {self._msgtype(topic)} message: {_one_line(err)}",
+            raise InputError(self.path, f"cannot decode {self._msgtype(topic)} message: {describe_error(err)}",
                              topic=topic) from err
 
     def _messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[object]:
@@ -503,11 +503,6 @@ class LogReader:
 
     def strings(self, topic: str) -> list[str]:
         return [str(m.data) for m in self._messages(topic, ("std_msgs/msg/String",))]
-
-
-def _one_line(err: BaseException) -> str:
-    text = " ".join(str(err).split()) or type(err).__name__
-    return text if len(text) <= 300 else text[:297] + "..."
 
 
 def _expand(path: str | Path) -> list[Path]:

@@ -122,3 +122,30 @@ def test_plain_mcap_with_unsupported_encoding(tmp_path: Path) -> None:
         assert info.topic == "/pose_json" and info.count == 1 and "'json'" in info.problem
         with pytest.raises(InputError, match=r"\[/pose_json\].*'json'.*not supported"):
             log.strings("/pose_json")
+
+
+@pytest.mark.parametrize("name, data, problem", [
+    ("e.mcap", b"", "not a readable MCAP file"),
+    ("g.mcap", b"\x89MCAP0\r\n" + b"\x00" * 40, "not a readable MCAP file"),
+    ("e.bag", b"", "cannot open ros1 log"),
+    ("g.bag", b"#ROSBAG V2.0\n" + b"\xff" * 100, "cannot open ros1 log"),
+    ("e.db3", b"", "cannot open ros2-sqlite3 log"),
+    ("g.db3", b"SQLite format 3\x00" + b"\x01" * 200, "cannot open ros2-sqlite3 log"),
+])
+def test_empty_and_garbage_files(tmp_path: Path, name: str, data: bytes, problem: str,
+                                 capsys: pytest.CaptureFixture[str]) -> None:
+    p = tmp_path / name
+    p.write_bytes(data)
+    with pytest.raises(InputError, match=problem):
+        open_log(p)
+    assert main(["info", str(p)]) == 4
+    err = capsys.readouterr().err.strip().splitlines()
+    assert len(err) == 1 and str(p) in err[0] and problem in err[0]
+
+
+@pytest.mark.parametrize("text", ["", "::::", "- a\n- b", "rosbag2_bagfile_information: 3"])
+def test_broken_bag_directory_metadata(tmp_path: Path, text: str) -> None:
+    write_sample(tmp_path / "d", "mcap")
+    (tmp_path / "d" / "metadata.yaml").write_text(text)
+    with pytest.raises(InputError, match=str(tmp_path / "d")):
+        _read_everything(tmp_path / "d")
