@@ -1,61 +1,114 @@
-"""Where the logs of a night run: in this process, in a local pool of subprocesses (one per
-log, so a native crash in one log cannot take the batch down), or on a Dask cluster.
-All three take (log, config YAML, out dir, pdf) jobs and yield summaries as they finish."""
+"""Where the logs of a night run, behind one interface: `executor.run(jobs)` yields one summary
+per job as they finish (order not guaranteed).
+
+- InProcess (--jobs 1): simplest, for debugging; a native crash ends the night.
+- LocalPool (--jobs N): spawned processes, one task per process (max_tasks_per_child=1), so
+  native state never leaks from one log to the next. A native crash breaks a
+  ProcessPoolExecutor for every job in flight; those jobs are re-run one at a time in a fresh
+  pool, so the crash is attributed to the log that caused it and its neighbours still finish.
+- Dask (--scheduler tcp://HOST:PORT): the same job function on a distributed cluster; a worker
+  that dies is restarted by its nanny and the scheduler retries or reports the task.
+"""
 
 from __future__ import annotations
 
-import json
-import os
-import subprocess
-import sys
-import tempfile
-from collections.abc import Iterator
-from concurrent.futures import ThreadPoolExecutor, as_completed
-from pathlib import Path
+import multiprocessing
+from collections import deque
+from collections.abc import Iterable, Iterator
+from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures.process import BrokenProcessPool
+from typing import Protocol
 
-from mrnc_eval.pipelines.log_job import process_log
+from mrnc_eval.errors import UsageError
+from mrnc_eval.pipelines.log_job import LogJob, failed_summary, process_log
 
-Job = tuple[str, str, str, bool]  # log path, config YAML, output dir, pdf
-
-
-def run_in_process(jobs: list[Job]) -> Iterator[dict]:
-    for job in jobs:
-        yield process_log(*job)
+CRASHED = "worker process died while processing this log (native crash, out of memory or killed)"
 
 
-def run_local_pool(jobs: list[Job], workers: int) -> Iterator[dict]:
-    tmp = Path(tempfile.mkdtemp(prefix="mrnc-nightly-"))
-
-    def one(k: int, job: Job) -> dict:
-        log, cfg_yaml, out, pdf = job
-        cfg_file, summary = tmp / f"{k}.yaml", tmp / f"{k}.json"
-        cfg_file.write_text(cfg_yaml, encoding="utf-8")
-        env = {**os.environ, "PYTHONHASHSEED": "0"}
-        proc = subprocess.run([sys.executable, "-m", "mrnc_eval.pipelines.log_job", log, str(cfg_file), out,
-                               "1" if pdf else "0", str(summary)], capture_output=True, text=True, env=env)
-        if summary.exists():
-            return json.loads(summary.read_text(encoding="utf-8"))
-        from mrnc_eval.results import log_id_for
-
-        return {"log_id": log_id_for(log), "log_path": log, "status": "failed", "metrics": [], "gates_failed": [],
-                "report": "", "config_hash": "", "tool_version": "", "run_id": "",
-                "error": f"worker process died (exit code {proc.returncode}): {proc.stderr.strip()[-300:]}"}
-
-    with ThreadPoolExecutor(max_workers=max(1, workers)) as pool:
-        futures = [pool.submit(one, k, job) for k, job in enumerate(jobs)]
-        for fut in as_completed(futures):
-            yield fut.result()
+class Executor(Protocol):
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]: ...
 
 
-def run_dask(jobs: list[Job], scheduler: str) -> Iterator[dict]:
-    try:
-        from distributed import Client
-        from distributed import as_completed as dask_completed
-    except ImportError as err:
-        from mrnc_eval.errors import UsageError
+class InProcess:
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]:
+        for job in jobs:
+            yield process_log(job)
 
-        raise UsageError("--scheduler needs the dask extra: pip install 'mrnc-eval[dask]'") from err
-    with Client(scheduler, timeout="30s") as client:
-        futures = [client.submit(process_log, *job, pure=False, key=f"mrnc-{k}") for k, job in enumerate(jobs)]
-        for fut in dask_completed(futures):
-            yield fut.result()
+
+class LocalPool:
+    def __init__(self, workers: int) -> None:
+        self.workers = max(1, workers)
+
+    def _pool(self, workers: int) -> ProcessPoolExecutor:
+        return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
+                                   max_tasks_per_child=1)
+
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]:
+        queue = deque(jobs)
+        while queue:
+            suspects: list[LogJob] = []
+            yield from self._until_broken(queue, suspects)
+            for job in suspects:  # alone in a fresh pool: a crash now is this log's own
+                yield from self._alone(job)
+
+    def _until_broken(self, queue: deque[LogJob], suspects: list[LogJob]) -> Iterator[dict]:
+        """Keep at most `workers` jobs in flight; stop submitting when the pool breaks and
+        collect the jobs that were in flight then."""
+        pool = self._pool(self.workers)
+        inflight: dict = {}
+        try:
+            while queue or inflight:
+                while queue and len(inflight) < self.workers and not suspects:
+                    job = queue.popleft()
+                    inflight[pool.submit(process_log, job)] = job
+                if not inflight:
+                    break
+                done, _ = wait(inflight, return_when=FIRST_COMPLETED)
+                for fut in done:
+                    job = inflight.pop(fut)
+                    try:
+                        yield fut.result()
+                    except BrokenProcessPool:
+                        suspects.append(job)
+        finally:
+            pool.shutdown(wait=True, cancel_futures=True)
+        if len(suspects) == 1:  # it was alone in flight or the only one hit: no need to re-run it
+            yield failed_summary(suspects.pop(), CRASHED)
+
+    def _alone(self, job: LogJob) -> Iterator[dict]:
+        pool = self._pool(1)
+        try:
+            yield pool.submit(process_log, job).result()
+        except BrokenProcessPool:
+            yield failed_summary(job, CRASHED)
+        finally:
+            pool.shutdown(wait=True)
+
+
+class Dask:
+    def __init__(self, address: str) -> None:
+        self.address = address
+
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]:
+        try:
+            from distributed import Client
+            from distributed import as_completed as dask_completed
+        except ImportError as err:
+            raise UsageError("--scheduler needs the dask extra: pip install 'mrnc-eval[dask]'") from err
+        jobs = list(jobs)
+        with Client(self.address, timeout="30s") as client:
+            futures = {client.submit(process_log, job, pure=False, key=f"mrnc-{k}-{job.log_id}"): job
+                       for k, job in enumerate(jobs)}
+            for fut in dask_completed(futures):
+                try:
+                    yield fut.result()
+                except Exception as err:  # noqa: BLE001 - the task died with its worker (KilledWorker)
+                    yield failed_summary(futures[fut], f"{CRASHED}: {type(err).__name__}: {err}")
+
+
+def make_executor(jobs: int, scheduler: str | None) -> Executor:
+    if jobs < 1:
+        raise UsageError("--jobs must be >= 1")
+    if scheduler:
+        return Dask(scheduler)
+    return InProcess() if jobs == 1 else LocalPool(jobs)

@@ -8,6 +8,7 @@ rows only (idempotent); earlier nights are never touched."""
 from __future__ import annotations
 
 import sqlite3
+import statistics
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
@@ -61,8 +62,8 @@ class History:
                            (rec.night, rec.log_id, rec.run_id, rec.log_path, rec.tool_version, rec.config_hash,
                             rec.status, rec.error, rec.finished_utc))
                 db.executemany("INSERT INTO metrics VALUES (?,?,?,?,?,?,?,?,?)",
-                               [(rec.night, rec.log_id, rec.run_id, rec.tool_version, rec.config_hash, name, value, unit,
-                                 rec.status) for name, value, unit in rec.metrics])
+                               [(rec.night, rec.log_id, rec.run_id, rec.tool_version, rec.config_hash, name, value,
+                                 unit, rec.status) for name, value, unit in rec.metrics])
                 db.execute("COMMIT")
             except BaseException:
                 db.execute("ROLLBACK")
@@ -77,11 +78,12 @@ class History:
             return list(db.execute("SELECT log_id, status, error, log_path FROM runs WHERE night = ? ORDER BY log_id",
                                    (night,)))
 
-    def metric_series(self) -> list[tuple[str, str, str, float]]:
-        """(night, log_id, metric, value) of successful runs, ordered by night."""
+    def metric_series(self, night: str | None = None) -> list[tuple[str, str, str, float]]:
+        """(night, log_id, metric, value) of successful runs (of one night if given), ordered by night."""
+        where = "status = 'ok' AND value IS NOT NULL" + (" AND night = ?" if night else "")
         with closing(self._connect()) as db:
-            return list(db.execute("SELECT night, log_id, metric, value FROM metrics WHERE status = 'ok' AND value IS NOT "
-                                   "NULL ORDER BY night, log_id, metric"))
+            return list(db.execute(f"SELECT night, log_id, metric, value FROM metrics WHERE {where} "
+                                   "ORDER BY night, log_id, metric", (night,) if night else ()))
 
     def nights(self) -> list[str]:
         with closing(self._connect()) as db:
@@ -92,3 +94,21 @@ class History:
             runs = db.execute("SELECT COUNT(*) FROM runs WHERE night = ?", (night,)).fetchone()[0]
             mets = db.execute("SELECT COUNT(*) FROM metrics WHERE night = ?", (night,)).fetchone()[0]
         return runs, mets
+
+
+def find_regressions(metric: str, per_log: dict[str, dict[str, float]], window: int, tolerance: float, *,
+                     higher_is_better: bool = False) -> list[str]:
+    """Logs whose latest value of `metric` is worse than the median of their previous `window`
+    nights by more than `tolerance` (relative; any increase counts when that median is 0)."""
+    out = []
+    for log_id, by_night in sorted(per_log.items()):
+        nights = sorted(by_night)
+        if len(nights) < 2:
+            continue
+        last, prev = by_night[nights[-1]], [by_night[n] for n in nights[:-1][-window:]]
+        ref = statistics.median(prev)
+        worse = last < ref * (1 - tolerance) if higher_is_better else last > ref * (1 + tolerance) + 1e-12
+        if worse:
+            out.append(f"{log_id}: {metric} = {last:.4g} on {nights[-1]}, median of the previous {len(prev)} "
+                       f"nights {ref:.4g}")
+    return out

@@ -1,51 +1,108 @@
-"""One log of the nightly job: info, SLAM, control replay, report. Runs in a worker process
-(a subprocess of the local pool, or a Dask worker) and returns a plain, picklable summary."""
+"""One log of the nightly job. Runs in a worker (this process, a spawned pool process or a Dask
+worker) and returns a plain, picklable summary; never raises.
+
+The analysis itself is injectable as a "module:function" name (resolved inside the worker, so
+it travels to spawned processes and Dask workers by name): the default runs the real
+pipelines (info, SLAM, control replay, report); tests pass small fakes. Whatever the analysis,
+its outputs are written under a partial directory and moved into place only when complete."""
 
 from __future__ import annotations
 
 import datetime as dt
-import json
+import importlib
+import math
+import numbers
 import shutil
-import sys
 import traceback
+from collections.abc import Callable
+from dataclasses import dataclass, field
 from pathlib import Path
 
 from mrnc_eval import __version__
+from mrnc_eval.config import Config
+
+DEFAULT_ANALYSIS = "mrnc_eval.pipelines.log_job:analyse_log"
+MetricRow = tuple[str, float | None, str]  # (metric, value, unit)
 
 
-def process_log(log_path: str, config_yaml: str, out_dir: str, pdf: bool = True) -> dict:
-    """Never raises: a failure becomes a summary with status "failed" and the error text."""
+@dataclass(frozen=True)
+class LogJob:
+    log_path: str
+    log_id: str  # safe, unique within the night
+    config_yaml: str
+    out_dir: str  # the log's final report directory
+    pdf: bool = True
+    analysis: str = DEFAULT_ANALYSIS
+
+
+@dataclass
+class Analysis:
+    metrics: list[MetricRow] = field(default_factory=list)
+    gates_failed: list[str] = field(default_factory=list)  # labels of the gate cards that failed
+
+
+AnalyseFn = Callable[[Path, Config, Path, str, bool], Analysis]  # (log, cfg, work dir, log id, pdf)
+
+
+def resolve(name: str) -> AnalyseFn:
+    module, _, attr = name.partition(":")
+    return getattr(importlib.import_module(module), attr)
+
+
+def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:
+    """The real per-log analysis: info, SLAM, control replay when the log has a path and wheel
+    speeds, the HTML/PDF report; each as a result directory under work_dir."""
+    from mrnc_eval.config import config_hash, dump_config
+    from mrnc_eval.pipelines import control, info, slam
+    from mrnc_eval.reports.render import evaluate_gates, write_report
+    from mrnc_eval.results import RunResult, write_result
+
+    config_yaml = dump_config(cfg)
+    summary = info.run(log_path, cfg).to_json()
+    info_result = RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={"info": summary},
+                            config_hash=config_hash(cfg))
+    write_result(info_result, work_dir / "info", config_yaml)
+    results = [info_result, slam.run_log(log_path, cfg, work_dir / "slam")]
+    missing = [r for r in ("path", "wheel_speeds") if r not in summary["roles"]]
+    if missing:
+        info_result.warnings.append(f"control replay skipped: the log has no {' and no '.join(missing)} topic")
+    else:
+        results.append(control.run_log(log_path, cfg, work_dir / "control", mode="replay"))
+    write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf)
+    metrics = [(f"{m.group}/{m.name}", _finite(m.value), m.unit) for r in results for m in r.metrics]
+    return Analysis(metrics, [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"])
+
+
+def process_log(job: LogJob) -> dict:
+    """Run job.analysis into a partial directory, move it into place, summarise. A failure
+    becomes a summary with status "failed" and the error (and traceback for bugs)."""
     import yaml
 
-    from mrnc_eval.config import Config, build, config_hash, dump_config
+    from mrnc_eval.config import build, config_hash
     from mrnc_eval.errors import MrncError
-    from mrnc_eval.results import log_id_for
 
-    cfg = build(Config, yaml.safe_load(config_yaml) or {})
-    log_id = log_id_for(log_path)
-    target = Path(out_dir)
+    target = Path(job.out_dir)
     partial = target.with_name(f".{target.name}.partial")
-    summary = {"log_id": log_id, "log_path": log_path, "status": "failed", "error": "", "metrics": [],
-               "gates_failed": [], "report": "", "config_hash": config_hash(cfg), "tool_version": __version__,
-               "run_id": f"{log_id}-{dt.datetime.now(dt.UTC).strftime('%Y%m%dT%H%M%SZ')}"}
+    summary: dict = {"log_id": job.log_id, "log_path": job.log_path, "status": "failed", "error": "",
+                     "metrics": [], "gates_failed": [], "report": "", "config_hash": "", "tool_version": __version__,
+                     "run_id": f"{job.log_id}-{dt.datetime.now(dt.UTC).strftime('%Y%m%dT%H%M%S.%fZ')}"}
     try:
-        from mrnc_eval.pipelines import control, info, slam
-        from mrnc_eval.reports.render import evaluate_gates, write_report
-
+        cfg = build(Config, yaml.safe_load(job.config_yaml) or {})
+        summary["config_hash"] = config_hash(cfg)
         shutil.rmtree(partial, ignore_errors=True)
         partial.mkdir(parents=True)
-        summary_info = info.run(Path(log_path), cfg).to_json()
-        results = [slam.run_log(Path(log_path), cfg, partial / "slam")]
-        if all(r in summary_info["roles"] for r in ("path", "wheel_speeds")):
-            results.append(control.run_log(Path(log_path), cfg, partial / "control", mode="replay"))
-        write_report(results, partial, gates=cfg.gates, config_text=dump_config(cfg), info=summary_info, pdf=pdf)
-        gates = evaluate_gates(results, cfg.gates)
-        summary["gates_failed"] = [g.label for g in gates if g.status == "fail"]
-        summary["metrics"] = [(f"{m.group}/{m.name}", _num(m.value), m.unit) for r in results for m in r.metrics]
-        if target.exists():
-            shutil.rmtree(target)
-        partial.replace(target)
-        summary["report"] = str(target / "report.html")
+        outcome = resolve(job.analysis)(Path(job.log_path), cfg, partial, job.log_id, job.pdf)
+        summary["metrics"] = [(str(n), _finite(v), str(u)) for n, v, u in outcome.metrics]
+        summary["gates_failed"] = list(outcome.gates_failed)
+        if target.exists():  # a re-run of the night replaces this log's previous outputs whole
+            old = target.with_name(f".{target.name}.old")
+            shutil.rmtree(old, ignore_errors=True)
+            target.replace(old)
+            partial.replace(target)
+            shutil.rmtree(old, ignore_errors=True)
+        else:
+            partial.replace(target)
+        summary["report"] = str(target / "report.html") if (target / "report.html").exists() else ""
         summary["status"] = "ok"
     except MrncError as err:
         summary["error"] = str(err)
@@ -57,17 +114,13 @@ def process_log(log_path: str, config_yaml: str, out_dir: str, pdf: bool = True)
     return summary
 
 
-def _num(v):
-    import math
+def failed_summary(job: LogJob, error: str) -> dict:
+    """Summary of a job whose worker died before it could answer (native crash, killed, lost)."""
+    return {"log_id": job.log_id, "log_path": job.log_path, "status": "failed", "error": error, "metrics": [],
+            "gates_failed": [], "report": "", "config_hash": "", "tool_version": __version__, "run_id": ""}
 
-    if v is None or (isinstance(v, float) and not math.isfinite(v)):
+
+def _finite(v) -> float | None:
+    if v is None or isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
         return None
     return float(v)
-
-
-if __name__ == "__main__":  # python -m mrnc_eval.pipelines.log_job LOG CONFIG_YAML_FILE OUT_DIR PDF SUMMARY_JSON
-    log, cfg_file, out, pdf, summary_file = sys.argv[1:6]
-    result = process_log(log, Path(cfg_file).read_text(encoding="utf-8"), out, pdf == "1")
-    tmp = Path(summary_file + ".tmp")
-    tmp.write_text(json.dumps(result), encoding="utf-8")
-    tmp.replace(summary_file)

@@ -11,51 +11,61 @@ import re
 import sys
 from pathlib import Path
 
-import numpy as np
 import yaml
 
 from mrnc_eval import __version__
 from mrnc_eval.config import Config, build, dump_config
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
-from mrnc_eval.evaluation.config import GatesConfig
-from mrnc_eval.pipelines.history import History, LogRecord
+from mrnc_eval.pipelines.history import History, LogRecord, find_regressions
+from mrnc_eval.pipelines.log_job import DEFAULT_ANALYSIS, LogJob
 from mrnc_eval.pipelines.progress import progress_bar
 from mrnc_eval.results import atomic_write_text, log_id_for
 
 log = logging.getLogger(__name__)
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")
-TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/rtf", "control/recorded/left/rms_error_mps",
-                 "control/recorded/right/rms_error_mps", "control/recorded/path/cross_track_rms_m")
-REGRESSION_WINDOW = 5
-REGRESSION_TOLERANCE = 0.2  # 20 % worse than the median of the previous nights
+TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/rtf", "slam/end_drift_m", "control/recorded/left/rms_error_mps",
+                 "control/recorded/right/rms_error_mps", "control/recorded/left/funnel_violations",
+                 "control/recorded/right/funnel_violations", "control/recorded/path/cross_track_rms_m")
+HIGHER_IS_BETTER = ("slam/rtf",)
+REGRESSION_WINDOW = 5  # previous nights compared against
+REGRESSION_TOLERANCE = 0.2  # flagged when 20 % worse than their median
 
 
 def discover_logs(root: Path, since: dt.date | None = None) -> list[Path]:
-    """ROS 1 bags, ROS 2 bag directories (metadata.yaml) and single .db3/.mcap files, recursively."""
+    """ROS 2 bag directories (metadata.yaml), ROS 1 .bag and single .db3/.mcap files, recursively;
+    hidden files and folders (partial writes) are skipped. `since`: modified on or after that
+    day (UTC), judged by the newest file of a bag directory."""
     if not root.is_dir():
         raise InputError(root, "log folder does not exist")
-    found: list[Path] = []
-    bag_dirs = {p.parent for p in root.rglob("metadata.yaml")}
-    found += sorted(bag_dirs)
-    for p in sorted(root.rglob("*")):
-        if p.is_file() and p.suffix in LOG_SUFFIXES and not any(d in p.parents for d in bag_dirs):
-            found.append(p)
+
+    def hidden(p: Path) -> bool:
+        return any(part.startswith(".") for part in p.relative_to(root).parts)
+
+    bag_dirs = sorted({p.parent for p in root.rglob("metadata.yaml") if not hidden(p)})
+    singles = sorted(p for p in root.rglob("*") if p.suffix in LOG_SUFFIXES and p.is_file() and not hidden(p)
+                     and not any(d in p.parents for d in bag_dirs))
+    found = bag_dirs + singles
     if since is not None:
         stamp = dt.datetime.combine(since, dt.time(), dt.UTC).timestamp()
-        found = [p for p in found if p.stat().st_mtime >= stamp]
-    return found
+
+        def mtime(p: Path) -> float:
+            return max((f.stat().st_mtime for f in p.iterdir()), default=p.stat().st_mtime) if p.is_dir() \
+                else p.stat().st_mtime
+
+        found = [p for p in found if mtime(p) >= stamp]
+    return sorted(found)
 
 
 def _unique_ids(logs: list[Path], root: Path) -> dict[Path, str]:
-    """Log ids unique within the night (same file name in two folders gets its folder prefixed)."""
+    """Safe log ids from the path relative to LOG_DIR (nested/run.mcap -> nested_run), so a log
+    keeps its id across nights whatever else is discovered; a number is added on collision."""
     ids: dict[Path, str] = {}
-    seen: dict[str, int] = {}
     for p in logs:
-        base = log_id_for(p)
-        if base in seen:
-            base = log_id_for("_".join(p.relative_to(root).parts))
-        seen[base] = seen.get(base, 0) + 1
-        ids[p] = base
+        base = log_id_for("_".join(p.relative_to(root).parts))
+        candidate, k = base, 2
+        while candidate in ids.values():
+            candidate, k = f"{base}_{k}", k + 1
+        ids[p] = candidate
     return ids
 
 
@@ -68,50 +78,60 @@ def _night(date: str | None) -> str:
 
 
 def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | None, since: str | None,
-         gates: Path | None, date: str | None, pdf: bool) -> None:
-    from mrnc_eval.pipelines import executors
+         gates: Path | None, date: str | None, pdf: bool, analysis: str = DEFAULT_ANALYSIS) -> None:
+    """`analysis` names the per-log function ("module:function", see log_job); tests inject fakes."""
+    from mrnc_eval.pipelines.executors import make_executor
 
     night = _night(date)
-    if gates is not None:
-        try:
-            data = yaml.safe_load(gates.read_text(encoding="utf-8")) or {}
-            cfg = build(Config, {**_plain(cfg), "gates": {**_plain(cfg.gates), **data}})
-        except (OSError, yaml.YAMLError, ConfigError, TypeError) as err:
-            raise ConfigError(f"{gates}: invalid gates file: {err}") from err
-    since_date = dt.date.fromisoformat(since) if since else None
+    cfg = _with_gates(cfg, gates)
+    executor = make_executor(jobs, scheduler)
+    since_date = _since(since)
     logs = discover_logs(log_dir, since_date)
+    out.mkdir(parents=True, exist_ok=True)
     night_dir = out / night
     history = History(out / "history.sqlite")
     done = history.finished(night)
     ids = _unique_ids(logs, log_dir)
     config_yaml = dump_config(cfg)
-    todo = [(str(p), config_yaml, str(night_dir / "logs" / ids[p]), pdf) for p in logs
-            if not (ids[p] in done and (night_dir / "logs" / ids[p] / "report.html").exists())]
+    todo = [LogJob(str(p), ids[p], config_yaml, str(night_dir / "logs" / ids[p]), pdf, analysis) for p in logs
+            if not (ids[p] in done and (night_dir / "logs" / ids[p]).is_dir())]
     log.info("night %s: %d logs, %d to process", night, len(logs), len(todo))
-    if jobs < 1:
-        raise UsageError("--jobs must be >= 1")
-    if scheduler:
-        stream = executors.run_dask(todo, scheduler)
-    elif jobs == 1:
-        stream = executors.run_in_process(todo)
-    else:
-        stream = executors.run_local_pool(todo, jobs)
-    with progress_bar(len(todo)) as b:
-        task = b.add_task("logs", total=len(todo)) if b else None
-        for summary in stream:
-            _record(history, night, summary, ids)
-            if b:
-                b.advance(task)
-    rows = _write_index(history, night, night_dir, cfg.gates)
-    _write_trends(history, out)
+    with progress_bar(len(todo)) as bar:
+        task = bar.add_task(f"night {night}", total=len(todo)) if bar else None
+        for summary in executor.run(todo):
+            _record(history, night, summary)
+            if bar:
+                bar.advance(task)
+    rows = _write_index(history, night, night_dir)
+    regressions = _write_trends(history, out)
     failed = [r for r in rows if r["status"] != "ok"]
     gate_fail = [r for r in rows if r["gates_failed"]]
-    sys.stdout.write(f"night {night}: {len(rows)} logs, {len(failed)} failed, {len(gate_fail)} with failed gates -> "
-                     f"{night_dir / 'index.html'}\n")
+    sys.stdout.write(f"night {night}: {len(rows)} logs, {len(failed)} failed, {len(gate_fail)} with failed gates, "
+                     f"{len(regressions)} trend regressions -> {night_dir / 'index.html'}\n")
     if failed:
         raise SomeInputsFailed("; ".join(f"{r['log_id']}: {r['error']}" for r in failed))
     if gate_fail:
-        raise GateFailed("gates failed: " + "; ".join(f"{r['log_id']}: {', '.join(r['gates_failed'])}" for r in gate_fail))
+        raise GateFailed("gates failed: " + "; ".join(f"{r['log_id']}: {', '.join(r['gates_failed'])}"
+                                                      for r in gate_fail))
+
+
+def _with_gates(cfg: Config, gates: Path | None) -> Config:
+    if gates is None:
+        return cfg
+    try:
+        data = yaml.safe_load(gates.read_text(encoding="utf-8")) or {}
+        if not isinstance(data, dict):
+            raise TypeError("expected a mapping of gate names to limits")
+        return build(Config, {**_plain(cfg), "gates": {**_plain(cfg.gates), **data}})
+    except (OSError, yaml.YAMLError, ConfigError, TypeError) as err:
+        raise ConfigError(f"{gates}: invalid gates file: {err}") from err
+
+
+def _since(since: str | None) -> dt.date | None:
+    try:
+        return dt.date.fromisoformat(since) if since else None
+    except ValueError as err:
+        raise UsageError(f"--since {since!r}: expected YYYY-MM-DD") from err
 
 
 def _plain(obj) -> dict:
@@ -120,77 +140,59 @@ def _plain(obj) -> dict:
     return as_dict(obj)
 
 
-def _record(history: History, night: str, s: dict, ids: dict[Path, str]) -> None:
-    log_id = ids.get(Path(s["log_path"]), s["log_id"])
-    metrics = tuple((n, v, u) for n, v, u in s["metrics"]) + (("gates_failed", float(len(s["gates_failed"])), ""),)
-    history.record(LogRecord(night, log_id, s.get("run_id", ""), s["log_path"], s.get("tool_version", __version__),
+def _record(history: History, night: str, s: dict) -> None:
+    """One (night, log) row set, written in one transaction once the log is complete."""
+    metrics = tuple((n, v, u) for n, v, u in s["metrics"])
+    metrics += (("gates_failed", float(len(s["gates_failed"])), ""),)
+    metrics += tuple((f"gate_failed/{label}", 1.0, "") for label in s["gates_failed"])
+    history.record(LogRecord(night, s["log_id"], s.get("run_id", ""), s["log_path"], s.get("tool_version", __version__),
                              s.get("config_hash", ""), s["status"], s.get("error", ""),
                              dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), metrics))
 
 
-def _write_index(history: History, night: str, night_dir: Path, gates: GatesConfig) -> list[dict]:
-    from mrnc_eval.reports.render import _env, css
+INDEX_COLUMNS = (  # (label, metric, format): the worst value over the log's groups
+    ("APE RMSE (m)", "slam/ape/ape_rmse_m", "{:.4f}"),
+    ("RTF", "slam/rtf", "{:.2f}"),
+    ("funnel violations", "funnel_violations", "{:.0f}"),
+    ("saturation ratio", "saturation_ratio", "{:.3f}"),
+    ("safety stops", "safety_stops", "{:.0f}"),
+    ("cross-track RMS (m)", "cross_track_rms_m", "{:.3f}"),
+)
 
-    series = {}
-    for n, log_id, metric, value in history.metric_series():
-        if n == night:
-            series[(log_id, metric)] = value
+
+def _write_index(history: History, night: str, night_dir: Path) -> list[dict]:
+    from mrnc_eval.reports.night import render_index
+
+    values: dict[str, dict[str, float]] = {}
+    for _, log_id, metric, value in history.metric_series(night):
+        values.setdefault(log_id, {})[metric] = value
     rows = []
-    for log_id, status, error, _path in history.runs(night):
-        fmt = lambda key, f="{:.3f}": f.format(series[(log_id, key)]) if (log_id, key) in series else "–"  # noqa: E731
-        report = night_dir / "logs" / log_id / "report.html"
-        gates_failed = [] if series.get((log_id, "gates_failed"), 0) == 0 else _gate_names(night_dir / "logs" / log_id)
-        rows.append({"log_id": log_id, "status": status, "error": error,
-                     "report": f"logs/{log_id}/report.html" if report.exists() else "",
-                     "ape": fmt("slam/ape/ape_rmse_m", "{:.4f}"),
-                     "funnel": fmt("control/recorded/left/funnel_violations", "{:.0f}"),
-                     "stops": fmt("control/recorded/left/safety_stops", "{:.0f}"), "gates_failed": gates_failed})
-    html = _env().get_template("index.html.j2").render(
-        css=css(), night=night, tool_version=__version__, rows=rows, failed=sum(r["status"] != "ok" for r in rows),
-        gate_failures=sum(bool(r["gates_failed"]) for r in rows))
+    for log_id, status, error, log_path in history.runs(night):
+        mine = values.get(log_id, {})
+        cells = []
+        for _label, key, fmt in INDEX_COLUMNS:
+            hits = [v for m, v in mine.items() if m == key or ("/" not in key and m.endswith("/" + key))]
+            cells.append(fmt.format(max(hits)) if hits else "\u2013")
+        here = night_dir / "logs" / log_id
+        rows.append({"log_id": log_id, "log_path": log_path, "status": status, "error": error, "cells": cells,
+                     "report": f"logs/{log_id}/report.html" if (here / "report.html").exists() else "",
+                     "pdf": f"logs/{log_id}/report.pdf" if (here / "report.pdf").exists() else "",
+                     "gates_failed": sorted(m.split("/", 1)[1] for m in mine if m.startswith("gate_failed/"))})
+    html = render_index(night, rows, [c[0] for c in INDEX_COLUMNS])
     atomic_write_text(night_dir / "index.html", html)
     return rows
 
 
-def _gate_names(log_dir: Path) -> list[str]:
-    text = (log_dir / "report.html").read_text(encoding="utf-8") if (log_dir / "report.html").exists() else ""
-    names = re.findall(r'<div class="card fail"><div class="l">([^<]+)</div>', text)
-    return names or ["gate"]
+def _write_trends(history: History, out: Path) -> list[str]:
+    from mrnc_eval.reports.night import render_trends
 
-
-def _write_trends(history: History, out: Path) -> None:
-    from markupsafe import Markup
-    from matplotlib.figure import Figure
-
-    from mrnc_eval.reports.figures import _svg
-    from mrnc_eval.reports.render import _env, css
-
-    nights = history.nights()
     data: dict[str, dict[str, dict[str, float]]] = {}
     for night, log_id, metric, value in history.metric_series():
         if metric in TREND_METRICS:
             data.setdefault(metric, {}).setdefault(log_id, {})[night] = value
-    figures, regressions = [], []
-    for metric, per_log in data.items():
-        fig = Figure(figsize=(7, 2.8), layout="constrained")
-        ax = fig.add_subplot()
-        for log_id, by_night in sorted(per_log.items()):
-            xs = [n for n in nights if n in by_night]
-            ax.plot(xs, [by_night[n] for n in xs], marker="o", lw=1, label=log_id)
-            if len(xs) > 1:
-                prev = [by_night[n] for n in xs[:-1]][-REGRESSION_WINDOW:]
-                last, ref = by_night[xs[-1]], float(np.median(prev))
-                higher_is_better = metric.endswith("rtf")
-                worse = last < ref * (1 - REGRESSION_TOLERANCE) if higher_is_better else last > ref * (1 + REGRESSION_TOLERANCE) + 1e-12
-                if worse:
-                    regressions.append(f"{log_id}: {metric} {last:.4g} on {xs[-1]} vs median {ref:.4g} "
-                                       f"of the previous {len(prev)} nights")
-        ax.set_title(metric)
-        ax.tick_params(axis="x", labelrotation=30, labelsize="small")
-        if len(per_log) <= 8:
-            ax.legend(fontsize="x-small")
-        figures.append((metric, Markup(_svg(fig))))
-    html = _env().get_template("trends.html.j2").render(css=css(), nights=nights, figures=figures,
-                                                        regressions=regressions, window=REGRESSION_WINDOW,
-                                                        tolerance_pct=int(REGRESSION_TOLERANCE * 100))
+    regressions = [r for metric, per_log in data.items()
+                   for r in find_regressions(metric, per_log, REGRESSION_WINDOW, REGRESSION_TOLERANCE,
+                                             higher_is_better=metric in HIGHER_IS_BETTER)]
+    html = render_trends(history.nights(), data, regressions, REGRESSION_WINDOW, REGRESSION_TOLERANCE)
     atomic_write_text(out / "trends.html", html)
+    return regressions

@@ -1,4 +1,7 @@
-"""`mrnc-eval report RESULT_DIR...`: HTML (and PDF) from result directories."""
+"""`mrnc-eval report RESULT_DIR...`: HTML (and PDF, CSV/LaTeX tables) from result directories.
+
+A RESULT_DIR is a result directory (slam, control, info) or a folder holding some, such as a
+nightly per-log folder; reports are rendered from the results only, never recomputed."""
 
 from __future__ import annotations
 
@@ -6,17 +9,37 @@ import sys
 from pathlib import Path
 
 from mrnc_eval.config import CONFIG_FILE_NAME, load_config
-from mrnc_eval.results import read_result
+from mrnc_eval.errors import InputError
+from mrnc_eval.results import RESULT_FILE, RunResult, read_result
+
+KIND_ORDER = {"info": 0, "slam": 1, "control": 2}
+
+
+def result_dirs_of(paths: list[Path]) -> list[Path]:
+    """Result directories given directly, or the result directories one level below a folder."""
+    found: list[Path] = []
+    for p in paths:
+        if (p / RESULT_FILE).is_file():
+            found.append(p)
+        elif p.is_dir() and (subs := sorted(d for d in p.iterdir() if (d / RESULT_FILE).is_file())):
+            found += subs
+        else:
+            raise InputError(p, f"not a result directory (no {RESULT_FILE} in it or in its sub-folders)")
+    return found
 
 
 def main(result_dirs: list[Path], *, out: Path | None, pdf: bool) -> None:
     from mrnc_eval.reports.render import write_report
 
-    results = [read_result(d) for d in result_dirs]
-    config_path = result_dirs[0] / CONFIG_FILE_NAME
-    config_text = config_path.read_text(encoding="utf-8") if config_path.exists() else ""
-    cfg = load_config(config_path) if config_path.exists() else load_config()
-    target = out or result_dirs[0]
+    dirs = result_dirs_of(result_dirs)
+    results: list[RunResult] = sorted((read_result(d) for d in dirs), key=lambda r: KIND_ORDER.get(r.kind, 9))
+    logs = sorted({str(Path(r.log_path).resolve()) for r in results})
+    if len(logs) > 1:
+        raise InputError(result_dirs[0], f"results of different logs ({', '.join(logs)}); one log per report")
+    config_path = next((d / CONFIG_FILE_NAME for d in dirs if (d / CONFIG_FILE_NAME).is_file()), None)
+    config_text = config_path.read_text(encoding="utf-8") if config_path else ""
+    cfg = load_config(config_path) if config_path else load_config()
+    target = out or (result_dirs[0] if len(dirs) > 1 or not (result_dirs[0] / RESULT_FILE).is_file() else dirs[0])
     written = write_report(results, target, gates=cfg.gates, config_text=config_text, pdf=pdf)
     for kind, path in written.items():
         sys.stdout.write(f"{kind}: {path}\n")

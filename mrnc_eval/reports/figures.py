@@ -1,4 +1,5 @@
-"""Report figures with matplotlib's object API (no pyplot state), returned as inline SVG."""
+"""Report figures with matplotlib's object API (Figure + FigureCanvasSVG, no pyplot state),
+returned as inline SVG. Long series are decimated for drawing only; statistics never are."""
 
 from __future__ import annotations
 
@@ -10,88 +11,103 @@ import numpy as np
 
 from mrnc_eval.results import RunResult
 
-U_MAX_RPM = 1250.0
-MAX_POINTS = 4000  # per line: plots are decimated, statistics never are
-
+U_MAX_RPM = 1250.0  # pump command limit drawn on the effort plot, RPM
+MAX_POINTS = 4000  # per line
+EVENT_COLOURS = {"loop_closure": "tab:green", "degeneracy": "tab:red", "safety_stop": "tab:red"}
 
 _FIGURE_IDS = itertools.count(1)
 _ID = re.compile(r'id="([^"]+)"')
 _REF = re.compile(r'(href="#|url\(#)([^")]+)')
+_METADATA = re.compile(r"<metadata>.*?</metadata>\s*", re.S)
 
 
-def _svg(fig) -> str:
-    """Inline SVG with text as text and ids made unique per figure: several matplotlib SVGs in one
-    page would otherwise share ids such as "patch_1" and pick up each other's clip paths."""
+def svg(fig) -> str:
+    """Inline SVG with text as text and ids made unique per figure: several matplotlib SVGs in
+    one page would otherwise share ids such as "patch_1" and pick up each other's clip paths."""
     import matplotlib
     from matplotlib.backends.backend_svg import FigureCanvasSVG
 
     buf = io.StringIO()
-    with matplotlib.rc_context({"svg.fonttype": "none"}):
-        FigureCanvasSVG(fig).print_svg(buf)
+    with matplotlib.rc_context({"svg.fonttype": "none", "svg.hashsalt": "mrnc-eval"}):
+        FigureCanvasSVG(fig).print_svg(buf, metadata={"Date": None})
     text = buf.getvalue()
-    text = text[text.index("<svg"):]  # drop the XML prolog: the SVG is inlined in HTML
+    text = text[text.index("<svg"):]  # drop the XML prolog and doctype: the SVG is inlined in HTML
+    text = _METADATA.sub("", text, count=1)  # RDF block naming matplotlib: no use in a report
     prefix = f"f{next(_FIGURE_IDS)}-"
     text = _ID.sub(lambda m: f'id="{prefix}{m.group(1)}"', text)
     return _REF.sub(lambda m: f"{m.group(1)}{prefix}{m.group(2)}", text)
 
 
-def _fig(w=7.0, h=3.2, rows=1, cols=1):
+def new_figure(w: float = 7.0, h: float = 3.2, rows: int = 1, cols: int = 1, sharex: bool = False):
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(w, h), layout="constrained")
-    axes = fig.subplots(rows, cols, squeeze=False)
-    return fig, axes
+    return fig, fig.subplots(rows, cols, squeeze=False, sharex=sharex)
 
 
-def _dec(*arrays):
-    n = len(arrays[0])
-    step = max(1, n // MAX_POINTS)
-    return [a[::step] for a in arrays]
+def decimate(*arrays: np.ndarray) -> list[np.ndarray]:
+    """Every k-th sample so that at most MAX_POINTS remain (same k for all arrays)."""
+    n = min(len(a) for a in arrays)
+    step = max(1, -(-n // MAX_POINTS))
+    return [np.asarray(a[:n])[::step] for a in arrays]
+
+
+def _mark_events(ax, r: RunResult, kinds: tuple[str, ...]) -> list[str]:
+    drawn = []
+    for kind in kinds:
+        times = [e.t_s for e in r.events if e.kind == kind]
+        for t in times[:200]:
+            ax.axvline(t, color=EVENT_COLOURS.get(kind, "0.5"), lw=0.6, alpha=0.6)
+        if times:
+            drawn.append(f"{EVENT_COLOURS.get(kind, 'grey').removeprefix('tab:')}: {kind.replace('_', ' ')}")
+    return drawn
 
 
 def slam_figures(r: RunResult) -> list[tuple[str, str]]:
     s = r.series
     out = []
-    if "est_aligned_xyz" in s and "ape_err_m" in s:
-        fig, ax = _fig(6.5, 5.0)
+    if "est_aligned_xyz" in s and "ape_err_m" in s and "ref_xyz" in s:
+        fig, ax = new_figure(6.5, 5.0)
         ax = ax[0, 0]
-        ref, est, err = _dec(s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"])
-        ax.plot(ref[:, 0], ref[:, 1], color="0.6", lw=1.0, ls="--", label="reference")
+        ref, est, err = decimate(s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"])
+        ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=1.0, ls="--", label="ground truth")
         sc = ax.scatter(est[:, 0], est[:, 1], c=err, s=6, cmap="viridis", label="estimate (SE(3) aligned)")
+        ax.plot(est[:1, 0], est[:1, 1], "k^", ms=7, label="start")
         fig.colorbar(sc, ax=ax, label="APE (m)")
         ax.set_aspect("equal", adjustable="datalim")
-        ax.set_xlabel("x (m)")
-        ax.set_ylabel("y (m)")
+        ax.set(xlabel="x (m)", ylabel="y (m)", title="Trajectory in the plane, coloured by APE")
         ax.legend(loc="best", fontsize="small")
-        ax.set_title("Trajectory in the plane, coloured by APE")
-        out.append(("Trajectory coloured by APE", _svg(fig)))
-        fig, ax = _fig()
-        t, e = _dec(s["ape_t"], s["ape_err_m"])
-        ax[0, 0].plot(t, e, lw=1.0)
-        for ev in r.events:
-            if ev.kind == "loop_closure":
-                ax[0, 0].axvline(ev.t_s, color="tab:green", lw=0.6, alpha=0.6)
-        ax[0, 0].set_xlabel("time (s)")
-        ax[0, 0].set_ylabel("APE (m)")
-        ax[0, 0].set_title("APE over time (green: loop closures)")
-        out.append(("APE over time", _svg(fig)))
-    elif "est_xyz" in s:
-        fig, ax = _fig(6.5, 5.0)
-        xyz, = _dec(s["est_xyz"])
+        out.append(("Trajectory in the plane (estimate coloured by its APE, ground truth dashed)", svg(fig)))
+        fig, ax = new_figure(7.0, 3.0)
+        ax = ax[0, 0]
+        t, e = decimate(s["ape_t"], s["ape_err_m"])
+        ax.plot(t, e, lw=1.0, color="tab:blue")
+        marks = _mark_events(ax, r, ("loop_closure", "degeneracy"))
+        ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
+               title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
+        ax.grid(alpha=0.3)
+        out.append(("APE (translation) over time", svg(fig)))
+    elif "est_xyz" in s and len(s["est_xyz"]):
+        fig, ax = new_figure(6.5, 5.0)
+        xyz, = decimate(s["est_xyz"])
         ax[0, 0].plot(xyz[:, 0], xyz[:, 1], lw=1.0)
+        if "kf_xyz" in s and len(s["kf_xyz"]):
+            ax[0, 0].plot(s["kf_xyz"][:, 0], s["kf_xyz"][:, 1], "o", ms=3, color="tab:orange", label="keyframes")
+            ax[0, 0].legend(fontsize="small")
         ax[0, 0].set_aspect("equal", adjustable="datalim")
-        ax[0, 0].set_title("Estimated trajectory (no ground truth)")
-        out.append(("Trajectory", _svg(fig)))
+        ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="Estimated trajectory (no ground truth: APE not computed)")
+        out.append(("Estimated trajectory in the plane", svg(fig)))
     timing = r.extra.get("timing_ms", {})
     if timing:
-        fig, ax = _fig(6.0, 2.8)
-        names = list(timing)
-        ax[0, 0].barh(names, [timing[n]["mean"] for n in names], color="tab:blue", label="mean")
-        ax[0, 0].scatter([timing[n]["p95"] for n in names], names, color="tab:red", zorder=3, label="p95")
-        ax[0, 0].set_xlabel("ms per processed sweep")
-        ax[0, 0].legend(fontsize="small")
-        ax[0, 0].set_title("Per-stage timing")
-        out.append(("Per-stage timing", _svg(fig)))
+        fig, ax = new_figure(6.5, 0.6 + 0.35 * len(timing))
+        ax = ax[0, 0]
+        names = list(timing)[::-1]  # first stage on top
+        ax.barh(names, [timing[n].get("mean", np.nan) for n in names], color="tab:blue", label="mean")
+        ax.scatter([timing[n].get("p95", np.nan) for n in names], names, color="tab:red", zorder=3, label="p95")
+        ax.set(xlabel="ms per processed sweep", title="Per-stage timing")
+        ax.legend(fontsize="small", loc="lower right")
+        ax.grid(axis="x", alpha=0.3)
+        out.append(("Per-stage timing (bars: mean, dots: 95th percentile)", svg(fig)))
     return out
 
 
@@ -103,45 +119,79 @@ def control_figures(r: RunResult) -> list[tuple[str, str]]:
         t = s.get(f"{ctrl}_t", s.get("t"))
         if t is None or f"{ctrl}_left_v_ref" not in s:
             continue
-        fig, axes = _fig(7.5, 5.2, rows=2)
-        for ax, side in zip(axes[:, 0], ("left", "right")):
-            ref, meas = s[f"{ctrl}_{side}_v_ref"], s[f"{ctrl}_{side}_v_meas"]
-            n = min(t.size, ref.size)
-            tt, rr, mm = _dec(t[:n], ref[:n], meas[:n])
-            ax.plot(tt, mm, lw=0.8, label="measured")
-            ax.plot(tt, rr, lw=1.0, color="k", label="reference")
-            if "funnel_o" in s and s["funnel_o"].size >= n:
-                o, = _dec(s["funnel_o"][:n])
-                ax.fill_between(tt, rr - o, rr + o, color="tab:orange", alpha=0.2, label="funnel o(t)")
-            ax.set_ylabel(f"{side} (m/s)")
-            ax.legend(loc="lower right", fontsize="x-small", ncols=3)
-        axes[-1, 0].set_xlabel("time (s)")
-        axes[0, 0].set_title(f"{label}: wheel speed tracking")
-        out.append((f"{label}: reference vs measured", _svg(fig)))
-        fig, ax = _fig(7.5, 2.8)
-        for side in ("left", "right"):
-            u = s[f"{ctrl}_{side}_u_rpm"]
-            n = min(t.size, u.size)
-            tt, uu = _dec(t[:n], u[:n])
-            ax[0, 0].plot(tt, uu, lw=0.8, label=side)
-        for lim in (U_MAX_RPM, -U_MAX_RPM):
-            ax[0, 0].axhline(lim, color="tab:red", ls="--", lw=0.8)
-        ax[0, 0].set_ylabel("pump command (RPM)")
-        ax[0, 0].set_xlabel("time (s)")
-        ax[0, 0].legend(fontsize="small")
-        ax[0, 0].set_title(f"{label}: control effort (limits +/-1250 RPM)")
-        out.append((f"{label}: control effort", _svg(fig)))
-        if f"{ctrl}_xy" in s and "path_xy" in s:
-            fig, axes = _fig(7.5, 3.2, cols=2)
-            xy, cte = _dec(s[f"{ctrl}_xy"], s[f"{ctrl}_cte_m"])
-            axes[0, 0].plot(s["path_xy"][:, 0], s["path_xy"][:, 1], "k--", lw=0.8, marker="o", ms=3, label="waypoints")
-            axes[0, 0].plot(xy[:, 0], xy[:, 1], lw=1.0, label="driven")
-            axes[0, 0].set_aspect("equal", adjustable="datalim")
-            axes[0, 0].legend(fontsize="x-small")
-            axes[0, 0].set_title("Path")
-            axes[0, 1].plot(np.arange(cte.size) / max(cte.size - 1, 1) * 100, cte, lw=0.8)
-            axes[0, 1].set_xlabel("progress along the run (%)")
-            axes[0, 1].set_ylabel("cross-track error (m)")
-            axes[0, 1].set_title("Cross-track error")
-            out.append((f"{label}: path and cross-track error", _svg(fig)))
+        out.append((f"{label}: wheel-speed reference vs measured, funnel band reference ± o(t)",
+                    _tracking(s, ctrl, label, t)))
+        if f"{ctrl}_left_u_rpm" in s:
+            out.append((f"{label}: pump commands with the ±{U_MAX_RPM:.0f} RPM limits", _effort(s, r, ctrl, label, t)))
+        if f"{ctrl}_xy" in s and f"{ctrl}_cte_m" in s:
+            out.append((f"{label}: driven path and cross-track error", _path(s, ctrl, label, t)))
     return out
+
+
+def _tracking(s, ctrl: str, label: str, t: np.ndarray) -> str:
+    fig, axes = new_figure(7.5, 5.0, rows=2, sharex=True)
+    for ax, side in zip(axes[:, 0], ("left", "right"), strict=True):
+        arrays = [t, s[f"{ctrl}_{side}_v_ref"], s[f"{ctrl}_{side}_v_meas"]]
+        has_funnel = "funnel_o" in s and len(s["funnel_o"]) >= len(t)
+        if has_funnel:
+            arrays.append(s["funnel_o"])
+        tt, rr, mm, *o = decimate(*arrays)
+        if o:
+            ax.fill_between(tt, rr - o[0], rr + o[0], color="tab:orange", alpha=0.25, lw=0, label="funnel ±o(t)")
+        ax.plot(tt, rr, lw=1.0, color="k", label="reference")
+        ax.plot(tt, mm, lw=0.8, color="tab:blue", label="measured")
+        ax.set_ylabel(f"{side} wheel (m/s)")
+        ax.grid(alpha=0.3)
+    axes[0, 0].legend(loc="upper right", fontsize="x-small", ncols=3)
+    axes[-1, 0].set_xlabel("time (s)")
+    axes[0, 0].set_title(f"{label}: wheel-speed tracking")
+    return svg(fig)
+
+
+def _effort(s, r: RunResult, ctrl: str, label: str, t: np.ndarray) -> str:
+    fig, ax = new_figure(7.5, 2.8)
+    ax = ax[0, 0]
+    for side, colour in (("left", "tab:blue"), ("right", "tab:orange")):
+        tt, uu = decimate(t, s[f"{ctrl}_{side}_u_rpm"])
+        ax.plot(tt, uu, lw=0.8, color=colour, label=side)
+    for lim in (U_MAX_RPM, -U_MAX_RPM):
+        ax.axhline(lim, color="tab:red", ls="--", lw=0.8)
+    ax.text(1.0, U_MAX_RPM, f" {U_MAX_RPM:.0f}", color="tab:red", fontsize="x-small", va="center",
+            transform=ax.get_yaxis_transform())
+    ax.text(1.0, -U_MAX_RPM, f" {-U_MAX_RPM:.0f}", color="tab:red", fontsize="x-small", va="center",
+            transform=ax.get_yaxis_transform())
+    ax.set_ylim(-1.15 * U_MAX_RPM, 1.15 * U_MAX_RPM)
+    stops = [e.t_s for e in r.events if e.kind == "safety_stop"]
+    for ts in stops[:200]:
+        ax.axvline(ts, color="k", lw=0.6, ls=":")
+    ax.set(xlabel="time (s)", ylabel="pump command (RPM)",
+           title=f"{label}: control effort" + (" (dotted: safety stops)" if stops else ""))
+    ax.legend(fontsize="small", loc="lower right", ncols=2)
+    ax.grid(alpha=0.3)
+    return svg(fig)
+
+
+def _path(s, ctrl: str, label: str, t: np.ndarray) -> str:
+    fig, axes = new_figure(7.5, 3.4, cols=2)
+    xy, cte = s[f"{ctrl}_xy"], s[f"{ctrl}_cte_m"]
+    xy, = decimate(xy)
+    ax = axes[0, 0]
+    if "path_xy" in s and len(s["path_xy"]):
+        ax.plot(s["path_xy"][:, 0], s["path_xy"][:, 1], "k--", lw=0.8, marker="o", ms=3, label="planned")
+    ax.plot(xy[:, 0], xy[:, 1], lw=1.0, color="tab:blue", label="driven")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set(xlabel="x (m)", ylabel="y (m)", title="Path")
+    ax.legend(fontsize="x-small")
+    ax = axes[0, 1]
+    if len(t) >= len(cte):
+        tt, cc = decimate(t[: len(cte)], cte)
+        ax.plot(tt, cc, lw=0.8)
+        ax.set_xlabel("time (s)")
+    else:  # no time base of the same length: index along the run
+        cc, = decimate(cte)
+        ax.plot(np.linspace(0, 100, len(cc)), cc, lw=0.8)
+        ax.set_xlabel("progress along the run (%)")
+    ax.axhline(0, color="0.5", lw=0.6)
+    ax.set(ylabel="cross-track error (m)", title="Cross-track error")
+    ax.grid(alpha=0.3)
+    return svg(fig)

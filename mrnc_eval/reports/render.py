@@ -1,12 +1,14 @@
-"""Render one log's report (HTML, PDF) from its result objects; never recomputes.
+"""Render one log's report (HTML, PDF, CSV and LaTeX tables) from its result objects; never
+recomputes.
 
-Everything taken from a log (topic names, frame ids, messages, paths) reaches the page
-through Jinja2's autoescaping; figures are our own SVG; tables come from render_table (which
-escapes its cells)."""
+Everything taken from a log (topic names, frame ids, messages, paths) reaches the page through
+Jinja2's autoescaping; figures are our own SVG (log text inside them is escaped by matplotlib's
+SVG writer); tables come from render_table, which escapes its cells."""
 
 from __future__ import annotations
 
 import datetime as dt
+import logging
 import math
 from dataclasses import dataclass
 from pathlib import Path
@@ -16,12 +18,25 @@ from markupsafe import Markup
 
 from mrnc_eval import __version__
 from mrnc_eval.evaluation.config import GatesConfig
-from mrnc_eval.reports.figures import control_figures, slam_figures
-from mrnc_eval.reports.tables import render_table
-from mrnc_eval.results import RunResult, atomic_write_text
+from mrnc_eval.results import Metric, RunResult, Table, atomic_write_text, safe_name
 
 TEMPLATES = Path(__file__).parent / "templates"
-MAX_EVENTS = 60
+MAX_EVENTS = 60  # rows of the events table; the rest is counted
+DEPLOYED = ("raid", "recorded")  # control gates judge the deployed controller (RAID in simulation, the log in replay)
+
+SLAM_KEYS = (  # (label, metric name) of the SLAM key-number table
+    ("APE RMSE (m)", "ape_rmse_m"), ("APE mean (m)", "ape_mean_m"), ("APE max (m)", "ape_max_m"),
+    ("end drift (m)", "end_drift_m"), ("APE vs GNSS, 2-D RMSE (m)", "ape_gnss_rmse_m"), ("matched poses", "ape_n"),
+    ("real-time factor", "rtf"), ("sweeps processed", "sweeps_processed"), ("keyframes", "keyframes"),
+    ("loop closures", "loop_closures"), ("degeneracy events", "degeneracy_events"))
+CONTROL_ROWS = (  # Table II rows for a replay (one column per side and the path)
+    ("settling time (s)", "settling_time_s"), ("overshoot (%)", "overshoot_pct"),
+    ("steady-state error (m/s)", "steady_state_error_mps"), ("RMS error (m/s)", "rms_error_mps"),
+    ("max |error| (m/s)", "max_abs_error_mps"), ("IAE", "iae"), ("funnel violations", "funnel_violations"),
+    ("max |e|/o", "max_e_over_o"), ("saturation ratio", "saturation_ratio"),
+    ("max |command| (RPM)", "max_abs_command_rpm"), ("safety stops", "safety_stops"),
+    ("cross-track RMS (m)", "cross_track_rms_m"), ("cross-track max (m)", "cross_track_max_m"),
+    ("heading error RMS (rad)", "heading_error_rms_rad"), ("final position error (m)", "final_position_error_m"))
 
 
 @dataclass(frozen=True)
@@ -32,129 +47,180 @@ class Gate:
     status: str  # "pass" | "fail" | "na"
 
 
-def _env():
-    from jinja2 import Environment, FileSystemLoader, select_autoescape
+def environment():
+    from jinja2 import Environment, FileSystemLoader, StrictUndefined, select_autoescape
 
-    return Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]))
+    return Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]),
+                       undefined=StrictUndefined)
 
 
-def css() -> str:
-    return (TEMPLATES / "base.css").read_text(encoding="utf-8")
+def css() -> Markup:
+    """Our own style sheet, trusted: autoescaping would turn its quotes into entities, which a
+    <style> element does not decode."""
+    return Markup((TEMPLATES / "base.css").read_text(encoding="utf-8"))
+
+
+def _finite(v: Any) -> bool:
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
 
 
 def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
-    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops."""
+    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value)."""
     def values(kind: str, name: str) -> list[float]:
-        # control gates judge the deployed controller (RAID in simulation, the recorded run in replay)
         return [m.value for r in results if r.kind == kind for m in r.metrics
-                if m.name == name and m.value is not None and not (isinstance(m.value, float) and math.isnan(m.value))
-                and (kind != "control" or m.group.split("/")[1:2] in (["raid"], ["recorded"]))]
+                if m.name == name and _finite(m.value) and (kind != "control" or m.group.split("/")[1:2] in
+                                                            [[d] for d in DEPLOYED])]
 
-    out = []
-    ape = values("slam", "ape_rmse_m")
-    out.append(Gate("APE RMSE", f"{max(ape):.3f} m" if ape else "n/a", f"{gates.ape_rmse_max_m:g} m",
-                    "na" if not ape else ("pass" if max(ape) <= gates.ape_rmse_max_m else "fail")))
-    for label, name, limit, fmt in (("Funnel violations", "funnel_violations", gates.funnel_violations_max, "{:.0f}"),
-                                    ("Saturation ratio", "saturation_ratio", gates.saturation_ratio_max, "{:.3f}"),
-                                    ("Safety stops", "safety_stops", gates.safety_stops_max, "{:.0f}")):
-        v = values("control", name)
-        worst = max(v) if v else None
-        out.append(Gate(label, fmt.format(worst) if v else "n/a", f"{limit:g}",
-                        "na" if worst is None else ("pass" if worst <= limit else "fail")))
-    return out
+    def card(label: str, vals: list[float], limit: float, fmt: str, unit: str = "") -> Gate:
+        if not vals:
+            return Gate(label, "n/a", f"{limit:g}{unit}", "na")
+        worst = max(vals)
+        return Gate(label, fmt.format(worst) + unit, f"{limit:g}{unit}", "pass" if worst <= limit else "fail")
+
+    return [card("APE RMSE", values("slam", "ape_rmse_m"), gates.ape_rmse_max_m, "{:.3f}", " m"),
+            card("Funnel violations", values("control", "funnel_violations"), gates.funnel_violations_max, "{:.0f}"),
+            card("Saturation ratio", values("control", "saturation_ratio"), gates.saturation_ratio_max, "{:.3f}"),
+            card("Safety stops", values("control", "safety_stops"), gates.safety_stops_max, "{:.0f}")]
+
+
+def info_of(results: list[RunResult]) -> dict | None:
+    """The `info` summary: a result of kind "info", or extra["info"] of any result."""
+    for r in results:
+        if isinstance(r.extra.get("info"), dict):
+            return r.extra["info"]
+    return None
+
+
+def _key_table(title: str, rows: list[tuple[str, Any]]) -> Table:
+    return Table(title, [label for label, _ in rows], ["value"], [[v] for _, v in rows], best=None, precision=4)
+
+
+def _slam_section(r: RunResult) -> dict[str, Any]:
+    from mrnc_eval.reports.figures import slam_figures
+
+    vals = {m.name: m.value for m in r.metrics}
+    keys = [(label, vals[name]) for label, name in SLAM_KEYS if name in vals]
+    timing = r.extra.get("timing_ms", {})
+    stats = ("mean", "p95", "max")
+    timing_table = Table("Per-stage timing", list(timing), list(stats), [[t.get(k) for k in stats]
+                                                                         for t in timing.values()],
+                         unit="ms per sweep", best=None, precision=1)
+    summary = (f"Method {r.extra.get('method', 'lio')}; log of {r.extra.get('log_duration_s', float('nan')):.1f} s "
+               f"processed in {r.extra.get('wall_s', float('nan')):.1f} s.")
+    tables = [_key_table("SLAM key numbers", keys)] + ([timing_table] if timing else []) + r.tables
+    return {"title": "SLAM", "summary": summary, "tables": tables,
+            "figures": slam_figures(r)}
+
+
+def _control_section(r: RunResult) -> dict[str, Any]:
+    from mrnc_eval.reports.figures import control_figures
+
+    labels = r.extra.get("labels", {})
+    summary = (f"Control chain, mode {r.extra.get('mode', '?')}; controllers: "
+               + ", ".join(labels.get(c, c) for c in r.extra.get("controllers", []))
+               + f". Saturation applies to the {r.extra.get('saturation_applies_to', 'total')} command; "
+               f"pure-pursuit curvature {r.extra.get('curvature', 'standard')}.")
+    return {"title": "Control", "summary": summary, "tables": report_tables(r), "figures": control_figures(r)}
+
+
+def report_tables(r: RunResult) -> list[Table]:
+    """The paper-layout tables of a result: its own, or for a control replay (which has none)
+    the Table II layout of its metrics."""
+    if r.kind == "control" and not r.tables and r.metrics:
+        return [_replay_table(r)]
+    return list(r.tables)
+
+
+def _replay_table(r: RunResult) -> Table:
+    """Table II layout for a replay: rows = metrics, columns = the groups of the result."""
+    groups = sorted({m.group for m in r.metrics}, key=lambda g: (g.endswith("/path"), g))
+    by: dict[tuple[str, str], Metric] = {(m.group, m.name): m for m in r.metrics}
+    rows = [(label, name) for label, name in CONTROL_ROWS if any((g, name) in by for g in groups)]
+    cells = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
+    cells = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row] for row in cells]
+    return Table("Table II layout: control performance of the recorded run", [label for label, _ in rows],
+                 [g.split("/", 1)[-1].replace("/", " ") for g in groups], cells, best=None, precision=3)
 
 
 def _section(r: RunResult) -> dict[str, Any]:
-    if r.kind == "slam":
-        vals = {m.name: m.value for m in r.metrics}
-        method = r.extra.get("method", "lio")
-        summary = (f"Method {method}: {vals.get('sweeps_processed', 0)} sweeps processed, {vals.get('keyframes', 0)} "
-                   f"keyframes, {vals.get('loop_closures', 0)} loop closures, {vals.get('degeneracy_events', 0)} "
-                   f"degeneracy events, real-time factor {vals.get('rtf', float('nan')):.2f}")
-        if "ape_rmse_m" in vals:
-            summary += f"; APE RMSE {vals['ape_rmse_m']:.4f} m over {vals.get('ape_n', 0)} poses"
-        if "ape_gnss_rmse_m" in vals:
-            summary += f"; against GNSS (2-D) {vals['ape_gnss_rmse_m']:.3f} m"
-        title, figures = "SLAM", slam_figures(r)
-    else:
-        mode = r.extra.get("mode", "")
-        summary = f"Control chain, mode {mode}; controllers: " + ", ".join(r.extra.get("labels", {}).values())
-        summary += (f"; saturation applies to the {r.extra.get('saturation_applies_to', 'total')} command, "
-                    f"curvature {r.extra.get('curvature', 'standard')}")
-        title, figures = "Control", control_figures(r)
-        if not r.tables:  # replay: one column of per-side metrics
-            pass
-    tables = [Markup(render_table(t, "html")) for t in r.tables]
-    if r.kind == "control" and not r.tables:
-        tables.append(Markup(render_table(_metrics_table(r), "html")))
-    events = r.events[:MAX_EVENTS]
-    return {"title": title, "summary": summary, "warnings": r.warnings, "tables": tables,
-            "figures": [(cap, Markup(svg)) for cap, svg in figures], "events": events,
-            "events_more": max(0, len(r.events) - MAX_EVENTS)}
+    from mrnc_eval.reports.tables import render_table
+
+    section = _slam_section(r) if r.kind == "slam" else _control_section(r)
+    events = sorted(r.events, key=lambda e: e.t_s)
+    counts: dict[str, int] = {}
+    for e in events:
+        counts[e.kind] = counts.get(e.kind, 0) + 1
+    section.update(kind=r.kind, warnings=r.warnings, events=events[:MAX_EVENTS],
+                   event_counts=sorted(counts.items()), events_more=max(0, len(events) - MAX_EVENTS),
+                   tables=[Markup(render_table(t, "html")) for t in section["tables"]],
+                   figures=[(cap, Markup(svg)) for cap, svg in section["figures"]])
+    return section
 
 
-def _metrics_table(r: RunResult):
-    from mrnc_eval.results import Table
-
-    groups = sorted({m.group for m in r.metrics})
-    names = sorted({m.name for m in r.metrics})
-    by = {(m.group, m.name): m.value for m in r.metrics}
-    return Table("Control metrics", names, groups, [[by.get((g, n)) for g in groups] for n in names], best=None, precision=4)
-
-
-def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: str, info: dict | None = None) -> str:
+def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: str) -> str:
     first = results[0]
-    return _env().get_template("report.html.j2").render(
+    config_hash = next((r.config_hash for r in results if r.config_hash), "")
+    info = info_of(results)
+    findings = [w for r in results if r.kind == "info" for w in r.warnings]
+    return environment().get_template("report.html.j2").render(
         css=css(), log_id=first.log_id, log_path=first.log_path, tool_version=first.tool_version or __version__,
-        config_hash=first.config_hash, created=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        gates=evaluate_gates(results, gates), info=info, sections=[_section(r) for r in results],
-        config_text=config_text)
+        config_hash=config_hash, created=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        gates=evaluate_gates(results, gates), info=info, notes=findings,
+        sections=[_section(r) for r in results if r.kind in ("slam", "control")], config_text=config_text)
 
 
 def write_pdf(html: str, path: Path) -> str:
-    """PDF via WeasyPrint; a plain matplotlib PDF that says it is a fallback otherwise.
-    Returns "weasyprint" or "fallback"."""
+    """PDF via WeasyPrint from the same HTML (print CSS); a matplotlib PDF that says it is a
+    fallback when WeasyPrint or its Pango libraries are missing. Returns the engine used."""
     tmp = path.with_name(f".{path.name}.tmp")
     try:
-        import logging
+        try:
+            import weasyprint
 
-        import weasyprint
-
-        logging.getLogger("weasyprint").setLevel(logging.ERROR)  # SVG CSS properties it does not know
-        logging.getLogger("fontTools").setLevel(logging.ERROR)
-        weasyprint.HTML(string=html).write_pdf(tmp)
-        engine = "weasyprint"
-    except (ImportError, OSError) as err:
-        _fallback_pdf(tmp, str(err))
-        engine = "fallback"
-    tmp.replace(path)
+            logging.getLogger("weasyprint").setLevel(logging.ERROR)  # SVG CSS properties it does not know
+            logging.getLogger("fontTools").setLevel(logging.ERROR)
+            weasyprint.HTML(string=html).write_pdf(tmp)
+            engine = "weasyprint"
+        except (ImportError, OSError) as err:
+            fallback_pdf(tmp, f"{type(err).__name__}: {err}")
+            engine = "fallback"
+        tmp.replace(path)
+    finally:
+        tmp.unlink(missing_ok=True)
     return engine
 
 
-def _fallback_pdf(path: Path, reason: str) -> None:
+def fallback_pdf(path: Path, reason: str) -> None:
     from matplotlib.backends.backend_pdf import PdfPages
     from matplotlib.figure import Figure
 
     with PdfPages(path) as pdf:
         fig = Figure(figsize=(8.27, 11.69))
-        fig.text(0.1, 0.9, "mrnc-eval report (fallback PDF)", fontsize=16)
-        fig.text(0.1, 0.85, f"WeasyPrint unavailable: {reason[:200]}", fontsize=9)
-        fig.text(0.1, 0.8, "Open the HTML report for the full content.", fontsize=9)
+        fig.text(0.08, 0.92, "mrnc-eval report: FALLBACK PDF", fontsize=16, weight="bold")
+        fig.text(0.08, 0.88, "WeasyPrint could not render the report; this page only says so.", fontsize=10)
+        fig.text(0.08, 0.85, f"Reason: {reason[:160]}", fontsize=8)
+        fig.text(0.08, 0.82, "Open report.html (self-contained) for the full report, or install Pango "
+                 "(scripts/setup.sh).", fontsize=10)
         pdf.savefig(fig)
 
 
 def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig, config_text: str,
-                 info: dict | None = None, pdf: bool = False) -> dict[str, Path]:
+                 pdf: bool = False) -> dict[str, Path]:
+    """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically."""
+    from mrnc_eval.reports.tables import render_table
+
     out_dir.mkdir(parents=True, exist_ok=True)
-    html = render_html(results, gates=gates, config_text=config_text, info=info)
+    html = render_html(results, gates=gates, config_text=config_text)
     written = {"html": out_dir / "report.html"}
     atomic_write_text(written["html"], html)
     for r in results:
-        for k, t in enumerate(r.tables):
-            stem = f"{r.kind}_table{k + 1}"
-            atomic_write_text(out_dir / f"{stem}.csv", render_table(t, "csv"))
-            atomic_write_text(out_dir / f"{stem}.tex", render_table(t, "latex"))
+        for k, table in enumerate(report_tables(r)):
+            stem = safe_name(f"{r.kind}_table{k + 1}")
+            for fmt, suffix in (("csv", ".csv"), ("latex", ".tex")):
+                written[f"{stem}{suffix}"] = out_dir / f"{stem}{suffix}"
+                atomic_write_text(written[f"{stem}{suffix}"], render_table(table, fmt))
     if pdf:
         written["pdf"] = out_dir / "report.pdf"
-        write_pdf(html, written["pdf"])
+        if write_pdf(html, written["pdf"]) == "fallback":
+            logging.getLogger(__name__).warning("%s: WeasyPrint unavailable, wrote a fallback PDF", written["pdf"])
     return written

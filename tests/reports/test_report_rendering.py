@@ -1,7 +1,9 @@
-"""Reports of real pipeline results: opened in headless Chromium, PDF rendered to PNG."""
+"""Reports of real pipeline results (simulated logs through info, SLAM, control replay): opened
+in headless Chromium, PDF rendered to PNG, tables exported, re-rendered by the report verb."""
 
 from __future__ import annotations
 
+import builtins
 import re
 import shutil
 import subprocess
@@ -18,11 +20,14 @@ PROBE = """
 <script>
 window.addEventListener('load', () => {
   const svgs = [...document.querySelectorAll('figure svg')];
-  const sizes = svgs.map(s => { const b = s.getBoundingClientRect(); return b.width > 50 && b.height > 50; });
-  const drawn = svgs.map(s => s.querySelectorAll('path, use, line, polyline').length > 10);
+  const sized = svgs.filter(s => { const b = s.getBoundingClientRect(); return b.width > 50 && b.height > 50; });
+  const drawn = svgs.filter(s => s.querySelectorAll('path, use, line, polyline').length > 10);
+  const broken = [...document.querySelectorAll('img')].filter(i => !i.complete || i.naturalWidth === 0);
   document.body.setAttribute('data-figures', svgs.length);
-  document.body.setAttribute('data-rendered', sizes.filter(x => x).length);
-  document.body.setAttribute('data-drawn', drawn.filter(x => x).length);
+  document.body.setAttribute('data-sized', sized.length);
+  document.body.setAttribute('data-drawn', drawn.length);
+  document.body.setAttribute('data-broken', broken.length);
+  document.body.setAttribute('data-probed', 1);
 });
 </script>
 """
@@ -36,29 +41,58 @@ def _chromium() -> str:
     pytest.skip("Chromium is not installed (scripts/setup.sh --test installs Debian's chromium)")
 
 
+def open_in_chromium(page: Path, tmp_path: Path) -> tuple[dict[str, int], list[str]]:
+    """Load a copy of `page` (same folder, so relative links resolve) with a probe script; return
+    the probe's counts and the console lines Chromium logged."""
+    probe = page.with_name(f".probe-{page.name}")
+    probe.write_text(page.read_text(encoding="utf-8").replace("</body>", PROBE + "</body>"), encoding="utf-8")
+    try:
+        proc = subprocess.run([_chromium(), *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}",
+                               "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", "--dump-dom",
+                               probe.as_uri()], capture_output=True, text=True, timeout=120)
+    finally:
+        probe.unlink()
+    body = re.search(r"<body[^>]*>", proc.stdout)
+    assert body and "data-probed" in body.group(0), proc.stderr[-2000:]
+    counts = {k: int(v) for k, v in re.findall(r'data-(\w+)="(\d+)"', body.group(0))}
+    return counts, [ln for ln in proc.stderr.splitlines() if "CONSOLE" in ln or "Uncaught" in ln]
+
+
 @pytest.fixture(scope="module")
 def night(tiny_logs: Path, tmp_path_factory) -> Path:
     out = tmp_path_factory.mktemp("reports")
     rc = main(["nightly", str(tiny_logs), "--out", str(out), "--jobs", "1", "--date", "2026-11-20"])
-    assert rc in (0, 1)  # gates may fail on these short logs; nothing may crash
+    assert rc in (0, 1)  # gates may fail on these short logs; nothing may fail to run
     return out / "2026-11-20"
 
 
-def test_report_opens_in_chromium_with_all_figures(night: Path, tmp_path: Path) -> None:
-    chromium = _chromium()
-    report = night / "logs" / "a" / "report.html"
-    page = tmp_path / "probe.html"
-    page.write_text(report.read_text(encoding="utf-8").replace("</body>", PROBE + "</body>"), encoding="utf-8")
-    proc = subprocess.run([chromium, *CHROMIUM_FLAGS, f"--user-data-dir={tmp_path / 'profile'}",
-                           "--enable-logging=stderr", "--v=0", "--virtual-time-budget=5000", "--dump-dom",
-                           page.as_uri()], capture_output=True, text=True, timeout=120)
-    body = re.search(r"<body[^>]*>", proc.stdout)
-    assert body, proc.stderr[-2000:]
-    attrs = dict(re.findall(r'data-(\w+)="(\d+)"', body.group(0)))
-    assert int(attrs["figures"]) >= 5
-    assert attrs["rendered"] == attrs["figures"] and attrs["drawn"] == attrs["figures"]
-    console = [ln for ln in proc.stderr.splitlines() if "CONSOLE" in ln]
+@pytest.mark.parametrize("log_id", ["a", "nested_b"])
+def test_report_opens_in_chromium_with_every_figure_drawn(night: Path, tmp_path: Path, log_id: str) -> None:
+    report = night / "logs" / log_id / "report.html"
+    counts, console = open_in_chromium(report, tmp_path)
+    # SLAM: trajectory, APE over time, timing; control replay: tracking, effort, path
+    assert counts["figures"] == 6
+    assert counts["sized"] == counts["drawn"] == counts["figures"] and counts["broken"] == 0
     assert not console, console
+    html = report.read_text(encoding="utf-8")
+    assert not re.search(r'<img|<link|<script|src=|href="(?!#|data:)[a-z]+:|url\((?!#)', html)  # self-contained
+    for heading in ("Log health", "SLAM", "Control", "Effective configuration"):
+        assert f"<h2>{heading}</h2>" in html
+    for card in ("APE RMSE", "Funnel violations", "Saturation ratio", "Safety stops"):
+        assert f'<div class="l">{card}</div>' in html
+
+
+def test_index_and_trends_open_in_chromium_and_link_every_report(night: Path, tmp_path: Path) -> None:
+    index = night / "index.html"
+    counts, console = open_in_chromium(index, tmp_path)
+    assert not console, console
+    text = index.read_text(encoding="utf-8")
+    for log_id in ("a", "nested_b"):
+        assert f'href="logs/{log_id}/report.html"' in text and f'href="logs/{log_id}/report.pdf"' in text
+        assert (night / "logs" / log_id / "report.pdf").exists()
+    counts, console = open_in_chromium(night.parent / "trends.html", tmp_path)
+    assert not console, console
+    assert counts["figures"] >= 3 and counts["sized"] == counts["figures"]
 
 
 def test_pdf_pages_are_not_blank(night: Path, tmp_path: Path) -> None:
@@ -69,17 +103,48 @@ def test_pdf_pages_are_not_blank(night: Path, tmp_path: Path) -> None:
     pdf = night / "logs" / "a" / "report.pdf"
     info = subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True, check=True).stdout
     pages = int(re.search(r"Pages:\s+(\d+)", info).group(1))
+    assert re.search(r"Producer:\s+WeasyPrint", info)
     subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "p")], check=True)
     pngs = sorted(tmp_path.glob("p-*.png"))
-    assert len(pngs) == pages >= 2
+    assert len(pngs) == pages >= 4  # health, SLAM, control, configuration
     for png in pngs:
         arr = np.asarray(Image.open(png).convert("L"))
         assert (arr < 200).mean() > 0.005, png.name  # some ink on every page
+    text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True, check=True).stdout
+    for words in ("Log health", "SLAM key numbers", "Table II layout", "Effective configuration"):
+        assert words in text
 
 
-def test_index_and_trends_link_reports(night: Path) -> None:
-    index = (night / "index.html").read_text(encoding="utf-8")
-    for log_id in ("a", "b", "c"):
-        assert f'href="logs/{log_id}/report.html"' in index
-    assert (night.parent / "trends.html").exists()
-    assert (night / "logs" / "a" / "slam" / "trajectory.tum").exists()
+def test_tables_exported_and_report_verb_rerenders_without_recomputing(night: Path, tmp_path: Path) -> None:
+    from mrnc_eval.results import read_result
+
+    log_dir = night / "logs" / "a"
+    slam = read_result(log_dir / "slam")
+    csv = (log_dir / "slam_table1.csv").read_text(encoding="utf-8").splitlines()
+    assert csv[1].split(",")[1] == repr(slam.metric("ape_rmse_m").value)  # the result's number, unrounded
+    assert "\\begin{tabular}" in (log_dir / "control_table1.tex").read_text(encoding="utf-8")
+    out = tmp_path / "again"
+    assert main(["report", str(log_dir), "--out", str(out)]) == 0
+    again = (out / "report.html").read_text(encoding="utf-8")
+    first = (log_dir / "report.html").read_text(encoding="utf-8")
+    strip = lambda s: re.sub(r"generated [^<]+|f\d+-", "", s)  # noqa: E731 - timestamp, figure id prefixes
+    assert strip(again) == strip(first)
+    assert main(["report", str(tmp_path / "missing")]) == 4
+
+
+def test_pdf_falls_back_to_matplotlib_and_says_so(tmp_path: Path, monkeypatch) -> None:
+    from mrnc_eval.reports.render import write_pdf
+
+    real_import = builtins.__import__
+
+    def no_weasyprint(name, *args, **kwargs):
+        if name == "weasyprint":
+            raise OSError("cannot load library 'libpango-1.0-0'")
+        return real_import(name, *args, **kwargs)
+
+    monkeypatch.setattr(builtins, "__import__", no_weasyprint)
+    assert write_pdf("<html><body>x</body></html>", tmp_path / "r.pdf") == "fallback"
+    if shutil.which("pdftotext"):
+        text = subprocess.run(["pdftotext", str(tmp_path / "r.pdf"), "-"], capture_output=True, text=True).stdout
+        assert "FALLBACK PDF" in text and "libpango" in text
+    assert [p.name for p in tmp_path.iterdir()] == ["r.pdf"]

@@ -1,0 +1,41 @@
+"""The night index (one row per log) and the trends page (metrics across nights)."""
+
+from __future__ import annotations
+
+from markupsafe import Markup
+
+from mrnc_eval import __version__
+from mrnc_eval.reports.figures import new_figure, svg
+from mrnc_eval.reports.render import css, environment
+
+MAX_LOGS_PER_TREND = 12  # more lines than this are unreadable: the worst latest values are drawn
+
+
+def render_index(night: str, rows: list[dict], columns: list[str]) -> str:
+    return environment().get_template("index.html.j2").render(
+        css=css(), night=night, tool_version=__version__, rows=rows, columns=columns,
+        failed=sum(r["status"] != "ok" for r in rows), gate_failures=sum(bool(r["gates_failed"]) for r in rows))
+
+
+def render_trends(nights: list[str], data: dict[str, dict[str, dict[str, float]]], regressions: list[str],
+                  window: int, tolerance: float) -> str:
+    """data: metric -> log id -> night -> value."""
+    figures = []
+    for metric, per_log in data.items():
+        fig, axes = new_figure(7.0, 2.8)
+        ax = axes[0, 0]
+        x_of = {n: k for k, n in enumerate(nights)}
+        shown = sorted(per_log, key=lambda log: per_log[log][max(per_log[log])], reverse=True)[:MAX_LOGS_PER_TREND]
+        for log_id in sorted(shown):
+            by_night = per_log[log_id]
+            xs = sorted(by_night, key=x_of.get)
+            ax.plot([x_of[n] for n in xs], [by_night[n] for n in xs], marker="o", ms=3, lw=1, label=log_id)
+        ax.set_xticks(range(len(nights)), nights, rotation=30, ha="right", fontsize="small")
+        ax.set_xlim(-0.5, len(nights) - 0.5)
+        ax.set_title(metric + ("" if len(shown) == len(per_log) else f" ({len(shown)} of {len(per_log)} logs)"))
+        ax.grid(alpha=0.3)
+        ax.legend(fontsize="x-small", loc="center left", bbox_to_anchor=(1.01, 0.5))
+        figures.append((metric, Markup(svg(fig))))
+    return environment().get_template("trends.html.j2").render(
+        css=css(), nights=nights, figures=figures, regressions=regressions, window=window,
+        tolerance_pct=round(tolerance * 100), tool_version=__version__)

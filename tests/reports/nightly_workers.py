@@ -1,0 +1,42 @@
+"""Small per-log analyses injected into the nightly job (`analysis="module:function"`), so the
+executors, history and resume logic are tested in seconds. They read the log for real (info)
+and render a real report; only SLAM and control are left out."""
+
+from __future__ import annotations
+
+import os
+import time
+from pathlib import Path
+
+from mrnc_eval.config import Config, config_hash, dump_config
+from mrnc_eval.pipelines.log_job import Analysis
+from mrnc_eval.results import Metric, RunResult, write_result
+
+CALLS_ENV = "MRNC_TEST_CALLS_DIR"  # one file per call, to count how often each log was analysed
+SLEEP_ENV = "MRNC_TEST_SLEEP_S"
+
+
+def info_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:
+    from mrnc_eval.pipelines import info
+    from mrnc_eval.reports.render import write_report
+
+    calls = os.environ.get(CALLS_ENV)
+    if calls:
+        Path(calls, f"{log_id}.{os.getpid()}.{time.monotonic_ns()}").touch()
+    summary = info.run(log_path, cfg).to_json()
+    time.sleep(float(os.environ.get(SLEEP_ENV, "0")))
+    result = RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={"info": summary},
+                       config_hash=config_hash(cfg),
+                       metrics=[Metric("duration_s", summary["duration_s"], "s", "info"),
+                                Metric("messages", sum(t["count"] for t in summary["topics"]), "", "info"),
+                                Metric("topics", len(summary["topics"]), "", "info")])
+    write_result(result, work_dir / "info", dump_config(cfg))
+    write_report([result], work_dir, gates=cfg.gates, config_text=dump_config(cfg), pdf=pdf)
+    return Analysis([(f"{m.group}/{m.name}", m.value, m.unit) for m in result.metrics], [])
+
+
+def crashing_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:
+    """A native crash (SIGABRT) in logs whose name contains "crash"."""
+    if "crash" in log_path.name:
+        os.abort()
+    return info_analysis(log_path, cfg, work_dir, log_id, pdf)

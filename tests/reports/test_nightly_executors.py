@@ -1,0 +1,177 @@
+"""Nightly mechanics with a light injected analysis (real log reading and report rendering):
+discovery, executors (in-process, spawned pool, real Dask cluster), native-crash isolation,
+SIGKILL + resume, idempotent re-runs, history, regressions."""
+
+from __future__ import annotations
+
+import datetime as dt
+import os
+import signal
+import sqlite3
+import subprocess
+import sys
+import time
+from pathlib import Path
+
+import pytest
+
+from mrnc_eval.config import Config
+from mrnc_eval.errors import GateFailed, SomeInputsFailed
+from mrnc_eval.pipelines import nightly
+from mrnc_eval.pipelines.history import find_regressions
+
+from .nightly_workers import CALLS_ENV, SLEEP_ENV
+
+INFO = "tests.reports.nightly_workers:info_analysis"
+CRASHING = "tests.reports.nightly_workers:crashing_analysis"
+IDS = ["l1", "l2", "night_deeper_l4", "night_l3", "night_l5"]
+
+
+def run_night(logs: Path, out: Path, *, night: str, jobs: int = 1, scheduler: str | None = None,
+              analysis: str = INFO, gates: Path | None = None) -> int:
+    """nightly.main as the CLI maps it: 0, 1 (GateFailed) or 3 (SomeInputsFailed)."""
+    try:
+        nightly.main(logs, Config(), out=out, jobs=jobs, scheduler=scheduler, since=None, gates=gates, date=night,
+                     pdf=False, analysis=analysis)
+    except SomeInputsFailed:
+        return 3
+    except GateFailed:
+        return 1
+    return 0
+
+
+def metrics(db: Path, night: str) -> dict[tuple[str, str], float]:
+    with sqlite3.connect(db) as con:
+        return {(log, m): v for log, m, v in con.execute(
+            "SELECT log_id, metric, value FROM metrics WHERE night = ? AND value IS NOT NULL", (night,))}
+
+
+def test_discovery_finds_every_container_recursively_and_skips_ground_truth(imu_logs: Path) -> None:
+    found = nightly.discover_logs(imu_logs)
+    rel = sorted(str(p.relative_to(imu_logs)) for p in found)
+    assert rel == ["l1.mcap", "l2.bag", "night/deeper/l4.mcap", "night/l3.mcap", "night/l5"]
+    assert nightly.discover_logs(imu_logs, dt.date(2999, 1, 1)) == []
+    ids = nightly._unique_ids(found, imu_logs)
+    assert sorted(ids.values()) == IDS
+
+
+def test_in_process_pool_and_dask_cluster_give_the_same_history(imu_logs: Path, tmp_path: Path) -> None:
+    distributed = pytest.importorskip("distributed")
+    night = "2026-11-01"
+    assert run_night(imu_logs, tmp_path / "inproc", night=night, jobs=1) == 0
+    assert run_night(imu_logs, tmp_path / "pool", night=night, jobs=2) == 0
+    with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
+                                  dashboard_address=None) as cluster:
+        workers = cluster.scheduler_info["workers"]
+        assert len(workers) == 2 and all(addr.startswith("tcp://127.0.0.1:") for addr in workers)
+        assert run_night(imu_logs, tmp_path / "dask", night=night, scheduler=cluster.scheduler_address) == 0
+    reference = metrics(tmp_path / "inproc" / "history.sqlite", night)
+    assert {log for log, _ in reference} == set(IDS)
+    assert reference[("l1", "info/messages")] == 50 and reference[("night_l3", "info/messages")] == 120
+    assert reference[("night_l3", "info/duration_s")] == pytest.approx(1.19)  # 120 samples at 100 Hz
+    for other in ("pool", "dask"):
+        assert metrics(tmp_path / other / "history.sqlite", night) == reference, other
+        index = (tmp_path / other / night / "index.html").read_text(encoding="utf-8")
+        assert all(f'href="logs/{log}/report.html"' in index for log in IDS)
+
+
+def test_a_native_crash_fails_only_its_own_log(imu_logs: Path, tmp_path: Path) -> None:
+    from .conftest import write_imu_log
+
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    for name in ("a", "b_crash", "c", "d"):
+        write_imu_log(logs / f"{name}.mcap", 40)
+    out = tmp_path / "out"
+    assert run_night(logs, out, night="2026-11-02", jobs=2, analysis=CRASHING) == 3
+    with sqlite3.connect(out / "history.sqlite") as con:
+        rows = dict(con.execute("SELECT log_id, status FROM runs").fetchall())
+        error = con.execute("SELECT error FROM runs WHERE log_id = 'b_crash'").fetchone()[0]
+    assert rows == {"a": "ok", "b_crash": "failed", "c": "ok", "d": "ok"}
+    assert "worker process died" in error
+    index = (out / "2026-11-02" / "index.html").read_text(encoding="utf-8")
+    assert "worker process died" in index and 'href="logs/c/report.html"' in index
+
+
+def test_killed_night_resumes_without_redoing_or_double_counting(imu_logs: Path, tmp_path: Path) -> None:
+    out, calls = tmp_path / "out", tmp_path / "calls"
+    calls.mkdir()
+    db = out / "history.sqlite"
+    code = ("import sys; from pathlib import Path; from mrnc_eval.config import Config; "
+            "from mrnc_eval.pipelines import nightly; "
+            f"nightly.main(Path({str(imu_logs)!r}), Config(), out=Path({str(out)!r}), jobs=1, scheduler=None, "
+            f"since=None, gates=None, date='2026-11-03', pdf=False, analysis={INFO!r})")
+    env = {**os.environ, CALLS_ENV: str(calls), SLEEP_ENV: "0.4",
+           "PYTHONPATH": os.pathsep.join([str(Path(__file__).parents[2]), os.environ.get("PYTHONPATH", "")])}
+    proc = subprocess.Popen([sys.executable, "-c", code], env=env, stdout=subprocess.DEVNULL,
+                            stderr=subprocess.PIPE, start_new_session=True)
+    deadline = time.time() + 120
+    done = 0
+    while time.time() < deadline and proc.poll() is None:
+        if db.exists():
+            try:
+                with sqlite3.connect(db) as con:
+                    done = con.execute("SELECT COUNT(*) FROM runs").fetchone()[0]
+            except sqlite3.OperationalError:
+                pass
+        if done >= 2:
+            break
+        time.sleep(0.05)
+    os.killpg(proc.pid, signal.SIGKILL)
+    proc.wait()
+    assert 2 <= done < 5, proc.stderr.read().decode()[-2000:]
+    finished_before = {p.name.split(".")[0] for p in calls.iterdir()}
+    with sqlite3.connect(db) as con:
+        done_before = {r[0] for r in con.execute("SELECT log_id FROM runs")}
+    os.environ[CALLS_ENV] = str(calls)
+    try:
+        assert run_night(imu_logs, out, night="2026-11-03") == 0
+        per_log: dict[str, int] = {}
+        for p in calls.iterdir():
+            per_log[p.name.split(".")[0]] = per_log.get(p.name.split(".")[0], 0) + 1
+        assert sorted(per_log) == IDS
+        assert all(per_log[log] == 1 for log in done_before)  # finished logs were not redone
+        assert sum(per_log.values()) <= len(IDS) + 1  # at most the log in flight at the kill ran twice
+        assert done_before <= finished_before
+        with sqlite3.connect(db) as con:
+            assert con.execute("PRAGMA integrity_check").fetchone()[0] == "ok"
+            assert sorted(con.execute("SELECT log_id, status FROM runs WHERE night = '2026-11-03'").fetchall()) == \
+                [(log, "ok") for log in IDS]
+            counts = con.execute("SELECT log_id, COUNT(*) FROM metrics GROUP BY log_id").fetchall()
+        assert sorted(counts) == [(log, 4) for log in IDS]  # 3 metrics + gates_failed, each once
+        assert not list(out.rglob("*.partial")) and not list(out.rglob(".*.tmp"))
+        # a re-run of the same night is idempotent: nothing redone, history unchanged
+        before = metrics(db, "2026-11-03")
+        n_calls = len(list(calls.iterdir()))
+        assert run_night(imu_logs, out, night="2026-11-03") == 0
+        assert metrics(db, "2026-11-03") == before and len(list(calls.iterdir())) == n_calls
+    finally:
+        del os.environ[CALLS_ENV]
+
+
+def test_later_nights_leave_earlier_ones_untouched_and_flag_regressions(imu_logs: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    gates = tmp_path / "gates.yaml"
+    gates.write_text("ape_rmse_max_m: 0.05\n", encoding="utf-8")
+    assert run_night(imu_logs, out, night="2026-11-04", gates=gates) == 0
+    with sqlite3.connect(out / "history.sqlite") as con:
+        first = con.execute("SELECT * FROM metrics WHERE night = '2026-11-04' ORDER BY log_id, metric").fetchall()
+    assert run_night(imu_logs, out, night="2026-11-05") == 0
+    with sqlite3.connect(out / "history.sqlite") as con:
+        again = con.execute("SELECT * FROM metrics WHERE night = '2026-11-04' ORDER BY log_id, metric").fetchall()
+        assert con.execute("SELECT COUNT(DISTINCT night) FROM runs").fetchone()[0] == 2
+    assert again == first
+    trends = (out / "trends.html").read_text(encoding="utf-8")
+    assert 'href="2026-11-04/index.html"' in trends and 'href="2026-11-05/index.html"' in trends
+
+
+def test_regression_flags_against_the_median_of_previous_nights() -> None:
+    per_log = {"a": {"n1": 0.10, "n2": 0.11, "n3": 0.09, "n4": 0.13},  # +30 % over the median 0.10
+               "b": {"n1": 0.10, "n2": 0.10, "n3": 0.11},  # +10 %: within tolerance
+               "c": {"n1": 0.0, "n2": 0.0, "n3": 1.0}}  # from zero: any increase counts
+    flagged = find_regressions("m", per_log, window=5, tolerance=0.2)
+    assert [f.split(":")[0] for f in flagged] == ["a", "c"]
+    assert find_regressions("rtf", {"a": {"n1": 2.0, "n2": 1.5}}, 5, 0.2, higher_is_better=True)
+    assert not find_regressions("rtf", {"a": {"n1": 2.0, "n2": 1.9}}, 5, 0.2, higher_is_better=True)
+    # only the previous `window` nights count
+    assert not find_regressions("m", {"a": {"n1": 10.0, "n2": 1.0, "n3": 1.0, "n4": 1.1}}, 2, 0.2)
