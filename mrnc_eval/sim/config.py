@@ -22,6 +22,9 @@ class LidarSimConfig:
     beam_azimuth_offsets_deg: tuple[float, ...] = param(
         (4.2, 1.4, -1.4, -4.2), "per-ring azimuth offsets, cycled over the rings (staggered columns as ouster-ros "
         "publishes them; the pattern of the shared OS1-128 metadata, 0 = no stagger)", "deg")
+    packet_profile: Literal["RNG19_RFL8_SIG16_NIR16", "RNG15_RFL8_NIR8"] = param(
+        "RNG19_RFL8_SIG16_NIR16", "Ouster UDP profile: full (1 mm range, photon signal as intensity) or low "
+        "bandwidth like the shared real recording (8 mm range steps, intensity = reflectivity, ambient in steps of 16)")
     lidar_origin_to_beam_origin_mm: float = param(27.67, "beam origin offset from the lidar axis (OS0)", "mm")
     lidar_to_sensor_z_m: float = param(0.03618, "os_sensor -> os_lidar height (ouster-ros tf; lidar rotated "
                                        "180 deg about z)", "m")

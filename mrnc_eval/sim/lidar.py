@@ -78,6 +78,7 @@ class LidarSimulator:
         self._albedo = np.asarray(list(scene.reflectivity) + [0.0], np.float64)  # last = nothing hit
         self.cfg = cfg
         self.beams = beam_model(cfg)
+        self._dirs_whj = np.ascontiguousarray(self.beams.directions.transpose(1, 0, 2))  # (W, H, 3)
         self.base_to_sensor = base_to_sensor
         self.rng = rng
         self.col_dt = 1.0 / (cfg.rate_hz * cfg.columns)
@@ -91,12 +92,13 @@ class LidarSimulator:
 
     def sweep(self, traj: BodyTrajectory, stamp: float) -> OrganisedSweep:
         c, bm = self.cfg, self.beams
+        low_bandwidth = c.packet_profile == "RNG15_RFL8_NIR8"
         col_t = stamp + np.arange(c.columns) * self.col_dt
         p, r = traj.pose(col_t)
         rot_ws = r.as_matrix() @ self.base_to_sensor[:3, :3]  # (W, 3, 3) os_sensor in map
         sensor_w = p + r.apply(self.base_to_sensor[:3, 3])
-        origin_w = sensor_w + np.einsum("wij,wj->wi", rot_ws, bm.origins)
-        d_world = np.einsum("wij,hwj->hwi", rot_ws, bm.directions)
+        origin_w = sensor_w + np.matmul(rot_ws, bm.origins[..., None])[..., 0]
+        d_world = np.matmul(self._dirs_whj, rot_ws.transpose(0, 2, 1)).transpose(1, 0, 2)  # (H, W, 3)
         rays = np.concatenate([np.broadcast_to(origin_w[None], d_world.shape), d_world], axis=2)
         hit = self._rs.cast_rays(self._o3d.core.Tensor(np.ascontiguousarray(rays, np.float32).reshape(-1, 6)))
         dist = hit["t_hit"].numpy().reshape(c.beams, c.columns).astype(np.float64)
@@ -105,24 +107,28 @@ class LidarSimulator:
         found = np.isfinite(dist)
         gid = np.where(found, np.minimum(gid, self._albedo.size - 1), self._albedo.size - 1)
         albedo = self._albedo[gid]
-        cos_inc = np.abs(np.einsum("hwi,hwi->hw", normal, d_world))
+        cos_inc = np.abs((normal * d_world).sum(axis=2))
         safe = np.where(found, np.maximum(dist + bm.beam_offset_m, 0.1), 1.0)
         strength = albedo * cos_inc / safe ** 2
         rng_m = safe + self.rng.normal(0.0, c.range_noise_m, dist.shape)
         valid = found & (strength >= self._min_return) & (rng_m <= c.max_range_m) & (rng_m >= c.min_range_m)
-        range_mm = np.where(valid, np.round(rng_m * 1000.0), 0.0).astype(np.uint32)
+        step_mm = 8.0 if low_bandwidth else 1.0
+        range_mm = np.where(valid, np.round(rng_m * 1000.0 / step_mm) * step_mm, 0.0).astype(np.uint32)
         along = np.where(valid, range_mm / 1000.0 - bm.beam_offset_m, 0.0)
         xyz = np.where(valid[..., None], bm.origins[None] + bm.directions * along[..., None], 0.0).astype(np.float32)
         signal = self.rng.poisson(np.where(valid, SIGNAL_AT_DETECTION_LIMIT * strength / self._min_return, 0.0))
         intensity = np.minimum(signal, MAX_U16).astype(np.float32)
         refl = np.where(valid, np.round(100.0 * albedo * np.sqrt(cos_inc) + self.rng.normal(0.0, 1.0, dist.shape)), 0)
-        sunlit = np.clip(np.einsum("hwi,i->hw", normal, self._sun), 0.0, 1.0)
+        sunlit = np.clip(normal @ self._sun, 0.0, 1.0)
         looking_up = d_world[..., 2] > 0
         ambient_mean = np.where(found, c.ambient_sunlit_photons * (0.05 + albedo * sunlit),
                                 np.where(looking_up, c.ambient_sky_photons, 0.0))
-        ambient = np.minimum(self.rng.poisson(ambient_mean), MAX_U16).astype(np.uint16)
-        return OrganisedSweep(stamp, xyz, self._t_ns, range_mm, np.clip(refl, 0, 255).astype(np.uint16), intensity,
-                              ambient)
+        ambient = np.minimum(self.rng.poisson(ambient_mean), MAX_U16)
+        refl = np.clip(refl, 0, 255).astype(np.uint16)
+        if low_bandwidth:  # no signal channel: ouster-ros fills intensity with reflectivity; NIR has 8 bits
+            intensity = refl.astype(np.float32)
+            ambient = np.minimum(ambient // 16, 255) * 16
+        return OrganisedSweep(stamp, xyz, self._t_ns, range_mm, refl, intensity, ambient.astype(np.uint16))
 
 
 def ouster_metadata(cfg: LidarSimConfig, sensor_to_imu: np.ndarray, model: str) -> str:
@@ -143,5 +149,5 @@ def ouster_metadata(cfg: LidarSimConfig, sensor_to_imu: np.ndarray, model: str) 
         "imu_to_sensor_transform": [round(float(v), 6) for v in imu_mm.ravel()],
         "data_format": {"columns_per_frame": cfg.columns, "columns_per_packet": 16, "pixels_per_column": cfg.beams,
                         "column_window": [0, cfg.columns - 1], "pixel_shift_by_row": [int(s) for s in shift],
-                        "udp_profile_lidar": "RNG19_RFL8_SIG16_NIR16", "udp_profile_imu": "LEGACY"},
+                        "udp_profile_lidar": cfg.packet_profile, "udp_profile_imu": "LEGACY"},
     }, sort_keys=True)
