@@ -98,6 +98,7 @@ class LogReader:
         self._stats: dict[str, TopicInfo] | None = None
         self._health: dict[str, StreamHealth] = {}
         self._roles: dict[str, str] | None = None
+        self._stamps: dict[str, np.ndarray] = {}
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -194,8 +195,9 @@ class LogReader:
             else:
                 stamps[topic].append(t_rec * 1e-9)
         stats: dict[str, TopicInfo] = {}
+        self._stamps = {t: np.asarray(v, dtype=float) for t, v in stamps.items()}
         for topic, ch in self._channels.items():
-            arr = np.asarray(stamps[topic], dtype=float)
+            arr = self._stamps[topic]
             _, health = _sort_dedup(arr, topic)
             self._set_health(health)
             span = float(arr.max() - arr.min()) if arr.size > 1 else 0.0
@@ -339,9 +341,16 @@ class LogReader:
         base = self._health.get(topic) or StreamHealth(topic=topic, count=0)
         self._health[topic] = replace(base, notes=(*base.notes, note))
 
+    def stamps(self, topic: str) -> np.ndarray:
+        """Header stamps (s) of a topic in log order, as recorded (record times for types
+        without a header); from the one scan of the log, so free after `topics`."""
+        self._channel(topic)
+        if self._stats is None:
+            self._scan()
+        return self._stamps[topic].copy()
+
     def sweep_stamps(self, topic: str | None = None) -> np.ndarray:
-        topic = self._topic_for("lidar", topic)
-        return np.asarray([self._raw_header_stamp(raw, topic) for _, raw in self._raw(topic)])
+        return self.stamps(self._topic_for("lidar", topic))
 
     def gnss(self, topic: str | None = None) -> GnssSeries:
         topic = self._topic_for("gnss", topic)

@@ -99,7 +99,7 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
         summary.findings.append(Finding("warning", topic, "no IMU: deskew and preintegration unavailable"))
         return
     sweep_t = np.sort(lg.sweep_stamps(topic))
-    imu_t = np.sort(np.asarray([lg._raw_header_stamp(raw, imu_topic) for _, raw in lg._raw(imu_topic)]))
+    imu_t = np.sort(lg.stamps(imu_topic))
     from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 
     try:
