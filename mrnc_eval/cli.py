@@ -286,11 +286,11 @@ def table(
 
 @app.command()
 def report(
-    result_dirs: Annotated[list[Path], typer.Argument(metavar="RESULT_DIR...", help="Result directories written by slam/control.")],
+    result_dirs: Annotated[list[Path], typer.Argument(metavar="RESULT_DIR...", help="Result directories written by info/slam/control, or a folder holding them (a nightly per-log folder).")],
     out: Annotated[Optional[Path], typer.Option(help="Output directory (default: next to each result).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
 ) -> None:
-    """Render HTML (and PDF) reports from result directories; never recomputes."""
+    """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
     _pipeline("report").main(result_dirs, out=out, pdf=pdf)
 
 
