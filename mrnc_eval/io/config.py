@@ -19,3 +19,9 @@ class IoConfig:
         "geodetic origin (lat deg, lon deg, alt m) of the local ENU frame; "
         "default: the first valid fix of the log",
     )
+    gnss_unknown_variance_m2: tuple[float, float, float] = param(
+        (4.0, 4.0, 16.0),
+        "east/north/up position variance given to fixes whose NavSatFix covariance is unknown "
+        "(position_covariance_type 0 or an all-zero diagonal), so no fix is trusted as exact",
+        "m^2",
+    )

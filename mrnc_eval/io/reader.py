@@ -354,19 +354,26 @@ class LogReader:
 
     def gnss(self, topic: str | None = None) -> GnssSeries:
         topic = self._topic_for("gnss", topic)
-        t, lla, cov, no_fix, frame = [], [], [], 0, ""
+        t, lla, cov, no_fix, unknown_cov, frame = [], [], [], 0, 0, ""
         for m in self._messages(topic, ("sensor_msgs/msg/NavSatFix",)):
             if m.status.status < 0 or not np.isfinite([m.latitude, m.longitude, m.altitude]).all():
                 no_fix += 1
                 continue
             t.append(_stamp(m))
             lla.append((m.latitude, m.longitude, m.altitude))
-            cov.append(np.asarray(m.position_covariance, float).reshape(3, 3))
+            c = np.asarray(m.position_covariance, float).reshape(3, 3)
+            if m.position_covariance_type == 0 or not np.any(np.diag(c) > 0):  # COVARIANCE_TYPE_UNKNOWN
+                c = np.diag(self.cfg.gnss_unknown_variance_m2).astype(float)
+                unknown_cov += 1
+            cov.append(c)
             frame = m.header.frame_id
         if not t:
             raise InputError(self.path, f"no valid GNSS fix ({no_fix} without fix)", topic=topic)
         keep, health = _sort_dedup(np.asarray(t), topic)
         self._set_health(health)
+        if unknown_cov:
+            self._note(topic, f"{unknown_cov} fix(es) without covariance: variance "
+                       f"{self.cfg.gnss_unknown_variance_m2} m^2 assumed (io.gnss_unknown_variance_m2)")
         lla_a = np.asarray(lla)[keep]
         origin = np.asarray(self.cfg.gnss_origin_lla if self.cfg.gnss_origin_lla is not None else lla_a[0], float)
         return GnssSeries(np.asarray(t)[keep], lla_a, geodesy.lla_to_enu(lla_a, origin), np.asarray(cov)[keep],

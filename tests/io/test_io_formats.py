@@ -250,3 +250,20 @@ def test_enu_against_independent_rotation_composition() -> None:
     np.testing.assert_allclose(got, expected, atol=1e-6)
     assert np.abs(got[:, :2]).max() > 1000  # kilometres from the origin, not a trivial case
     assert math.isclose(float(np.linalg.norm(got[0])), float(np.linalg.norm(expected[0])), rel_tol=1e-12)
+
+
+def test_gnss_without_covariance_gets_the_configured_variance(tmp_path: Path) -> None:
+    from mrnc_eval.io.config import IoConfig
+
+    origin = np.array([47.0, 8.0, 400.0])
+    lla = geodesy.enu_to_lla(np.array([[0.0, 0.0, 0.0], [3.0, 4.0, 0.0]]), origin)
+    cov = np.stack([np.zeros((3, 3)), np.diag([0.25, 0.25, 1.0])])  # unknown, then known
+    with LogWriter(tmp_path / "g.mcap", "mcap") as w:
+        w.write_navsatfix("/fix", [1.0, 2.0], lla, cov, [0, 2])
+    with open_log(tmp_path / "g.mcap", IoConfig(gnss_unknown_variance_m2=(9.0, 9.0, 25.0))) as log:
+        gnss = log.gnss()
+        notes = log.health("/fix").notes
+    np.testing.assert_allclose(gnss.covariance[0], np.diag([9.0, 9.0, 25.0]))
+    np.testing.assert_allclose(gnss.covariance[1], np.diag([0.25, 0.25, 1.0]))
+    np.testing.assert_allclose(gnss.enu[1], [3.0, 4.0, 0.0], atol=1e-6)
+    assert notes and "1 fix(es) without covariance" in notes[0]
