@@ -18,15 +18,15 @@ from mrnc_eval.control.controllers import (
     STATE_SIZE,
     controller_params,
     controller_step,
-    funnel,
-    rbf_centres,
+    funnel_at,
 )
 from mrnc_eval.control.kinematics import inverse_kinematics, slew
 from mrnc_eval.control.plant import body_step, drive_step, patches_array, slip_at
 from mrnc_eval.control.pure_pursuit import pp_step
-from mrnc_eval.control.scenario import Scenario
+from mrnc_eval.control.raid import rbf_centres
+from mrnc_eval.control.scenario import Scenario, waypoint_scenario
 
-N_OUT = 17  # recorded channels, see ClosedLoopTrace
+N_OUT = 18  # recorded channels, see ClosedLoopTrace
 
 
 @dataclass
@@ -49,10 +49,14 @@ class ClosedLoopTrace:
     slip_right: np.ndarray
     u_left: np.ndarray  # pump command after the safety clamp, RPM
     u_right: np.ndarray
-    funnel: np.ndarray  # o(t), m/s
+    funnel: np.ndarray  # o(t) of the left side, m/s (equal to the right's unless anchored per step)
     events: list[dict] = field(default_factory=list)  # safety stops
     completed: bool = False
     waypoints: np.ndarray | None = None
+    funnel_right: np.ndarray | None = None  # o(t) of the right side, m/s (None: same as `funnel`)
+
+    def funnel_of(self, side: str) -> np.ndarray:
+        return self.funnel_right if side == "right" and self.funnel_right is not None else self.funnel
 
 
 @njit(cache=True)
@@ -121,24 +125,28 @@ def _simulate(cid, p, centres, wp, patches, x0, y0, yaw0, dt, n_steps, pp_every,
         vw_r = drive_step(vw_r, ur_del, s_r, gain, a, dz)
         x, y, yaw, v_body, w_body = body_step(x, y, yaw, (1.0 - s_l) * vw_l, (1.0 - s_r) * vw_r, track * chi, dt)
         if k % record_every == 0:
-            t0 = state_l[5] if p[4] > 0.5 else 0.0
-            o, _ = funnel(t - t0, p[5], p[6], p[7])
+            o_l, _ = funnel_at(state_l, p, t)
+            o_r, _ = funnel_at(state_r, p, t)
             row = out[k_rec]
             row[0], row[1], row[2], row[3], row[4], row[5] = t, x, y, yaw, v_body, w_body
             row[6], row[7], row[8], row[9] = cmd_v, cmd_w, ref_l, ref_r
             row[10], row[11], row[12], row[13] = meas_l, meas_r, s_l, s_r
-            row[14], row[15], row[16] = u_l, u_r, o
+            row[14], row[15], row[16], row[17] = u_l, u_r, o_l, o_r
             k_rec += 1
         if done_at >= 0 and k - done_at >= linger_steps:
             break
     return out[:k_rec], stops, done
 
 
-def run_closed_loop(scenario: Scenario, cfg: ControlConfig, robot: RobotConfig, controller: str = "raid", *,
-                    duration_s: float | None = None, seed: int | None = None, record_every: int = 1) -> ClosedLoopTrace:
-    """Drive `scenario` with `controller` until the path is done (plus 2 s) or `duration_s`."""
+def run_closed_loop(scenario: Scenario | np.ndarray, cfg: ControlConfig, robot: RobotConfig, controller: str = "raid",
+                    *, duration_s: float | None = None, seed: int | None = None,
+                    record_every: int = 1) -> ClosedLoopTrace:
+    """Drive `scenario` (or bare waypoints (N, 2) m, no slip) with `controller` at cfg.rate_hz
+    until the path is done (plus 2 s) or `duration_s` has passed. Deterministic for a seed."""
     if controller not in CONTROLLER_ID:
         raise ValueError(f"unknown controller {controller!r}")
+    if not isinstance(scenario, Scenario):
+        scenario = waypoint_scenario(scenario)
     dt = 1.0 / cfg.rate_hz
     pp = cfg.pure_pursuit
     path_len = float(np.sum(np.linalg.norm(np.diff(scenario.waypoints_xy, axis=0), axis=1)))
@@ -160,8 +168,8 @@ def run_closed_loop(scenario: Scenario, cfg: ControlConfig, robot: RobotConfig, 
         pl.speed_noise_mps, cfg.kinematics.reference_accel_limit_mps2, cfg.kinematics.reference_derivative_tau_s,
         cfg.seed if seed is None else seed, max(1, int(record_every)), int(round(2.0 / dt)))
     cols = out.T
-    events = [{"t_s": float(stops[i, 0]), "kind": "safety_stop", "side": side,
+    events = [{"t_s": float(stops[i, 0]), "kind": "safety_stop", "side": side, "cause": "barrier_or_non_finite",
                "message": f"{side} side: |e| reached the funnel o(t) or a value became non-finite; command set to 0"}
               for i, side in enumerate(("left", "right")) if stops[i, 0] >= 0]
-    return ClosedLoopTrace(controller, LABELS[controller], *cols, events=events, completed=bool(done),
-                           waypoints=scenario.waypoints_xy)
+    return ClosedLoopTrace(controller, LABELS[controller], *cols[:17], events=events, completed=bool(done),
+                           waypoints=scenario.waypoints_xy, funnel_right=cols[17])

@@ -72,15 +72,18 @@ class PidConfig:
 
 @dataclass(frozen=True)
 class ApcConfig:
-    """Stand-in for the paper's APC: Hou's CFDL model-free adaptive control (source paper unavailable)."""
+    """Stand-in for the paper's APC: Hou's CFDL-MFAPC (source paper unavailable; control-reference 3)."""
 
-    rate_hz: float = param(10.0, "update rate; the command is held between updates", "Hz")
-    phi1: float = param(0.2, "initial pseudo partial derivative (normalised units)")
-    eta: float = param(0.5, "PPD estimator step")
-    mu: float = param(1.0, "PPD estimator regulariser")
-    rho: float = param(0.6, "control step")
-    lam: float = param(1.0, "control move penalty lambda")
-    eps: float = param(1e-5, "reset threshold")
+    rate_hz: float = param(10.0, "update rate; the MFAPC increment is held between updates", "Hz")
+    phi1: float = param(0.2, "initial pseudo partial derivative phi(1), (m/s) per normalised command unit")
+    eta: float = param(0.5, "PPD estimator step eta")
+    mu: float = param(1.0, "PPD estimator regulariser mu")
+    rho: float = param(0.3, "control step rho")
+    lam: float = param(1.0, "control move penalty lambda (<= 0.05 limit-cycles on the clamp when normalised)")
+    eps: float = param(1e-5, "PPD reset threshold epsilon")
+    n_pred: int = param(5, "prediction horizon N_p (the control horizon N_u is 2)")
+    ar_delta: float = param(1.0, "regulariser delta of the AR(3) PPD predictor")
+    ar_theta_max: float = param(10.0, "reset bound M of the AR(3) coefficients")
     rpm_per_unit: float = param(3000.0, "normalisation u_n = U / rpm_per_unit", "RPM")
 
 
@@ -95,6 +98,7 @@ class FoptcConfig:
     ki: float = param(4.0, "integral gain", "1/s^2")
     tau_hat_s: float = param(0.4, "assumed drive time constant", "s")
     k_hat: float = param(1.0 / 3000.0, "assumed drive gain", "(m/s)/RPM")
+    anti_windup: bool = param(True, "conditional integration against the actuator clamp (not in the source law)")
 
 
 @dataclass(frozen=True)
@@ -127,11 +131,16 @@ class SlipPatchConfig:
 class ScenarioConfig:
     circle_radius_m: float = param(5.0, "paper scenario: circle radius", "m")
     n_waypoints: int = param(8, "paper scenario: waypoints on the circle")
-    centre_xy_m: tuple[float, float] = param((2.0, -3.0), "circle centre; chosen so the paper's slip locations "
-                                              "(2,-8)..(2,-4) and (7,-1) lie on or near the path", "m")
+    centre_xy_m: tuple[float, float] = param(
+        (6.583, -6.0), "circle centre. The paper's GPS figure shows slip from (2,-8) to (2,-4) and at (7,-1); "
+        "the 5 m circle through all three has its centre at (2 + sqrt(21), -6) = (6.583, -6)", "m")
+    start_angle_deg: float = param(
+        247.5, "polar angle of the start (and first waypoint) about the centre; waypoints follow clockwise every "
+        "360/n degrees. 247.5 puts waypoints at 202.5 and 157.5 deg, i.e. at (2,-8) and (2,-4), and the robot "
+        "reaches the first slip patch after ~10 s (paper: slip at about 10-20 s)", "deg")
     slip_patches: list[SlipPatchConfig] = param(
-        [SlipPatchConfig(2.0, -8.0, 1.5, 0.15), SlipPatchConfig(7.0, -1.0, 1.2, 0.18)],
-        "soft, wet ground patches (paper Fig.: slippage from (2,-8) to (2,-4) and at (7,-1))")
+        [SlipPatchConfig(1.583, -6.0, 2.1, 0.15), SlipPatchConfig(7.0, -1.0, 1.2, 0.18)],
+        "soft, wet ground patches: one over the arc (2,-8)..(2,-4), one at (7,-1) (paper's GPS figure)")
 
 
 @dataclass(frozen=True)
@@ -162,7 +171,7 @@ class ControlConfig:
     funnel: FunnelConfig = section(FunnelConfig, "RAID prescribed-performance funnel o(t)")
     raid: RaidConfig = section(RaidConfig, "RAID controller (paper)")
     pid: PidConfig = section(PidConfig, "PID baseline")
-    apc: ApcConfig = section(ApcConfig, "APC baseline (stand-in: CFDL-MFAC)")
+    apc: ApcConfig = section(ApcConfig, "APC baseline (stand-in: CFDL-MFAPC)")
     foptc: FoptcConfig = section(FoptcConfig, "FOPTC baseline (stand-in: prescribed-time gain)")
     actuator: ActuatorConfig = section(ActuatorConfig, "pump command limits and feed-forward")
     plant: PlantConfig = section(PlantConfig, "hydraulic in-wheel drive model")

@@ -20,15 +20,27 @@ class Scenario:
 
 
 def paper_circle_scenario(cfg: ControlConfig) -> Scenario:
-    """8 waypoints on a ~5 m circle, driven once clockwise (the paper: the left side runs faster
-    than the right) and closed back to the start; the robot starts on the circle facing along
-    it. Slip patches as in the paper's figure."""
+    """The paper's experiment: 8 waypoints on a 5 m circle driven once clockwise (the paper:
+    "the robot has the right side heading on the circle", the left side runs faster) and closed
+    back to the start; the robot starts on the first waypoint facing along the circle. The
+    centre and slip patches follow the paper's GPS figure (see control.scenario in the config)."""
     s = cfg.scenario
     cx, cy = s.centre_xy_m
-    ang = -math.pi / 2 - 2 * math.pi * np.arange(s.n_waypoints + 1) / s.n_waypoints
+    a0 = math.radians(s.start_angle_deg)
+    ang = a0 - 2 * math.pi * np.arange(s.n_waypoints + 1) / s.n_waypoints
     wp = np.c_[cx + s.circle_radius_m * np.cos(ang), cy + s.circle_radius_m * np.sin(ang)]
     patches = tuple(SlipPatch(p.x_m, p.y_m, p.radius_m, p.slip) for p in s.slip_patches)
-    return Scenario("circle", wp, patches, (float(wp[0, 0]), float(wp[0, 1]), math.pi))
+    heading = math.atan2(wp[1, 1] - wp[0, 1], wp[1, 0] - wp[0, 0])  # along the first chord
+    return Scenario("circle", wp, patches, (float(wp[0, 0]), float(wp[0, 1]), heading))
+
+
+def waypoint_scenario(waypoints_xy: np.ndarray, name: str = "waypoints") -> Scenario:
+    """A path without slip, started on its first waypoint facing the second."""
+    wp = np.asarray(waypoints_xy, dtype=np.float64).reshape(-1, 2)
+    if wp.shape[0] < 2:
+        raise ValueError("a path needs at least 2 waypoints")
+    yaw0 = math.atan2(wp[1, 1] - wp[0, 1], wp[1, 0] - wp[0, 0])
+    return Scenario(name, wp, (), (float(wp[0, 0]), float(wp[0, 1]), yaw0))
 
 
 def scripted_scenario(name: str, cfg: ControlConfig, *, size_m: float = 10.0) -> Scenario:
@@ -51,5 +63,4 @@ def scripted_scenario(name: str, cfg: ControlConfig, *, size_m: float = 10.0) ->
         wp = np.c_[np.linspace(0, size_m, 11), np.zeros(11)]
     else:
         raise ValueError(f"unknown path {name!r}: circle, figure8, loop, line")
-    yaw0 = math.atan2(wp[1, 1] - wp[0, 1], wp[1, 0] - wp[0, 0])
-    return Scenario(name, wp, (), (float(wp[0, 0]), float(wp[0, 1]), yaw0))
+    return waypoint_scenario(wp, name)

@@ -12,7 +12,7 @@ from mrnc_eval.cli import main
 from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import run_closed_loop
 from mrnc_eval.control.config import MetricsConfig, PurePursuitConfig
-from mrnc_eval.control.controllers import CONTROLLERS, WheelController
+from mrnc_eval.control.controllers import CONTROLLERS, make_controller
 from mrnc_eval.control.pure_pursuit import PurePursuit, wrap_angle
 from mrnc_eval.control.saturation import clamp, lambda_construction
 from mrnc_eval.control.scenario import paper_circle_scenario
@@ -107,7 +107,7 @@ def test_pure_pursuit_circle_curvature_and_monotonic_index() -> None:
 def test_wheel_controllers_track_a_first_order_drive() -> None:
     cfg = Config().control
     for name in CONTROLLERS:
-        c = WheelController(name, cfg)
+        c = make_controller(name, cfg)
         v, dt = 0.0, 0.001
         for k in range(10000):
             ref = min(0.3, 0.3 * k * dt)  # 0.3 m/s^2 ramp

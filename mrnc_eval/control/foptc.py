@@ -1,0 +1,36 @@
+"""FOPTC stand-in: prescribed-time time-varying gain (Song, Wang, Holloway & Krstic 2017).
+
+The paper's FOPTC (Ge, Xu & Song 2023) was not available. Practical form, restarted at each
+reference step (control-reference 3): t_s = min(t - t_seg, T - delta),
+g = k0 + c h / (T - t_s) (1/s), I += ki e dt, u_fb = (tau_hat / K_hat) (g e + I) RPM with
+e = v_ref - v (m/s), K_hat the assumed drive gain ((m/s)/RPM) and tau_hat its time constant.
+Anti-windup (not part of the source law, on by default): conditional integration, i.e. the
+integral is frozen while the total command is clamped and the error pushes further into
+the clamp; without it the integral winds up against the 1250 RPM limit.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from mrnc_eval.control.config import ControlConfig
+
+
+@njit(cache=True)
+def foptc_step(state, k0, c_h, horizon, freeze, ki, tau_hat, k_hat, anti_windup, t_seg, err, u_ff, u_min, u_max, dt):
+    """state = [integral m/s]. t_seg: time since the segment (reference step) started, s."""
+    ts = min(t_seg, horizon - freeze)
+    g = k0 + c_h / (horizon - ts)
+    scale = tau_hat / k_hat
+    integral = state[0] + ki * err * dt
+    u_fb = scale * (g * err + integral)
+    total = u_ff + u_fb
+    if anti_windup and (total > u_max and err > 0.0 or total < u_min and err < 0.0):
+        return scale * (g * err + state[0])  # clamped and pushing further: hold the integral
+    state[0] = integral
+    return u_fb
+
+
+def foptc_params(cfg: ControlConfig) -> list[float]:
+    c = cfg.foptc
+    return [c.k0, c.c_h, c.horizon_s, c.freeze_before_s, c.ki, c.tau_hat_s, c.k_hat, 1.0 if c.anti_windup else 0.0]

@@ -1,0 +1,41 @@
+"""PID baseline with anti-windup (control-reference 3, ros-controls Pid semantics).
+
+err = v_ref - v (m/s); u_fb = kp err + I + kd d(err)/dt (RPM) on top of the shared
+feed-forward. Anti-windup against the +/-u_max clamp of the total command:
+back-calculation I += dt (ki err + (u_sat - u) / T_t), conditional integration
+(integrate only while unsaturated or when the error drives out of saturation), or none.
+"""
+
+from __future__ import annotations
+
+from numba import njit
+
+from mrnc_eval.control.config import ControlConfig
+
+ANTI_WINDUP = {"back_calculation": 0, "conditional": 1, "none": 2}
+
+
+@njit(cache=True)
+def pid_step(state, kp, ki, kd, mode, tt, err, u_ff, u_min, u_max, dt):
+    """state = [integral RPM, previous error, initialised]. Returns u_fb (RPM)."""
+    if state[2] == 0.0:
+        state[1] = err
+        state[2] = 1.0
+    deriv = (err - state[1]) / dt
+    state[1] = err
+    u_unsat = kp * err + state[0] + kd * deriv
+    total = u_ff + u_unsat
+    sat = min(max(total, u_min), u_max)
+    if mode == 0:
+        state[0] += dt * (ki * err + (sat - total) / tt)
+    elif mode == 1:
+        if total == sat or err * u_unsat <= 0.0:
+            state[0] += dt * ki * err
+    else:
+        state[0] += dt * ki * err
+    return u_unsat
+
+
+def pid_params(cfg: ControlConfig) -> list[float]:
+    p = cfg.pid
+    return [p.kp, p.ki, p.kd, float(ANTI_WINDUP[p.anti_windup]), p.tracking_time_s]

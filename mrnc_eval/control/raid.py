@@ -1,0 +1,70 @@
+"""The paper's RAID wheel-speed law (paper-notes 4.1-4.6).
+
+Per side i, with e = v - v_ref (m/s; the paper's sign) and the funnel
+o(t) = (o_ov - o_b) exp(-o* t) + o_b (m/s; t in s, o* in 1/s):
+  u_fb = -beta e / 2 - odot^2 e^3 / (o^2 (o^2 - e^2))
+         - e / (o^2 - e^2) (phi^4 ||Phi|| + ||Phi||^2 + vdot_ref^2 + 1)          (law units)
+  phi_dot = -kappa phi / 2 + (e / (o^2 - e^2))^2 phi^3 ||Phi||                     (1/s)
+  Phi_k(v) = exp(-(v - alpha_k)^2 / gamma^2), alpha = 2 rand - 1 (seeded), k = 1..N
+The pump command is f + scale * u_fb with the feed-forward f = 3000 v_ref RPM (the -f_i of
+the printed law cancels the +f_i of U = lambda (u + f) + lambda_bar; paper-notes 4.2); the
+safety clamp follows in controllers.py. phi is integrated with explicit Euler at the
+control period. At or beyond the barrier (|e| >= o) or on a non-finite value the law
+reports failure: the caller records a safety stop and commands zero (paper-notes 4.5).
+"""
+
+from __future__ import annotations
+
+import math
+
+import numpy as np
+from numba import njit
+
+from mrnc_eval.control.config import ControlConfig
+
+
+@njit(cache=True)
+def funnel(t: float, o_ov: float, o_b: float, o_star: float) -> tuple[float, float]:
+    """o(t) (m/s) and do/dt (m/s^2) for t >= 0 in seconds and o* in 1/s."""
+    ex = (o_ov - o_b) * math.exp(-o_star * t)
+    return ex + o_b, -o_star * ex
+
+
+@njit(cache=True)
+def rbf_norms(v: float, centres: np.ndarray, gamma: float) -> tuple[float, float]:
+    """(||Phi(v)||, ||Phi(v)||^2) of the Gaussian RBF layer."""
+    norm2 = 0.0
+    for k in range(centres.size):
+        g = math.exp(-((v - centres[k]) ** 2) / (gamma * gamma))
+        norm2 += g * g
+    return math.sqrt(norm2), norm2
+
+
+@njit(cache=True)
+def raid_step(state, centres, gamma, beta, kappa, scale, e, o, odot, vdot_ref, v_meas, dt):
+    """RAID feedback in RPM (scale RPM per law unit). state[0] = phi, advanced by one period.
+    Returns (u_fb, ok); ok is False at or beyond the barrier or on non-finite values
+    (then phi is left unchanged and u_fb = 0)."""
+    gap = o * o - e * e
+    if not (gap > 0.0) or not math.isfinite(e):
+        return 0.0, False
+    phi = state[0]
+    norm, norm2 = rbf_norms(v_meas, centres, gamma)
+    u = (-0.5 * beta * e - odot * odot * e ** 3 / (o * o * gap)
+         - e / gap * (phi ** 4 * norm + norm2 + vdot_ref * vdot_ref + 1.0))
+    phi_new = phi + dt * (-0.5 * kappa * phi + (e / gap) ** 2 * phi ** 3 * norm)
+    u *= scale
+    if not (math.isfinite(u) and math.isfinite(phi_new)):
+        return 0.0, False
+    state[0] = phi_new
+    return u, True
+
+
+def raid_params(cfg: ControlConfig) -> list[float]:
+    r = cfg.raid
+    return [r.gamma, r.beta, r.kappa, r.feedback_scale_rpm, r.phi0]
+
+
+def rbf_centres(cfg: ControlConfig) -> np.ndarray:
+    """alpha = 2 rand - 1 (uniform in [-1, 1] m/s), seeded with raid.centre_seed (printed in reports)."""
+    return 2.0 * np.random.default_rng(cfg.raid.centre_seed).random(cfg.raid.n_neurons) - 1.0
