@@ -267,3 +267,37 @@ def test_gnss_without_covariance_gets_the_configured_variance(tmp_path: Path) ->
     np.testing.assert_allclose(gnss.covariance[1], np.diag([0.25, 0.25, 1.0]))
     np.testing.assert_allclose(gnss.enu[1], [3.0, 4.0, 0.0], atol=1e-6)
     assert notes and "1 fix(es) without covariance" in notes[0]
+
+
+def test_pose_stamped_and_tf_trajectories(tmp_path: Path) -> None:
+    from scipy.spatial.transform import Rotation
+
+    from mrnc_eval.io import messages as M
+
+    w = LogWriter(tmp_path / "p.bag", "bag")
+    yaw = np.array([0.0, 0.3, 0.6])
+    xyz = np.array([[0.0, 0.0, 0.0], [1.0, 0.5, 0.1], [2.0, 1.5, 0.2]])
+    q = Rotation.from_euler("z", yaw[:, None]).as_quat()
+    for k in range(3):
+        t = 5.0 + 0.5 * k
+        ps = w.ts.types["geometry_msgs/msg/PoseStamped"](header=M.header(w.ts, t, "map", True, k),
+                                                         pose=M.pose(w.ts, xyz[k], q[k]))
+        w._queue("/slam/pose", "geometry_msgs/msg/PoseStamped", t, ps)
+        mat = np.eye(4)
+        mat[:3, :3], mat[:3, 3] = Rotation.from_quat(q[k]).as_matrix(), xyz[k]
+        other = np.eye(4)
+        tf = M.tf_message(w.ts, t, [("odom", "base_link", mat), ("map", "odom", other)], True)
+        w._queue("/tf", "tf2_msgs/msg/TFMessage", t, tf)
+    w.write_tf_static([("base_link", "os_sensor", np.eye(4))], 5.0)
+    w.close()
+    with open_log(tmp_path / "p.bag") as log:
+        assert log.roles["tf"] == "/tf" and log.roles["tf_static"] == "/tf_static"
+        pose = log.trajectory("/slam/pose")
+        tf = log.trajectory("/tf:odom.base_link")
+        with pytest.raises(InputError, match=r"\[/tf\]: no transform map -> base_link"):
+            log.trajectory("/tf:map.base_link")
+    for traj in (pose, tf):
+        np.testing.assert_allclose(traj.stamps, [5.0, 5.5, 6.0])
+        np.testing.assert_allclose(traj.positions, xyz, atol=1e-12)
+        np.testing.assert_allclose(np.abs(np.sum(traj.quat_xyzw * q, axis=1)), 1.0, atol=1e-12)
+    assert pose.frame_id == "map" and tf.frame_id == "odom" and tf.child_frame_id == "base_link"

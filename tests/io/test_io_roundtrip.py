@@ -148,10 +148,13 @@ def test_enu_matches_closed_form() -> None:
 
 
 def test_same_input_gives_byte_identical_files(tmp_path: Path) -> None:
-    for fmt, name in (("mcap", "x.mcap"), ("bag", "x.bag")):
+    for fmt, name in (("mcap", "x.mcap"), ("bag", "x.bag"), ("db3", "x.db3"), ("mcap", "xdir")):
         write_sample(tmp_path / "a" / name, fmt)
         write_sample(tmp_path / "b" / name, fmt)
-        assert (tmp_path / "a" / name).read_bytes() == (tmp_path / "b" / name).read_bytes()
+        a, b = tmp_path / "a" / name, tmp_path / "b" / name
+        files = sorted(p.name for p in a.iterdir()) if a.is_dir() else [""]
+        for f in files:
+            assert (a / f if f else a).read_bytes() == (b / f if f else b).read_bytes(), (name, f)
 
 
 def test_failed_write_leaves_nothing(tmp_path: Path) -> None:
