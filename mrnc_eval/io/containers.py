@@ -34,8 +34,7 @@ def detect_container(paths: list[Path]) -> str:
         meta = first / "metadata.yaml"
         if not meta.exists():
             raise InputError(first, f"directory is not a ROS 2 bag (no metadata.yaml); expected {SUPPORTED}")
-        text = meta.read_text(encoding="utf-8", errors="replace")
-        return "ros2-mcap" if "storage_identifier: mcap" in text else "ros2-sqlite3"
+        return "ros2-mcap" if _bag_storage(meta) == "mcap" else "ros2-sqlite3"
     suffix = first.suffix.lower()
     if suffix == ".bag":
         if any(p.suffix.lower() != ".bag" for p in paths):
@@ -48,6 +47,18 @@ def detect_container(paths: list[Path]) -> str:
     if suffix == ".mcap":
         return "ros2-mcap" if _mcap_is_ros2(first) else "mcap"
     raise InputError(first, f"unrecognised log format; expected {SUPPORTED}")
+
+
+def _bag_storage(meta: Path) -> str:
+    """storage_identifier of a ROS 2 bag's metadata.yaml ("" when it cannot be read: rosbags
+    then reports the problem when opening the bag)."""
+    import yaml
+
+    try:
+        info = yaml.safe_load(meta.read_text(encoding="utf-8", errors="replace"))
+        return str(info["rosbag2_bagfile_information"]["storage_identifier"])
+    except Exception:  # noqa: BLE001 - malformed metadata is reported by the reader, with its path
+        return ""
 
 
 def _mcap_is_ros2(path: Path) -> bool:

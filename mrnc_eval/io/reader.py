@@ -524,6 +524,8 @@ class LogReader:
 def _expand(path: str | Path) -> list[Path]:
     """A path, or a glob pattern for split ROS 1 bags (sorted, so split order is kept)."""
     text = str(path)
+    if Path(text).name == "metadata.yaml":  # a ROS 2 bag given by its metadata file
+        return [Path(text).parent]
     if not Path(text).exists() and any(ch in text for ch in "*?["):
         matches = sorted(glob.glob(text))
         if not matches:

@@ -301,3 +301,38 @@ def test_pose_stamped_and_tf_trajectories(tmp_path: Path) -> None:
         np.testing.assert_allclose(traj.positions, xyz, atol=1e-12)
         np.testing.assert_allclose(np.abs(np.sum(traj.quat_xyzw * q, axis=1)), 1.0, atol=1e-12)
     assert pose.frame_id == "map" and tf.frame_id == "odom" and tf.child_frame_id == "base_link"
+
+
+@pytest.mark.parametrize("compression", ["LZ4", "ZSTD", "NONE"])
+def test_ros2_mcap_chunk_compression(tmp_path: Path, compression: str) -> None:
+    """ROS 2 MCAP written by the mcap library itself (not rosbags), with each chunk compression."""
+    from mcap.writer import CompressionType, Writer
+
+    from mrnc_eval.io import messages as M
+
+    ts = typestore_for(ros1=False)
+    msgdef, _ = ts.generate_msgdef("sensor_msgs/msg/Imu", ros_version=2)
+    p = tmp_path / "c.mcap"
+    with p.open("wb") as fh:
+        w = Writer(fh, compression=getattr(CompressionType, compression))
+        w.start(profile="ros2", library="test")
+        sid = w.register_schema(name="sensor_msgs/msg/Imu", encoding="ros2msg", data=msgdef.encode())
+        cid = w.register_channel(topic="/imu", message_encoding="cdr", schema_id=sid)
+        for k in range(200):
+            t = 3.0 + 0.01 * k
+            msg = M.imu(ts, t, "imu", (k, 0, 9.81), (0, 0, 0.1 * k), None, ros1=False)
+            w.add_message(channel_id=cid, log_time=round(t * 1e9), publish_time=round(t * 1e9),
+                          data=bytes(ts.serialize_cdr(msg, "sensor_msgs/msg/Imu")))
+        w.finish()
+    with open_log(p) as log:
+        assert log.container == "ros2-mcap"
+        imu = log.imu()
+    np.testing.assert_allclose(imu.acc[:, 0], np.arange(200))
+    np.testing.assert_allclose(imu.stamps, 3.0 + 0.01 * np.arange(200), atol=1e-9)
+
+
+def test_bag_directory_given_by_its_metadata_file(tmp_path: Path) -> None:
+    write_sample(tmp_path / "run", "db3")
+    with open_log(tmp_path / "run" / "metadata.yaml") as log:
+        assert log.container == "ros2-sqlite3" and log.path == tmp_path / "run"
+        assert log.imu().stamps.size == 50
