@@ -45,6 +45,8 @@ class ImuSimConfig:
     gyro_bias_walk: float = param(1e-5, "gyro bias random walk", "rad/s^2/sqrt(Hz)")
     chassis_rate_hz: float = param(0.0, "chassis IMU rate (ADIS16475: 1000); 0 = no chassis IMU", "Hz")
     chassis_mount_xyz_m: tuple[float, float, float] = param((0.0, 0.0, 0.3), "base_link -> chassis_imu", "m")
+    chassis_mount_rpy_deg: tuple[float, float, float] = param((0.0, 0.0, 0.0), "base_link -> chassis_imu rotation "
+                                                              "(roll, pitch, yaw; fixed axes x-y-z)", "deg")
     mount_xyz_m: tuple[float, float, float] = param((0.006253, -0.011775, 0.007645),
                                                     "os_sensor -> os_imu translation (Ouster)", "m")
 

@@ -104,7 +104,8 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     sensor_to_imu = transform(scfg.imu.mount_xyz_m)
     base_to_imu = base_to_sensor @ sensor_to_imu
     base_to_gnss = transform(scfg.gnss.antenna_xyz_m)
-    base_to_chassis = transform(scfg.imu.chassis_mount_xyz_m)
+    base_to_chassis = transform(scfg.imu.chassis_mount_xyz_m,
+                                Rotation.from_euler("xyz", scfg.imu.chassis_mount_rpy_deg, degrees=True).as_matrix())
 
     def stamps(rate: float) -> np.ndarray:
         return np.arange(0.0, t_end, 1.0 / rate)

@@ -78,7 +78,8 @@ def test_integrated_ideal_imu_from_the_log_reproduces_ground_truth(tmp_path: Pat
     """Strapdown-integrate the noise-free 1 kHz chassis IMU read back from the log from the true
     initial state: over 3 s the pose stays on the ground truth read back from the same log."""
     cfg = _quiet(Config())
-    cfg = replace(cfg, sim=replace(cfg.sim, imu=replace(cfg.sim.imu, chassis_rate_hz=1000.0),
+    cfg = replace(cfg, sim=replace(cfg.sim, imu=replace(cfg.sim.imu, chassis_rate_hz=1000.0,
+                                                        chassis_mount_rpy_deg=(180.0, 0.0, 90.0)),
                                    ground_truth_rate_hz=1000.0))
     log = simulate_log(tmp_path / "imu.mcap", cfg, SimRequest(scene="field", path="circle", duration_s=9.0,
                                                               seed=2, **SMALL))
@@ -86,12 +87,17 @@ def test_integrated_ideal_imu_from_the_log_reproduces_ground_truth(tmp_path: Pat
         imu = lg.imu("/chassis/imu")
         gt = lg.ground_truth()
         base_to_imu = lg.transform("base_link", "chassis_imu")
-    assert imu.stamps.size > 8000 and np.allclose(base_to_imu[:3, :3], np.eye(3))
+    assert imu.stamps.size > 8000
+    # mounted upside down and turned: the IMU reports in its own axes, the tf gives the mount
+    r_bi = Rotation.from_matrix(base_to_imu[:3, :3])
+    assert (r_bi.inv() * Rotation.from_euler("xyz", (180.0, 0.0, 90.0), degrees=True)).magnitude() < 1e-9
+    assert imu.acc[:100, 2].mean() < -9.0  # gravity reaction on -z of an upside-down IMU at rest
     lever = base_to_imu[:3, 3]
     k0, k1 = 5000, 8000  # 5 s .. 8 s: moving and turning
     assert np.allclose(imu.stamps[k0:k1 + 1], gt.stamps[k0:k1 + 1])
     rots = Rotation.from_quat(gt.quat_xyzw)
     pos = gt.positions + rots.apply(lever)  # IMU position truth
+    rots = rots * r_bi  # IMU orientation truth
     dt = 1e-3
     rot = rots[k0]
     p = pos[k0].copy()
@@ -286,3 +292,14 @@ def test_cli_rejects_bad_requests_with_usage_errors(tmp_path: Path) -> None:
     assert main(["simulate", str(tmp_path / "x.mcap"), "--scene", "moon"]) == 2
     assert main(["simulate", str(tmp_path / "x.mcap"), "--columns", "700"]) == 2
     assert not list(tmp_path.iterdir())  # no partial output
+
+
+def test_cli_writes_a_log_and_its_ground_truth(tmp_path: Path) -> None:
+    from mrnc_eval.cli import main
+
+    out = tmp_path / "cli.bag"
+    assert main(["simulate", str(out), "--scene", "field", "--path", "figure8", "--duration", "1.5",
+                 "--lidar", "os0-32", "--columns", "512", "--rate", "20", "--format", "bag", "--seed", "9"]) == 0
+    with open_log(out) as lg:
+        assert lg.container == "ros1" and len(list(lg.sweeps())) == 29
+    assert gt_tum_path(out).exists()
