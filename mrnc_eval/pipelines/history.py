@@ -96,8 +96,22 @@ class History:
         return runs, mets
 
 
+@dataclass(frozen=True)
+class Regression:
+    metric: str
+    log_id: str
+    night: str
+    value: float
+    reference: float  # median of the previous nights
+    nights_compared: int
+
+    def __str__(self) -> str:
+        return (f"{self.log_id}: {self.metric} = {self.value:.4g} on {self.night}, median of the previous "
+                f"{self.nights_compared} nights {self.reference:.4g}")
+
+
 def find_regressions(metric: str, per_log: dict[str, dict[str, float]], window: int, tolerance: float, *,
-                     higher_is_better: bool = False) -> list[str]:
+                     higher_is_better: bool = False) -> list[Regression]:
     """Logs whose latest value of `metric` is worse than the median of their previous `window`
     nights by more than `tolerance` (relative; any increase counts when that median is 0)."""
     out = []
@@ -109,6 +123,5 @@ def find_regressions(metric: str, per_log: dict[str, dict[str, float]], window: 
         ref = statistics.median(prev)
         worse = last < ref * (1 - tolerance) if higher_is_better else last > ref * (1 + tolerance) + 1e-12
         if worse:
-            out.append(f"{log_id}: {metric} = {last:.4g} on {nights[-1]}, median of the previous {len(prev)} "
-                       f"nights {ref:.4g}")
+            out.append(Regression(metric, log_id, nights[-1], last, ref, len(prev)))
     return out

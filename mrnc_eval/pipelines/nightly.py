@@ -23,7 +23,7 @@ from mrnc_eval.results import atomic_write_text, log_id_for
 
 log = logging.getLogger(__name__)
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")
-TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/rtf", "slam/end_drift_m", "control/recorded/left/rms_error_mps",
+TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/ape/end_drift_m", "slam/rtf", "control/recorded/left/rms_error_mps",
                  "control/recorded/right/rms_error_mps", "control/recorded/left/funnel_violations",
                  "control/recorded/right/funnel_violations", "control/recorded/path/cross_track_rms_m")
 HIGHER_IS_BETTER = ("slam/rtf",)
@@ -101,7 +101,7 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
         for summary in executor.run(todo):
             _record(history, night, summary)
             if bar:
-                bar.advance(task)
+                bar.update(task, advance=1, description=f"night {night}: {summary['log_id']} {summary['status']}")
     rows = _write_index(history, night, night_dir)
     regressions = _write_trends(history, out)
     failed = [r for r in rows if r["status"] != "ok"]
@@ -190,9 +190,11 @@ def _write_trends(history: History, out: Path) -> list[str]:
     for night, log_id, metric, value in history.metric_series():
         if metric in TREND_METRICS:
             data.setdefault(metric, {}).setdefault(log_id, {})[night] = value
-    regressions = [r for metric, per_log in data.items()
-                   for r in find_regressions(metric, per_log, REGRESSION_WINDOW, REGRESSION_TOLERANCE,
-                                             higher_is_better=metric in HIGHER_IS_BETTER)]
-    html = render_trends(history.nights(), data, regressions, REGRESSION_WINDOW, REGRESSION_TOLERANCE)
+    data = {m: data[m] for m in TREND_METRICS if m in data}  # SLAM first, then control
+    flagged = {metric: find_regressions(metric, per_log, REGRESSION_WINDOW, REGRESSION_TOLERANCE,
+                                        higher_is_better=metric in HIGHER_IS_BETTER)
+               for metric, per_log in data.items()}
+    regressions = [r for found in flagged.values() for r in found]
+    html = render_trends(history.nights(), data, flagged, REGRESSION_WINDOW, REGRESSION_TOLERANCE)
     atomic_write_text(out / "trends.html", html)
     return regressions

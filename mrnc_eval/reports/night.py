@@ -2,11 +2,16 @@
 
 from __future__ import annotations
 
+from typing import TYPE_CHECKING
+
 from markupsafe import Markup
 
 from mrnc_eval import __version__
 from mrnc_eval.reports.figures import new_figure, svg
 from mrnc_eval.reports.render import css, environment
+
+if TYPE_CHECKING:
+    from mrnc_eval.pipelines.history import Regression
 
 MAX_LOGS_PER_TREND = 12  # more lines than this are unreadable: the worst latest values are drawn
 
@@ -17,9 +22,10 @@ def render_index(night: str, rows: list[dict], columns: list[str]) -> str:
         failed=sum(r["status"] != "ok" for r in rows), gate_failures=sum(bool(r["gates_failed"]) for r in rows))
 
 
-def render_trends(nights: list[str], data: dict[str, dict[str, dict[str, float]]], regressions: list[str],
-                  window: int, tolerance: float) -> str:
-    """data: metric -> log id -> night -> value."""
+def render_trends(nights: list[str], data: dict[str, dict[str, dict[str, float]]],
+                  regressions: dict[str, list[Regression]], window: int, tolerance: float) -> str:
+    """data: metric -> log id -> night -> value; regressions: metric -> flagged latest values
+    (circled in red on the plot)."""
     figures = []
     for metric, per_log in data.items():
         fig, axes = new_figure(7.0, 2.8)
@@ -30,6 +36,8 @@ def render_trends(nights: list[str], data: dict[str, dict[str, dict[str, float]]
             by_night = per_log[log_id]
             xs = sorted(by_night, key=x_of.get)
             ax.plot([x_of[n] for n in xs], [by_night[n] for n in xs], marker="o", ms=3, lw=1, label=log_id)
+        for reg in regressions.get(metric, []):
+            ax.plot([x_of[reg.night]], [reg.value], "o", ms=9, mfc="none", mec="tab:red", mew=1.5)
         ax.set_xticks(range(len(nights)), nights, rotation=30, ha="right", fontsize="small")
         ax.set_xlim(-0.5, len(nights) - 0.5)
         ax.set_title(metric + ("" if len(shown) == len(per_log) else f" ({len(shown)} of {len(per_log)} logs)"))
@@ -37,5 +45,6 @@ def render_trends(nights: list[str], data: dict[str, dict[str, dict[str, float]]
         ax.legend(fontsize="x-small", loc="center left", bbox_to_anchor=(1.01, 0.5))
         figures.append((metric, Markup(svg(fig))))
     return environment().get_template("trends.html.j2").render(
-        css=css(), nights=nights, figures=figures, regressions=regressions, window=window,
+        css=css(), nights=nights, figures=figures, window=window,
+        regressions=[str(r) for found in regressions.values() for r in found],
         tolerance_pct=round(tolerance * 100), tool_version=__version__)

@@ -170,8 +170,26 @@ def test_regression_flags_against_the_median_of_previous_nights() -> None:
                "b": {"n1": 0.10, "n2": 0.10, "n3": 0.11},  # +10 %: within tolerance
                "c": {"n1": 0.0, "n2": 0.0, "n3": 1.0}}  # from zero: any increase counts
     flagged = find_regressions("m", per_log, window=5, tolerance=0.2)
-    assert [f.split(":")[0] for f in flagged] == ["a", "c"]
+    assert [(f.log_id, f.night, f.value, f.reference) for f in flagged] == [("a", "n4", 0.13, 0.10),
+                                                                             ("c", "n3", 1.0, 0.0)]
     assert find_regressions("rtf", {"a": {"n1": 2.0, "n2": 1.5}}, 5, 0.2, higher_is_better=True)
     assert not find_regressions("rtf", {"a": {"n1": 2.0, "n2": 1.9}}, 5, 0.2, higher_is_better=True)
     # only the previous `window` nights count
     assert not find_regressions("m", {"a": {"n1": 10.0, "n2": 1.0, "n3": 1.0, "n4": 1.1}}, 2, 0.2)
+
+
+def test_trends_page_flags_a_regressed_log(tmp_path: Path) -> None:
+    from mrnc_eval.pipelines.history import History, LogRecord
+
+    history = History(tmp_path / "history.sqlite")
+    ape = {"2026-10-01": 0.05, "2026-10-02": 0.05, "2026-10-03": 0.09}
+    for night, value in ape.items():
+        for log_id, v in (("steady", 0.05), ("<b>worse</b>", value)):
+            history.record(LogRecord(night, log_id, "r", "p", "0", "c", "ok", "", "t",
+                                     (("slam/ape/ape_rmse_m", v, "m"), ("slam/rtf", 2.0, ""))))
+    regressions = nightly._write_trends(history, tmp_path)
+    assert [(r.log_id, r.metric, r.night) for r in regressions] == [("<b>worse</b>", "slam/ape/ape_rmse_m",
+                                                                     "2026-10-03")]
+    page = (tmp_path / "trends.html").read_text(encoding="utf-8")
+    assert "&lt;b&gt;worse&lt;/b&gt;: slam/ape/ape_rmse_m = 0.09 on 2026-10-03" in page and "<b>" not in page
+    assert page.count("<figure>") == 2  # APE RMSE and RTF
