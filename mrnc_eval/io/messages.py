@@ -63,30 +63,31 @@ def imu(ts, t, frame_id, acc, gyro, q, ros1, seq=0, acc_var=0.01, gyro_var=6e-4)
     )
 
 
+_NUMPY_OF_DATATYPE = {4: "<u2", 6: "<u4", 7: "<f4"}
+OUSTER_DTYPE = np.dtype({
+    "names": [n for n, _, _ in OUSTER_FIELDS],
+    "formats": [_NUMPY_OF_DATATYPE[d] for _, _, d in OUSTER_FIELDS],
+    "offsets": [o for _, o, _ in OUSTER_FIELDS],
+    "itemsize": OUSTER_POINT_STEP,
+})
+
+
 def ouster_cloud(ts, t, frame_id, xyz, t_ns, range_mm, reflectivity, intensity, ambient, ros1, seq=0):
-    h, w = t_ns.shape
-    buf = np.zeros((h, w, OUSTER_POINT_STEP), dtype=np.uint8)
-    rec = buf.reshape(h * w, OUSTER_POINT_STEP)
-
-    def put(offset, arr, dtype):
-        a = np.ascontiguousarray(np.asarray(arr, dtype=dtype).reshape(h * w))
-        rec[:, offset : offset + a.itemsize] = a.view(np.uint8).reshape(h * w, a.itemsize)
-
+    h, w = np.shape(t_ns)
+    rec = np.zeros(h * w, dtype=OUSTER_DTYPE)  # zeroed: padding bytes are deterministic
     xyz = np.asarray(xyz, dtype=np.float32).reshape(h * w, 3)
-    put(0, xyz[:, 0], "<f4")
-    put(4, xyz[:, 1], "<f4")
-    put(8, xyz[:, 2], "<f4")
-    put(16, intensity, "<f4")
-    put(20, t_ns, "<u4")
-    put(24, reflectivity, "<u2")
-    put(26, np.repeat(np.arange(h, dtype=np.uint16)[:, None], w, axis=1), "<u2")
-    put(28, ambient, "<u2")
-    put(32, range_mm, "<u4")
+    rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    rec["intensity"] = np.asarray(intensity).reshape(-1)
+    rec["t"] = np.asarray(t_ns).reshape(-1)
+    rec["reflectivity"] = np.asarray(reflectivity).reshape(-1)
+    rec["ring"] = np.repeat(np.arange(h, dtype=np.uint16), w)
+    rec["ambient"] = np.asarray(ambient).reshape(-1)
+    rec["range"] = np.asarray(range_mm).reshape(-1)
     pf = ts.types["sensor_msgs/msg/PointField"]
     fields = [pf(name=n, offset=o, datatype=d, count=1) for n, o, d in OUSTER_FIELDS]
     return ts.types["sensor_msgs/msg/PointCloud2"](
         header=header(ts, t, frame_id, ros1, seq), height=h, width=w, fields=fields, is_bigendian=False,
-        point_step=OUSTER_POINT_STEP, row_step=OUSTER_POINT_STEP * w, data=buf.reshape(-1), is_dense=False,
+        point_step=OUSTER_POINT_STEP, row_step=OUSTER_POINT_STEP * w, data=rec.view(np.uint8), is_dense=False,
     )
 
 
