@@ -52,6 +52,7 @@ class ClosedLoopTrace:
     funnel: np.ndarray  # o(t) of the left side, m/s (equal to the right's unless anchored per step)
     events: list[dict] = field(default_factory=list)  # safety stops
     completed: bool = False
+    completion_time_s: float = float("nan")  # when pure pursuit declared the goal reached
     waypoints: np.ndarray | None = None
     funnel_right: np.ndarray | None = None  # o(t) of the right side, m/s (None: same as `funnel`)
 
@@ -135,7 +136,7 @@ def _simulate(cid, p, centres, wp, patches, x0, y0, yaw0, dt, n_steps, pp_every,
             k_rec += 1
         if done_at >= 0 and k - done_at >= linger_steps:
             break
-    return out[:k_rec], stops, done
+    return out[:k_rec], stops, done, done_at
 
 
 def run_closed_loop(scenario: Scenario | np.ndarray, cfg: ControlConfig, robot: RobotConfig, controller: str = "raid",
@@ -160,7 +161,7 @@ def run_closed_loop(scenario: Scenario | np.ndarray, cfg: ControlConfig, robot: 
                         pp.lookahead_time_s, pp.lookahead_min_m, pp.lookahead_max_m])
     pl = cfg.plant
     x0, y0, yaw0 = scenario.start_pose
-    out, stops, done = _simulate(
+    out, stops, done, done_at = _simulate(
         CONTROLLER_ID[controller], controller_params(controller, cfg), rbf_centres(cfg),
         np.ascontiguousarray(scenario.waypoints_xy, dtype=np.float64), patches_array(list(scenario.slip_patches)),
         x0, y0, yaw0, dt, n_steps, max(1, int(round(cfg.rate_hz / pp.rate_hz))), pp_args, robot.track_width_m,
@@ -172,4 +173,5 @@ def run_closed_loop(scenario: Scenario | np.ndarray, cfg: ControlConfig, robot: 
                "message": f"{side} side: |e| reached the funnel o(t) or a value became non-finite; command set to 0"}
               for i, side in enumerate(("left", "right")) if stops[i, 0] >= 0]
     return ClosedLoopTrace(controller, LABELS[controller], *cols[:17], events=events, completed=bool(done),
+                           completion_time_s=done_at * dt if done else float("nan"),
                            waypoints=scenario.waypoints_xy, funnel_right=cols[17])

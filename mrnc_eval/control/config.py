@@ -152,6 +152,9 @@ class MetricsConfig:
     ramp_rate_mps2: float = param(0.05, "the reference is ramping where |dr/dt| exceeds this", "m/s^2")
     min_step_mps: float = param(0.1, "a ramp (or jump) changing the reference by at least this is a step "
                                 "for settling/overshoot; the clock starts where the ramp starts", "m/s")
+    steady_state_statistic: Literal["mean_abs", "abs_mean"] = param(
+        "mean_abs", "steady-state error over the end window: mean |r - y| (paper-notes 6) or |mean(r - y)| "
+        "(a signed bias; measurement noise averages out)")
     steady_window_fraction: float = param(0.2, "steady-state window: this fraction of the segment ...")
     steady_window_max_s: float = param(2.0, "... but at most this long", "s")
     step_window_s: float = param(10.0, "a step is evaluated up to this long after its ramp ends (or up to the "

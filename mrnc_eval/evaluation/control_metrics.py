@@ -4,7 +4,8 @@ Step metrics are segment-based: the run is split where the reference changes by 
 a threshold; per segment with step delta = r - y0:
   settling time = first time after which |y - r| stays within max(band |delta|, floor);
   overshoot %   = 100 max(0, max sign(delta) (y - r)) / |delta|;
-  steady-state error = mean of r - y over the last window of the segment (signed and abs);
+  steady-state error = mean |r - y| (or |mean(r - y)|, configurable) over the last window
+                       of the segment, with the signed mean kept beside it;
   rise time     = 10 % to 90 % of the normalised response.
 These work for down-steps and non-zero initial values (python-control's step_info assumes
 y(0) = 0 and mishandles both).
@@ -28,6 +29,7 @@ class StepMetrics:
     overshoot_pct: float
     steady_state_error: float  # signed mean of r - y over the window
     rise_time_s: float
+    steady_state_abs_error: float = float("nan")  # mean |r - y| over the window
 
 
 def step_response(t: NDArray, y: NDArray, r: NDArray | float, y0: float, cfg: MetricsConfig,
@@ -51,6 +53,7 @@ def step_response(t: NDArray, y: NDArray, r: NDArray | float, y0: float, cfg: Me
     window = min(cfg.steady_window_fraction * duration, cfg.steady_window_max_s)
     tail = t >= t[-1] - window
     sse = float(np.mean(r[tail] - y[tail]))
+    sse_abs = float(np.mean(np.abs(r[tail] - y[tail])))
     rise = float("nan")
     if delta != 0:
         yn = (y - y0) / delta
@@ -58,7 +61,7 @@ def step_response(t: NDArray, y: NDArray, r: NDArray | float, y0: float, cfg: Me
         i90 = np.flatnonzero(yn >= 0.9)
         if i10.size and i90.size:
             rise = float(t[i90[0]] - t[i10[0]])
-    return StepMetrics(float(t[0]), float(delta), ts, overshoot, sse, rise)
+    return StepMetrics(float(t[0]), float(delta), ts, overshoot, sse, rise, sse_abs)
 
 
 def step_segments(t: NDArray, r: NDArray, cfg: MetricsConfig) -> list[tuple[int, int, int]]:
@@ -68,7 +71,8 @@ def step_segments(t: NDArray, r: NDArray, cfg: MetricsConfig) -> list[tuple[int,
     moving = np.concatenate([rate > cfg.ramp_rate_mps2, [False]])
     edges = np.diff(np.concatenate([[0], moving.astype(np.int8), [0]]))
     starts, ends = np.flatnonzero(edges == 1), np.flatnonzero(edges == -1)  # ramp [s, e]
-    ramps = [(int(a), int(min(b, r.size - 1))) for a, b in zip(starts, ends) if abs(r[min(b, r.size - 1)] - r[a]) >= cfg.min_step_mps]
+    ends = np.minimum(ends, r.size - 1)
+    ramps = [(int(a), int(b)) for a, b in zip(starts, ends, strict=True) if abs(r[b] - r[a]) >= cfg.min_step_mps]
     out = []
     for k, (a, b) in enumerate(ramps):
         end = ramps[k + 1][0] if k + 1 < len(ramps) else r.size
@@ -93,8 +97,10 @@ def tracking_metrics(t: NDArray, r: NDArray, y: NDArray, u: NDArray, o: NDArray,
         "settling_time_s": _worst([s.settling_time_s for s in steps]),
         "overshoot_pct": float(max((s.overshoot_pct for s in steps), default=float("nan"))),
         "rise_time_s": float(np.nanmedian([s.rise_time_s for s in steps])) if steps else float("nan"),
-        # mean |r - y| over the end window of each step segment, worst segment
-        "steady_state_error_mps": float(max((abs(s.steady_state_error) for s in steps), default=float("nan"))),
+        # over the end window of each step segment, worst segment
+        "steady_state_error_mps": float(max((s.steady_state_abs_error if cfg.steady_state_statistic == "mean_abs"
+                                             else abs(s.steady_state_error) for s in steps), default=float("nan"))),
+        "steady_state_bias_mps": float(max((s.steady_state_error for s in steps), key=abs, default=float("nan"))),
         "n_steps": len(steps),
         "iae": float(np.sum(ae * dt)),
         "ise": float(np.sum(e * e * dt)),
@@ -109,7 +115,8 @@ def tracking_metrics(t: NDArray, r: NDArray, y: NDArray, u: NDArray, o: NDArray,
         "control_effort": float(np.sum(u * u * dt)),
         "total_variation_rpm": float(np.sum(np.abs(np.diff(u)))),
     }
-    out["recovery_time_s"] = (recovery_time(t, ae, slip, cfg.recovery_band_mps, cfg.recovery_hold_s, cfg.recovery_horizon_s)
+    out["recovery_time_s"] = (recovery_time(t, ae, slip, cfg.recovery_band_mps, cfg.recovery_hold_s,
+                                            cfg.recovery_horizon_s)
                               if slip is not None else float("nan"))
     return out
 
@@ -156,28 +163,43 @@ def recovery_time(t: NDArray, abs_err: NDArray, slip: NDArray, band: float, hold
     return worst
 
 
-def path_metrics(x: NDArray, y: NDArray, yaw: NDArray, t: NDArray, waypoints: NDArray, completed: bool) -> dict[str, float]:
-    """Signed cross-track error to the nearest path segment (+ = left of the path), heading error."""
+def cross_track(x: NDArray, y: NDArray, waypoints: NDArray, chunk: int = 4096) -> tuple[NDArray, NDArray]:
+    """Signed distance (m, + = left of the path) to the nearest path segment and that segment's
+    heading (rad), per sample; computed in chunks so long logs with dense paths stay bounded."""
     a, b = waypoints[:-1], waypoints[1:]
     d = b - a
     L2 = np.maximum(np.einsum("ij,ij->i", d, d), 1e-12)
-    p = np.c_[x, y]
-    s = np.clip(np.einsum("nkj,kj->nk", p[:, None, :] - a[None], d) / L2, 0.0, 1.0)
-    proj = a[None] + s[..., None] * d[None]
-    dist = np.linalg.norm(p[:, None, :] - proj, axis=2)
-    k = np.argmin(dist, axis=1)
-    rows = np.arange(k.size)
-    rel = p - proj[rows, k]
-    cross = d[k, 0] * rel[:, 1] - d[k, 1] * rel[:, 0]
-    cte = np.sign(cross) * dist[rows, k]
-    path_yaw = np.arctan2(d[k, 1], d[k, 0])
+    p_all = np.c_[x, y]
+    cte = np.empty(p_all.shape[0])
+    seg = np.empty(p_all.shape[0], dtype=np.intp)
+    for lo in range(0, p_all.shape[0], chunk):
+        p = p_all[lo:lo + chunk]
+        s = np.clip(np.einsum("nkj,kj->nk", p[:, None, :] - a[None], d) / L2, 0.0, 1.0)
+        proj = a[None] + s[..., None] * d[None]
+        dist = np.linalg.norm(p[:, None, :] - proj, axis=2)
+        k = np.argmin(dist, axis=1)
+        rows = np.arange(k.size)
+        rel = p - proj[rows, k]
+        cross = d[k, 0] * rel[:, 1] - d[k, 1] * rel[:, 0]
+        cte[lo:lo + chunk] = np.where(cross < 0, -1.0, 1.0) * dist[rows, k]
+        seg[lo:lo + chunk] = k
+    return cte, np.arctan2(d[seg, 1], d[seg, 0])
+
+
+def path_metrics(x: NDArray, y: NDArray, yaw: NDArray, waypoints: NDArray,
+                 completion_time_s: float) -> dict[str, float]:
+    """Cross-track error against the path segments, heading error against the nearest segment's
+    direction, completion time (NaN when the goal was not reached) and final distance to the goal.
+    The signed cross-track series is returned under "_cte" (m)."""
+    cte, path_yaw = cross_track(x, y, waypoints)
     herr = (yaw - path_yaw + np.pi) % (2 * np.pi) - np.pi
     return {
         "cross_track_rms_m": float(np.sqrt(np.mean(cte ** 2))),
+        "cross_track_mean_abs_m": float(np.mean(np.abs(cte))),
         "cross_track_max_m": float(np.max(np.abs(cte))),
         "cross_track_p95_m": float(np.percentile(np.abs(cte), 95)),
         "heading_error_rms_rad": float(np.sqrt(np.mean(herr ** 2))),
-        "completion_time_s": float(t[-1] - t[0]) if completed else float("nan"),
+        "completion_time_s": float(completion_time_s),
         "final_position_error_m": float(np.hypot(x[-1] - waypoints[-1, 0], y[-1] - waypoints[-1, 1])),
         "_cte": cte,
     }

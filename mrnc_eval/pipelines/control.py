@@ -5,14 +5,14 @@ from __future__ import annotations
 
 import logging
 import math
-import sys
 from pathlib import Path
 
 import numpy as np
 
 from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
-from mrnc_eval.control.controllers import CONTROLLERS, LABELS, rbf_centres
+from mrnc_eval.control.controllers import CONTROLLERS, LABELS, PAPER_ORDER
+from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import path_metrics, tracking_metrics
@@ -24,14 +24,21 @@ UNITS = {"settling_time_s": "s", "overshoot_pct": "%", "steady_state_error_mps":
          "iae": "m", "ise": "m^2/s", "itae": "m s", "rms_error_mps": "m/s", "max_abs_error_mps": "m/s",
          "funnel_violations": "samples", "max_e_over_o": "", "saturation_ratio": "", "longest_saturation_s": "s",
          "max_abs_command_rpm": "RPM", "control_effort": "RPM^2 s", "total_variation_rpm": "RPM",
-         "recovery_time_s": "s", "safety_stops": "", "n_steps": "",
-         "cross_track_rms_m": "m", "cross_track_max_m": "m", "cross_track_p95_m": "m",
+         "recovery_time_s": "s", "safety_stops": "", "n_steps": "", "steady_state_bias_mps": "m/s",
+"cross_track_mean_abs_m": "m", "cross_track_rms_m": "m", "cross_track_max_m": "m", "cross_track_p95_m": "m",
          "heading_error_rms_rad": "rad", "completion_time_s": "s", "final_position_error_m": "m"}
+# (row label, metric, aggregation over the sides): the paper's three criteria first
 TABLE_ROWS = [("Settling time (s)", "settling_time_s", "max"), ("Overshoot (%)", "overshoot_pct", "max"),
               ("Steady-state error (m/s)", "steady_state_error_mps", "max"),
-              ("Funnel violations", "funnel_violations", "sum"), ("Max |U*| (RPM)", "max_abs_command_rpm", "max"),
-              ("Saturation ratio", "saturation_ratio", "max"), ("Safety stops", "safety_stops", "sum"),
-              ("Cross-track RMS (m)", "cross_track_rms_m", "path")]
+              ("Rise time (s)", "rise_time_s", "max"), ("RMS error (m/s)", "rms_error_mps", "max"),
+              ("IAE (m)", "iae", "max"), ("Recovery after slip (s)", "recovery_time_s", "max"),
+              ("Funnel violations (samples)", "funnel_violations", "sum"), ("Max |e|/o", "max_e_over_o", "max"),
+              ("Max |U*| (RPM)", "max_abs_command_rpm", "max"), ("Saturation ratio", "saturation_ratio", "max"),
+              ("Total variation (RPM)", "total_variation_rpm", "max"), ("Safety stops", "safety_stops", "sum"),
+              ("Cross-track RMS (m)", "cross_track_rms_m", "path"),
+              ("Cross-track max (m)", "cross_track_max_m", "path"),
+              ("Completion time (s)", "completion_time_s", "path")]
+PAPER_ROWS = 3
 
 
 def parse_controllers(text: str) -> tuple[str, ...]:
@@ -48,37 +55,61 @@ def evaluate_trace(tr: ClosedLoopTrace, cfg: Config) -> dict[str, dict[str, floa
     out: dict[str, dict[str, float]] = {}
     for side in ("left", "right"):
         m = tracking_metrics(tr.t, getattr(tr, f"v_ref_{side}"), getattr(tr, f"v_wheel_{side}"),
-                             getattr(tr, f"u_{side}"), tr.funnel, u_max=cfg.control.actuator.u_max_rpm,
+                             getattr(tr, f"u_{side}"), tr.funnel_of(side), u_max=cfg.control.actuator.u_max_rpm,
                              slip=getattr(tr, f"slip_{side}"), cfg=mc)
         m["safety_stops"] = sum(1 for e in tr.events if e.get("side") == side)
         out[side] = m
-    out["path"] = path_metrics(tr.x, tr.y, tr.yaw, tr.t, tr.waypoints, tr.completed)
+    out["path"] = path_metrics(tr.x, tr.y, tr.yaw, tr.waypoints, tr.completion_time_s)
     return out
 
 
-def table_two(per_ctrl: dict[str, dict[str, dict[str, float]]], names: tuple[str, ...]) -> Table:
+def table_notes(cfg: Config) -> list[str]:
+    """The effective definitions, printed under Table II."""
+    m, a, f = cfg.control.metrics, cfg.control.actuator, cfg.control.funnel
+    sse = "mean |v_ref - v|" if m.steady_state_statistic == "mean_abs" else "|mean(v_ref - v)|"
+    return [
+        f"Worst side per controller. Steps: reference ramps or jumps of >= {m.min_step_mps:g} m/s (ramp where "
+        f"|dv_ref/dt| > {m.ramp_rate_mps2:g} m/s^2), each evaluated up to {m.step_window_s:g} s after its ramp "
+        f"ends or up to the next step; the clock starts where the ramp starts.",
+        f"Settling: first time after which |v - v_ref| stays within max({100 * m.settling_band:g} % of the step, "
+        f"{m.settling_floor_mps:g} m/s) ('not settled' if it never does). Overshoot: 100 max(0, max sign(step) "
+        f"(v - v_ref)) / |step|. Steady-state error: {sse} over the last min({100 * m.steady_window_fraction:g} %, "
+        f"{m.steady_window_max_s:g} s) of each step window. Recovery: time after entering or leaving a slip "
+        f"patch until |e| < {m.recovery_band_mps:g} m/s for {m.recovery_hold_s:g} s.",
+        f"Funnel o(t) = ({f.o_ov_mps:g} - {f.o_b_mps:g}) exp(-{f.o_star_per_s:g} t / s) + {f.o_b_mps:g} m/s, "
+        f"anchored at {f.anchor.replace('_', ' ')}; violations count samples with |e| >= o(t) (a metric for every "
+        f"controller; only RAID is designed to respect it).",
+        f"Actuator: |U*| <= {a.u_max_rpm:g} RPM on the {a.saturation_applies_to} command, feed-forward "
+        f"{a.feedforward_rpm_per_mps:g} RPM per m/s for every controller.",
+        "APC and FOPTC are stand-ins (CFDL-MFAPC; prescribed-time gain): the source papers were not available.",
+    ]
+
+
+def table_two(per_ctrl: dict[str, dict[str, dict[str, float]]], names: tuple[str, ...], cfg: Config) -> Table:
+    """Criteria as rows, controllers as columns in the paper's order (RAID, APC, PID, FOPTC)."""
+    cols = [n for n in PAPER_ORDER if n in names] + [n for n in names if n not in PAPER_ORDER]
     cells = []
     for _label, key, agg in TABLE_ROWS:
         row = []
-        for n in names:
+        for n in cols:
             m = per_ctrl[n]
             if agg == "path":
                 v = m["path"][key]
             else:
                 vals = [m[s][key] for s in ("left", "right")]
-                v = float(np.nansum(vals)) if agg == "sum" else (float("nan") if all(np.isnan(vals)) else float(np.nanmax(vals)))
+                if agg == "sum":
+                    v = float(np.nansum(vals))
+                else:
+                    v = float("nan") if all(np.isnan(vals)) else float(np.nanmax(vals))
             if key in ("funnel_violations", "safety_stops"):
                 v = int(v)
-            row.append("not settled" if isinstance(v, float) and math.isinf(v) else v)
+            if isinstance(v, float) and math.isinf(v):
+                v = "not settled" if key == "settling_time_s" else "not recovered" if key == "recovery_time_s" else v
+            row.append(v)
         cells.append(row)
-    return Table(title="Table II: control performance (worst side)", row_labels=[r[0] for r in TABLE_ROWS],
-                 column_labels=[LABELS[n] for n in names], cells=cells, best="min", precision=3,
-                 notes=["Settling: first time after which |v - v_ref| stays within max(2 % of the step, 0.02 m/s), "
-                        "steps = reference ramps of >= 0.1 m/s, evaluated up to 10 s after the ramp; "
-                        "overshoot relative to the step; steady-state error = |mean(v_ref - v)| over the last "
-                        "min(20 %, 2 s) of each step window (see `mrnc-eval config`, control.metrics).",
-                        "APC and FOPTC are stand-ins (CFDL-MFAC; prescribed-time gain): the source papers were "
-                        "not available."])
+    return Table(title="Table II: control performance metrics (stability criteria x controllers)",
+                 row_labels=[r[0] for r in TABLE_ROWS], column_labels=[LABELS.get(n, n) for n in cols], cells=cells,
+                 best="min", precision=3, notes=table_notes(cfg))
 
 
 def _scenario_from_log(log_path: Path, cfg: Config) -> Scenario:
@@ -102,54 +133,85 @@ def simulate(cfg: Config, names: tuple[str, ...], scenario: Scenario) -> tuple[d
     return traces, {n: evaluate_trace(tr, cfg) for n, tr in traces.items()}
 
 
-def replay(log_path: Path, cfg: Config) -> tuple[dict, dict]:
-    """Recompute the references the chain would issue along the recorded pose, and evaluate
-    the recorded wheel speeds and pump commands against them."""
+def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:
+    """(t, x, y, yaw, source) of the recorded motion: ground truth, else wheel odometry, else
+    GNSS (ENU; heading from the track direction). The pose must be in the frame of the path."""
+    roles = lg.roles
+    if "ground_truth" in roles or "wheel_odom" in roles:
+        source = "ground_truth" if "ground_truth" in roles else "wheel_odom"
+        traj = lg.ground_truth() if source == "ground_truth" else lg.wheel_odometry()
+        q = traj.quat_xyzw
+        yaw = np.arctan2(2 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2))
+        return traj.stamps, traj.positions[:, 0], traj.positions[:, 1], yaw, source
+    if "gnss" in roles:
+        g = lg.gnss()
+        if g.stamps.size < 3:
+            raise InputError(log_path, "too few GNSS fixes to replay the path", topic=roles["gnss"])
+        e, n = g.enu[:, 0], g.enu[:, 1]
+        yaw = np.arctan2(np.gradient(n), np.gradient(e))  # track direction; the robot drives forwards
+        return g.stamps, e, n, yaw, "gnss"
+    raise InputError(log_path, "control replay needs the recorded pose: a ground-truth, wheel-odometry or GNSS topic "
+                               "(none found; set io.roles.ground_truth, io.roles.wheel_odom or io.roles.gnss)")
+
+
+def replay(log_path: Path, cfg: Config) -> tuple[dict, dict, list[str]]:
+    """Recompute the references the chain would issue along the recorded pose (pure pursuit at its
+    rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
+    pump commands against them."""
     from mrnc_eval.control.kinematics import inverse_kinematics, slew
     from mrnc_eval.control.pure_pursuit import PurePursuit
     from mrnc_eval.io import open_log
 
+    warnings: list[str] = []
     with open_log(log_path, cfg.io) as lg:
         roles = lg.roles
         for role in ("path", "wheel_speeds"):
             if role not in roles:
                 raise InputError(log_path, f"control replay needs a {role} topic (none found; set io.roles.{role})")
         wp = lg.waypoints().xy
-        pose = lg.ground_truth() if "ground_truth" in roles else lg.wheel_odometry()
+        pt, pxs, pys, pyaws, source = recorded_pose(lg, log_path)
         speeds = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m)
         cmds = lg.commands() if "commands" in roles else None
-    q = pose.quat_xyzw
-    yaw = np.arctan2(2 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2))
+    if wp.shape[0] < 2:
+        raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles["path"])
+    if speeds.stamps.size < 3:
+        raise InputError(log_path, "too few wheel-speed messages to evaluate tracking", topic=roles["wheel_speeds"])
+    if source != "ground_truth":
+        warnings.append(f"recorded pose from {source} (no ground truth): it must be in the frame of the path")
+    if cmds is None:
+        warnings.append("no pump-command topic: command metrics (saturation, effort) are zero")
     t = speeds.stamps
-    px = np.interp(t, pose.stamps, pose.positions[:, 0])
-    py = np.interp(t, pose.stamps, pose.positions[:, 1])
-    pyaw = np.interp(t, pose.stamps, np.unwrap(yaw))
+    px, py = np.interp(t, pt, pxs), np.interp(t, pt, pys)
+    pyaw = np.interp(t, pt, np.unwrap(pyaws))
     pp = PurePursuit(wp, cfg.control.pure_pursuit, cfg.robot.track_width_m, cfg.robot.max_speed_mps)
     v_ref = np.zeros((t.size, 2))
-    cmd = np.zeros((t.size, 2))
     next_pp, tl, tr_, vl, vr = t[0], 0.0, 0.0, 0.0, 0.0
+    done_at = float("nan")
     accel = cfg.control.kinematics.reference_accel_limit_mps2
-    for k in range(t.size):  # pure pursuit at its own rate along the recorded pose, same reference shaping
+    for k in range(t.size):
         if t[k] >= next_pp:
             v, w, _, _ = pp.step(px[k], py[k], pyaw[k], 0.5 * (speeds.left[k] + speeds.right[k]))
             tl, tr_ = inverse_kinematics(v, w, cfg.robot.track_width_m)
             next_pp = t[k] + 1.0 / cfg.control.pure_pursuit.rate_hz
+            if pp.done and math.isnan(done_at):
+                done_at = t[k] - t[0]
         dt_k = t[k] - t[k - 1] if k else 0.0
         vl, vr = slew(vl, tl, accel, dt_k), slew(vr, tr_, accel, dt_k)
         v_ref[k] = vl, vr
-        cmd[k] = tl, tr_
     f = cfg.control.funnel
     o = (f.o_ov_mps - f.o_b_mps) * np.exp(-f.o_star_per_s * (t - t[0])) + f.o_b_mps
     u_l = np.interp(t, cmds.stamps, cmds.left) if cmds is not None else np.zeros_like(t)
     u_r = np.interp(t, cmds.stamps, cmds.right) if cmds is not None else np.zeros_like(t)
-    tr = ClosedLoopTrace("recorded", "recorded", t - t[0], px, py, pyaw, np.zeros_like(t), np.zeros_like(t),
-                         np.zeros_like(t), np.zeros_like(t), v_ref[:, 0], v_ref[:, 1], speeds.left, speeds.right,
-                         np.zeros_like(t), np.zeros_like(t), u_l, u_r, o, completed=pp.done, waypoints=wp)
-    return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg)}
+    zeros = np.zeros_like(t)
+    tr = ClosedLoopTrace("recorded", f"recorded ({source})", t - t[0], px, py, pyaw, zeros, zeros, zeros, zeros,
+                         v_ref[:, 0], v_ref[:, 1], speeds.left, speeds.right, zeros, zeros, u_l, u_r, o,
+                         completed=pp.done, completion_time_s=done_at, waypoints=wp)
+    return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg)}, warnings
 
 
 def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "replay",
             controllers: tuple[str, ...] = CONTROLLERS) -> RunResult:
+    warnings: list[str] = []
     if mode == "simulate":
         scenario = paper_circle_scenario(cfg.control) if log_path is None else _scenario_from_log(log_path, cfg)
         traces, metrics = simulate(cfg, controllers, scenario)
@@ -157,23 +219,25 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     elif mode == "replay":
         if log_path is None:
             raise UsageError("control --mode replay needs a LOG")
-        traces, metrics = replay(log_path, cfg)
+        traces, metrics, warnings = replay(log_path, cfg)
         names = ("recorded",)
     else:
         raise UsageError(f"unknown mode {mode!r}: replay or simulate")
     result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
-                       log_id=log_id_for(log_path) if log_path else "paper-circle", config_hash=config_hash(cfg))
-    first = next(iter(traces.values()))
-    result.series["t"] = first.t[:: _decimate(first.t)]
-    result.series["path_xy"] = first.waypoints
-    result.series["funnel_o"] = first.funnel[:: _decimate(first.t)]
+                       log_id=log_id_for(log_path) if log_path else "paper-circle", config_hash=config_hash(cfg),
+                       warnings=warnings)
+    longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
+    result.series["t"] = longest.t[:: _decimate(longest.t)]
+    result.series["path_xy"] = longest.waypoints
+    result.series["funnel_o"] = longest.funnel[:: _decimate(longest.t)]
     for n in names:
         tr = traces[n]
         step = _decimate(tr.t)
         for side in ("left", "right"):
             group = f"control/{n}/{side}"
             for key, val in metrics[n][side].items():
-                result.metrics.append(Metric(key, val if isinstance(val, int) else float(val), UNITS.get(key, ""), group))
+                value = val if isinstance(val, int) else float(val)
+                result.metrics.append(Metric(key, value, UNITS.get(key, ""), group))
             result.series[f"{n}_{side}_v_ref"] = getattr(tr, f"v_ref_{side}")[::step]
             result.series[f"{n}_{side}_v_meas"] = getattr(tr, f"v_wheel_{side}")[::step]
             result.series[f"{n}_{side}_u_rpm"] = getattr(tr, f"u_{side}")[::step]
@@ -183,12 +247,15 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         result.series[f"{n}_t"] = tr.t[::step]
         result.series[f"{n}_xy"] = np.c_[tr.x, tr.y][::step]
         result.series[f"{n}_cte_m"] = cte[::step]
+        result.series[f"{n}_funnel_o"] = tr.funnel[::step]
         result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(n, n)}: {e['message']}", {"side": e["side"]})
                           for e in tr.events]
     if mode == "simulate":
-        result.tables.append(table_two(metrics, names))
-    result.extra = {"mode": mode, "controllers": list(names), "labels": {n: LABELS.get(n, n) for n in names},
-                    "rbf_centres": rbf_centres(cfg.control).tolist(),
+        result.tables.append(table_two(metrics, names, cfg))
+    result.extra = {"mode": mode, "controllers": list(names),
+                    "labels": {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
+                    "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
+                    "seed": cfg.control.seed, "definitions": table_notes(cfg),
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
                     "curvature": cfg.control.pure_pursuit.curvature}
     write_result(result, out_dir, dump_config(cfg))
@@ -216,10 +283,49 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
         for m in result.metrics:
             _, ctrl, side = m.group.split("/")
             body.setdefault(ctrl, {}).setdefault(side, {})[m.name] = m.value
-        emit_json(_json_safe({"run_dir": str(run_dir), "controllers": body}))
+        emit_json(_json_safe({"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"],
+                              "controllers": body, "events": [e.__dict__ for e in result.events],
+                              "warnings": result.warnings, "definitions": result.extra["definitions"]}))
         return
-    from mrnc_eval.reports.tables import render_table
+    print_summary(result, run_dir)
 
-    for table in result.tables:
-        sys.stdout.write(render_table(table, "markdown"))
-    sys.stdout.write(f"results: {run_dir}\n")
+
+def print_summary(result: RunResult, run_dir: Path) -> None:
+    """Table II (simulate) or the recorded run's per-side metrics (replay) as rich tables."""
+    from rich.console import Console
+    from rich.markup import escape
+    from rich.table import Table as RichTable
+
+    from mrnc_eval.reports.tables import best_cells, fmt_cell
+
+    console = Console(highlight=False)
+    tables = list(result.tables) or [_replay_table(result)]
+    for table in tables:
+        best = best_cells(table)
+        rt = RichTable(title=escape(table.title), title_justify="left")
+        rt.add_column("")
+        for c in table.column_labels:
+            rt.add_column(escape(c), justify="right")
+        for r, (label, row) in enumerate(zip(table.row_labels, table.cells, strict=True)):
+            rt.add_row(escape(label), *[f"[bold]{escape(fmt_cell(c, table.precision))}[/bold]" if (r, k) in best
+                                        else escape(fmt_cell(c, table.precision)) for k, c in enumerate(row)])
+        console.print(rt)
+        for note in table.notes:
+            console.print(escape(note), style="dim")
+    for w in result.warnings:
+        console.print(f"warning: {escape(w)}", style="yellow")
+    for e in result.events:
+        console.print(f"event {e.t_s:.2f} s: {escape(e.message)}", style="red")
+    console.print(f"results: {escape(str(run_dir))}")
+
+
+def _replay_table(result: RunResult) -> Table:
+    """Recorded tracking, one column per side plus the path."""
+    groups = ["left", "right", "path"]
+    by = {(m.group.rsplit("/", 1)[-1], m.name): m for m in result.metrics}
+    names = list(dict.fromkeys(m.name for m in result.metrics))
+    rows = [n for n in names if any((g, n) in by for g in groups)]
+    return Table(title="Recorded tracking against the recomputed references", column_labels=groups,
+                 row_labels=[f"{n} ({UNITS[n]})" if UNITS.get(n) else n for n in rows],
+                 cells=[[by[(g, n)].value if (g, n) in by else None for g in groups] for n in rows], best=None,
+                 precision=4, notes=list(result.extra.get("definitions", [])))
