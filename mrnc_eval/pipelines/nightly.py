@@ -9,7 +9,10 @@ import datetime as dt
 import logging
 import re
 import sys
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 import yaml
 
@@ -20,6 +23,9 @@ from mrnc_eval.pipelines.history import History, LogRecord, find_regressions
 from mrnc_eval.pipelines.log_job import DEFAULT_ANALYSIS, LogJob
 from mrnc_eval.pipelines.progress import progress_bar
 from mrnc_eval.results import atomic_write_text, log_id_for
+
+if TYPE_CHECKING:
+    from mrnc_eval.pipelines.executors import Executor
 
 log = logging.getLogger(__name__)
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")
@@ -88,6 +94,26 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     since_date = _since(since)
     logs = discover_logs(log_dir, since_date)
     out.mkdir(parents=True, exist_ok=True)
+    with _exclusive(out / ".nightly.lock"):
+        _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis)
+
+
+@contextmanager
+def _exclusive(lock_path: Path) -> Iterator[None]:
+    """One nightly per report root at a time (an overlapping cron run would redo the same logs);
+    the kernel drops the lock when its holder dies, even by SIGKILL."""
+    import fcntl
+
+    with open(lock_path, "a+b") as fh:
+        try:
+            fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
+        except BlockingIOError as err:
+            raise UsageError(f"{lock_path.parent}: another nightly job is writing this report root") from err
+        yield
+
+
+def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: str, executor: Executor, pdf: bool,
+               analysis: str) -> None:
     night_dir = out / night
     history = History(out / "history.sqlite")
     done = history.finished(night)

@@ -193,3 +193,18 @@ def test_trends_page_flags_a_regressed_log(tmp_path: Path) -> None:
     page = (tmp_path / "trends.html").read_text(encoding="utf-8")
     assert "&lt;b&gt;worse&lt;/b&gt;: slam/ape/ape_rmse_m = 0.09 on 2026-10-03" in page and "<b>" not in page
     assert page.count("<figure>") == 2  # APE RMSE and RTF
+
+
+def test_a_second_nightly_on_the_same_root_is_refused(imu_logs: Path, tmp_path: Path) -> None:
+    import fcntl
+
+    from mrnc_eval.errors import UsageError
+
+    out = tmp_path / "out"
+    out.mkdir()
+    with open(out / ".nightly.lock", "a+b") as held:
+        fcntl.flock(held, fcntl.LOCK_EX)
+        with pytest.raises(UsageError, match="another nightly"):
+            run_night(imu_logs, out, night="2026-11-06")
+    assert not (out / "history.sqlite").exists()
+    assert run_night(imu_logs, out, night="2026-11-06") == 0  # released: runs
