@@ -162,3 +162,24 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
     assert table.column_labels == ["RAID", "PID"]
     assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]
     assert main(["control", "--mode", "simulate", "--controllers", "raid,lqr"]) == 2
+
+
+def test_table_two_has_the_papers_structure(paper_runs) -> None:
+    from mrnc_eval.pipelines.control import evaluate_trace, table_two
+    from mrnc_eval.reports.tables import render_table
+
+    cfg, runs = paper_runs
+    metrics = {n: evaluate_trace(tr, cfg) for n, tr in runs.items()}
+    table = table_two(metrics, tuple(runs), cfg)
+    # the paper: criteria as rows (settling time, overshoot, steady-state error), RAID | APC | PID | FOPTC
+    assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]
+    assert table.column_labels == ["RAID", "APC (stand-in: CFDL-MFAPC)", "PID",
+                                   "FOPTC (stand-in: prescribed-time gain)"]
+    raid = [row[0] for row in table.cells]
+    assert raid[table.row_labels.index("Funnel violations (samples)")] == 0
+    assert raid[table.row_labels.index("Safety stops")] == 0
+    assert raid[table.row_labels.index("Max |U*| (RPM)")] <= 1250.0
+    assert all(len(row) == 4 for row in table.cells)
+    assert any("2 % of the step" in n for n in table.notes)  # the effective definitions are printed
+    md = render_table(table, "markdown")
+    assert "Settling time" in md and "CFDL-MFAPC" in md
