@@ -20,6 +20,7 @@ from mrnc_eval.errors import InputError
 from mrnc_eval.io import geodesy
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.containers import describe_error, detect_container
+from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import detect_roles
 from mrnc_eval.io.sources import McapSource, RosbagsSource
@@ -30,6 +31,9 @@ _STAMPED_FIRST_FIELD = {  # message types whose first field is std_msgs/Header
     "geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs/msg/TwistStamped",
     "geometry_msgs/msg/TransformStamped",
 }
+
+
+_IMU_BATCH = 65536  # messages decoded together (bounds the raw bytes held at once)
 
 
 @dataclass(frozen=True)
@@ -117,7 +121,9 @@ class LogReader:
     def _channel(self, topic: str):
         ch = self._channels.get(topic)
         if ch is None:
-            raise InputError(self.path, f"topic not in log (topics: {', '.join(sorted(self._channels))})", topic=topic)
+            names = sorted(self._channels)
+            listed = ", ".join(names[:12]) + (f", ... ({len(names)} in all)" if len(names) > 12 else "")
+            raise InputError(self.path, f"topic not in log (topics: {listed})", topic=topic)
         return ch
 
     def _msgtype(self, topic: str) -> str:
@@ -151,14 +157,17 @@ class LogReader:
         for _t, msg in self._timed_messages(topic, expect):
             yield msg
 
-    def _timed_messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[tuple[float, object]]:
-        """(record time s, message); with `expect`, the topic must carry one of those types."""
+    def _check_type(self, topic: str, expect: tuple[str, ...] | None) -> None:
+        """The topic is decodable and (with `expect`) carries one of those types."""
         ch = self._channel(topic)
         if ch.problem:
             raise InputError(self.path, ch.problem, topic=topic)
-        msgtype = ch.msgtype
-        if expect is not None and msgtype not in expect:
-            raise InputError(self.path, f"expected {' or '.join(expect)}, got {msgtype}", topic=topic)
+        if expect is not None and ch.msgtype not in expect:
+            raise InputError(self.path, f"expected {' or '.join(expect)}, got {ch.msgtype}", topic=topic)
+
+    def _timed_messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[tuple[float, object]]:
+        """(record time s, message); with `expect`, the topic must carry one of those types."""
+        self._check_type(topic, expect)
         for t_rec, raw in self._raw(topic):
             yield t_rec * 1e-9, self._decode(raw, topic)
 
@@ -271,29 +280,55 @@ class LogReader:
         return role in self.roles
 
     # ------------------------------------------------------------------ typed series
-    def imu(self, topic: str | None = None) -> ImuSeries:
+    def imu(self, topic: str | None = None, *, fast: bool = True) -> ImuSeries:
+        """IMU samples sorted by header stamp, duplicates dropped (counted in `health`).
+        Messages are decoded in batches straight from their bytes when their layout allows
+        (see fast_imu); `fast=False` deserialises each message (same result, for checks)."""
         topic = self._topic_for("imu", topic)
-        t, acc, gyro, quat, frame = [], [], [], [], ""
-        has_orientation = True
-        for m in self._messages(topic, ("sensor_msgs/msg/Imu",)):
+        self._check_type(topic, ("sensor_msgs/msg/Imu",))
+        ros1 = self._channel(topic).encoding == "ros1"
+        batches: list[ImuBatch] = []
+        pending: list[bytes] = []
+
+        def flush() -> None:
+            batch = decode_imu_batch(pending, ros1) if fast else None
+            batches.append(batch if batch is not None else self._imu_batch_slow(pending, topic))
+            pending.clear()
+
+        for _t, raw in self._raw(topic):
+            pending.append(bytes(raw))
+            if len(pending) >= _IMU_BATCH:
+                flush()
+        if pending:
+            flush()
+        if not batches:
+            raise InputError(self.path, "IMU topic has no messages", topic=topic)
+        t = np.concatenate([b.stamps for b in batches])
+        quat = np.concatenate([b.orientation for b in batches])
+        # REP-145: orientation_covariance[0] = -1 (or an all-zero quaternion): no orientation
+        has_orientation = bool(np.all(np.concatenate([b.orientation_cov0 for b in batches]) >= 0)
+                               and not np.any(np.all(quat == 0.0, axis=1)))
+        keep, health = _sort_dedup(t, topic)
+        self._set_health(health)
+        acc = np.concatenate([b.acc for b in batches])[keep]
+        gyro = np.concatenate([b.gyro for b in batches])[keep]
+        if not (np.isfinite(acc).all() and np.isfinite(gyro).all()):
+            raise InputError(self.path, "IMU has non-finite values", topic=topic)
+        return ImuSeries(t[keep], acc, gyro, quat[keep] if has_orientation else None, batches[-1].frame_id)
+
+    def _imu_batch_slow(self, raws: list[bytes], topic: str) -> ImuBatch:
+        t, acc, gyro, quat, cov0, frame = [], [], [], [], [], ""
+        for raw in raws:
+            m = self._decode(raw, topic)
             t.append(_stamp(m))
             a, g, q = m.linear_acceleration, m.angular_velocity, m.orientation
             acc.append((a.x, a.y, a.z))
             gyro.append((g.x, g.y, g.z))
             quat.append((q.x, q.y, q.z, q.w))
+            cov0.append(m.orientation_covariance[0])
             frame = m.header.frame_id
-            if m.orientation_covariance[0] < 0 or (q.x == q.y == q.z == q.w == 0.0):
-                has_orientation = False
-        if not t:
-            raise InputError(self.path, "IMU topic has no messages", topic=topic)
-        keep, health = _sort_dedup(np.asarray(t), topic)
-        self._set_health(health)
-        acc_a = np.asarray(acc, float)[keep]
-        gyro_a = np.asarray(gyro, float)[keep]
-        if not (np.isfinite(acc_a).all() and np.isfinite(gyro_a).all()):
-            raise InputError(self.path, "IMU has non-finite values", topic=topic)
-        return ImuSeries(np.asarray(t)[keep], acc_a, gyro_a,
-                         np.asarray(quat, float)[keep] if has_orientation else None, frame)
+        return ImuBatch(np.asarray(t, float), np.asarray(quat, float).reshape(-1, 4), np.asarray(cov0, float),
+                        np.asarray(gyro, float).reshape(-1, 3), np.asarray(acc, float).reshape(-1, 3), str(frame))
 
     def sweeps(self, topic: str | None = None, *, min_interval_s: float = 0.0) -> Iterator[Sweep]:
         """Decoded sweeps in log order, streamed one at a time. A sweep whose header stamp is not

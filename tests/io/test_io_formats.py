@@ -336,3 +336,42 @@ def test_bag_directory_given_by_its_metadata_file(tmp_path: Path) -> None:
     with open_log(tmp_path / "run" / "metadata.yaml") as log:
         assert log.container == "ros2-sqlite3" and log.path == tmp_path / "run"
         assert log.imu().stamps.size == 50
+
+
+@pytest.mark.parametrize("fmt, name", [("mcap", "i.mcap"), ("db3", "i.db3"), ("bag", "i.bag")])
+def test_batched_imu_decoding_equals_per_message(tmp_path: Path, fmt: str, name: str) -> None:
+    from scipy.spatial.transform import Rotation
+
+    rng = np.random.default_rng(5)
+    n = 300
+    t = 50.0 + np.arange(n) * 0.005 + rng.uniform(0, 1e-4, n)
+    q = Rotation.random(n, random_state=3).as_quat()
+    nine_axis = ImuSeries(t, rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), q, "imu_link_with_a_long_name")
+    with LogWriter(tmp_path / name, fmt) as w:
+        w.write_imu("/imu9", nine_axis)
+        w.write_imu("/imu6", _imu(50.0, 120))
+        for k, frame in enumerate(["a", "bb", "ccc"]):  # varying frame ids: the per-message path
+            w.write_imu("/mixed", ImuSeries(np.array([60.0 + k]), np.full((1, 3), k), np.zeros((1, 3)), None, frame))
+    with open_log(tmp_path / name) as log:
+        for topic in ("/imu9", "/imu6", "/mixed"):
+            fast, slow = log.imu(topic), log.imu(topic, fast=False)
+            np.testing.assert_array_equal(fast.stamps, slow.stamps)
+            np.testing.assert_array_equal(fast.acc, slow.acc)
+            np.testing.assert_array_equal(fast.gyro, slow.gyro)
+            assert fast.frame_id == slow.frame_id
+            assert (fast.orientation_xyzw is None) == (slow.orientation_xyzw is None)
+        imu9 = log.imu("/imu9")
+    np.testing.assert_allclose(imu9.orientation_xyzw, q)
+    np.testing.assert_allclose(imu9.acc, nine_axis.acc)
+    np.testing.assert_allclose(imu9.stamps, t, atol=1e-9)
+    assert imu9.frame_id == "imu_link_with_a_long_name"
+
+
+def test_batched_imu_on_the_real_recording(real_ouster_mcap: Path) -> None:
+    with open_log(real_ouster_mcap) as log:
+        fast, slow = log.imu(), log.imu(fast=False)
+    assert fast.stamps.size == 30 and fast.frame_id == slow.frame_id == "os_imu"
+    np.testing.assert_array_equal(fast.stamps, slow.stamps)
+    np.testing.assert_array_equal(fast.acc, slow.acc)
+    np.testing.assert_array_equal(fast.gyro, slow.gyro)
+    assert 9.3 < fast.acc[:, 2].mean() < 10.3  # gravity along the upright sensor z, m/s^2
