@@ -1,0 +1,40 @@
+"""Keep numba's on-disk cache of the control kernels consistent with their sources.
+
+numba invalidates a cached function only when its own file changes; the closed loop inlines
+kernels from other modules (raid.py, plant.py, ...), so editing one of those would silently
+reuse a stale compiled loop. On import we hash every control source and drop the package's
+cache files when the hash differs from the one recorded beside them.
+"""
+
+from __future__ import annotations
+
+import hashlib
+from pathlib import Path
+
+_HERE = Path(__file__).parent
+_STAMP = "control-sources.sha256"
+
+
+def ensure_consistent_cache(cache_dir: Path | None = None) -> bool:
+    """Remove stale *.nbi/*.nbc of this package. Returns True when files were removed."""
+    cache_dir = cache_dir or _HERE / "__pycache__"
+    digest = hashlib.sha256()
+    for src in sorted(_HERE.glob("*.py")):
+        digest.update(src.name.encode())
+        digest.update(src.read_bytes())
+    stamp = cache_dir / _STAMP
+    try:
+        if stamp.read_text() == digest.hexdigest():
+            return False
+    except OSError:
+        pass
+    removed = False
+    try:
+        cache_dir.mkdir(exist_ok=True)
+        for f in list(cache_dir.glob("*.nbi")) + list(cache_dir.glob("*.nbc")):
+            f.unlink(missing_ok=True)
+            removed = True
+        stamp.write_text(digest.hexdigest())
+    except OSError:  # read-only install: numba falls back to its own cache locator or compiles
+        pass
+    return removed
