@@ -163,6 +163,25 @@ def recovery_time(t: NDArray, abs_err: NDArray, slip: NDArray, band: float, hold
     return worst
 
 
+def estimate_slip(t: NDArray, v_wheel: NDArray, v_ground: NDArray, *, window_s: float = 1.0,
+                  threshold: float = 0.05, min_speed_mps: float = 0.05, min_duration_s: float = 1.0) -> NDArray:
+    """Slip patches of one side from a recording: s = 1 - v_ground / v_wheel, averaged over
+    window_s, is a patch where it exceeds threshold for at least min_duration_s. Returns the
+    mean slip inside each patch and 0 elsewhere (a piecewise-constant series, as simulated)."""
+    moving = np.abs(v_wheel) > min_speed_mps
+    raw = np.where(moving, 1.0 - v_ground / np.where(moving, v_wheel, 1.0), 0.0)
+    dt = float(np.median(np.diff(t))) if t.size > 1 else 1.0
+    n = max(1, int(round(window_s / dt)))
+    smooth = np.convolve(raw, np.ones(n) / n, mode="same")
+    inside = (smooth > threshold) & moving
+    out = np.zeros_like(t, dtype=float)
+    edges = np.diff(np.concatenate([[0], inside.astype(np.int8), [0]]))
+    for a, b in zip(np.flatnonzero(edges == 1), np.flatnonzero(edges == -1), strict=True):
+        if t[b - 1] - t[a] >= min_duration_s:
+            out[a:b] = float(np.mean(raw[a:b]))
+    return out
+
+
 def cross_track(x: NDArray, y: NDArray, waypoints: NDArray, chunk: int = 4096) -> tuple[NDArray, NDArray]:
     """Signed distance (m, + = left of the path) to the nearest path segment and that segment's
     heading (rad), per sample; computed in chunks so long logs with dense paths stay bounded."""

@@ -203,10 +203,24 @@ def replay(log_path: Path, cfg: Config) -> tuple[dict, dict, list[str]]:
     u_l = np.interp(t, cmds.stamps, cmds.left) if cmds is not None else np.zeros_like(t)
     u_r = np.interp(t, cmds.stamps, cmds.right) if cmds is not None else np.zeros_like(t)
     zeros = np.zeros_like(t)
+    slip_l, slip_r = zeros, zeros
+    if source != "wheel_odom":  # wheel odometry moves with the wheels: it cannot show slip
+        from mrnc_eval.evaluation.control_metrics import estimate_slip
+
+        v_body, w_body = _body_rates(t, px, py, pyaw)
+        half = 0.5 * cfg.robot.track_width_m
+        slip_l = estimate_slip(t, speeds.left, v_body - w_body * half)
+        slip_r = estimate_slip(t, speeds.right, v_body + w_body * half)
     tr = ClosedLoopTrace("recorded", f"recorded ({source})", t - t[0], px, py, pyaw, zeros, zeros, zeros, zeros,
-                         v_ref[:, 0], v_ref[:, 1], speeds.left, speeds.right, zeros, zeros, u_l, u_r, o,
+                         v_ref[:, 0], v_ref[:, 1], speeds.left, speeds.right, slip_l, slip_r, u_l, u_r, o,
                          completed=pp.done, completion_time_s=done_at, waypoints=wp)
     return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg)}, warnings
+
+
+def _body_rates(t: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """Forward speed (m/s, along the heading) and yaw rate (rad/s) of a recorded pose."""
+    vx, vy = np.gradient(x, t), np.gradient(y, t)
+    return vx * np.cos(yaw) + vy * np.sin(yaw), np.gradient(yaw, t)
 
 
 def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "replay",

@@ -209,3 +209,29 @@ def test_replay_of_a_written_log_reproduces_the_simulated_tracking(tmp_path) -> 
             want[side]["max_abs_command_rpm"], rel=1e-6)
         assert got[(f"control/recorded/{side}", "funnel_violations")] == 0
     assert result.extra["labels"]["recorded"] == "recorded (ground_truth)" and not result.warnings
+
+
+def test_replay_finds_the_slip_patches_of_the_paper_run(tmp_path) -> None:
+    from mrnc_eval.data import Trajectory, Waypoints
+    from mrnc_eval.io.writers import LogWriter
+    from mrnc_eval.pipelines.control import replay
+
+    cfg = Config()
+    sc = paper_circle_scenario(cfg.control)
+    tr = run_closed_loop(sc, cfg.control, cfg.robot, "pid", record_every=20)
+    quat = np.c_[np.zeros((tr.t.size, 2)), np.sin(tr.yaw / 2), np.cos(tr.yaw / 2)]
+    log = tmp_path / "circle.mcap"
+    with LogWriter(log, fmt="mcap") as w:
+        w.write_path("/plan", Waypoints(sc.waypoints_xy, frame_id="map"), tr.t[0])
+        w.write_odometry("/ground_truth", Trajectory(tr.t, np.c_[tr.x, tr.y, np.zeros_like(tr.t)], quat))
+        w.write_joint_state("/wheel_speeds", tr.t, ["left_wheel", "right_wheel"],
+                            np.c_[tr.v_wheel_left, tr.v_wheel_right] / cfg.robot.wheel_radius_m)
+    traces, _, warnings = replay(log, cfg)
+    rec = traces["recorded"]
+    assert "no pump-command topic" in warnings[0]
+    for side in ("left", "right"):
+        truth = getattr(tr, f"slip_{side}") > 0
+        found = getattr(rec, f"slip_{side}") > 0
+        assert np.mean(truth == found) > 0.95, side  # the patches, up to the smoothing at their edges
+        assert np.median(getattr(rec, f"slip_{side}")[truth & found]) == pytest.approx(
+            np.median(getattr(tr, f"slip_{side}")[truth & found]), abs=0.03)
