@@ -325,7 +325,8 @@ def simulate(
     columns: Annotated[int, typer.Option(help="Columns per sweep: 512, 1024 or 2048.")] = 1024,
     rate: Annotated[float, typer.Option(help="Sweep rate, Hz (10 or 20).")] = 10.0,
     fmt: Annotated[str, typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1).")] = "mcap",
-    seed: Annotated[int, typer.Option(help="Random seed; the same seed gives byte-identical logs.")] = 0,
+    seed: Annotated[Optional[int], typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
+                                                     "byte-identical logs.")] = None,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,

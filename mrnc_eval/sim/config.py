@@ -16,7 +16,8 @@ class LidarSimConfig:
     vertical_fov_deg: float = param(90.0, "vertical field of view, symmetric (OS0: 90)", "deg")
     max_range_m: float = param(50.0, "maximum range; farther returns are no-return zeros", "m")
     min_range_m: float = param(0.3, "minimum range", "m")
-    range_noise_m: float = param(0.01, "range noise (1 sigma); ranges are then quantised to 1 mm", "m")
+    range_noise_m: float = param(0.01, "range noise (1 sigma); ranges are then quantised to the packet "
+                                 "profile's step", "m")
     detect_range_10pct_m: float = param(35.0, "range at which a 10 % Lambertian target at normal incidence is "
                                         "still detected (OS0 datasheet class); weaker returns are no-return zeros", "m")
     beam_azimuth_offsets_deg: tuple[float, ...] = param(
@@ -60,13 +61,15 @@ class GnssSimConfig:
     sigma_vertical_m: float = param(0.05, "vertical noise", "m")
     dropout_probability: float = param(0.02, "probability that a fix is NO_FIX")
     multipath_jump_m: float = param(0.0, "size of a multipath jump (0 = off)", "m")
-    multipath_interval_s: tuple[float, float] = param((20.0, 25.0), "when the multipath jump is present", "s")
+    multipath_interval_s: tuple[float, float] = param((20.0, 25.0), "when the multipath jump is present "
+                                                      "(since the log start)", "s")
     antenna_xyz_m: tuple[float, float, float] = param((0.0, 0.0, 2.2), "base_link -> gnss antenna", "m")
 
 
 @dataclass(frozen=True)
 class SimConfig:
-    seed: int = param(0, "random seed; the same seed gives byte-identical logs")
+    seed: int = param(0, "random seed when the request gives none (--seed wins); the same seed gives "
+                          "byte-identical logs")
     bag_compression: Literal["lz4", "bz2", "none"] = param("lz4", "ROS 1 bag chunk compression (rosbag record "
                                                            "--lz4 / --bz2)")
     lidar: LidarSimConfig = section(LidarSimConfig, "Ouster OS0 model")

@@ -42,7 +42,7 @@ class SimRequest:
     columns: int = 1024
     rate_hz: float = 10.0
     fmt: str = "mcap"
-    seed: int = 0
+    seed: int | None = None  # None: cfg.sim.seed
 
 
 def transform(xyz, rot=None) -> np.ndarray:
@@ -90,11 +90,12 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     out.parent.mkdir(parents=True, exist_ok=True)
     scfg = cfg.sim
     lcfg = replace(scfg.lidar, beams=LIDAR_MODELS[req.lidar], columns=req.columns, rate_hz=req.rate_hz)
-    rng = np.random.default_rng(req.seed)
+    seed = cfg.sim.seed if req.seed is None else req.seed
+    rng = np.random.default_rng(seed)
 
     scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
-    trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=req.seed)
-    scene = build_scene(req.scene, seed=req.seed, amplitude_m=scfg.terrain_amplitude_m,
+    trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
+    scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m,
                         roughness_m=scfg.terrain_roughness_m, centre=tuple(scenario.waypoints_xy.mean(axis=0)))
     traj = BodyTrajectory.from_trace(trace, scene.terrain)
     t_end = float(trace.t[-1]) if req.duration_s is None else float(req.duration_s)

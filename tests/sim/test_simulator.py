@@ -303,3 +303,15 @@ def test_cli_writes_a_log_and_its_ground_truth(tmp_path: Path) -> None:
     with open_log(out) as lg:
         assert lg.container == "ros1" and len(list(lg.sweeps())) == 29
     assert gt_tum_path(out).exists()
+
+
+def test_seed_comes_from_the_option_or_the_config(tmp_path: Path) -> None:
+    from mrnc_eval.cli import main
+
+    common = ["--scene", "field", "--path", "line", "--duration", "1", "--lidar", "os0-32", "--columns", "512"]
+    logs = [tmp_path / d / "x.mcap" for d in ("a", "b", "c")]  # the bag name is stored in the file
+    assert main(["simulate", str(logs[0]), *common, "--seed", "4"]) == 0
+    assert main(["simulate", str(logs[1]), *common, "--set", "sim.seed=4"]) == 0
+    assert main(["simulate", str(logs[2]), *common]) == 0
+    assert logs[0].read_bytes() == logs[1].read_bytes()
+    assert logs[0].read_bytes() != logs[2].read_bytes()
