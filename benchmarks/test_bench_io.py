@@ -105,3 +105,25 @@ def test_streaming_memory_is_bounded(tmp_path: Path, fmt: str, name: str) -> Non
           f"tracemalloc peak while streaming {peak / 1e6:.1f} MB = {peak / sweep_bytes:.1f} sweeps")
     assert n == n_sweeps
     assert peak < 12 * sweep_bytes  # a few sweeps plus one container chunk, never the whole log
+
+
+def test_imu_batched_vs_per_message(tmp_path: Path) -> None:
+    """60,000 IMU messages (10 min at 100 Hz): batched byte decoding vs rosbags' deserialiser."""
+    from mrnc_eval.data import ImuSeries
+
+    n = 60_000
+    rng = np.random.default_rng(0)
+    imu = ImuSeries(100 + np.arange(n) * 0.01, rng.normal(size=(n, 3)), rng.normal(size=(n, 3)), None, "os_imu")
+    for fmt, name in (("mcap", "imu.mcap"), ("bag", "imu.bag")):
+        with LogWriter(tmp_path / name, fmt) as w:
+            w.write_imu("/ouster/imu", imu)
+        times = {}
+        for fast in (True, False):
+            with open_log(tmp_path / name) as log:
+                t0 = time.perf_counter()
+                got = log.imu(fast=fast)
+                times[fast] = time.perf_counter() - t0
+            np.testing.assert_array_equal(got.acc, imu.acc)
+        print(f"\n{fmt}: imu() {n} messages: batched {times[True]:.2f} s, per message {times[False]:.2f} s, "
+              f"speed-up {times[False] / times[True]:.1f}x")
+        assert times[True] < times[False]
