@@ -7,7 +7,9 @@ per job as they finish (order not guaranteed).
   ProcessPoolExecutor for every job in flight; those jobs are re-run one at a time in a fresh
   pool, so the crash is attributed to the log that caused it and its neighbours still finish.
 - Dask (--scheduler tcp://HOST:PORT): the same job function on a distributed cluster; a worker
-  that dies is restarted by its nanny and the scheduler retries or reports the task.
+  that dies is restarted by its nanny and the scheduler retries or reports the task. Workers
+  must see LOG_DIR and REPORT_ROOT at the same paths (a shared file system) and have
+  mrnc-eval installed; the history is written by this process only.
 """
 
 from __future__ import annotations

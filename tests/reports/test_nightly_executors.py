@@ -61,7 +61,7 @@ def test_in_process_pool_and_dask_cluster_give_the_same_history(imu_logs: Path, 
     assert run_night(imu_logs, tmp_path / "inproc", night=night, jobs=1) == 0
     assert run_night(imu_logs, tmp_path / "pool", night=night, jobs=2) == 0
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address="127.0.0.1:0") as cluster:
         workers = cluster.scheduler_info["workers"]
         assert len(workers) == 2 and all(addr.startswith("tcp://127.0.0.1:") for addr in workers)
         assert run_night(imu_logs, tmp_path / "dask", night=night, scheduler=cluster.scheduler_address) == 0

@@ -34,7 +34,7 @@ def test_dask_cluster_gives_the_same_metrics_as_the_local_pool(tiny_logs: Path, 
     assert main(["nightly", str(tiny_logs), "--out", str(local_root), "--jobs", "2", "--date", "2026-11-21",
                  "--no-pdf"]) in (0, 1)
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
-                                  dashboard_address=None) as cluster:
+                                  dashboard_address="127.0.0.1:0") as cluster:
         assert main(["nightly", str(tiny_logs), "--out", str(dask_root), "--scheduler", cluster.scheduler_address,
                      "--date", "2026-11-21", "--no-pdf"]) in (0, 1)
     a = _metrics(local_root / "history.sqlite", "2026-11-21")
