@@ -11,8 +11,9 @@ from mrnc_eval.params import param
 class IoConfig:
     roles: dict[str, str] = param(
         {},
-        "role -> topic overrides (roles: lidar, imu, gnss, wheel_odom, wheel_speeds, "
-        "commands, cmd_vel, path, ground_truth); unset roles are detected by message type",
+        "role -> topic overrides (roles: lidar, imu, chassis_imu, gnss, wheel_odom, wheel_speeds, "
+        "commands, cmd_vel, path, ground_truth, tf, tf_static, metadata); unset roles are detected by "
+        "message type",
     )
     gnss_origin_lla: tuple[float, float, float] | None = param(
         None,

@@ -134,6 +134,8 @@ def print_summary(summary: InfoSummary) -> None:
     from rich.table import Table
 
     console = Console()
+    if not console.is_terminal:  # piped or captured: rich would assume 80 columns and cut type names
+        console = Console(width=160)
     console.print(f"[bold]{escape(summary.path)}[/bold]  container {summary.container}, "
                   f"duration {summary.duration_s:.3f} s ({summary.start_s:.3f} .. {summary.end_s:.3f})")
     table = Table("topic", "type", "count", "rate Hz", "max gap s", "role")
