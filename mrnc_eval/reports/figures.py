@@ -13,6 +13,7 @@ from mrnc_eval.results import RunResult
 
 U_MAX_RPM = 1250.0  # pump command limit drawn on the effort plot, RPM
 MAX_POINTS = 4000  # per line
+FUNNEL_CONTROLLERS = ("raid", "recorded")  # the funnel o(t) bounds RAID's error (and the deployed run's)
 EVENT_COLOURS = {"loop_closure": "tab:green", "degeneracy": "tab:red", "safety_stop": "tab:red"}
 
 _FIGURE_IDS = itertools.count(1)
@@ -119,8 +120,9 @@ def control_figures(r: RunResult) -> list[tuple[str, str]]:
         t = s.get(f"{ctrl}_t", s.get("t"))
         if t is None or f"{ctrl}_left_v_ref" not in s:
             continue
-        out.append((f"{label}: wheel-speed reference vs measured, funnel band reference ± o(t)",
-                    _tracking(s, ctrl, label, t)))
+        funnel = "funnel_o" in s and len(s["funnel_o"]) >= len(t) and ctrl in FUNNEL_CONTROLLERS
+        caption = f"{label}: wheel-speed reference vs measured" + (", funnel band reference ± o(t)" if funnel else "")
+        out.append((caption, _tracking(s, ctrl, label, t, funnel)))
         if f"{ctrl}_left_u_rpm" in s:
             out.append((f"{label}: pump commands with the ±{U_MAX_RPM:.0f} RPM limits", _effort(s, r, ctrl, label, t)))
         if f"{ctrl}_xy" in s and f"{ctrl}_cte_m" in s:
@@ -128,12 +130,11 @@ def control_figures(r: RunResult) -> list[tuple[str, str]]:
     return out
 
 
-def _tracking(s, ctrl: str, label: str, t: np.ndarray) -> str:
+def _tracking(s, ctrl: str, label: str, t: np.ndarray, funnel: bool) -> str:
     fig, axes = new_figure(7.5, 5.0, rows=2, sharex=True)
     for ax, side in zip(axes[:, 0], ("left", "right"), strict=True):
         arrays = [t, s[f"{ctrl}_{side}_v_ref"], s[f"{ctrl}_{side}_v_meas"]]
-        has_funnel = "funnel_o" in s and len(s["funnel_o"]) >= len(t)
-        if has_funnel:
+        if funnel:
             arrays.append(s["funnel_o"])
         tt, rr, mm, *o = decimate(*arrays)
         if o:

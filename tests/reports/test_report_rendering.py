@@ -148,3 +148,17 @@ def test_pdf_falls_back_to_matplotlib_and_says_so(tmp_path: Path, monkeypatch) -
         text = subprocess.run(["pdftotext", str(tmp_path / "r.pdf"), "-"], capture_output=True, text=True).stdout
         assert "FALLBACK PDF" in text and "libpango" in text
     assert [p.name for p in tmp_path.iterdir()] == ["r.pdf"]
+
+
+def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_path: Path) -> None:
+    assert main(["control", "--mode", "simulate", "--controllers", "raid,pid", "--out", str(tmp_path / "res")]) == 0
+    (result_dir,) = [p.parent for p in (tmp_path / "res").rglob("result.json")]
+    assert main(["report", str(result_dir), "--out", str(tmp_path / "rep")]) == 0
+    html = (tmp_path / "rep" / "report.html").read_text(encoding="utf-8")
+    captions = re.findall(r"<figcaption>([^<]*)</figcaption>", html)
+    assert len(captions) == 6  # tracking, effort, path per controller
+    assert [c for c in captions if "funnel" in c] == ["RAID: wheel-speed reference vs measured, funnel band "
+                                                      "reference ± o(t)"]
+    assert "Table II" in html and (tmp_path / "rep" / "control_table1.tex").exists()
+    counts, console = open_in_chromium(tmp_path / "rep" / "report.html", tmp_path)
+    assert counts["figures"] == counts["sized"] == counts["drawn"] == 6 and not console
