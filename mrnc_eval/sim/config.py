@@ -34,6 +34,10 @@ class LidarSimConfig:
                                           "(overcast daylight; Poisson noise)", "photons")
     ambient_sky_photons: float = param(200.0, "ambient count of a no-return pixel looking at the sky", "photons")
     mount_xyz_m: tuple[float, float, float] = param((1.2, 0.0, 1.9), "base_link -> os_sensor translation", "m")
+    self_occlusion: bool = param(False, "the robot's own body (robot.length/width/height, from the ground "
+                                 "clearance up) blocks and returns rays, as on the real machine; clouds then "
+                                 "need a body crop")
+    body_clearance_m: float = param(0.3, "ground clearance of the body box (self_occlusion)", "m")
     record_every: int = param(1, "record every n-th sweep (a throttled recording, like topic_tools throttle)")
 
 

@@ -69,8 +69,39 @@ def beam_directions(cfg: LidarSimConfig) -> np.ndarray:
     return beam_model(cfg).directions
 
 
+@dataclass(frozen=True)
+class BodyBox:
+    """The robot's body as a box in base_link (m): it moves with the sensor, so what it blocks is a
+    fixed set of pixels at fixed ranges."""
+
+    centre: tuple[float, float, float]
+    size: tuple[float, float, float]
+    albedo: float = 0.3  # painted steel
+
+
+def _body_hits(body: BodyBox, base_to_sensor: np.ndarray, bm: BeamModel) -> tuple[np.ndarray, np.ndarray]:
+    """Distance along each ray to the body (inf where it misses) and |cos| of the incidence."""
+    import open3d as o3d
+
+    from mrnc_eval.sim.scene import box_mesh
+
+    cx, cy, cz = body.centre
+    v, t = box_mesh(cx, cy, cz - body.size[2] / 2, *body.size)
+    sensor_to_base = np.linalg.inv(base_to_sensor)
+    v_s = v @ sensor_to_base[:3, :3].T + sensor_to_base[:3, 3]
+    rs = o3d.t.geometry.RaycastingScene()
+    rs.add_triangles(o3d.core.Tensor(v_s.astype(np.float32)), o3d.core.Tensor(t.astype(np.uint32)))
+    rays = np.concatenate([np.broadcast_to(bm.origins[None], bm.directions.shape), bm.directions], axis=2)
+    hit = rs.cast_rays(o3d.core.Tensor(np.ascontiguousarray(rays, np.float32).reshape(-1, 6)))
+    h, w = bm.directions.shape[:2]
+    dist = hit["t_hit"].numpy().reshape(h, w).astype(np.float64)
+    normal = hit["primitive_normals"].numpy().reshape(h, w, 3).astype(np.float64)
+    return dist, np.abs((normal * bm.directions).sum(axis=2))
+
+
 class LidarSimulator:
-    def __init__(self, scene, cfg: LidarSimConfig, base_to_sensor: np.ndarray, rng: np.random.Generator) -> None:
+    def __init__(self, scene, cfg: LidarSimConfig, base_to_sensor: np.ndarray, rng: np.random.Generator,
+                 body: BodyBox | None = None) -> None:
         import open3d as o3d
 
         self._o3d = o3d
@@ -89,6 +120,7 @@ class LidarSimulator:
         self._sun = np.array([math.cos(el) * math.cos(sun_az), math.cos(el) * math.sin(sun_az), math.sin(el)])
         # weakest detectable albedo * cos / r^2 (10 % target, normal incidence, at the detection range)
         self._min_return = 0.1 / cfg.detect_range_10pct_m ** 2
+        self._body = None if body is None else (*_body_hits(body, base_to_sensor, self.beams), body.albedo)
 
     def sweep(self, traj: BodyTrajectory, stamp: float) -> OrganisedSweep:
         c, bm = self.cfg, self.beams
@@ -108,6 +140,11 @@ class LidarSimulator:
         gid = np.where(found, np.minimum(gid, self._albedo.size - 1), self._albedo.size - 1)
         albedo = self._albedo[gid]
         cos_inc = np.abs((normal * d_world).sum(axis=2))
+        if self._body is not None:  # the robot's own body is in front of the world for these pixels
+            body_dist, body_cos, body_albedo = self._body
+            own = body_dist < np.where(found, dist, np.inf)
+            dist, cos_inc, found = np.where(own, body_dist, dist), np.where(own, body_cos, cos_inc), found | own
+            albedo = np.where(own, body_albedo, albedo)
         safe = np.where(found, np.maximum(dist + bm.beam_offset_m, 0.1), 1.0)
         strength = albedo * cos_inc / safe ** 2
         rng_m = safe + self.rng.normal(0.0, c.range_noise_m, dist.shape)

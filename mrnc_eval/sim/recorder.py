@@ -20,9 +20,9 @@ from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
 from mrnc_eval.sim.gnss import simulate_gnss
 from mrnc_eval.sim.imu import ImuNoise, simulate_imu
-from mrnc_eval.sim.lidar import LidarSimulator, ouster_metadata
+from mrnc_eval.sim.lidar import BodyBox, LidarSimulator, ouster_metadata
 from mrnc_eval.sim.scene import SCENES, build_scene
-from mrnc_eval.sim.trajectory import BodyTrajectory
+from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory
 from mrnc_eval.sim.wheels import drive_signals
 
 LOG_EPOCH_S = 1_763_800_000.0  # sensor-clock time of every simulated log's t = 0, s
@@ -131,7 +131,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         _write_drive(writer, trace, stamps(scfg.wheel_rate_hz), cfg, t0)
         gt = _write_ground_truth(writer, traj, stamps(scfg.ground_truth_rate_hz), t0)
 
-        lidar = LidarSimulator(scene, lcfg, base_to_sensor, rng)
+        lidar = LidarSimulator(scene, lcfg, base_to_sensor, rng, _body_box(cfg) if lcfg.self_occlusion else None)
         sweep_starts = np.arange(0.0, t_end - 1.0 / lcfg.rate_hz, 1.0 / lcfg.rate_hz)
         kept = sweep_starts[::max(1, lcfg.record_every)]  # a throttled recording keeps every n-th sweep
         for n, start in enumerate(kept):
@@ -146,6 +146,13 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         raise
     write_tum(gt_tum_path(path), gt)
     return path
+
+
+def _body_box(cfg: Config) -> BodyBox:
+    """The machine's body in base_link: footprint length x width, from the ground clearance to its height."""
+    r, clearance = cfg.robot, cfg.sim.lidar.body_clearance_m
+    bottom, top = clearance - BASE_HEIGHT_M, r.height_m - BASE_HEIGHT_M
+    return BodyBox((0.0, 0.0, 0.5 * (bottom + top)), (r.length_m, r.width_m, top - bottom))
 
 
 def _write_imu(writer: LogWriter, topic: str, imu, noise: ImuNoise, t0: float) -> None:

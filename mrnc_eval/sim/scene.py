@@ -68,7 +68,7 @@ class Scene:
         return rs
 
 
-def _box(cx, cy, z0, sx, sy, sz, yaw=0.0):
+def box_mesh(cx, cy, z0, sx, sy, sz, yaw=0.0):
     c, s = math.cos(yaw), math.sin(yaw)
     corners = np.array([[dx, dy, dz] for dz in (0, sz) for dy in (-sy / 2, sy / 2) for dx in (-sx / 2, sx / 2)])
     xy = corners[:, :2] @ np.array([[c, s], [-s, c]])
@@ -143,24 +143,24 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
 
     if name == "yard":
         for x, y in place(6, 12, 30):  # buildings / walls
-            scene.add(*_box(x, y, z(x, y) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8), rng.uniform(3, 8),
+            scene.add(*box_mesh(x, y, z(x, y) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8), rng.uniform(3, 8),
                             rng.uniform(0, np.pi)), MATERIALS["concrete"])
         for x, y in place(8, 9, 25):  # 20 ft containers
-            scene.add(*_box(x, y, z(x, y) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), MATERIALS["container"])
+            scene.add(*box_mesh(x, y, z(x, y) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), MATERIALS["container"])
         for x, y in place(10, 9, 28):  # lamp poles
             scene.add(*_cylinder(x, y, z(x, y) - 0.2, 0.12, 6.0), MATERIALS["metal_pole"])
         for x, y in place(3, 10, 20):  # parked vehicles
-            scene.add(*_box(x, y, z(x, y), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), MATERIALS["vehicle"])
+            scene.add(*box_mesh(x, y, z(x, y), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), MATERIALS["vehicle"])
     elif name == "forest":  # the forest occupies a 200 deg sector; the rest is open ground
         for x, y in place(70, 8, 38, (0.0, np.radians(200))):
             tree(x, y, rng.uniform(0.12, 0.35), rng.uniform(5, 12), rng.uniform(1.5, 3.0))
         for x, y in place(5, 10, 30, (np.radians(200), 2 * np.pi)):  # lone trees in the open
             tree(x, y, rng.uniform(0.15, 0.3), rng.uniform(4, 8), rng.uniform(1.5, 2.5))
         for x, y in place(8, 9, 30, (np.radians(200), 2 * np.pi)):  # rocks and stumps
-            scene.add(*_box(x, y, z(x, y) - 0.3, rng.uniform(0.8, 2.0), rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.2),
-                            rng.uniform(0, np.pi)), MATERIALS["rock"])
+            size = rng.uniform(0.8, 2.0), rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.2)
+            scene.add(*box_mesh(x, y, z(x, y) - 0.3, *size, rng.uniform(0, np.pi)), MATERIALS["rock"])
     elif name == "corridor":  # two long featureless walls 8 m apart, along x
         for side in (-1, 1):
-            scene.add(*_box(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), MATERIALS["concrete"])
+            scene.add(*box_mesh(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), MATERIALS["concrete"])
     # "field": open ground only (degenerate: no structure)
     return scene

@@ -344,3 +344,27 @@ def test_motion_distortion_is_real_while_turning(tmp_path: Path) -> None:
     one_pose = wall_residual(np.full(s.points.shape[0], s.stamp))
     assert per_point.size > 300 and np.percentile(per_point, 95) < 0.002  # measured 0.4 mm
     assert np.percentile(one_pose, 95) > 0.02  # measured 3.7 cm
+
+
+def test_self_occlusion_returns_the_body_at_fixed_pixels(tmp_path: Path) -> None:
+    cfg = _quiet(Config())
+    cfg = replace(cfg, sim=replace(cfg.sim, lidar=replace(cfg.sim.lidar, self_occlusion=True)))
+    log = simulate_log(tmp_path / "body.mcap", cfg, SimRequest(scene="yard", path="circle", duration_s=3.0, seed=1,
+                                                               **SMALL))
+    with open_log(log) as lg:
+        sweeps = list(lg.sweeps())[5:8]
+        base_to_sensor = lg.transform("base_link", "os_sensor")
+    r = cfg.robot
+    half = np.array([r.length_m / 2, r.width_m / 2])
+    top = r.height_m - 0.6  # base_link is 0.6 m above the ground
+    pixels = []
+    for s in sweeps:
+        p = s.points.astype(float) @ base_to_sensor[:3, :3].T + base_to_sensor[:3, 3]  # base_link
+        on_body = np.all(np.abs(p[:, :2]) < half + 0.01, axis=1) & (p[:, 2] < top + 0.01) & (p[:, 2] > -0.6)
+        assert on_body.sum() > 300  # the rear-lower part of the field of view sees the machine
+        # ... on its surface: the top face or a side face (1 mm ranges, float32 points)
+        gap = np.minimum(np.abs(p[on_body, 2] - top), np.min(half - np.abs(p[on_body, :2]), axis=1))
+        assert gap.max() < 0.005
+        pixels.append(set(zip(s.ring[on_body].tolist(), s.column[on_body].tolist(), strict=True)))
+    # the body moves with the sensor: the same pixels in every sweep while the robot drives
+    assert len(pixels[0] & pixels[1] & pixels[2]) == len(pixels[0]) == len(pixels[2])
