@@ -17,7 +17,7 @@ from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.pipelines.progress import progress_bar
-from mrnc_eval.results import Event, Metric, RunResult, log_id_for, write_result
+from mrnc_eval.results import Event, Metric, RunResult, _json_safe, log_id_for, write_result
 from mrnc_eval.slam.pipeline import STAGES, SlamOutput
 
 log = logging.getLogger(__name__)
@@ -49,19 +49,21 @@ def _kiss_icp(sweeps, cfg: Config) -> SlamOutput:
     kcfg.data.deskew = True
     icp = KissICP(kcfg)
     stamps, poses = [], []
-    t_match = []
-    wall0 = time.perf_counter()
+    t_match, t_read = [], []
+    wall0 = t_prev = time.perf_counter()
     n = 0
     for s in sweeps:
         n += 1
         t0 = time.perf_counter()
+        t_read.append((t0 - t_prev) * 1e3)
         ts = s.point_time.astype(np.float64) / max(float(s.point_time.max()), 1e-9) if s.point_time is not None else np.zeros(len(s))
         icp.register_frame(s.points.astype(np.float64), ts)
         t_match.append((time.perf_counter() - t0) * 1e3)
         stamps.append(s.stamp)
         poses.append(np.asarray(icp.last_pose))
+        t_prev = time.perf_counter()
     timing = {st: [0.0] * len(t_match) for st in STAGES}
-    timing["matching"] = t_match
+    timing["matching"], timing["read"] = t_match, t_read
     return SlamOutput(np.asarray(stamps), np.asarray(poses), np.asarray(stamps), np.asarray(poses), np.zeros((0, 3)),
                       timing, [], [], n, time.perf_counter() - wall0)
 
@@ -80,6 +82,10 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
 
     if method not in METHODS:
         raise UsageError(f"--method {method!r}: choose from {', '.join(METHODS)}")
+    import json
+    import time
+
+    wall_start = time.perf_counter()
     result = RunResult(kind="slam", log_path=str(log_path), log_id=log_id_for(log_path), config_hash=config_hash(cfg))
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
@@ -118,8 +124,11 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         result.events.append(Event(e.t - t_start, e.kind, e.message, e.data))
     # ---- metrics
     rtf = duration / out.wall_s if out.wall_s > 0 else float("inf")
+    total_s = time.perf_counter() - wall_start
     result.metrics += [Metric("rtf", rtf, "", "slam", lower_is_better=False,
-                              note="log duration / wall time"),
+                              note="log duration / wall time of the SLAM over the sweep stream (decoding included)"),
+                       Metric("rtf_end_to_end", duration / total_s, "", "slam", lower_is_better=False,
+                              note="log duration / wall time including reading IMU, GNSS and ground truth"),
                        Metric("sweeps_processed", int(out.stamps.size), "", "slam"),
                        Metric("keyframes", int(out.kf_stamps.size), "", "slam"),
                        Metric("loop_closures", sum(e.kind == "loop_closure" for e in out.events), "", "slam"),
@@ -130,7 +139,10 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         timing[stage] = {"mean": float(vals.mean()), "p95": float(np.percentile(vals, 95)), "max": float(vals.max())}
         result.metrics.append(Metric(f"ms_per_sweep_{stage}", timing[stage]["mean"], "ms", "slam/timing"))
     result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
-                         "sweeps_decoded": out.n_sweeps})
+                         "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
+                         "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
+                         "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static)",
+                                    "stamps": "sweep header stamps (sweep start)"}})
     result.series["est_t"] = est.stamps - t_start
     result.series["est_xyz"] = est.positions
     result.series["kf_xyz"] = (out.kf_poses @ np.linalg.inv(base_to_sensor))[:, :3, 3] if out.kf_poses.size else np.zeros((0, 3))
@@ -175,8 +187,12 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         import open3d as o3d
 
         pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(out.map_points))
-        o3d.io.write_point_cloud(str(tmp / "map.ply"), pc)
-        files["map.ply"] = tmp / "map.ply"
+        for name in ("map.ply", "map.pcd"):
+            o3d.io.write_point_cloud(str(tmp / name), pc)
+            files[name] = tmp / name
+    metrics = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
+    (tmp / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2), encoding="utf-8")
+    files["metrics.json"] = tmp / "metrics.json"
     try:
         write_result(result, out_dir, dump_config(cfg), files)
     finally:

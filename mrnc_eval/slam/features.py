@@ -105,19 +105,53 @@ def _extract(rng, curv, col, ring_start, ring_end, edge_thr, surf_thr, max_edges
     return label
 
 
+@njit(cache=True)
+def _voxel_centroids(points, leaf):
+    """Open-addressing hash of packed voxel keys (21 bits per axis): O(N), first-seen order."""
+    n = points.shape[0]
+    cap, bits = 1, 0
+    while cap < 2 * n:
+        cap *= 2
+        bits += 1
+    table = np.full(cap, -1, np.int64)  # slot -> output index
+    keys = np.empty(n, np.int64)
+    sums = np.zeros((n, 3))
+    counts = np.zeros(n, np.int64)
+    m = 0
+    for i in range(n):
+        kx = np.int64(np.floor(points[i, 0] / leaf)) + (1 << 20)
+        ky = np.int64(np.floor(points[i, 1] / leaf)) + (1 << 20)
+        kz = np.int64(np.floor(points[i, 2] / leaf)) + (1 << 20)
+        key = (kx << 42) | (ky << 21) | kz
+        h = ((key * np.int64(-7046029254386353131)) >> (64 - bits)) & (cap - 1)  # Fibonacci hash: top bits
+        while True:
+            j = table[h]
+            if j < 0:
+                table[h] = m
+                keys[m] = key
+                j = m
+                m += 1
+                break
+            if keys[j] == key:
+                break
+            h = (h + 1) & (cap - 1)
+        sums[j, 0] += points[i, 0]
+        sums[j, 1] += points[i, 1]
+        sums[j, 2] += points[i, 2]
+        counts[j] += 1
+    out = np.empty((m, 3))
+    for j in range(m):
+        for a in range(3):
+            out[j, a] = sums[j, a] / counts[j]
+    return out
+
+
 def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
-    """One point (the centroid) per voxel of size `leaf` (m). Voxel indices are packed into one
-    int64 key (21 bits per axis: +/-1e6 voxels) so the grouping is a 1-D sort."""
+    """One point (the centroid) per voxel of size `leaf` (m), as PCL's VoxelGrid; voxel indices
+    within +/-1e6 per axis."""
     if points.shape[0] == 0 or leaf <= 0:
         return points
-    k = np.floor(points / leaf).astype(np.int64) + (1 << 20)
-    key = (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
-    order = np.argsort(key, kind="stable")
-    key_sorted = key[order]
-    starts = np.flatnonzero(np.r_[True, key_sorted[1:] != key_sorted[:-1]])
-    sums = np.add.reduceat(points[order], starts, axis=0)
-    counts = np.diff(np.r_[starts, key_sorted.size])
-    return sums / counts[:, None]
+    return _voxel_centroids(np.ascontiguousarray(points, dtype=np.float64), float(leaf))
 
 
 def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) -> Features:

@@ -195,3 +195,20 @@ def test_enu_alignment_recovers_yaw_and_offset() -> None:
     mp = enu @ np.array([[c, -s], [s, c]]).T + t
     y, tt = fit_yaw_translation(enu, mp)
     assert y == pytest.approx(yaw, abs=1e-12) and np.allclose(tt, t)
+
+
+def test_deskew_matches_per_point_rotation_and_velocity() -> None:
+    from mrnc_eval.slam.deskew import deskew
+
+    t = np.arange(0.0, 1.0, 0.01)
+    w = np.array([0.05, 0.02, 0.8])
+    track = imu_track(_imu(t + 100.0, w, np.array([0, 0, G])), np.eye(3))
+    rng = np.random.default_rng(3)
+    pts = rng.uniform(-20, 20, (5000, 3))
+    pt = np.sort(rng.uniform(0, 0.1, 5000))
+    v = np.array([0.4, 0.0, 0.0])
+    got = deskew(pts, pt.astype(np.float32), 100.2, track, v)
+    want = Rotation.from_rotvec(np.outer(pt, w)).apply(pts) + np.outer(pt, v)
+    # 1 ms rotation quanta: error below 0.8 rad/s * 0.5 ms * 35 m
+    assert np.max(np.linalg.norm(got - want, axis=1)) < 0.8 * 0.5e-3 * 35 + 1e-6
+    assert np.max(np.linalg.norm(got - pts, axis=1)) > 1.0  # a real motion was removed
