@@ -208,3 +208,28 @@ def test_a_second_nightly_on_the_same_root_is_refused(imu_logs: Path, tmp_path: 
             run_night(imu_logs, out, night="2026-11-06")
     assert not (out / "history.sqlite").exists()
     assert run_night(imu_logs, out, night="2026-11-06") == 0  # released: runs
+
+
+def test_a_failed_gate_exits_1_and_is_named_in_the_index_and_history(imu_logs: Path, tmp_path: Path) -> None:
+    out = tmp_path / "out"
+    assert run_night(imu_logs, out, night="2026-11-07", analysis="tests.reports.nightly_workers:gated_analysis") == 1
+    index = (out / "2026-11-07" / "index.html").read_text(encoding="utf-8")
+    assert index.count("fail: APE RMSE") == 1 and index.count(">pass</td>") == len(IDS) - 1
+    with sqlite3.connect(out / "history.sqlite") as con:
+        assert con.execute("SELECT log_id FROM metrics WHERE metric = 'gate_failed/APE RMSE'").fetchall() == [("l1",)]
+
+
+def test_gate_cards_judge_the_worst_deployed_value() -> None:
+    from mrnc_eval.evaluation.config import GatesConfig
+    from mrnc_eval.reports.render import evaluate_gates
+    from mrnc_eval.results import Metric, RunResult
+
+    slam = RunResult("slam", "x.mcap", "x", metrics=[Metric("ape_rmse_m", 0.12, "m", "slam/ape")])
+    control = RunResult("control", "x.mcap", "x", metrics=[
+        Metric("funnel_violations", 0, "", "control/raid/left"), Metric("funnel_violations", 3, "", "control/pid/left"),
+        Metric("saturation_ratio", 0.1, "", "control/raid/left"),
+        Metric("saturation_ratio", 0.3, "", "control/raid/right"),
+        Metric("safety_stops", float("nan"), "", "control/raid/left")])
+    cards = {g.label: (g.value, g.status) for g in evaluate_gates([slam, control], GatesConfig())}
+    assert cards == {"APE RMSE": ("0.120 m", "fail"), "Funnel violations": ("0", "pass"),  # PID is not gated
+                     "Saturation ratio": ("0.300", "fail"), "Safety stops": ("n/a", "na")}
