@@ -96,7 +96,7 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
         clock = _Clock(timing)
         # ---- range image + deskew
         image = project(sweep, cfg.sensor, cfg.features)
-        pts = _deskew(image, sweep, track, st, cfg, warnings)
+        pts = _deskew(image, sweep, track, st, cfg, warnings, events)
         clock.lap("deskew")
         # ---- features
         feats = extract_features(image, pts, cfg.features)
@@ -183,25 +183,28 @@ def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warning
     return track, odom, imu
 
 
-def _deskew(image, sweep: Sweep, track: ImuTrack | None, st: _State, cfg: SlamConfig, warnings: list[str]) -> np.ndarray:
+def _deskew(image, sweep: Sweep, track: ImuTrack | None, st: _State, cfg: SlamConfig, warnings: list[str],
+            events: list[SlamEvent]) -> np.ndarray:
     if image.point_time is None:
-        _warn_once(st, warnings, "no_time", "sweeps have no per-point time: processed without deskew "
-                   "(the trajectory will drift with fast rotation)")
+        _warn_once(st, warnings, events, sweep.stamp, "no_time", "sweeps have no per-point time: processed "
+                   "without deskew (the trajectory will drift with fast rotation)")
         return image.points
     t_end = sweep.stamp + float(image.point_time.max(initial=0.0))
     if track is not None and not track.covers(sweep.stamp, t_end):
-        _warn_once(st, warnings, "no_cover", f"IMU does not cover the sweep at {sweep.stamp:.3f} s: "
-                   "rotation deskew clamped to the IMU span")
+        _warn_once(st, warnings, events, sweep.stamp, "no_cover", f"IMU does not cover the sweep at "
+                   f"{sweep.stamp:.3f} s: rotation deskew clamped to the IMU span")
     v_sensor = None
     if cfg.deskew_translation and st.velocity is not None and st.pose is not None:
         v_sensor = st.pose[:3, :3].T @ st.velocity
     return deskew(image.points, image.point_time, sweep.stamp, track, v_sensor)
 
 
-def _warn_once(st: _State, warnings: list[str], key: str, text: str) -> None:
+def _warn_once(st: _State, warnings: list[str], events: list[SlamEvent], t: float, key: str, text: str) -> None:
+    """A condition that holds for the whole log: one warning (and one event at its first sweep)."""
     if key not in st.warned:
         st.warned.add(key)
         warnings.append(text)
+        events.append(SlamEvent(t, "warning", text))
 
 
 def _guess(st: _State, t: float, track: ImuTrack | None, odom: ImuOdometry | None, imu: ImuSeries | None,
