@@ -9,6 +9,7 @@ from __future__ import annotations
 
 import glob
 import struct
+from array import array
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
@@ -192,7 +193,7 @@ class LogReader:
     def _scan(self) -> None:
         """One pass over the whole log: header stamps (record times for unstamped types),
         counts and gaps per topic."""
-        stamps: dict[str, list[float]] = {t: [] for t in self._channels}
+        stamps = {t: array("d") for t in self._channels}  # 8 bytes a stamp (a list costs 32)
         header_topics = {t for t, ch in self._channels.items()
                          if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
         for topic, t_rec, raw in self._iterate(list(self._channels)):
@@ -204,7 +205,7 @@ class LogReader:
             else:
                 stamps[topic].append(t_rec * 1e-9)
         stats: dict[str, TopicInfo] = {}
-        self._stamps = {t: np.asarray(v, dtype=float) for t, v in stamps.items()}
+        self._stamps = {t: np.frombuffer(v, dtype=np.float64) if len(v) else np.zeros(0) for t, v in stamps.items()}
         for topic, ch in self._channels.items():
             arr = self._stamps[topic]
             _, health = _sort_dedup(arr, topic)
