@@ -368,14 +368,3 @@ def test_self_occlusion_returns_the_body_at_fixed_pixels(tmp_path: Path) -> None
         pixels.append(set(zip(s.ring[on_body].tolist(), s.column[on_body].tolist(), strict=True)))
     # the body moves with the sensor: the same pixels in every sweep while the robot drives
     assert len(pixels[0] & pixels[1] & pixels[2]) == len(pixels[0]) == len(pixels[2])
-
-
-def test_refuses_motion_faster_than_the_machine(tmp_path: Path) -> None:
-    from mrnc_eval.errors import ConfigError
-
-    cfg = Config()
-    cfg = replace(cfg, robot=replace(cfg.robot, max_speed_mps=0.2))  # the mission drives at 0.38 m/s
-    with pytest.raises(ConfigError, match="max_speed_mps"):
-        simulate_log(tmp_path / "fast.mcap", cfg, SimRequest(scene="field", path="line", duration_s=8.0, seed=0,
-                                                             **SMALL))
-    assert not list(tmp_path.iterdir())
