@@ -26,3 +26,10 @@ class IoConfig:
         "(position_covariance_type 0 or an all-zero diagonal), so no fix is trusted as exact",
         "m^2",
     )
+    small_topic_cache_mb: float = param(
+        1024.0,
+        "the overview pass keeps the raw messages of every topic except clouds and images in memory, "
+        "up to this many MB, so IMU, GNSS, odometry and TF are not read from the file again "
+        "(a compressed log is decompressed once for them instead of once per series); 0 = off",
+        "MB",
+    )

@@ -26,6 +26,10 @@ from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import detect_roles
 from mrnc_eval.io.sources import McapSource, RosbagsSource
 
+_BULK_TYPES = {  # never kept in memory by the overview pass
+    "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage",
+    "sensor_msgs/msg/LaserScan",
+}
 _STAMPED_FIRST_FIELD = {  # message types whose first field is std_msgs/Header
     "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Imu", "sensor_msgs/msg/NavSatFix", "sensor_msgs/msg/JointState",
     "nav_msgs/msg/Odometry", "nav_msgs/msg/Path", "geometry_msgs/msg/PoseStamped",
@@ -104,6 +108,7 @@ class LogReader:
         self._health: dict[str, StreamHealth] = {}
         self._roles: dict[str, str] | None = None
         self._stamps: dict[str, np.ndarray] = {}
+        self._cache: dict[str, list[tuple[int, bytes]]] = {}  # small topics' raw messages from the overview pass
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
@@ -144,6 +149,9 @@ class LogReader:
         ch = self._channel(topic)
         if ch.problem:
             raise InputError(self.path, ch.problem, topic=topic)
+        if topic in self._cache:
+            yield from self._cache[topic]
+            return
         for _topic, t_rec, raw in self._iterate([topic]):
             yield t_rec, raw
 
@@ -192,11 +200,18 @@ class LogReader:
 
     def _scan(self) -> None:
         """One pass over the whole log: header stamps (record times for unstamped types),
-        counts and gaps per topic."""
+        counts and gaps per topic; the raw messages of small topics are kept (io.small_topic_cache_mb)."""
         stamps = {t: array("d") for t in self._channels}  # 8 bytes a stamp (a list costs 32)
         header_topics = {t for t, ch in self._channels.items()
                          if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
+        keep = {t for t, ch in self._channels.items() if ch.msgtype not in _BULK_TYPES and not ch.problem}
+        budget = int(self.cfg.small_topic_cache_mb * 1e6)
+        cache: dict[str, list[tuple[int, bytes]]] = {t: [] for t in keep}
         for topic, t_rec, raw in self._iterate(list(self._channels)):
+            if topic in keep:
+                budget -= len(raw)
+                if budget >= 0:
+                    cache[topic].append((t_rec, bytes(raw)))
             if topic in header_topics:
                 try:
                     stamps[topic].append(self._raw_header_stamp(raw, topic))
@@ -204,6 +219,7 @@ class LogReader:
                     raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
             else:
                 stamps[topic].append(t_rec * 1e-9)
+        self._cache = cache if budget >= 0 else {}  # over budget: each series reads the file again
         stats: dict[str, TopicInfo] = {}
         self._stamps = {t: np.frombuffer(v, dtype=np.float64) if len(v) else np.zeros(0) for t, v in stamps.items()}
         for topic, ch in self._channels.items():

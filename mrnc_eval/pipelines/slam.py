@@ -90,6 +90,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
+        duration = lg.duration_s  # the overview pass first: it keeps IMU, GNSS, TF and ground truth in memory
         lidar_frame = cfg.slam.sensor.lidar_frame
         statics = lg.static_transforms()
         frames = {c for _, c in statics} | {p for p, _ in statics}
@@ -102,7 +103,6 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         gt = _ground_truth(lg, log_path)
         antenna = lg.transform("base_link", "gnss")[:3, 3] if "gnss" in frames and "base_link" in frames else np.zeros(3)
         antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
-        duration = lg.duration_s
         total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
         with progress_bar(total, progress) as b:
             task = b.add_task("SLAM sweeps", total=total) if b else None

@@ -78,8 +78,6 @@ class MatchingConfig:
     converge_rot_deg: float = param(0.05, "convergence: rotation update", "deg")
     converge_trans_cm: float = param(0.05, "convergence: translation update", "cm")
     max_nn_sq_dist_m2: float = param(1.0, "neighbours farther than this (squared) are not used", "m^2")
-    kdtree_workers: int = param(2, "threads of the nearest-neighbour queries when scipy's cKDTree is used "
-                                "(pykdtree, when installed, uses OpenMP)")
     keyframe_density_m: float = param(2.0, "keyframe positions voxelised at this before choosing the local map "
                                       "(surroundingKeyframeDensity)", "m")
     min_correspondences: int = param(50, "stop iterating with fewer residuals than this")

@@ -278,7 +278,7 @@ def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict, cfg: Sl
         edges.append(cache[i][0])
         surfs.append(cache[i][1])
     return LocalMap.build(voxel_downsample(np.vstack(edges), m.corner_leaf_m),
-                          voxel_downsample(np.vstack(surfs), m.surf_leaf_m), m.kdtree_workers)
+                          voxel_downsample(np.vstack(surfs), m.surf_leaf_m))
 
 
 def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, events: list[SlamEvent],

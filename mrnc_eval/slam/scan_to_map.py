@@ -13,25 +13,17 @@ from mrnc_eval.slam.config import MatchingConfig
 
 
 class _Tree:
-    """5-NN search over a map cloud: pykdtree when installed (3x faster build, 1.4x faster query
-    than scipy's cKDTree on 120k points, 2 cores), else cKDTree."""
+    """5-NN search over a map cloud with pykdtree (OpenMP): 3x faster to build and 1.4x faster to
+    query than scipy's cKDTree on 120k map points on 2 cores."""
 
-    def __init__(self, points: np.ndarray, workers: int) -> None:
-        self.workers = workers
-        try:
-            from pykdtree.kdtree import KDTree
+    def __init__(self, points: np.ndarray) -> None:
+        from pykdtree.kdtree import KDTree
 
-            self._tree, self._pyk = KDTree(np.ascontiguousarray(points)), True
-        except ImportError:  # optional speed-up
-            from numba import njit
-
-            self._tree, self._pyk = cKDTree(points), False
+        self._tree = KDTree(np.ascontiguousarray(points))
 
     def query(self, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-        if self._pyk:
-            d, i = self._tree.query(np.ascontiguousarray(q), k=k)
-            return d, i.astype(np.int64)
-        return self._tree.query(q, k=k, workers=self.workers)
+        d, i = self._tree.query(np.ascontiguousarray(q), k=k)
+        return d, i.astype(np.int64)
 
 
 @dataclass
@@ -42,9 +34,8 @@ class LocalMap:
     surf_tree: _Tree | None
 
     @classmethod
-    def build(cls, edges: np.ndarray, surfs: np.ndarray, workers: int = 2) -> LocalMap:
-        return cls(edges, surfs, _Tree(edges, workers) if len(edges) >= 5 else None,
-                   _Tree(surfs, workers) if len(surfs) >= 5 else None)
+    def build(cls, edges: np.ndarray, surfs: np.ndarray) -> LocalMap:
+        return cls(edges, surfs, _Tree(edges) if len(edges) >= 5 else None, _Tree(surfs) if len(surfs) >= 5 else None)
 
 
 @dataclass(frozen=True)

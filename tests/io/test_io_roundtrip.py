@@ -169,3 +169,28 @@ def test_sweeps_skipped_before_decoding_at_a_lower_mapping_rate(tmp_path: Path) 
     with open_log(tmp_path / "a.mcap") as log:
         kept = [s.stamp for s in log.sweeps(min_interval_s=0.15)]
     assert kept == pytest.approx([100.0, 100.2])
+
+
+@pytest.mark.parametrize("fmt,name,_kind", FORMATS[:3])
+def test_overview_pass_keeps_small_topics_so_series_do_not_reread_the_file(tmp_path: Path, fmt: str, name: str,
+                                                                            _kind: str) -> None:
+    """After the overview pass, IMU, GNSS, ground truth and TF come from memory (one pass over a
+    compressed log instead of one per series) and equal what a reader without the cache returns."""
+    write_sample(tmp_path / name, fmt)
+    series = {}
+    for budget in (1024.0, 0.0, 1e-3):  # default, off, and a budget the log exceeds (falls back to the file)
+        with open_log(tmp_path / name, IoConfig(small_topic_cache_mb=budget)) as lg:
+            lg.topics  # the overview pass
+            passes = []
+            real_iterate = lg._iterate
+            lg._iterate = lambda topics: (passes.append(topics), real_iterate(topics))[1]
+            series[budget] = (lg.imu(), lg.gnss(), lg.ground_truth(), lg.transform("base_link", "os_imu"))
+            reread = [t for t in passes if t != ["/ouster/points"]]
+        assert (reread == []) == (budget == 1024.0), (budget, reread)
+    (imu, gnss, gt, tf) = series[1024.0]
+    for other in (series[0.0], series[1e-3]):
+        np.testing.assert_array_equal(imu.stamps, other[0].stamps)
+        np.testing.assert_array_equal(imu.gyro, other[0].gyro)
+        np.testing.assert_array_equal(gnss.enu, other[1].enu)
+        np.testing.assert_array_equal(gt.positions, other[2].positions)
+        np.testing.assert_array_equal(tf, other[3])
