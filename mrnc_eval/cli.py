@@ -341,6 +341,12 @@ def simulate(
 # ------------------------------------------------------------------ entry point
 
 
+def printable(text: str) -> str:
+    """One terminal line: control characters from log content (newlines, ANSI escapes in a topic
+    or frame name) are shown escaped, so a log cannot forge or hide lines of our output."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; the single place where errors become exit codes."""
     try:
@@ -360,7 +366,7 @@ def main(argv: list[str] | None = None) -> int:
     except MrncError as exc:
         if _state["debug"]:
             log.exception("%s", exc)
-        sys.stderr.write(f"mrnc-eval: error: {exc}\n")
+        sys.stderr.write(f"mrnc-eval: error: {printable(str(exc))}\n")
         return exc.exit_code
     except KeyboardInterrupt:
         sys.stderr.write("interrupted\n")

@@ -47,8 +47,9 @@ def test_defaults_carry_paper_values() -> None:
 
 
 def test_yaml_roundtrip_and_override(tmp_path: Path) -> None:
-    cfg = load_config(None, ["robot.track_width_m=1.9", "io.roles={lidar: /points}"])
+    cfg = load_config(None, ["robot.track_width_m=1.9", "io.roles={lidar: /points}", "sim.imu.gyro_bias_walk=2e-5"])
     assert cfg.robot.track_width_m == 1.9
+    assert cfg.sim.imu.gyro_bias_walk == 2e-5  # YAML 1.1 alone would read "2e-5" as a string
     assert cfg.io.roles == {"lidar": "/points"}
     dumped = tmp_path / "cfg.yaml"
     dumped.write_text(dump_config(cfg))
@@ -78,3 +79,14 @@ def test_config_verb_prints_loadable_yaml(capsys: pytest.CaptureFixture[str]) ->
     assert main(["config", "--set", "robot.wheel_radius_m=0.4"]) == 0
     data = yaml.safe_load(capsys.readouterr().out)
     assert data["robot"]["wheel_radius_m"] == 0.4
+
+
+def test_errors_are_one_line_with_control_characters_escaped(tmp_path: Path,
+                                                              capsys: pytest.CaptureFixture[str]) -> None:
+    """A name from outside (a path here, a topic or frame name in a log) cannot forge lines or
+    colour the terminal through an error message."""
+    sneaky = tmp_path / "log\nmrnc-eval: all good\x1b[32m.mcap"
+    assert main(["info", str(sneaky)]) == 4
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1 and "\x1b" not in err
+    assert "log\\nmrnc-eval: all good\\x1b[32m.mcap" in err
