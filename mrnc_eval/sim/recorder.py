@@ -81,6 +81,13 @@ def validate(req: SimRequest) -> None:
         raise ValueError("unsupported simulation request: " + "; ".join(problems))
 
 
+def _driven_path(trace) -> np.ndarray:
+    """The driven xy (m) every ~0.1 m: what the scene must leave clear."""
+    xy = np.c_[trace.x, trace.y]
+    step = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))]
+    return xy[np.unique(np.searchsorted(step, np.arange(0.0, step[-1] + 0.1, 0.1)).clip(0, len(xy) - 1))]
+
+
 def simulate_log(out: Path, cfg: Config, req: SimRequest,
                  progress: Callable[[int, int], None] | None = None) -> Path:
     """Write the log to `out` (atomically) and the ground truth TUM beside it; returns the log
@@ -96,7 +103,8 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
     trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
     scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m,
-                        roughness_m=scfg.terrain_roughness_m, centre=tuple(scenario.waypoints_xy.mean(axis=0)))
+                        roughness_m=scfg.terrain_roughness_m, centre=tuple(scenario.waypoints_xy.mean(axis=0)),
+                        keep_clear_xy=_driven_path(trace), clearance_m=cfg.robot.width_m / 2 + 0.5)
     traj = BodyTrajectory.from_trace(trace, scene.terrain)
     t_end = float(trace.t[-1]) if req.duration_s is None else float(req.duration_s)
 

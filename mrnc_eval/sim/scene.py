@@ -114,11 +114,14 @@ MATERIALS = {"soil": 0.25, "concrete": 0.4, "container": 0.55, "metal_pole": 0.6
 
 
 def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness_m: float = 0.02,
-                centre=(0.0, 0.0), half_size_m: float = 40.0) -> Scene:
+                centre=(0.0, 0.0), half_size_m: float = 40.0, keep_clear_xy: np.ndarray | None = None,
+                clearance_m: float = 1.5) -> Scene:
     """A named scene around `centre` (m): yard (buildings, containers, poles, vehicles), forest
     (a forest edge: dense trees on one side, open ground with shrubs and rocks on the other),
     corridor (two long featureless walls: degenerate along its axis) or field (open ground only:
-    degenerate). The layout is a pure function of `seed`."""
+    degenerate). The layout is a pure function of `seed` and `keep_clear_xy`: no object (its
+    whole footprint, tree crowns included) comes within `clearance_m` of those points (m, the
+    driven path), so the machine never drives through a trunk or with its LiDAR inside a crown."""
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
     terrain = Terrain(0.0 if name == "corridor" else amplitude_m, roughness_m, seed)
@@ -130,11 +133,23 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
     def z(x: float, y: float) -> float:
         return float(terrain.height(np.array(x), np.array(y)))
 
-    def place(n, r_min, r_max, sector=(0.0, 2 * np.pi)):
+    clear = None
+    if keep_clear_xy is not None and len(keep_clear_xy):
+        from scipy.spatial import cKDTree
+
+        clear = cKDTree(np.asarray(keep_clear_xy, float)[:, :2])
+
+    def place(n, r_min, r_max, sector=(0.0, 2 * np.pi), footprint_m=0.0):
+        """n positions in the annulus sector; redrawn (at most 100 times) while the footprint
+        (radius, m) would reach within clearance_m of the path."""
         out = []
         for _ in range(n):
-            r, a = rng.uniform(r_min, r_max), rng.uniform(*sector)
-            out.append((cx0 + r * math.cos(a), cy0 + r * math.sin(a)))
+            for _attempt in range(100):
+                r, a = rng.uniform(r_min, r_max), rng.uniform(*sector)
+                xy = (cx0 + r * math.cos(a), cy0 + r * math.sin(a))
+                if clear is None or clear.query(xy)[0] >= clearance_m + footprint_m:
+                    out.append(xy)
+                    break
         return out
 
     def tree(x, y, trunk_r, height, crown_r):
@@ -142,21 +157,21 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
         scene.add(*_sphere(x, y, z(x, y) + height, crown_r), MATERIALS["foliage"])
 
     if name == "yard":
-        for x, y in place(6, 12, 30):  # buildings / walls
+        for x, y in place(6, 12, 30, footprint_m=8.5):  # buildings / walls (15 x 8 m at most)
             scene.add(*box_mesh(x, y, z(x, y) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8), rng.uniform(3, 8),
                             rng.uniform(0, np.pi)), MATERIALS["concrete"])
-        for x, y in place(8, 9, 25):  # 20 ft containers
+        for x, y in place(8, 9, 25, footprint_m=3.3):  # 20 ft containers
             scene.add(*box_mesh(x, y, z(x, y) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), MATERIALS["container"])
-        for x, y in place(10, 9, 28):  # lamp poles
+        for x, y in place(10, 9, 28, footprint_m=0.12):  # lamp poles
             scene.add(*_cylinder(x, y, z(x, y) - 0.2, 0.12, 6.0), MATERIALS["metal_pole"])
-        for x, y in place(3, 10, 20):  # parked vehicles
+        for x, y in place(3, 10, 20, footprint_m=2.5):  # parked vehicles
             scene.add(*box_mesh(x, y, z(x, y), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), MATERIALS["vehicle"])
     elif name == "forest":  # the forest occupies a 200 deg sector; the rest is open ground
-        for x, y in place(70, 8, 38, (0.0, np.radians(200))):
+        for x, y in place(70, 8, 38, (0.0, np.radians(200)), footprint_m=3.0):  # crown radius
             tree(x, y, rng.uniform(0.12, 0.35), rng.uniform(5, 12), rng.uniform(1.5, 3.0))
-        for x, y in place(5, 10, 30, (np.radians(200), 2 * np.pi)):  # lone trees in the open
+        for x, y in place(5, 10, 30, (np.radians(200), 2 * np.pi), footprint_m=2.5):  # lone trees in the open
             tree(x, y, rng.uniform(0.15, 0.3), rng.uniform(4, 8), rng.uniform(1.5, 2.5))
-        for x, y in place(8, 9, 30, (np.radians(200), 2 * np.pi)):  # rocks and stumps
+        for x, y in place(8, 9, 30, (np.radians(200), 2 * np.pi), footprint_m=1.2):  # rocks and stumps
             size = rng.uniform(0.8, 2.0), rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.2)
             scene.add(*box_mesh(x, y, z(x, y) - 0.3, *size, rng.uniform(0, np.pi)), MATERIALS["rock"])
     elif name == "corridor":  # two long featureless walls 8 m apart, along x
