@@ -224,7 +224,8 @@ def _body_rates(t: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) ->
 
 
 def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "replay",
-            controllers: tuple[str, ...] = CONTROLLERS) -> RunResult:
+            controllers: tuple[str, ...] = CONTROLLERS, log_id: str | None = None) -> RunResult:
+    """`log_id` names the log in results (default: from its file name; the nightly job passes its own)."""
     warnings: list[str] = []
     if mode == "simulate":
         scenario = paper_circle_scenario(cfg.control) if log_path is None else _scenario_from_log(log_path, cfg)
@@ -238,7 +239,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     else:
         raise UsageError(f"unknown mode {mode!r}: replay or simulate")
     result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
-                       log_id=log_id_for(log_path) if log_path else "paper-circle", config_hash=config_hash(cfg),
+                       log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"), config_hash=config_hash(cfg),
                        warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
     result.series["t"] = longest.t[:: _decimate(longest.t)]

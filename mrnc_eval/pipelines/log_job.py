@@ -62,12 +62,12 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
     info_result = RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={"info": summary},
                             config_hash=config_hash(cfg))
     write_result(info_result, work_dir / "info", config_yaml)
-    results = [info_result, slam.run_log(log_path, cfg, work_dir / "slam")]
+    results = [info_result, slam.run_log(log_path, cfg, work_dir / "slam", log_id=log_id)]
     missing = [r for r in ("path", "wheel_speeds") if r not in summary["roles"]]
     if missing:
         info_result.warnings.append(f"control replay skipped: the log has no {' and no '.join(missing)} topic")
     else:
-        results.append(control.run_log(log_path, cfg, work_dir / "control", mode="replay"))
+        results.append(control.run_log(log_path, cfg, work_dir / "control", mode="replay", log_id=log_id))
     write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf)
     metrics = [(f"{m.group}/{m.name}", _finite(m.value), m.unit) for r in results for m in r.metrics]
     return Analysis(metrics, [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"])

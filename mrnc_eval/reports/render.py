@@ -104,9 +104,11 @@ def _slam_section(r: RunResult) -> dict[str, Any]:
     stats = ("mean", "p95", "max")
     timing_table = Table("Per-stage timing", list(timing), list(stats), [[t.get(k) for k in stats]
                                                                          for t in timing.values()],
-                         unit="ms per sweep", best=None, precision=1)
+                         unit="ms per sweep, first sweep excluded", best=None, precision=1)
     summary = (f"Method {r.extra.get('method', 'lio')}; log of {r.extra.get('log_duration_s', float('nan')):.1f} s "
-               f"processed in {r.extra.get('wall_s', float('nan')):.1f} s.")
+               f"processed in {r.extra.get('wall_s', float('nan')):.1f} s (first sweep "
+               f"{r.extra.get('first_sweep_ms', float('nan')):.0f} ms, numba's one-off compilation included "
+               "on a fresh install).")
     tables = [_key_table("SLAM key numbers", keys)] + ([timing_table] if timing else []) + r.tables
     return {"title": "SLAM", "summary": summary, "tables": tables,
             "figures": slam_figures(r)}

@@ -80,6 +80,8 @@ class SimConfig:
     imu: ImuSimConfig = section(ImuSimConfig, "IMU model")
     gnss: GnssSimConfig = section(GnssSimConfig, "GNSS model")
     path_size_m: float = param(10.0, "size of the scripted paths (figure8, loop, line); the circle is the paper's", "m")
+    scene_scale: float = param(1.0, "stretch the scene for larger paths: distances x this, object counts x its square "
+                               "(1: objects within ~40 m of the path's centre, enough for paths up to ~20 m)")
     wheel_rate_hz: float = param(50.0, "wheel speed, pump command, cmd_vel and wheel odometry rate", "Hz")
     ground_truth_rate_hz: float = param(100.0, "ground-truth odometry rate", "Hz")
     terrain_amplitude_m: float = param(0.3, "gentle relief amplitude", "m")

@@ -16,6 +16,7 @@ from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import run_closed_loop
 from mrnc_eval.control.scenario import scripted_scenario
 from mrnc_eval.data import Trajectory, Waypoints
+from mrnc_eval.errors import ConfigError
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
 from mrnc_eval.sim.gnss import simulate_gnss
@@ -93,6 +94,8 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     """Write the log to `out` (atomically) and the ground truth TUM beside it; returns the log
     path. `progress(done, total)` is called after each recorded sweep."""
     validate(req)
+    if not cfg.sim.scene_scale > 0:
+        raise ConfigError(f"sim.scene_scale must be > 0, got {cfg.sim.scene_scale:g}")
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     scfg = cfg.sim
@@ -104,7 +107,8 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
     scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m,
                         roughness_m=scfg.terrain_roughness_m, centre=tuple(scenario.waypoints_xy.mean(axis=0)),
-                        keep_clear_xy=_driven_path(trace), clearance_m=cfg.robot.width_m / 2 + 0.5)
+                        keep_clear_xy=_driven_path(trace), clearance_m=cfg.robot.width_m / 2 + 0.5,
+                        scale=scfg.scene_scale)
     traj = BodyTrajectory.from_trace(trace, scene.terrain)
     t_end = float(trace.t[-1]) if req.duration_s is None else float(req.duration_s)
 

@@ -115,20 +115,22 @@ MATERIALS = {"soil": 0.25, "concrete": 0.4, "container": 0.55, "metal_pole": 0.6
 
 def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness_m: float = 0.02,
                 centre=(0.0, 0.0), half_size_m: float = 40.0, keep_clear_xy: np.ndarray | None = None,
-                clearance_m: float = 1.5) -> Scene:
+                clearance_m: float = 1.5, scale: float = 1.0) -> Scene:
     """A named scene around `centre` (m): yard (buildings, containers, poles, vehicles), forest
     (a forest edge: dense trees on one side, open ground with shrubs and rocks on the other),
     corridor (two long featureless walls: degenerate along its axis) or field (open ground only:
     degenerate). The layout is a pure function of `seed` and `keep_clear_xy`: no object (its
     whole footprint, tree crowns included) comes within `clearance_m` of those points (m, the
-    driven path), so the machine never drives through a trunk or with its LiDAR inside a crown."""
+    driven path), so the machine never drives through a trunk or with its LiDAR inside a crown.
+    `scale` stretches the layout for larger paths: distances x scale, object counts x scale^2
+    (the same density over a larger area)."""
     if name not in SCENES:
         raise ValueError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
     terrain = Terrain(0.0 if name == "corridor" else amplitude_m, roughness_m, seed)
     scene = Scene(name, terrain)
     rng = np.random.default_rng(seed + 1000)
     cx0, cy0 = centre
-    scene.add(*_ground(terrain, half_size_m + max(abs(cx0), abs(cy0)), 0.5), MATERIALS["soil"])
+    scene.add(*_ground(terrain, half_size_m * scale + max(abs(cx0), abs(cy0)), 0.5), MATERIALS["soil"])
 
     def z(x: float, y: float) -> float:
         return float(terrain.height(np.array(x), np.array(y)))
@@ -143,9 +145,9 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
         """n positions in the annulus sector; redrawn (at most 100 times) while the footprint
         (radius, m) would reach within clearance_m of the path."""
         out = []
-        for _ in range(n):
+        for _ in range(round(n * scale ** 2)):
             for _attempt in range(100):
-                r, a = rng.uniform(r_min, r_max), rng.uniform(*sector)
+                r, a = rng.uniform(r_min * scale, r_max * scale), rng.uniform(*sector)
                 xy = (cx0 + r * math.cos(a), cy0 + r * math.sin(a))
                 if clear is None or clear.query(xy)[0] >= clearance_m + footprint_m:
                     out.append(xy)

@@ -3,6 +3,7 @@ re-run (both slow); a hostile log is escaped and contained (fast: it fails early
 
 from __future__ import annotations
 
+import json
 import os
 import signal
 import sqlite3
@@ -40,6 +41,9 @@ def test_dask_cluster_gives_the_same_metrics_as_the_local_pool(tiny_logs: Path, 
     a = _metrics(local_root / "history.sqlite", "2026-11-21")
     b = _metrics(dask_root / "history.sqlite", "2026-11-21")
     assert {k[0] for k in a} == {"a", "nested_b"}
+    for part in ("slam", "control"):  # the results inside carry the night's id, not the file name's "b"
+        inner = json.loads((local_root / "2026-11-21" / "logs" / "nested_b" / part / "result.json").read_text())
+        assert inner["log_id"] == "nested_b", part
     assert [k for k in a if k[1] in STABLE]
     for key in [k for k in a if k[1] in STABLE]:
         assert b[key] == pytest.approx(a[key], rel=1e-9, abs=1e-12), key

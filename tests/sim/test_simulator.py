@@ -306,6 +306,16 @@ def test_scene_leaves_the_driven_path_clear(name: str) -> None:
     assert closest(build_scene(name, seed=2, centre=centre)) < 1.5  # without it, objects stand on the path
 
 
+def test_scene_scale_keeps_the_density_over_a_larger_area() -> None:
+    def objects(scene) -> np.ndarray:  # horizontal centres of the trunks, crowns, rocks
+        return np.array([v[:, :2].mean(axis=0) for v in scene.vertices[1:]])
+
+    small, large = objects(build_scene("forest", seed=4)), objects(build_scene("forest", seed=4, scale=2.0))
+    assert len(large) == pytest.approx(4 * len(small), rel=0.02)
+    reach = lambda xy: np.percentile(np.linalg.norm(xy, axis=1), 95)  # noqa: E731
+    assert reach(large) == pytest.approx(2 * reach(small), rel=0.15)
+
+
 def test_cli_rejects_bad_requests_with_usage_errors(tmp_path: Path) -> None:
     from mrnc_eval.cli import main
 
