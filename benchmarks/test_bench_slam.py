@@ -60,3 +60,46 @@ def test_slam_rtf_vs_kiss_icp(log_60s: Path, tmp_path: Path) -> None:
     assert val(lio, "rtf_end_to_end") >= 1.0  # reading the log included
     assert runs["lio"][1] < runs["kiss-icp"][1]
     assert val(lio, "ape_rmse_m") < val(kiss, "ape_rmse_m")
+
+
+def test_nearest_neighbour_backends_on_a_local_map() -> None:
+    """Why scan-to-map uses pykdtree: build + 5-NN query on a local map of the size LIO-SAM keeps
+    (the voxelised clouds of 40 sweeps of the circle sample log, ~1e5 points; queries = one
+    sweep's features), against scipy's cKDTree (2 workers) and open3d's KDTreeFlann."""
+    import numpy as np
+    import open3d as o3d
+    from pykdtree.kdtree import KDTree
+    from scipy.spatial import cKDTree
+
+    from mrnc_eval.io import open_log
+    from mrnc_eval.slam.features import voxel_downsample
+
+    with open_log(SAMPLE.parent / "circle_soft_ground.mcap") as lg:
+        clouds = [s.points.astype(np.float64) for _, s in zip(range(40), lg.sweeps(), strict=False)]
+    rng = np.random.default_rng(0)
+    cloud = np.vstack([c + rng.normal(0, 0.05, c.shape) for c in clouds])  # 40 slightly different views
+    local_map = voxel_downsample(cloud, 0.2)
+    queries = voxel_downsample(clouds[-1], 0.4)
+
+    def scipy_(m, q):
+        return cKDTree(m).query(q, k=5, workers=2)[1]
+
+    def pyk(m, q):
+        return KDTree(m).query(q, k=5)[1]
+
+    def o3d_(m, q):
+        tree = o3d.geometry.KDTreeFlann(o3d.geometry.PointCloud(o3d.utility.Vector3dVector(m)))
+        return np.array([np.asarray(tree.search_knn_vector_3d(p, 5)[1]) for p in q])
+
+    times = {}
+    for name, fn in (("scipy cKDTree", scipy_), ("pykdtree", pyk), ("open3d KDTreeFlann", o3d_)):
+        fn(local_map, queries)  # warm-up
+        t0 = time.perf_counter()
+        for _ in range(5):
+            idx = fn(local_map, queries)
+        times[name] = (time.perf_counter() - t0) / 5 * 1e3
+        assert idx.shape == (len(queries), 5)
+    print(f"\nlocal map {len(local_map)} points, {len(queries)} queries, 5-NN, build + query (ms):")
+    for name, ms in times.items():
+        print(f"  {name:20s} {ms:7.1f}")
+    assert times["pykdtree"] < times["scipy cKDTree"]
