@@ -44,7 +44,10 @@ class ImuConfig:
     pose_prior_sigmas: tuple[float, float, float, float, float, float] = param(
         (0.05, 0.05, 0.05, 0.1, 0.1, 0.1), "lidar pose prior sigmas in graph #2 [rot rad, trans m]")
     degenerate_pose_sigma: float = param(1.0, "... when scan-to-map was degenerate")
-    reset_every: int = param(100, "restart graph #2 from the marginals every n keys")
+    reset_every: int = param(100, "restart graph #2 every n keys, keeping its velocity and bias estimates")
+    restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
+                                        "more than this; smaller corrections are absorbed by its pose prior (a "
+                                        "restart in a degenerate stretch costs more than it gains)", "m")
     max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
     max_bias: float = param(1.0, "... or above this bias norm")
 

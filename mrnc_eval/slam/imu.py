@@ -221,6 +221,11 @@ class ImuOdometry:
             return self._reset(t, body, "Large velocity/bias, reset IMU-preintegration")
         return None
 
+    @property
+    def can_predict(self) -> bool:
+        """A velocity and bias estimate exists (kept across restart(), dropped by a failure reset)."""
+        return self.t_last is not None
+
     def restart(self) -> None:
         """Start a new graph at the next pose, keeping velocity and bias (after a loop closure moved
         the global pose)."""

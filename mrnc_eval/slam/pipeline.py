@@ -125,9 +125,10 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
             if use_loop and sweep.stamp - st.last_loop_t >= cfg.loop.interval_s:
                 st.last_loop_t = sweep.stamp
                 tl = time.perf_counter()
-                if _try_loop(graph, kf_features, cfg, events, sweep.stamp):
+                moved = _try_loop(graph, kf_features, cfg, events, sweep.stamp)
+                if moved is not None:
                     map_cache.clear()
-                    if odom is not None:
+                    if odom is not None and moved > cfg.imu.restart_after_loop_m:
                         odom.restart()  # the global pose jumped: graph #2 restarts from it
                 loop_ms = (time.perf_counter() - tl) * 1e3
             pose = graph.poses[-1]
@@ -215,7 +216,7 @@ def _guess(st: _State, t: float, track: ImuTrack | None, odom: ImuOdometry | Non
         att = initial_attitude(imu, extr[:3, :3], cfg.imu, t) if imu is not None else Rotation.identity()
         return se3.make(att.as_matrix(), np.zeros(3))
     covered = track is not None and track.covers(st.t, t)
-    if odom is not None and covered and odom.key >= 0:
+    if odom is not None and covered and odom.can_predict:  # also right after a loop restarted graph #2
         return odom.predict(st.pose, st.t, t)
     step = (st.velocity if st.velocity is not None else np.zeros(3)) * (t - st.t)
     rot = st.pose[:3, :3]
@@ -282,23 +283,24 @@ def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict, cfg: Sl
 
 
 def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, events: list[SlamEvent],
-              stamp: float) -> bool:
+              stamp: float) -> float | None:
     """Radius search for an old keyframe, ICP of the latest keyframe cloud onto the old one's
-    submap, a loop factor when ICP converged with fitness below the threshold."""
+    submap, a loop factor when ICP converged with fitness below the threshold. Returns how far
+    (m) the optimisation moved the latest keyframe, or None without a loop factor."""
     lc = cfg.loop
     prev = loop_candidate(graph, lc)
     if prev is None:
-        return False
+        return None
     cur = len(graph.poses) - 1
     src = voxel_downsample(se3.apply(graph.poses[cur], np.r_[feats[cur].edges, feats[cur].surfs]), lc.leaf_m)
     lo, hi = max(0, prev - lc.neighbours), min(cur, prev + lc.neighbours + 1)
     tgt = voxel_downsample(np.vstack([se3.apply(graph.poses[i], np.r_[feats[i].edges, feats[i].surfs])
                                       for i in range(lo, hi)]), lc.leaf_m)
     if len(src) < lc.min_source_points or len(tgt) < lc.min_target_points:
-        return False
+        return None
     T, fitness, ok = register_loop(src, tgt, np.eye(4), lc)
     if not ok or fitness > lc.fitness_threshold_m2:
-        return False
+        return None
     corrected = T @ graph.poses[cur]
     relative = se3.inv(graph.poses[prev]) @ corrected
     before = graph.poses[cur][:3, 3].copy()
@@ -306,9 +308,10 @@ def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, even
         graph.add_loop(cur, prev, relative, fitness)
     except ProcessingError as err:
         events.append(SlamEvent(stamp, "warning", f"loop closure {cur} -> {prev} rejected by the solver: {err}"))
-        return False
+        return None
+    moved = float(np.linalg.norm(graph.poses[cur][:3, 3] - before))
     events.append(SlamEvent(stamp, "loop_closure", f"keyframe {cur} -> {prev}, fitness {fitness:.3f} m^2, "
-                            f"moved {np.linalg.norm(graph.poses[cur][:3, 3] - before):.3f} m",
+                            f"moved {moved:.3f} m",
                             {"current": cur, "previous": prev, "fitness": fitness,
                              "correction_m": float(np.linalg.norm(T[:3, 3]))}))
-    return True
+    return moved
