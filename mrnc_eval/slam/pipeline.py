@@ -149,7 +149,9 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
         t_read = time.perf_counter()
 
     kf_poses = np.array(graph.poses) if graph.poses else np.zeros((0, 4, 4))
-    poses = np.array([kf_poses[k] @ r for k, r in zip(ref_kf, rel_to_kf)]) if stamps else np.zeros((0, 4, 4))
+    poses = np.zeros((0, 4, 4))
+    if stamps:
+        poses = np.array([kf_poses[k] @ r for k, r in zip(ref_kf, rel_to_kf, strict=True)])
     map_points = np.zeros((0, 3))
     if kf_features:
         map_points = voxel_downsample(np.vstack([se3.apply(kf_poses[i], np.r_[f.edges, f.surfs])

@@ -180,10 +180,14 @@ def test_overview_pass_keeps_small_topics_so_series_do_not_reread_the_file(tmp_p
     series = {}
     for budget in (1024.0, 0.0, 1e-3):  # default, off, and a budget the log exceeds (falls back to the file)
         with open_log(tmp_path / name, IoConfig(small_topic_cache_mb=budget)) as lg:
-            lg.topics  # the overview pass
-            passes = []
-            real_iterate = lg._iterate
-            lg._iterate = lambda topics: (passes.append(topics), real_iterate(topics))[1]
+            assert lg.topics  # the overview pass
+            passes: list[list[str]] = []
+
+            def counting(topics, real=lg._iterate, seen=passes):
+                seen.append(topics)
+                return real(topics)
+
+            lg._iterate = counting
             series[budget] = (lg.imu(), lg.gnss(), lg.ground_truth(), lg.transform("base_link", "os_imu"))
             reread = [t for t in passes if t != ["/ouster/points"]]
         assert (reread == []) == (budget == 1024.0), (budget, reread)
