@@ -16,6 +16,7 @@ from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
+from mrnc_eval.io.prefetch import Prefetched
 from mrnc_eval.pipelines.progress import progress_bar
 from mrnc_eval.results import Event, Metric, RunResult, _json_safe, log_id_for, write_result
 from mrnc_eval.slam.pipeline import STAGES, SlamOutput
@@ -118,12 +119,14 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
         with progress_bar(total, progress) as b:
             task = b.add_task("SLAM sweeps", total=total) if b else None
             tick = (lambda n: b.update(task, completed=n)) if b else None
-            if method == "lio":
-                sweeps = lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s)
-                out = run_slam(sweeps, imu, cfg.slam, sensor_to_imu=sensor_to_imu, gnss=gnss,
-                               antenna_in_sensor=antenna_in_sensor, progress=tick)
-            else:
-                out = _kiss_icp(lg.sweeps(), cfg)
+            # both methods read the same way: decoding runs ahead in a thread ("read" = time still waited)
+            stream = lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s) if method == "lio" else lg.sweeps()
+            with Prefetched(stream, depth=4) as sweeps:
+                if method == "lio":
+                    out = run_slam(sweeps, imu, cfg.slam, sensor_to_imu=sensor_to_imu, gnss=gnss,
+                                   antenna_in_sensor=antenna_in_sensor, progress=tick)
+                else:
+                    out = _kiss_icp(sweeps, cfg)
     if out.stamps.size < 2:
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s)")
     est = _to_base(out, base_to_sensor, method)
