@@ -249,7 +249,8 @@ def main(logs: list[Path], cfg: Config, *, method: str, out: Path, no_loop: bool
     else:
         for d, r in results:
             vals = {m.name: m.value for m in r.metrics}
-            sys.stdout.write(f"{r.log_id}: APE RMSE {vals.get('ape_rmse_m', float('nan')):.4f} m, RTF {vals['rtf']:.2f}, "
+            ape = f"{vals['ape_rmse_m']:.4f} m" if "ape_rmse_m" in vals else "n/a (no ground truth)"
+            sys.stdout.write(f"{r.log_id}: APE RMSE {ape}, RTF {vals['rtf']:.2f}, "
                              f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
         if len(logs) > 1:
             sys.stdout.write(render_table(table_one(cells, [log_id_for(p) for p in logs], [method]), "markdown"))

@@ -45,6 +45,18 @@ def test_real_ouster_sweeps_register(real_ouster_mcap: Path) -> None:
         assert np.degrees(se3.delta_angle(step)) < 5.0
 
 
+
+def test_slam_verb_on_real_recording_says_there_is_no_ground_truth(real_ouster_mcap: Path, tmp_path: Path,
+                                                                    capsys: pytest.CaptureFixture[str]) -> None:
+    from mrnc_eval.cli import main
+
+    assert main(["slam", str(real_ouster_mcap), "--out", str(tmp_path), "--set", "slam.mapping_interval_s=0"]) == 0
+    line = capsys.readouterr().out.strip().splitlines()[-1]
+    assert "APE RMSE n/a (no ground truth)" in line and "nan" not in line
+    (run_dir,) = tmp_path.iterdir()
+    assert len((run_dir / "trajectory.tum").read_text().splitlines()) == 3
+    assert read_result(run_dir).metric("ape_rmse_m") is None
+
 @pytest.fixture(scope="module")
 def corridor_log(tmp_path_factory) -> Path:
     d = tmp_path_factory.mktemp("corridor")
