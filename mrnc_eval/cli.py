@@ -10,9 +10,9 @@ from __future__ import annotations
 import json
 import logging
 import sys
-from enum import Enum
+from enum import StrEnum
 from pathlib import Path
-from typing import Annotated, Any, Optional
+from typing import Annotated, Any
 
 import typer
 from typer.exceptions import TyperException
@@ -38,11 +38,11 @@ _state: dict[str, Any] = {"debug": False}
 # ------------------------------------------------------------------ shared options
 
 ConfigOpt = Annotated[
-    Optional[Path],
+    Path | None,
     typer.Option("--config", "-c", help="YAML configuration (safe-loaded); defaults: `mrnc-eval config`."),
 ]
 SetOpt = Annotated[
-    Optional[list[str]],
+    list[str] | None,
     typer.Option("--set", help="Override one parameter, KEY=VALUE, e.g. --set control.raid.beta=1.5 (repeatable)."),
 ]
 DumpOpt = Annotated[
@@ -101,12 +101,19 @@ def _version(value: bool) -> None:
 
 @app.callback()
 def _main(
-    verbose: Annotated[int, typer.Option("--verbose", "-v", count=True, help="More log output on stderr (-vv: debug).")] = 0,
+    verbose: Annotated[
+        int,
+        typer.Option("--verbose", "-v", count=True, help="More log output on stderr (-vv: debug)."),
+    ] = 0,
     quiet: Annotated[bool, typer.Option("--quiet", "-q", help="Only errors on stderr.")] = False,
     debug: Annotated[bool, typer.Option("--debug", help="Show tracebacks for errors.")] = False,
-    version: Annotated[bool, typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit.")] = False,
+    version: Annotated[
+        bool,
+        typer.Option("--version", callback=_version, is_eager=True, help="Print the version and exit."),
+    ] = False,
 ) -> None:
-    level = logging.ERROR if quiet else (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose + (1 if debug else 0), 2)]
+    chatty = (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose + (1 if debug else 0), 2)]
+    level = logging.ERROR if quiet else chatty
     logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s", force=True)
     _state["debug"] = debug
 
@@ -125,7 +132,10 @@ def config(
 
 @app.command()
 def info(
-    log_path: Annotated[Path, typer.Argument(metavar="LOG", help="ROS 1 .bag, ROS 2 bag directory, .db3 or .mcap file.")],
+    log_path: Annotated[
+        Path,
+        typer.Argument(metavar="LOG", help="ROS 1 .bag, ROS 2 bag directory, .db3 or .mcap file."),
+    ],
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
@@ -143,8 +153,14 @@ def info(
 
 @app.command()
 def slam(
-    logs: Annotated[list[Path], typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout.")],
-    method: Annotated[str, typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra).")] = "lio",
+    logs: Annotated[
+        list[Path],
+        typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout."),
+    ],
+    method: Annotated[
+        str,
+        typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra)."),
+    ] = "lio",
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
     no_loop: Annotated[bool, typer.Option("--no-loop", help="Disable loop closure.")] = False,
     no_gps: Annotated[bool, typer.Option("--no-gps", help="Do not add GNSS factors.")] = False,
@@ -159,16 +175,25 @@ def slam(
     _pipeline("slam").main(logs, cfg, method=method, out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
 
 
-class ControlMode(str, Enum):
+class ControlMode(StrEnum):
     replay = "replay"
     simulate = "simulate"
 
 
 @app.command()
 def control(
-    log_path: Annotated[Optional[Path], typer.Argument(metavar="LOG", help="Log to replay (optional with --mode simulate: the paper's scenario).")] = None,
-    mode: Annotated[ControlMode, typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant.")] = ControlMode.replay,
-    controllers: Annotated[str, typer.Option(help="Comma-separated: raid,pid,apc,foptc (apc and foptc are labelled stand-ins).")] = "raid,pid,apc,foptc",
+    log_path: Annotated[
+        Path | None,
+        typer.Argument(metavar="LOG", help="Log to replay (optional with --mode simulate: the paper's scenario)."),
+    ] = None,
+    mode: Annotated[
+        ControlMode,
+        typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant."),
+    ] = ControlMode.replay,
+    controllers: Annotated[
+        str,
+        typer.Option(help="Comma-separated: raid,pid,apc,foptc (apc and foptc are labelled stand-ins)."),
+    ] = "raid,pid,apc,foptc",
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
@@ -182,7 +207,7 @@ def control(
     _pipeline("control").main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out)
 
 
-class Align(str, Enum):
+class Align(StrEnum):
     se3 = "se3"
     sim3 = "sim3"
     scale = "scale"
@@ -191,7 +216,7 @@ class Align(str, Enum):
     none = "none"
 
 
-class Relation(str, Enum):
+class Relation(StrEnum):
     trans = "trans"
     rot = "rot"
     full = "full"
@@ -201,13 +226,17 @@ class Relation(str, Enum):
 
 
 AlignOpt = Annotated[Align, typer.Option(help="Alignment of each estimate to the reference.")]
-NAlignOpt = Annotated[Optional[int], typer.Option("--n-to-align", help="Align on the first N matched poses only (default: all).")]
-RelationOpt = Annotated[Relation, typer.Option(help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m).")]
+NAlignOpt = Annotated[
+    int | None, typer.Option("--n-to-align", help="Align on the first N matched poses only (default: all).")
+]
+RelationOpt = Annotated[
+    Relation, typer.Option(help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m).")
+]
 MaxDiffOpt = Annotated[float, typer.Option("--max-diff", help="Association: maximum stamp difference, s.")]
 OffsetOpt = Annotated[float, typer.Option(help="Association: added to the estimate's stamps, s.")]
-PlaneOpt = Annotated[Optional[str], typer.Option(help="Project to a plane before the metric: xy, xz or yz.")]
-TableOpt = Annotated[Optional[Path], typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
-PlotOpt = Annotated[Optional[Path], typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
+PlaneOpt = Annotated[str | None, typer.Option(help="Project to a plane before the metric: xy, xz or yz.")]
+TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
+PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
 
 
 @app.command()
@@ -231,7 +260,7 @@ def ape(
     )
 
 
-class DeltaUnit(str, Enum):
+class DeltaUnit(StrEnum):
     frames = "frames"
     m = "m"
 
@@ -256,7 +285,8 @@ def rpe(
         "--pairs-from-reference", help="Choose pairs on the reference path (default: on the estimate, as evo); "
         "a noisy estimate travels farther than the reference, so metre pairs from it are denser.")] = False,
     drift: Annotated[bool, typer.Option(
-        "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, scaled to short logs).")] = False,
+        "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, "
+        "scaled to short logs).")] = False,
 ) -> None:
     """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
     _pipeline("trajectory_eval").rpe_main(
@@ -269,8 +299,15 @@ def rpe(
 
 @app.command()
 def table(
-    source: Annotated[Path, typer.Argument(metavar="SOURCE", help="A YAML manifest or a directory <seq>/<method>.tum with <seq>/ground_truth.tum.")],
-    out: Annotated[Optional[Path], typer.Option(help="Write the table (.md, .tex, .csv, .html by suffix); default: Markdown on stdout.")] = None,
+    source: Annotated[
+        Path,
+        typer.Argument(metavar="SOURCE", help="A YAML manifest or a directory <seq>/<method>.tum "
+                       "with <seq>/ground_truth.tum."),
+    ],
+    out: Annotated[
+        Path | None,
+        typer.Option(help="Write the table (.md, .tex, .csv, .html by suffix); default: Markdown on stdout."),
+    ] = None,
     align: AlignOpt = Align.se3,
     max_diff: MaxDiffOpt = 0.01,
     json_out: JsonOpt = False,
@@ -286,8 +323,12 @@ def table(
 
 @app.command()
 def report(
-    result_dirs: Annotated[list[Path], typer.Argument(metavar="RESULT_DIR...", help="Result directories written by info/slam/control, or a folder holding them (a nightly per-log folder).")],
-    out: Annotated[Optional[Path], typer.Option(help="Output directory (default: next to each result).")] = None,
+    result_dirs: Annotated[
+        list[Path],
+        typer.Argument(metavar="RESULT_DIR...", help="Result directories written by info/slam/control, "
+                       "or a folder holding them (a nightly per-log folder)."),
+    ],
+    out: Annotated[Path | None, typer.Option(help="Output directory (default: next to each result).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
@@ -299,10 +340,10 @@ def nightly(
     log_dir: Annotated[Path, typer.Argument(metavar="LOG_DIR", help="Folder searched recursively for logs.")],
     out: Annotated[Path, typer.Option(help="Report root: REPORT_ROOT/<date>/index.html, trends, history.")],
     jobs: Annotated[int, typer.Option(help="Parallel logs: 1 runs in-process, >1 a local process pool.")] = 2,
-    scheduler: Annotated[Optional[str], typer.Option(help="Dask scheduler address tcp://HOST:PORT (dask extra).")] = None,
-    since: Annotated[Optional[str], typer.Option(help="Only logs modified on or after this date (YYYY-MM-DD).")] = None,
-    gates: Annotated[Optional[Path], typer.Option(help="YAML with gate thresholds (overrides config gates).")] = None,
-    date: Annotated[Optional[str], typer.Option(help="Night label YYYY-MM-DD (default: today).")] = None,
+    scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address tcp://HOST:PORT (dask extra).")] = None,
+    since: Annotated[str | None, typer.Option(help="Only logs modified on or after this date (YYYY-MM-DD).")] = None,
+    gates: Annotated[Path | None, typer.Option(help="YAML with gate thresholds (overrides config gates).")] = None,
+    date: Annotated[str | None, typer.Option(help="Night label YYYY-MM-DD (default: today).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write PDF reports.")] = True,
     config: ConfigOpt = None,
     set_: SetOpt = None,
@@ -320,12 +361,15 @@ def simulate(
     out: Annotated[Path, typer.Argument(metavar="OUT", help="Output log path (.mcap, .db3 directory or .bag).")],
     scene: Annotated[str, typer.Option(help="Scene: yard, forest, corridor, field.")] = "yard",
     path: Annotated[str, typer.Option(help="Path: circle (paper mission), figure8, loop, line.")] = "circle",
-    duration: Annotated[Optional[float], typer.Option(help="Duration, s (default: until the path is done).")] = None,
+    duration: Annotated[float | None, typer.Option(help="Duration, s (default: until the path is done).")] = None,
     lidar: Annotated[str, typer.Option(help="LiDAR model: os0-128, os0-64, os0-32.")] = "os0-128",
     columns: Annotated[int, typer.Option(help="Columns per sweep: 512, 1024 or 2048.")] = 1024,
     rate: Annotated[float, typer.Option(help="Sweep rate, Hz (10 or 20).")] = 10.0,
-    fmt: Annotated[str, typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1).")] = "mcap",
-    seed: Annotated[Optional[int], typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
+    fmt: Annotated[
+        str,
+        typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1)."),
+    ] = "mcap",
+    seed: Annotated[int | None, typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
                                                      "byte-identical logs.")] = None,
     config: ConfigOpt = None,
     set_: SetOpt = None,

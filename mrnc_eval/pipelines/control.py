@@ -239,8 +239,8 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     else:
         raise UsageError(f"unknown mode {mode!r}: replay or simulate")
     result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
-                       log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"), config_hash=config_hash(cfg),
-                       warnings=warnings)
+                       log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
+                       config_hash=config_hash(cfg), warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
     result.series["t"] = longest.t[:: _decimate(longest.t)]
     result.series["path_xy"] = longest.waypoints

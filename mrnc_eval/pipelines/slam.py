@@ -57,7 +57,10 @@ def _kiss_icp(sweeps, cfg: Config) -> SlamOutput:
         n += 1
         t0 = time.perf_counter()
         t_read.append((t0 - t_prev) * 1e3)
-        ts = s.point_time.astype(np.float64) / max(float(s.point_time.max()), 1e-9) if s.point_time is not None else np.zeros(len(s))
+        if s.point_time is None:
+            ts = np.zeros(len(s))
+        else:  # kiss-icp deskews with per-point time normalised to [0, 1]
+            ts = s.point_time.astype(np.float64) / max(float(s.point_time.max()), 1e-9)
         icp.register_frame(s.points.astype(np.float64), ts)
         t_match.append((time.perf_counter() - t0) * 1e3)
         stamps.append(s.stamp)
@@ -113,7 +116,8 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
             sensor_to_imu = lg.transform(lidar_frame, imu.frame_id)
         gnss = lg.gnss() if lg.has_role("gnss") else None
         gt = _ground_truth(lg, log_path)
-        antenna = lg.transform("base_link", "gnss")[:3, 3] if "gnss" in frames and "base_link" in frames else np.zeros(3)
+        has_antenna = "gnss" in frames and "base_link" in frames
+        antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
         antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
         total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
         with progress_bar(total, progress) as b:
@@ -160,7 +164,8 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
                                     "stamps": "sweep header stamps (sweep start)"}})
     result.series["est_t"] = est.stamps - t_start
     result.series["est_xyz"] = est.positions
-    result.series["kf_xyz"] = (out.kf_poses @ np.linalg.inv(base_to_sensor))[:, :3, 3] if out.kf_poses.size else np.zeros((0, 3))
+    kf_base = out.kf_poses @ np.linalg.inv(base_to_sensor) if out.kf_poses.size else np.zeros((0, 4, 4))
+    result.series["kf_xyz"] = kf_base[:, :3, 3]
     if gt is not None:
         try:
             r = ape(gt, est, align="se3", max_diff=0.02)
@@ -198,7 +203,8 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
     tmp = Path(tempfile.mkdtemp(prefix=".slam-files-"))
     write_tum(tmp / "trajectory.tum", est)
     kf = out.kf_poses @ np.linalg.inv(base_to_sensor)
-    write_tum(tmp / "keyframes.tum", Trajectory(out.kf_stamps, kf[:, :3, 3], Rotation.from_matrix(kf[:, :3, :3]).as_quat()))
+    kf_quat = Rotation.from_matrix(kf[:, :3, :3]).as_quat()
+    write_tum(tmp / "keyframes.tum", Trajectory(out.kf_stamps, kf[:, :3, 3], kf_quat))
     files = {"trajectory.tum": tmp / "trajectory.tum", "keyframes.tum": tmp / "keyframes.tum"}
     if out.map_points.size:
         import open3d as o3d

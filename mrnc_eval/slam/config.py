@@ -3,7 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal, Optional
+from typing import Literal
 
 from mrnc_eval.params import param, section
 
@@ -31,9 +31,9 @@ class ImuConfig:
     integration_noise: float = param(1e-4, "integration noise sigma of the preintegration")
     gravity: float = param(9.80511, "gravity magnitude (imuGravity)", "m/s^2")
     rpy_weight: float = param(0.01, "slerp weight pulling the matched roll/pitch towards the IMU (imuRPYWeight)")
-    extrinsic_rot: Optional[list[list[float]]] = param(None, "3x3 rotation taking IMU-frame vectors into the "
+    extrinsic_rot: list[list[float]] | None = param(None, "3x3 rotation taking IMU-frame vectors into the "
                                                        "LiDAR frame (extrinsicRot); None = from /tf_static")
-    extrinsic_trans: Optional[list[float]] = param(None, "IMU position in the LiDAR frame (extrinsicTrans); "
+    extrinsic_trans: list[float] | None = param(None, "IMU position in the LiDAR frame (extrinsicTrans); "
                                                    "None = from /tf_static", "m")
     attitude_window_s: float = param(0.5, "6-axis IMU: average the accelerometer over the first seconds "
                                      "for the initial roll/pitch", "s")
@@ -92,13 +92,15 @@ class MatchingConfig:
 
 @dataclass(frozen=True)
 class GraphConfig:
-    keyframe_dist_m: float = param(1.0, "new keyframe after this translation (surroundingkeyframeAddingDistThreshold)", "m")
+    keyframe_dist_m: float = param(1.0, "new keyframe after this translation "
+                                   "(surroundingkeyframeAddingDistThreshold)", "m")
     keyframe_angle_rad: float = param(0.2, "... or this rotation", "rad")
     prior_variances: tuple[float, float, float, float, float, float] = param(
         (1e-2, 1e-2, 3.141592653589793 ** 2, 1e8, 1e8, 1e8), "first-pose prior variances [rot, trans] (LIO-SAM)")
     odometry_variances: tuple[float, float, float, float, float, float] = param(
         (1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4), "odometry between-factor variances [rot, trans]")
-    factorization: Literal["QR", "CHOLESKY"] = param("QR", "iSAM2 factorisation; gtsam 4.3's CHOLESKY rejects the loose prior")
+    factorization: Literal["QR", "CHOLESKY"] = param("QR", "iSAM2 factorisation; gtsam 4.3's CHOLESKY rejects "
+                                                     "the loose prior")
     relinearize_threshold: float = param(0.1, "iSAM2 relinearizeThreshold")
     relinearize_skip: int = param(1, "iSAM2 relinearizeSkip")
     extra_updates: int = param(5, "extra iSAM2 update() calls after a loop or GNSS factor")
@@ -110,7 +112,8 @@ class LoopConfig:
     search_radius_m: float = param(15.0, "candidate keyframes within this (historyKeyframeSearchRadius)", "m")
     time_gap_s: float = param(30.0, "... and older than this (historyKeyframeSearchTimeDiff)", "s")
     neighbours: int = param(25, "submap of +/- this many keyframes (historyKeyframeSearchNum)")
-    fitness_threshold_m2: float = param(0.3, "accept ICP if mean squared NN distance below (historyKeyframeFitnessScore)", "m^2")
+    fitness_threshold_m2: float = param(0.3, "accept ICP if mean squared NN distance below "
+                                        "(historyKeyframeFitnessScore)", "m^2")
     icp_max_correspondence_m: float = param(30.0, "ICP max correspondence distance (first stage)", "m")
     every_n_keyframes: int = param(1, "try a loop closure every n keyframes (LIO-SAM: a 1 Hz thread)")
     interval_s: float = param(1.0, "at most one loop search per this much log time (loopClosureFrequency 1 Hz)", "s")
@@ -137,7 +140,8 @@ class SlamConfig:
     method: str = param("lio", "SLAM method: lio (this project's LIO-SAM replay) or kiss-icp (peer)")
     use_loop_closure: bool = param(True, "enable radius-search loop closure")
     use_gps: bool = param(True, "add GNSS factors when the log has GNSS")
-    mapping_interval_s: float = param(0.15, "process a sweep only if this much later than the last (mappingProcessInterval)", "s")
+    mapping_interval_s: float = param(0.15, "process a sweep only if this much later than the last "
+                                      "(mappingProcessInterval)", "s")
     deskew_translation: bool = param(True, "also remove the translation during the sweep (constant velocity); "
                                      "LIO-SAM deskews rotation only")
     gyro_bias_init_s: float = param(0.0, "average the gyro over the first seconds as its bias (0 = off)", "s")

@@ -15,7 +15,9 @@ def fit_yaw_translation(src_xy: np.ndarray, dst_xy: np.ndarray) -> tuple[float, 
     """yaw, t minimising sum |R(yaw) src + t - dst|^2 (closed form)."""
     ms, md = src_xy.mean(axis=0), dst_xy.mean(axis=0)
     a, b = src_xy - ms, dst_xy - md
-    yaw = float(np.arctan2(np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0]), np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])))
+    cross = np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
+    dot = np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])
+    yaw = float(np.arctan2(cross, dot))
     c, s = np.cos(yaw), np.sin(yaw)
     return yaw, md - np.array([[c, -s], [s, c]]) @ ms
 

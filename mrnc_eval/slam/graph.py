@@ -107,14 +107,16 @@ def loop_candidate(graph: KeyframeGraph, cfg: LoopConfig) -> int | None:
     return int(ok[np.argmin(d[ok])]) if ok.size else None
 
 
-def register_loop(src: np.ndarray, tgt: np.ndarray, guess: np.ndarray, cfg: LoopConfig) -> tuple[np.ndarray, float, bool]:
+def register_loop(src: np.ndarray, tgt: np.ndarray, guess: np.ndarray,
+                  cfg: LoopConfig) -> tuple[np.ndarray, float, bool]:
     """Point-to-point ICP (open3d) of the current keyframe cloud onto the submap, both in the
     map frame; returns the correction, the PCL-style fitness and whether ICP converged."""
     import open3d as o3d
 
     s = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(src))
     t = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(tgt))
-    crit = o3d.pipelines.registration.ICPConvergenceCriteria(relative_fitness=1e-6, relative_rmse=1e-6, max_iteration=cfg.icp_iterations)
+    crit = o3d.pipelines.registration.ICPConvergenceCriteria(relative_fitness=1e-6, relative_rmse=1e-6,
+                                                             max_iteration=cfg.icp_iterations)
     est = o3d.pipelines.registration.TransformationEstimationPointToPoint()
     res = o3d.pipelines.registration.registration_icp(s, t, cfg.icp_max_correspondence_m, guess, est, crit)
     res = o3d.pipelines.registration.registration_icp(s, t, 1.0, res.transformation, est, crit)  # refine

@@ -187,7 +187,8 @@ class ImuOdometry:
             self._start_graph()
             k = 0
             graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
-            graph.add(g.PriorFactorVector(g.symbol("v", k), self.velocity, self._noise([1e4] * 3 if self.t_last is None else [1.0] * 3)))
+            v_sigma = [1e4] * 3 if self.t_last is None else [1.0] * 3  # m/s: unknown at the start
+            graph.add(g.PriorFactorVector(g.symbol("v", k), self.velocity, self._noise(v_sigma)))
             graph.add(g.PriorFactorConstantBias(g.symbol("b", k), self.bias, self._noise([1e-3] * 6)))
             values.insert(g.symbol("x", k), body)
             values.insert(g.symbol("v", k), self.velocity)

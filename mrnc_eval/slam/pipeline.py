@@ -62,8 +62,9 @@ class _State:
     warned: set = field(default_factory=set)
 
 
-def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *, sensor_to_imu: np.ndarray | None = None,
-             gnss: GnssSeries | None = None, antenna_in_sensor: np.ndarray | None = None,
+def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
+             sensor_to_imu: np.ndarray | None = None, gnss: GnssSeries | None = None,
+             antenna_in_sensor: np.ndarray | None = None,
              progress: Callable[[int], None] | None = None) -> SlamOutput:
     """Replay the SLAM over `sweeps` (LiDAR frame). `sensor_to_imu` is the IMU pose in the LiDAR
     frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors."""
@@ -227,7 +228,8 @@ def _guess(st: _State, t: float, track: ImuTrack | None, odom: ImuOdometry | Non
     return se3.make(rot, st.pose[:3, 3] + step)
 
 
-def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarray, t: float, cfg: SlamConfig) -> np.ndarray:
+def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarray, t: float,
+                        cfg: SlamConfig) -> np.ndarray:
     """9-axis IMU: slerp the matched roll/pitch towards the IMU's by rpy_weight (LIO-SAM, |pitch| < 1.4 rad)."""
     if imu is None or imu.orientation_xyzw is None or cfg.imu.rpy_weight <= 0:
         return pose
@@ -243,8 +245,9 @@ def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarra
 
 def _report_match(res: MatchResult, t: float, cfg: SlamConfig, events: list[SlamEvent]) -> None:
     if res.degenerate:
+        threshold = cfg.matching.degeneracy_eigen_threshold
         events.append(SlamEvent(t, "degeneracy", f"scan-to-map degenerate: {res.n_degenerate} direction(s) with "
-                                f"eigenvalue < {cfg.matching.degeneracy_eigen_threshold:g} (min {res.min_eigenvalue:.1f}); "
+                                f"eigenvalue < {threshold:g} (min {res.min_eigenvalue:.1f}); "
                                 "updates along them suppressed",
                                 {"min_eigenvalue": res.min_eigenvalue, "directions": res.n_degenerate}))
     if not res.optimised:

@@ -182,7 +182,8 @@ def _terms(q: np.ndarray, origin: np.ndarray, corr: _Correspondences, T: np.ndar
     return J[:m], r[:m]
 
 
-def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray, cfg: MatchingConfig) -> MatchResult:
+def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray,
+          cfg: MatchingConfig) -> MatchResult:
     """Refine `guess` (4x4) so the sweep's features lie on the map's lines and planes."""
     if (len(edges) < cfg.min_edges or len(surfs) < cfg.min_surfs or local_map.surf_tree is None
             or local_map.edge_tree is None):
@@ -213,7 +214,8 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
         if degenerate:
             dx = P @ dx
         T = se3.make(se3.exp_so3(dx[:3]) @ T[:3, :3], T[:3, 3] + dx[3:])
-        if np.degrees(np.linalg.norm(dx[:3])) < cfg.converge_rot_deg and np.linalg.norm(dx[3:]) * 100 < cfg.converge_trans_cm:
+        rot_deg, trans_cm = np.degrees(np.linalg.norm(dx[:3])), np.linalg.norm(dx[3:]) * 100
+        if rot_deg < cfg.converge_rot_deg and trans_cm < cfg.converge_trans_cm:
             converged = True
             break
     return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad)

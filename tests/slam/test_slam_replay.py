@@ -38,7 +38,7 @@ def test_real_ouster_sweeps_register(real_ouster_mcap: Path) -> None:
     with open_log(real_ouster_mcap) as lg:
         out = run_slam(lg.sweeps(), lg.imu(), cfg.slam, sensor_to_imu=lg.transform("os_sensor", "os_imu"))
     assert out.stamps.size == 3
-    for a, b in zip(out.poses[:-1], out.poses[1:]):
+    for a, b in zip(out.poses[:-1], out.poses[1:], strict=True):
         step = se3.inv(a) @ b
         assert np.all(np.isfinite(step))
         assert np.linalg.norm(step[:3, 3]) < 1.0  # 0.1 s apart
