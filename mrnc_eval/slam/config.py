@@ -32,9 +32,9 @@ class ImuConfig:
     gravity: float = param(9.80511, "gravity magnitude (imuGravity)", "m/s^2")
     rpy_weight: float = param(0.01, "slerp weight pulling the matched roll/pitch towards the IMU (imuRPYWeight)")
     extrinsic_rot: list[list[float]] | None = param(None, "3x3 rotation taking IMU-frame vectors into the "
-                                                       "LiDAR frame (extrinsicRot); None = from /tf_static")
+                                                    "LiDAR frame (extrinsicRot); None = from /tf_static")
     extrinsic_trans: list[float] | None = param(None, "IMU position in the LiDAR frame (extrinsicTrans); "
-                                                   "None = from /tf_static", "m")
+                                                "None = from /tf_static", "m")
     attitude_window_s: float = param(0.5, "6-axis IMU: average the accelerometer over the first seconds "
                                      "for the initial roll/pitch", "s")
     use_heading_init: bool = param(False, "start the map yaw at the 9-axis IMU's yaw (useImuHeadingInitialization); "
