@@ -370,7 +370,7 @@ def simulate(
         typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1)."),
     ] = "mcap",
     seed: Annotated[int | None, typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
-                                                     "byte-identical logs.")] = None,
+                                                  "byte-identical logs.")] = None,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,

@@ -72,9 +72,10 @@ def _kiss_icp(sweeps, cfg: Config) -> SlamOutput:
                       timing, [], [], n, time.perf_counter() - wall0)
 
 
-def _to_base(out: SlamOutput, base_to_sensor: np.ndarray, name: str) -> Trajectory:
-    base = out.poses @ np.linalg.inv(base_to_sensor)
-    return Trajectory(out.stamps, base[:, :3, 3], Rotation.from_matrix(base[:, :3, :3]).as_quat(), name=name,
+def _to_base(stamps: np.ndarray, sensor_poses: np.ndarray, base_to_sensor: np.ndarray, name: str) -> Trajectory:
+    """LiDAR poses in the map as base_link poses (through /tf_static)."""
+    base = sensor_poses.reshape(-1, 4, 4) @ np.linalg.inv(base_to_sensor)
+    return Trajectory(stamps, base[:, :3, 3], Rotation.from_matrix(base[:, :3, :3]).as_quat(), name=name,
                       frame_id="map", child_frame_id="base_link")
 
 
@@ -133,7 +134,8 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
                     out = _kiss_icp(sweeps, cfg)
     if out.stamps.size < 2:
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s)")
-    est = _to_base(out, base_to_sensor, method)
+    est = _to_base(out.stamps, out.poses, base_to_sensor, method)
+    keyframes = _to_base(out.kf_stamps, out.kf_poses, base_to_sensor, f"{method} keyframes")
     result.warnings += out.warnings
     if imu is None:
         result.warnings.append("log has no IMU topic")
@@ -164,8 +166,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
                                     "stamps": "sweep header stamps (sweep start)"}})
     result.series["est_t"] = est.stamps - t_start
     result.series["est_xyz"] = est.positions
-    kf_base = out.kf_poses @ np.linalg.inv(base_to_sensor) if out.kf_poses.size else np.zeros((0, 4, 4))
-    result.series["kf_xyz"] = kf_base[:, :3, 3]
+    result.series["kf_xyz"] = keyframes.positions
     if gt is not None:
         try:
             r = ape(gt, est, align="se3", max_diff=0.02)
@@ -202,9 +203,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
     # ---- files
     tmp = Path(tempfile.mkdtemp(prefix=".slam-files-"))
     write_tum(tmp / "trajectory.tum", est)
-    kf = out.kf_poses @ np.linalg.inv(base_to_sensor)
-    kf_quat = Rotation.from_matrix(kf[:, :3, :3]).as_quat()
-    write_tum(tmp / "keyframes.tum", Trajectory(out.kf_stamps, kf[:, :3, 3], kf_quat))
+    write_tum(tmp / "keyframes.tum", keyframes)
     files = {"trajectory.tum": tmp / "trajectory.tum", "keyframes.tum": tmp / "keyframes.tum"}
     if out.map_points.size:
         import open3d as o3d

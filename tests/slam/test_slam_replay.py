@@ -45,7 +45,6 @@ def test_real_ouster_sweeps_register(real_ouster_mcap: Path) -> None:
         assert np.degrees(se3.delta_angle(step)) < 5.0
 
 
-
 def test_slam_verb_on_real_recording_says_there_is_no_ground_truth(real_ouster_mcap: Path, tmp_path: Path,
                                                                     capsys: pytest.CaptureFixture[str]) -> None:
     from mrnc_eval.cli import main
@@ -56,6 +55,7 @@ def test_slam_verb_on_real_recording_says_there_is_no_ground_truth(real_ouster_m
     (run_dir,) = tmp_path.iterdir()
     assert len((run_dir / "trajectory.tum").read_text().splitlines()) == 3
     assert read_result(run_dir).metric("ape_rmse_m") is None
+
 
 @pytest.fixture(scope="module")
 def corridor_log(tmp_path_factory) -> Path:
