@@ -34,7 +34,7 @@ def log_60s(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def test_slam_rtf_vs_kiss_icp(log_60s: Path, tmp_path: Path) -> None:
-    from mrnc_eval.pipelines.slam import run_log
+    from mrnc_eval.commands.slam import run_log
 
     for method in ("lio", "kiss-icp"):  # warm-up: compile and import outside the measurement
         run_log(SAMPLE, Config(), tmp_path / f"warm-{method}", method=method)

@@ -1,13 +1,12 @@
-"""Command line: one thin command per verb. It parses, calls a pipeline and maps errors
+"""Command line: one thin command per verb. It parses, calls a command module and maps errors
 to exit codes in `main()` (the only place that does). No algorithm lives here.
 
 Heavy modules (open3d, gtsam, matplotlib, weasyprint, dask) are imported inside the
-pipelines, so `mrnc-eval --help` stays instant.
+command modules, so `mrnc-eval --help` stays instant.
 """
 
 from __future__ import annotations
 
-import json
 import logging
 import sys
 from enum import StrEnum
@@ -18,7 +17,7 @@ import typer
 from typer.exceptions import TyperException
 
 from mrnc_eval import __version__
-from mrnc_eval.errors import MrncError, NotImplementedYet
+from mrnc_eval.errors import MrncError
 
 log = logging.getLogger("mrnc_eval")
 
@@ -59,35 +58,6 @@ def _config(path: Path | None, overrides: list[str] | None, dump: bool = False):
         sys.stdout.write(dump_config(cfg))
         raise typer.Exit(0)
     return cfg
-
-
-def emit_json(obj: Any) -> None:
-    """Machine output goes to stdout, one JSON document."""
-    sys.stdout.write(json.dumps(obj, indent=2, sort_keys=False, allow_nan=False, default=_json_default) + "\n")
-
-
-def _json_default(o: Any) -> Any:
-    import numpy as np
-
-    if isinstance(o, np.generic):
-        return o.item()
-    if isinstance(o, np.ndarray):
-        return o.tolist()
-    if isinstance(o, Path):
-        return str(o)
-    raise TypeError(f"not JSON serialisable: {type(o).__name__}")
-
-
-def _pipeline(name: str):
-    """Import a pipeline module lazily; a missing one means the verb is not built yet."""
-    import importlib
-
-    try:
-        return importlib.import_module(f"mrnc_eval.pipelines.{name}")
-    except ModuleNotFoundError as err:
-        if err.name == f"mrnc_eval.pipelines.{name}":
-            raise NotImplementedYet(f"'{name}' is not implemented yet") from err
-        raise
 
 
 # ------------------------------------------------------------------ global callback
@@ -144,11 +114,14 @@ def info(
     roles, and health findings (IMU rate and gaps, LiDAR fields, per-point time, IMU coverage
     of each sweep, GNSS fix ratio, duplicate or out-of-order stamps)."""
     cfg = _config(config, set_)
-    summary = _pipeline("info").run(log_path, cfg)
+    from mrnc_eval.commands import info as info_command
+    summary = info_command.run(log_path, cfg)
     if json_out:
+        from mrnc_eval.commands.output import emit_json
+
         emit_json(summary.to_json())
     else:
-        _pipeline("info").print_summary(summary)
+        info_command.print_summary(summary)
 
 
 @app.command()
@@ -172,7 +145,8 @@ def slam(
     """Re-run LIO-SAM-style LiDAR-inertial SLAM on recorded logs; write trajectories (TUM), the
     map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth."""
     cfg = _config(config, set_, dump_config)
-    _pipeline("slam").main(logs, cfg, method=method, out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
+    from mrnc_eval.commands import slam as slam_command
+    slam_command.main(logs, cfg, method=method, out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
 
 
 class ControlMode(StrEnum):
@@ -204,7 +178,8 @@ def control(
     hydraulic drive) and compute Table II metrics (settling time s, overshoot %, steady-state
     error m/s, funnel violations, saturation, safety stops, cross-track error m)."""
     cfg = _config(config, set_, dump_config)
-    _pipeline("control").main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out)
+    from mrnc_eval.commands import control as control_command
+    control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out)
 
 
 class Align(StrEnum):
@@ -254,7 +229,8 @@ def ape(
     plot: PlotOpt = None,
 ) -> None:
     """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
-    _pipeline("trajectory_eval").ape_main(
+    from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
+    trajectory_eval_command.ape_main(
         ref, est, align=align.value, n_to_align=n_to_align, relation=relation.value, max_diff=max_diff,
         offset=offset, plane=plane, json_out=json_out, table=table, plot=plot,
     )
@@ -289,7 +265,8 @@ def rpe(
         "scaled to short logs).")] = False,
 ) -> None:
     """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
-    _pipeline("trajectory_eval").rpe_main(
+    from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
+    trajectory_eval_command.rpe_main(
         ref, est, delta=delta, delta_unit=delta_unit.value, all_pairs=all_pairs, align=align.value,
         n_to_align=n_to_align, relation=relation.value, max_diff=max_diff, offset=offset, plane=plane,
         json_out=json_out, table=table, plot=plot,
@@ -317,7 +294,8 @@ def table(
 ) -> None:
     """Table I layout: APE RMSE (m), sequences as rows, methods as columns, 'Failed' cells,
     mean row over non-failed cells, best per row marked."""
-    _pipeline("trajectory_eval").table_main(source, out=out, align=align.value, max_diff=max_diff, json_out=json_out,
+    from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
+    trajectory_eval_command.table_main(source, out=out, align=align.value, max_diff=max_diff, json_out=json_out,
                                             min_span_fraction=min_span_fraction, min_matches=min_matches)
 
 
@@ -332,7 +310,8 @@ def report(
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
-    _pipeline("report").main(result_dirs, out=out, pdf=pdf)
+    from mrnc_eval.commands import report as report_command
+    report_command.main(result_dirs, out=out, pdf=pdf)
 
 
 @app.command()
@@ -352,7 +331,8 @@ def nightly(
     """Run slam + control + evaluation on every new log, write per-log reports, a night index and
     trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise."""
     cfg = _config(config, set_, dump_config)
-    _pipeline("nightly").main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
+    from mrnc_eval.commands import nightly as nightly_command
+    nightly_command.main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
                               gates=gates, date=date, pdf=pdf)
 
 
@@ -378,7 +358,8 @@ def simulate(
     """Generate a synthetic SSWMR recording with exact ground truth (LiDAR, IMU, GNSS, wheel
     odometry, commands, path) driven in closed loop through the control chain."""
     cfg = _config(config, set_, dump_config)
-    _pipeline("simulate").main(out, cfg, scene=scene, path=path, duration=duration, lidar=lidar, columns=columns,
+    from mrnc_eval.commands import simulate as simulate_command
+    simulate_command.main(out, cfg, scene=scene, path=path, duration=duration, lidar=lidar, columns=columns,
                                rate=rate, fmt=fmt, seed=seed)
 
 

@@ -21,10 +21,6 @@ class UsageError(MrncError):
     exit_code = 2
 
 
-class NotImplementedYet(UsageError):
-    """A verb whose capability has not been built yet."""
-
-
 class ConfigError(UsageError):
     """A configuration file or override is invalid (unknown key, wrong type)."""
 

@@ -125,15 +125,16 @@ def atomic_write_text(path: Path, text: str) -> None:
         raise
 
 
-def _json_safe(value: Any) -> Any:
+def json_safe(value: Any) -> Any:
+    """Plain JSON values: numpy scalars and arrays as Python ones, NaN as null, inf as "inf"."""
     if isinstance(value, dict):
-        return {str(k): _json_safe(v) for k, v in value.items()}
+        return {str(k): json_safe(v) for k, v in value.items()}
     if isinstance(value, (list, tuple)):
-        return [_json_safe(v) for v in value]
+        return [json_safe(v) for v in value]
     if isinstance(value, np.generic):
         value = value.item()
     if isinstance(value, np.ndarray):
-        return _json_safe(value.tolist())
+        return json_safe(value.tolist())
     if isinstance(value, float) and not math.isfinite(value):
         return None if math.isnan(value) else ("inf" if value > 0 else "-inf")
     if isinstance(value, Path):
@@ -154,7 +155,7 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
     try:
         body = asdict(result)
         body.pop("series")
-        (tmp / RESULT_FILE).write_text(json.dumps(_json_safe(body), indent=2), encoding="utf-8")
+        (tmp / RESULT_FILE).write_text(json.dumps(json_safe(body), indent=2), encoding="utf-8")
         arrays = {safe_name(k): np.asarray(v) for k, v in result.series.items()}
         for key, arr in arrays.items():
             if arr.dtype.hasobject:  # would need pickle to store and to load

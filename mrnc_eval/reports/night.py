@@ -11,7 +11,7 @@ from mrnc_eval.reports.figures import new_figure, svg
 from mrnc_eval.reports.render import css, environment
 
 if TYPE_CHECKING:
-    from mrnc_eval.pipelines.history import Regression
+    from mrnc_eval.commands.history import Regression
 
 MAX_LOGS_PER_TREND = 12  # more lines than this are unreadable: the worst latest values are drawn
 

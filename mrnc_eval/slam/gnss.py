@@ -42,7 +42,7 @@ class GnssAligner:
 
     def maybe_add(self, graph, stamp: float, events: list) -> bool:
         """Called at each new keyframe; returns True when a GNSS factor was added."""
-        from mrnc_eval.slam.pipeline import SlamEvent
+        from mrnc_eval.slam.replay import SlamEvent
 
         g = self.cfg
         i = self._fix_near(stamp)

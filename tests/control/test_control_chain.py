@@ -178,9 +178,9 @@ def test_cross_track_sign_and_integral_errors() -> None:
 # ---- replay ------------------------------------------------------------------------------
 
 def test_replay_of_a_written_log_reproduces_the_simulated_tracking(tmp_path) -> None:
+    from mrnc_eval.commands.control import evaluate_trace, run_log
     from mrnc_eval.data import Trajectory, Waypoints
     from mrnc_eval.io.writers import LogWriter
-    from mrnc_eval.pipelines.control import evaluate_trace, run_log
 
     cfg = Config()
     sc = scripted_scenario("loop", cfg.control, size_m=8.0)
@@ -212,9 +212,9 @@ def test_replay_of_a_written_log_reproduces_the_simulated_tracking(tmp_path) -> 
 
 
 def test_replay_finds_the_slip_patches_of_the_paper_run(tmp_path) -> None:
+    from mrnc_eval.commands.control import replay
     from mrnc_eval.data import Trajectory, Waypoints
     from mrnc_eval.io.writers import LogWriter
-    from mrnc_eval.pipelines.control import replay
 
     cfg = Config()
     sc = paper_circle_scenario(cfg.control)

@@ -165,7 +165,7 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
 
 
 def test_table_two_has_the_papers_structure(paper_runs) -> None:
-    from mrnc_eval.pipelines.control import evaluate_trace, table_two
+    from mrnc_eval.commands.control import evaluate_trace, table_two
     from mrnc_eval.reports.tables import render_table
 
     cfg, runs = paper_runs

@@ -117,7 +117,7 @@ def test_table_from_yaml_manifest_with_missing_and_hostile_names(tmp_path: Path)
         "    reference: gt.tum\n"
         "    methods: {'<b>LIO</b>': a.tum}\n"
     )
-    from mrnc_eval.pipelines.trajectory_eval import build_table_one
+    from mrnc_eval.commands.trajectory_eval import build_table_one
 
     table = build_table_one(tmp_path / "m.yaml")
     assert table.row_labels == ["<seq & 1>", "seq2", "Mean"]
@@ -155,7 +155,7 @@ def test_log_topic_spec_reads_odometry_from_a_log(tmp_path: Path, fmt: str, suff
 
 
 def test_plot_decimation_keeps_the_peak() -> None:
-    from mrnc_eval.pipelines.trajectory_eval import _decimated_max
+    from mrnc_eval.commands.trajectory_eval import _decimated_max
 
     e = np.zeros(1_000_003)
     e[777_777] = 5.0

@@ -8,8 +8,8 @@ import os
 import time
 from pathlib import Path
 
+from mrnc_eval.commands.log_job import Analysis
 from mrnc_eval.config import Config, config_hash, dump_config
-from mrnc_eval.pipelines.log_job import Analysis
 from mrnc_eval.results import Metric, RunResult, write_result
 
 CALLS_ENV = "MRNC_TEST_CALLS_DIR"  # one file per call, to count how often each log was analysed
@@ -17,7 +17,7 @@ SLEEP_ENV = "MRNC_TEST_SLEEP_S"
 
 
 def info_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:
-    from mrnc_eval.pipelines import info
+    from mrnc_eval.commands import info
     from mrnc_eval.reports.render import write_report
 
     calls = os.environ.get(CALLS_ENV)

@@ -15,10 +15,10 @@ from pathlib import Path
 
 import pytest
 
+from mrnc_eval.commands import nightly
+from mrnc_eval.commands.history import find_regressions
 from mrnc_eval.config import Config
 from mrnc_eval.errors import GateFailed, SomeInputsFailed
-from mrnc_eval.pipelines import nightly
-from mrnc_eval.pipelines.history import find_regressions
 
 from .nightly_workers import CALLS_ENV, SLEEP_ENV
 
@@ -98,7 +98,7 @@ def test_killed_night_resumes_without_redoing_or_double_counting(imu_logs: Path,
     calls.mkdir()
     db = out / "history.sqlite"
     code = ("import sys; from pathlib import Path; from mrnc_eval.config import Config; "
-            "from mrnc_eval.pipelines import nightly; "
+            "from mrnc_eval.commands import nightly; "
             f"nightly.main(Path({str(imu_logs)!r}), Config(), out=Path({str(out)!r}), jobs=1, scheduler=None, "
             f"since=None, gates=None, date='2026-11-03', pdf=False, analysis={INFO!r})")
     env = {**os.environ, CALLS_ENV: str(calls), SLEEP_ENV: "0.4",
@@ -179,7 +179,7 @@ def test_regression_flags_against_the_median_of_previous_nights() -> None:
 
 
 def test_trends_page_flags_a_regressed_log(tmp_path: Path) -> None:
-    from mrnc_eval.pipelines.history import History, LogRecord
+    from mrnc_eval.commands.history import History, LogRecord
 
     history = History(tmp_path / "history.sqlite")
     ape = {"2026-10-01": 0.05, "2026-10-02": 0.05, "2026-10-03": 0.09}

@@ -35,7 +35,7 @@ def loop_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 
 def _run(log: Path, out: Path, *, loop: bool, map_radius_m: float = 50.0, method: str = "lio"):
-    from mrnc_eval.pipelines.slam import run_log
+    from mrnc_eval.commands.slam import run_log
 
     cfg = replace_path(Config(), "slam.use_loop_closure", loop)
     cfg = replace_path(cfg, "slam.matching.map_radius_m", map_radius_m)
@@ -89,7 +89,7 @@ def test_featureless_stretch_reported_and_loop_closure_does_not_make_it_worse(cr
     """Restarting the IMU graph after every loop closure used to turn this stretch into a 0.6 m
     excursion (APE 0.058 m against 0.024 m without loops); graph #2 now restarts only after a
     correction larger than slam.imu.restart_after_loop_m."""
-    from mrnc_eval.pipelines.slam import run_log
+    from mrnc_eval.commands.slam import run_log
 
     with_loop = run_log(crown_log, Config(), tmp_path / "loop")
     without = run_log(crown_log, replace_path(Config(), "slam.use_loop_closure", False), tmp_path / "noloop")

@@ -14,14 +14,14 @@ from mrnc_eval.io import open_log
 from mrnc_eval.results import read_result
 from mrnc_eval.sim.recorder import SimRequest, simulate_log
 from mrnc_eval.slam import se3
-from mrnc_eval.slam.pipeline import run_slam
+from mrnc_eval.slam.replay import run_slam
 
 REPO = Path(__file__).resolve().parents[2]
 CIRCLE = REPO / "sample_logs" / "circle_soft_ground.mcap"
 
 
 def test_circle_sample_log_ape_below_10cm(tmp_path: Path) -> None:
-    from mrnc_eval.pipelines.slam import run_log
+    from mrnc_eval.commands.slam import run_log
 
     result = run_log(CIRCLE, Config(), tmp_path / "run")
     ape = result.metric("ape_rmse_m").value

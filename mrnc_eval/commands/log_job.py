@@ -21,7 +21,7 @@ from pathlib import Path
 from mrnc_eval import __version__
 from mrnc_eval.config import Config
 
-DEFAULT_ANALYSIS = "mrnc_eval.pipelines.log_job:analyse_log"
+DEFAULT_ANALYSIS = "mrnc_eval.commands.log_job:analyse_log"
 MetricRow = tuple[str, float | None, str]  # (metric, value, unit)
 
 
@@ -52,8 +52,8 @@ def resolve(name: str) -> AnalyseFn:
 def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:
     """The real per-log analysis: info, SLAM, control replay when the log has a path and wheel
     speeds, the HTML/PDF report; each as a result directory under work_dir."""
+    from mrnc_eval.commands import control, info, slam
     from mrnc_eval.config import config_hash, dump_config
-    from mrnc_eval.pipelines import control, info, slam
     from mrnc_eval.reports.render import evaluate_gates, write_report
     from mrnc_eval.results import RunResult, write_result
 

@@ -291,16 +291,15 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
     run_dir = out / f"{log_id_for(log_path) if log_path else 'paper-circle'}-control-{mode}-{stamp}"
     result = run_log(log_path, cfg, run_dir, mode=mode, controllers=names)
     if json_out:
-        from mrnc_eval.cli import emit_json
-        from mrnc_eval.results import _json_safe
+        from mrnc_eval.commands.output import emit_json
 
         body: dict = {}
         for m in result.metrics:
             _, ctrl, side = m.group.split("/")
             body.setdefault(ctrl, {}).setdefault(side, {})[m.name] = m.value
-        emit_json(_json_safe({"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"],
-                              "controllers": body, "events": [e.__dict__ for e in result.events],
-                              "warnings": result.warnings, "definitions": result.extra["definitions"]}))
+        emit_json({"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"],
+                    "controllers": body, "events": [e.__dict__ for e in result.events],
+                    "warnings": result.warnings, "definitions": result.extra["definitions"]})
         return
     print_summary(result, run_dir)
 

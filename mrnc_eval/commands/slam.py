@@ -12,14 +12,14 @@ from pathlib import Path
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.io.prefetch import Prefetched
-from mrnc_eval.pipelines.progress import progress_bar
-from mrnc_eval.results import Event, Metric, RunResult, _json_safe, log_id_for, write_result
-from mrnc_eval.slam.pipeline import STAGES, SlamOutput
+from mrnc_eval.results import Event, Metric, RunResult, json_safe, log_id_for, write_result
+from mrnc_eval.slam.replay import STAGES, SlamOutput
 
 log = logging.getLogger(__name__)
 METHODS = ("lio", "kiss-icp")
@@ -93,7 +93,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
     from mrnc_eval.evaluation.ape import ape
     from mrnc_eval.io import open_log
     from mrnc_eval.io.trajectory_files import write_tum
-    from mrnc_eval.slam.pipeline import run_slam
+    from mrnc_eval.slam.replay import run_slam
 
     if method not in METHODS:
         raise UsageError(f"--method {method!r}: choose from {', '.join(METHODS)}")
@@ -213,7 +213,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
             o3d.io.write_point_cloud(str(tmp / name), pc)
             files[name] = tmp / name
     metrics = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
-    (tmp / "metrics.json").write_text(json.dumps(_json_safe(metrics), indent=2), encoding="utf-8")
+    (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")
     files["metrics.json"] = tmp / "metrics.json"
     try:
         write_result(result, out_dir, dump_config(cfg), files)
@@ -246,11 +246,10 @@ def main(logs: list[Path], cfg: Config, *, method: str, out: Path, no_loop: bool
         m = r.metric("ape_rmse_m")
         cells[(r.log_id, method)] = Cell(m.value if m else None, "" if m else "no ground truth")
     if json_out:
-        from mrnc_eval.cli import emit_json
-        from mrnc_eval.results import _json_safe
+        from mrnc_eval.commands.output import emit_json
 
-        emit_json(_json_safe([{"log": r.log_path, "run_dir": str(d), **{m.name: m.value for m in r.metrics}}
-                              for d, r in results]))
+        emit_json([{"log": r.log_path, "run_dir": str(d), **{m.name: m.value for m in r.metrics}}
+                    for d, r in results])
     else:
         for d, r in results:
             vals = {m.name: m.value for m in r.metrics}

@@ -43,7 +43,7 @@ def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
 
 def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None) -> None:
     """Print (JSON or Markdown), then write the table and plot files; all computed before."""
-    from mrnc_eval.cli import emit_json
+    from mrnc_eval.commands.output import emit_json
 
     if table is not None and SUFFIX_FORMAT.get(table.suffix.lower()) is None:
         raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
@@ -224,8 +224,7 @@ def table_main(source: Path, *, out: Path | None, align: str, max_diff: float, j
                min_span_fraction: float | None = None, min_matches: int | None = None) -> None:
     import dataclasses
 
-    from mrnc_eval.cli import emit_json
-    from mrnc_eval.results import _json_safe
+    from mrnc_eval.commands.output import emit_json
 
     cfg = EvaluationConfig()
     if min_span_fraction is not None:
@@ -238,7 +237,7 @@ def table_main(source: Path, *, out: Path | None, align: str, max_diff: float, j
         raise UsageError(f"--out {out}: use a .md, .tex, .csv or .html file")
     table = build_table_one(source, align=align, max_diff=max_diff, cfg=cfg)
     if json_out:
-        emit_json(_json_safe(table.__dict__))
+        emit_json(table.__dict__)
     elif out is None:
         sys.stdout.write(render_table(table, "markdown"))
     if out is not None:

@@ -17,15 +17,15 @@ from typing import TYPE_CHECKING
 import yaml
 
 from mrnc_eval import __version__
+from mrnc_eval.commands.history import History, LogRecord, find_regressions
+from mrnc_eval.commands.log_job import DEFAULT_ANALYSIS, LogJob
+from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, build, dump_config
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
-from mrnc_eval.pipelines.history import History, LogRecord, find_regressions
-from mrnc_eval.pipelines.log_job import DEFAULT_ANALYSIS, LogJob
-from mrnc_eval.pipelines.progress import progress_bar
 from mrnc_eval.results import atomic_write_text, log_id_for
 
 if TYPE_CHECKING:
-    from mrnc_eval.pipelines.executors import Executor
+    from mrnc_eval.commands.executors import Executor
 
 log = logging.getLogger(__name__)
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")
@@ -86,7 +86,7 @@ def _night(date: str | None) -> str:
 def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | None, since: str | None,
          gates: Path | None, date: str | None, pdf: bool, analysis: str = DEFAULT_ANALYSIS) -> None:
     """`analysis` names the per-log function ("module:function", see log_job); tests inject fakes."""
-    from mrnc_eval.pipelines.executors import make_executor
+    from mrnc_eval.commands.executors import make_executor
 
     night = _night(date)
     cfg = _with_gates(cfg, gates)

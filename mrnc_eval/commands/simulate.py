@@ -12,7 +12,7 @@ from mrnc_eval.errors import UsageError
 
 def main(out: Path, cfg: Config, *, scene: str, path: str, duration: float | None, lidar: str, columns: int,
          rate: float, fmt: str, seed: int | None) -> None:
-    from mrnc_eval.pipelines.progress import progress_bar
+    from mrnc_eval.commands.progress import progress_bar
     from mrnc_eval.sim.recorder import SimRequest, simulate_log, validate
 
     req = SimRequest(scene=scene, path=path, duration_s=duration, lidar=lidar, columns=columns, rate_hz=rate,

@@ -21,8 +21,8 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Protocol
 
+from mrnc_eval.commands.log_job import LogJob, failed_summary, process_log
 from mrnc_eval.errors import UsageError
-from mrnc_eval.pipelines.log_job import LogJob, failed_summary, process_log
 
 CRASHED = "worker process died while processing this log (native crash, out of memory or killed)"
 
