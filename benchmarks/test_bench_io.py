@@ -23,7 +23,7 @@ REAL_OUSTER = (Path(__file__).resolve().parents[2] / "shared" / "data" / "ouster
                / "ouster_real_ros2_mcap_zstd.mcap")
 
 
-@pytest.fixture()
+@pytest.fixture
 def real_ouster_mcap() -> Path:
     if not REAL_OUSTER.exists():
         pytest.skip(f"real Ouster recording not found at {REAL_OUSTER}")
@@ -87,7 +87,7 @@ def _write_long_log(path: Path, fmt: str, n_sweeps: int, h: int, w: int) -> int:
     return h * w * 48
 
 
-@pytest.mark.parametrize("fmt, name", [("mcap", "long.mcap"), ("db3", "long.db3"), ("bag", "long.bag")])
+@pytest.mark.parametrize(("fmt", "name"), [("mcap", "long.mcap"), ("db3", "long.db3"), ("bag", "long.bag")])
 def test_streaming_memory_is_bounded(tmp_path: Path, fmt: str, name: str) -> None:
     n_sweeps, h, w = 200, 32, 1024
     sweep_bytes = _write_long_log(tmp_path / name, fmt, n_sweeps, h, w)

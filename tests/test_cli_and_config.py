@@ -60,7 +60,7 @@ def test_yaml_roundtrip_and_override(tmp_path: Path) -> None:
 
 
 @pytest.mark.parametrize(
-    "text, fragment",
+    ("text", "fragment"),
     [
         ("robot: {no_such_key: 1}\n", "robot.no_such_key"),
         ("robot: {mass_kg: heavy}\n", "robot.mass_kg"),
@@ -88,5 +88,6 @@ def test_errors_are_one_line_with_control_characters_escaped(tmp_path: Path,
     sneaky = tmp_path / "log\nmrnc-eval: all good\x1b[32m.mcap"
     assert main(["info", str(sneaky)]) == 4
     err = capsys.readouterr().err
-    assert err.count("\n") == 1 and "\x1b" not in err
+    assert err.count("\n") == 1
+    assert "\x1b" not in err
     assert "log\\nmrnc-eval: all good\\x1b[32m.mcap" in err

@@ -104,7 +104,7 @@ class Dask:
             for fut in dask_completed(futures):
                 try:
                     yield fut.result()
-                except Exception as err:  # noqa: BLE001 - the task died with its worker (KilledWorker)
+                except Exception as err:
                     yield failed_summary(futures[fut], f"{CRASHED}: {type(err).__name__}: {err}")
 
 

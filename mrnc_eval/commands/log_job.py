@@ -106,7 +106,7 @@ def process_log(job: LogJob) -> dict:
         summary["status"] = "ok"
     except MrncError as err:
         summary["error"] = str(err)
-    except Exception as err:  # noqa: BLE001 - one log's bug must not end the night; keep the traceback
+    except Exception as err:
         summary["error"] = f"{type(err).__name__}: {err}"
         summary["traceback"] = traceback.format_exc()
     finally:

@@ -25,7 +25,7 @@ def foptc_step(state, k0, c_h, horizon, freeze, ki, tau_hat, k_hat, anti_windup,
     integral = state[0] + ki * err * dt
     u_fb = scale * (g * err + integral)
     total = u_ff + u_fb
-    if anti_windup and (total > u_max and err > 0.0 or total < u_min and err < 0.0):
+    if anti_windup and ((total > u_max and err > 0.0) or (total < u_min and err < 0.0)):
         return scale * (g * err + state[0])  # clamped and pushing further: hold the integral
     state[0] = integral
     return u_fb

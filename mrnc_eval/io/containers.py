@@ -57,7 +57,7 @@ def _bag_storage(meta: Path) -> str:
     try:
         info = yaml.safe_load(meta.read_text(encoding="utf-8", errors="replace"))
         return str(info["rosbag2_bagfile_information"]["storage_identifier"])
-    except Exception:  # noqa: BLE001 - malformed metadata is reported by the reader, with its path
+    except Exception:
         return ""
 
 

@@ -41,7 +41,7 @@ class Prefetched(Generic[T]):
             for item in it:
                 if not self._put(item):
                     return
-        except BaseException as err:  # noqa: BLE001 - handed to the consumer, who raises it
+        except BaseException as err:
             self._put((_END, err))
             return
         finally:

@@ -7,6 +7,7 @@ counted (StreamHealth), never silently passed on. Sweeps are streamed one at a t
 
 from __future__ import annotations
 
+import contextlib
 import glob
 import struct
 from array import array
@@ -112,10 +113,8 @@ class LogReader:
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
-        try:
+        with contextlib.suppress(Exception):
             self._src.close()
-        except Exception:  # noqa: BLE001 - closing a broken file must not hide the real error
-            pass
 
     def __enter__(self) -> LogReader:
         return self

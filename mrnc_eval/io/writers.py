@@ -9,6 +9,7 @@ no file that could pass for a log.
 
 from __future__ import annotations
 
+import contextlib
 import heapq
 import shutil
 import tempfile
@@ -204,10 +205,8 @@ class LogWriter:
 
     def abort(self) -> None:
         if not self._closed:
-            try:
+            with contextlib.suppress(Exception):
                 self._writer.close()
-            except Exception:  # noqa: BLE001 - the partial log is discarded anyway
-                pass
             self._closed = True
         shutil.rmtree(self._tmpdir, ignore_errors=True)
 

@@ -42,7 +42,7 @@ def best_cells(table: Table) -> set[tuple[int, int]]:
 
 def fmt_cell(c: Cell, precision: int) -> str:
     if c is None:
-        return "–"
+        return "–"  # noqa: RUF001 - an en dash marks a missing value in printed tables
     if isinstance(c, bool):
         return "yes" if c else "no"
     if isinstance(c, int):

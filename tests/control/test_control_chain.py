@@ -28,7 +28,8 @@ def test_drive_step_is_the_discrete_first_order_lag_with_dead_band_and_slip() ->
         v = drive_step(v, u, slip, gain, a, dz)
         if n in (1, 400, 2000):  # exact discrete solution of the lag
             assert v == pytest.approx(gain * (1 - slip) * (u - dz) * (1 - a ** n), rel=1e-9)
-    assert drive_step(0.0, 59.0, 0.0, gain, a, dz) == 0.0 and drive_step(0.0, -59.0, 0.0, gain, a, dz) == 0.0
+    assert drive_step(0.0, 59.0, 0.0, gain, a, dz) == 0.0
+    assert drive_step(0.0, -59.0, 0.0, gain, a, dz) == 0.0
     assert drive_step(0.0, -900.0, 0.0, gain, a, dz) == pytest.approx(-(1 - a) * gain * 840.0)
 
 
@@ -40,7 +41,8 @@ def test_body_step_drives_the_icr_circle() -> None:
     n = int(round(period / dt))
     for _ in range(n):
         x, y, yaw, v, w = body_step(x, y, yaw, vl, vr, track, dt)
-    assert v == pytest.approx(0.4) and w == pytest.approx(0.2 / track)
+    assert v == pytest.approx(0.4)
+    assert w == pytest.approx(0.2 / track)
     # exact arc integration: back at the start after one period (up to the rounding of n)
     assert math.hypot(x, y) < 0.4 * abs(period - n * dt) + 1e-9
     x, y, yaw, *_ = body_step(0.0, 0.0, 0.0, vl, vr, track, period / 2)
@@ -58,7 +60,8 @@ def test_curvature_standard_and_paper_literal() -> None:
     wp = [[0.0, 0.0], [0.0, 20.0]]
     # robot at (0.6, 0) facing +y: the carrot is where the 1 m circle meets x = 0, at (0, 0.8)
     v, w, _, done, cx, cy = _pp(0.6, 0.0, math.pi / 2, wp, False)
-    assert (cx, cy) == pytest.approx((0.0, 0.8)) and not done
+    assert (cx, cy) == pytest.approx((0.0, 0.8))
+    assert not done
     alpha = math.atan2(0.8, -0.6) - math.pi / 2  # left of the heading
     assert w / v == pytest.approx(2 * math.sin(alpha) / 1.0)  # Coulter, D = |carrot| = 1
     v2, w2, *_ = _pp(0.6, 0.0, math.pi / 2, wp, True)
@@ -76,9 +79,13 @@ def test_pure_pursuit_index_never_jumps_back_on_the_paper_circle() -> None:
         pp.step(x, y, yaw)
         idx.append(pp.index)
     # start and end coincide on the closed circle: the index must not skip to the last segment
-    assert idx[0] == 0 and np.all(np.diff(idx) >= 0) and np.all(np.diff(idx) <= 1)
-    assert idx[-1] == len(sc.waypoints_xy) - 2 and pp.done
-    assert tr.cmd_v[-1] == 0.0 and tr.cmd_omega[-1] == 0.0
+    assert idx[0] == 0
+    assert np.all(np.diff(idx) >= 0)
+    assert np.all(np.diff(idx) <= 1)
+    assert idx[-1] == len(sc.waypoints_xy) - 2
+    assert pp.done
+    assert tr.cmd_v[-1] == 0.0
+    assert tr.cmd_omega[-1] == 0.0
 
 
 # ---- scenario ----------------------------------------------------------------------------
@@ -88,11 +95,13 @@ def test_paper_scenario_matches_the_papers_figure() -> None:
     sc = paper_circle_scenario(cfg.control)
     cx, cy = cfg.control.scenario.centre_xy_m
     wp = sc.waypoints_xy
-    assert wp.shape == (9, 2) and np.allclose(wp[0], wp[-1])  # 8 waypoints, closed
+    assert wp.shape == (9, 2)
+    assert np.allclose(wp[0], wp[-1])
     assert np.allclose(np.hypot(wp[:, 0] - cx, wp[:, 1] - cy), 5.0)
     for px, py in ((2, -8), (2, -4), (7, -1)):  # the paper's slip locations lie on the 5 m circle
         assert math.hypot(px - cx, py - cy) == pytest.approx(5.0, abs=0.03)
-    assert np.hypot(*(wp[1] - (2, -8))) < 0.1 and np.hypot(*(wp[2] - (2, -4))) < 0.1
+    assert np.hypot(*(wp[1] - (2, -8))) < 0.1
+    assert np.hypot(*(wp[2] - (2, -4))) < 0.1
     # clockwise: the signed area is negative, so the left side is the outer, faster one
     area = 0.5 * np.sum(wp[:-1, 0] * wp[1:, 1] - wp[1:, 0] * wp[:-1, 1])
     assert area < 0
@@ -104,9 +113,12 @@ def test_closed_loop_is_deterministic_and_takes_bare_waypoints() -> None:
     a = run_closed_loop(wp, cfg.control, cfg.robot, "raid", seed=3)
     b = run_closed_loop(wp, cfg.control, cfg.robot, "raid", seed=3)
     c = run_closed_loop(wp, cfg.control, cfg.robot, "raid", seed=4)
-    assert np.array_equal(a.v_wheel_left, b.v_wheel_left) and np.array_equal(a.x, b.x)
+    assert np.array_equal(a.v_wheel_left, b.v_wheel_left)
+    assert np.array_equal(a.x, b.x)
     assert not np.array_equal(a.v_wheel_left, c.v_wheel_left)
-    assert a.completed and abs(a.x[-1] - 4.0) < 0.3 and abs(a.y[-1]) < 0.05
+    assert a.completed
+    assert abs(a.x[-1] - 4.0) < 0.3
+    assert abs(a.y[-1]) < 0.05
     assert a.completion_time_s == pytest.approx(a.t[-1] - 2.0, abs=0.01)  # 2 s recorded after the goal
 
 
@@ -135,22 +147,26 @@ def test_feedback_only_clamp_lets_the_total_exceed_the_limit() -> None:
     for applies, above in (("total", False), ("feedback", True)):
         c = replace(cfg, actuator=ActuatorConfig(saturation_applies_to=applies))
         u, ok = make_controller("pid", c).step(0.0, 0.5, 0.0, 0.0, 1e-3)  # f = 1500 RPM alone
-        assert ok and (u > 1250.0) == above
+        assert ok
+        assert (u > 1250.0) == above
 
 
 def test_raid_reports_a_safety_stop_at_the_barrier() -> None:
     cfg = Config().control
     raid = make_controller("raid", cfg)
     u, ok = raid.step(0.0, 0.3, 0.0, 0.3 - 0.29, 1e-3)  # |e| = 0.29 < o(0) = 0.30: finite, pushes up hard
-    assert ok and u > 3000 * 0.3
+    assert ok
+    assert u > 3000 * 0.3
     u, ok = raid.step(1e-3, 0.3, 0.0, 0.3 - 0.31, 1e-3)  # beyond the barrier
-    assert not ok and u == 0.0
+    assert not ok
+    assert u == 0.0
     # in the closed loop: a funnel narrower than the start-up error stops both sides, no crash
     tight = replace(cfg, funnel=FunnelConfig(o_ov_mps=0.02, o_b_mps=0.01))
     tr = run_closed_loop(scripted_scenario("line", cfg), tight, Config().robot, "raid", duration_s=5.0)
     assert {e["side"] for e in tr.events} == {"left", "right"}
     stop = min(e["t_s"] for e in tr.events)
-    assert np.all(tr.u_left[tr.t > stop + 1e-3] == 0.0) and tr.t[-1] == pytest.approx(5.0, abs=2e-3)
+    assert np.all(tr.u_left[tr.t > stop + 1e-3] == 0.0)
+    assert tr.t[-1] == pytest.approx(5.0, abs=2e-3)
 
 
 # ---- metrics -----------------------------------------------------------------------------
@@ -166,13 +182,16 @@ def test_recovery_time_after_a_slip_event_is_the_exponential_decay_time() -> Non
 def test_cross_track_sign_and_integral_errors() -> None:
     wp = np.array([[0.0, 0.0], [10.0, 0.0], [10.0, 10.0]])
     cte, heading = cross_track(np.array([5.0, 5.0, 11.0]), np.array([0.5, -0.25, 5.0]), wp)
-    assert cte == pytest.approx([0.5, -0.25, -1.0]) and heading == pytest.approx([0.0, 0.0, math.pi / 2])
+    assert cte == pytest.approx([0.5, -0.25, -1.0])
+    assert heading == pytest.approx([0.0, 0.0, math.pi / 2])
     tau, t = 0.4, np.arange(0, 10, 1e-4)
     y = 1 - np.exp(-t / tau)
     m = tracking_metrics(t, np.ones_like(t), y, np.zeros_like(t), np.full_like(t, 2.0), u_max=1250.0, slip=None,
                          cfg=MetricsConfig())
-    assert m["iae"] == pytest.approx(tau, rel=1e-3) and m["ise"] == pytest.approx(tau / 2, rel=1e-3)
-    assert m["itae"] == pytest.approx(tau ** 2, rel=1e-3) and m["funnel_violations"] == 0
+    assert m["iae"] == pytest.approx(tau, rel=1e-3)
+    assert m["ise"] == pytest.approx(tau / 2, rel=1e-3)
+    assert m["itae"] == pytest.approx(tau ** 2, rel=1e-3)
+    assert m["funnel_violations"] == 0
 
 
 # ---- replay ------------------------------------------------------------------------------
@@ -208,7 +227,8 @@ def test_replay_of_a_written_log_reproduces_the_simulated_tracking(tmp_path) -> 
         assert got[(f"control/recorded/{side}", "max_abs_command_rpm")] == pytest.approx(
             want[side]["max_abs_command_rpm"], rel=1e-6)
         assert got[(f"control/recorded/{side}", "funnel_violations")] == 0
-    assert result.extra["labels"]["recorded"] == "recorded (ground_truth)" and not result.warnings
+    assert result.extra["labels"]["recorded"] == "recorded (ground_truth)"
+    assert not result.warnings
 
 
 def test_replay_finds_the_slip_patches_of_the_paper_run(tmp_path) -> None:

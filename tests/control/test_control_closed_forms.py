@@ -63,7 +63,8 @@ def test_lambda_construction_equals_clamp() -> None:
 def test_wrap_angle_range() -> None:
     for a in np.linspace(-20, 20, 401):
         w = wrap_angle(a)
-        assert -math.pi < w <= math.pi and math.isclose(math.cos(w), math.cos(a), abs_tol=1e-9)
+        assert -math.pi < w <= math.pi
+        assert math.isclose(math.cos(w), math.cos(a), abs_tol=1e-9)
 
 
 def _kinematic_follow(pp: PurePursuit, x, y, yaw, dt=0.02, n=6000):
@@ -79,8 +80,10 @@ def test_pure_pursuit_converges_to_a_line_and_stops_at_the_end() -> None:
     cfg = PurePursuitConfig(speed_cap=False)
     pp = PurePursuit(np.array([[0.0, 0.0], [30.0, 0.0]]), cfg, 1.6, 0.97)
     out = _kinematic_follow(pp, 0.0, 1.0, 0.0)
-    assert abs(out[-1, 1]) < 0.02 and pp.done
-    assert np.all(out[-50:, 3] == 0.0) and np.all(out[-50:, 4] == 0.0)
+    assert abs(out[-1, 1]) < 0.02
+    assert pp.done
+    assert np.all(out[-50:, 3] == 0.0)
+    assert np.all(out[-50:, 4] == 0.0)
     assert np.hypot(out[-1, 0] - 30.0, out[-1, 1]) < cfg.goal_tolerance_m + 0.05
 
 
@@ -101,7 +104,8 @@ def test_pure_pursuit_circle_curvature_and_monotonic_index() -> None:
         x, y, yaw = x + v * math.cos(yaw) * 0.02, y + v * math.sin(yaw) * 0.02, yaw + w * 0.02
     assert np.all(np.diff(indices) >= 0)  # never jumps back across the closed loop
     assert np.median(kappas[200:-200]) == pytest.approx(1 / r, rel=0.02)
-    assert pp.done and pp.index == len(wp) - 2
+    assert pp.done
+    assert pp.index == len(wp) - 2
 
 
 def test_wheel_controllers_track_a_first_order_drive() -> None:
@@ -112,7 +116,8 @@ def test_wheel_controllers_track_a_first_order_drive() -> None:
         for k in range(10000):
             ref = min(0.3, 0.3 * k * dt)  # 0.3 m/s^2 ramp
             u, ok = c.step(k * dt, ref, 0.3 if ref < 0.3 else 0.0, v, dt)
-            assert ok and abs(u) <= 1250.0
+            assert ok
+            assert abs(u) <= 1250.0
             v += dt / 0.4 * (u / 3000.0 - v)
         assert v == pytest.approx(0.3, abs=0.03), name
 
@@ -127,15 +132,18 @@ def paper_runs():
 def test_raid_stays_in_the_funnel_on_the_paper_scenario(paper_runs) -> None:
     cfg, runs = paper_runs
     tr = runs["raid"]
-    assert tr.completed and not tr.events
+    assert tr.completed
+    assert not tr.events
     for side in ("left", "right"):
         e = getattr(tr, f"v_wheel_{side}") - getattr(tr, f"v_ref_{side}")
         assert np.all(np.abs(e) < tr.funnel), side
         assert np.max(np.abs(getattr(tr, f"u_{side}"))) <= 1250.0
     # the robot went round: it passed the far side of the circle and came back
-    cx, cy = cfg.control.scenario.centre_xy_m
-    assert tr.y.max() > cy + 4.5 and np.hypot(tr.x[-1] - tr.waypoints[-1, 0], tr.y[-1] - tr.waypoints[-1, 1]) < 0.5
-    assert np.any(tr.slip_left > 0) and np.any(tr.slip_right > 0)  # the slip patches were crossed
+    _, cy = cfg.control.scenario.centre_xy_m
+    assert tr.y.max() > cy + 4.5
+    assert np.hypot(tr.x[-1] - tr.waypoints[-1, 0], tr.y[-1] - tr.waypoints[-1, 1]) < 0.5
+    assert np.any(tr.slip_left > 0)
+    assert np.any(tr.slip_right > 0)
 
 
 def test_every_controller_finishes_and_respects_the_actuator_limit(paper_runs) -> None:
@@ -152,7 +160,8 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
     assert main(["control", "--mode", "simulate", "--controllers", "raid,pid", "--out", str(tmp_path), "--json"]) == 0
     body = json.loads(capsys.readouterr().out)
     raid = body["controllers"]["raid"]
-    assert raid["left"]["funnel_violations"] == 0 and raid["right"]["safety_stops"] == 0
+    assert raid["left"]["funnel_violations"] == 0
+    assert raid["right"]["safety_stops"] == 0
     for key in ("settling_time_s", "overshoot_pct", "steady_state_error_mps", "max_abs_command_rpm"):
         assert key in raid["left"]
     from mrnc_eval.results import read_result
@@ -182,4 +191,5 @@ def test_table_two_has_the_papers_structure(paper_runs) -> None:
     assert all(len(row) == 4 for row in table.cells)
     assert any("2 % of the step" in n for n in table.notes)  # the effective definitions are printed
     md = render_table(table, "markdown")
-    assert "Settling time" in md and "CFDL-MFAPC" in md
+    assert "Settling time" in md
+    assert "CFDL-MFAPC" in md

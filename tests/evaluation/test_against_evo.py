@@ -57,7 +57,7 @@ def test_aligned_poses_and_transform_equal_evo() -> None:
 
 
 @pytest.mark.parametrize("relation", RELATIONS)
-@pytest.mark.parametrize("delta, unit, all_pairs", [(1, "frames", False), (7, "frames", True),
+@pytest.mark.parametrize(("delta", "unit", "all_pairs"), [(1, "frames", False), (7, "frames", True),
                                                     (1.0, "m", False), (2.5, "m", True)])
 def test_rpe_equals_evo(relation: str, delta: float, unit: str, all_pairs: bool) -> None:
     ref, est = make_pair(seed=11)

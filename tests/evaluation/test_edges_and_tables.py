@@ -47,7 +47,8 @@ def test_unsorted_input_is_sorted_not_misread() -> None:
     order = np.random.default_rng(0).permutation(50)
     shuffled = Trajectory(ref.stamps[order], ref.positions[order], ref.quat_xyzw[order], name="shuffled")
     r = ape(ref, shuffled, align="none")
-    assert r.n == 50 and r.stats["max"] == 0.0
+    assert r.n == 50
+    assert r.stats["max"] == 0.0
 
 
 def test_ties_go_to_the_earlier_stamp() -> None:
@@ -124,7 +125,9 @@ def test_drift_of_a_perfect_estimate_is_zero_and_scaled_lengths_are_stated() -> 
     ref, _ = make_pair(n=2000)
     t = lie.poses(ref)
     d = kitti_drift(t, t)
-    assert d.mean_trans_pct < 1e-9 and len(d.lengths_m) == 8 and d.lengths_m[-1] < 100
+    assert d.mean_trans_pct < 1e-9
+    assert len(d.lengths_m) == 8
+    assert d.lengths_m[-1] < 100
     assert segment_lengths(2000.0)[0] == 100.0
     # on a straight path a 1 % scale error is exactly 1 % translational drift
     t[:, :3, 3] = np.c_[np.arange(2000) * 0.05, np.zeros(2000), np.zeros(2000)]
@@ -160,18 +163,23 @@ def test_reproduces_paper_table_one() -> None:
     bold = best_cells(table)
     for r, seq in enumerate(PAPER_ROWS):
         assert {PAPER_METHODS[c] for rr, c in bold if rr == r} == {PAPER_BOLD[seq]}, seq
-    assert table.cells[1][2] == "Failed" and table.cells[9][3] == "Failed"
+    assert table.cells[1][2] == "Failed"
+    assert table.cells[9][3] == "Failed"
     for k, printed in enumerate(PAPER_MEAN):  # the paper's mean row, digit for digit at its printed precision
         decimals = len(printed.split(".")[1])
         assert f"{table.cells[-1][k]:.{decimals}f}" == printed, PAPER_METHODS[k]
-    assert "ORB-SLAM3 9/10" in table.notes[0] and "LIO-SAM 10/10" in table.notes[0]
+    assert "ORB-SLAM3 9/10" in table.notes[0]
+    assert "LIO-SAM 10/10" in table.notes[0]
     # Mean row: the lowest mean (ORB-SLAM3, over 9 sequences) is marked. The paper also bolds
     # LIO-SAM's mean, the lowest among methods that completed all ten; we name it in a note.
     assert {PAPER_METHODS[c] for r, c in bold if r == len(PAPER_ROWS)} == {"ORB-SLAM3"}
     assert "without a Failed sequence: LIO-SAM (0.656847)" in table.notes[1]
     md, tex, html, csv = (render_table(table, f) for f in ("markdown", "latex", "html", "csv"))
-    assert "**0.164774**" in md and "\\textbf{0.086294}" not in tex and "\\toprule" in tex
-    assert "<strong>0.088294</strong>" in html and "Failed" in csv
+    assert "**0.164774**" in md
+    assert "\\textbf{0.086294}" not in tex
+    assert "\\toprule" in tex
+    assert "<strong>0.088294</strong>" in html
+    assert "Failed" in csv
 
 
 def test_table_from_directory_marks_short_tracking_as_failed(tmp_path: Path) -> None:
@@ -186,5 +194,6 @@ def test_table_from_directory_marks_short_tracking_as_failed(tmp_path: Path) -> 
 
     table = build_table_one(tmp_path, max_diff=0.01)
     assert table.column_labels == ["good", "half"]
-    assert isinstance(table.cells[0][0], float) and table.cells[0][1] == "Failed"
+    assert isinstance(table.cells[0][0], float)
+    assert table.cells[0][1] == "Failed"
     assert any("covers" in n for n in table.notes)

@@ -97,7 +97,8 @@ def test_rpe_cli_drift_pairs_from_reference_and_files(tmp_path: Path, capsys: py
                         "--plot", str(tmp_path / "r.svg")]) == 0
     from_ref = json.loads(capsys.readouterr().out)[0]
     assert from_ref["n"] < from_est["n"]  # the noisy estimate travels farther: more 1 m pairs
-    assert from_ref["drift"]["lengths_m"][-1] < 100 and from_ref["drift"]["n_segments"] > 0
+    assert from_ref["drift"]["lengths_m"][-1] < 100
+    assert from_ref["drift"]["n_segments"] > 0
     assert "pairs from the reference" in (tmp_path / "r.html").read_text()
     assert (tmp_path / "r.svg").read_text().lstrip().startswith("<?xml")
     assert main(args[:-1] + ["--plot", str(tmp_path / "r.txt")]) == 2
@@ -123,17 +124,22 @@ def test_table_from_yaml_manifest_with_missing_and_hostile_names(tmp_path: Path)
     assert table.row_labels == ["<seq & 1>", "seq2", "Mean"]
     col = {m: k for k, m in enumerate(table.column_labels)}
     assert isinstance(table.cells[0][col["<b>LIO</b>"]], float)
-    assert table.cells[0][col["gone"]] == "Failed" and table.cells[1][col["none"]] == "Failed"
+    assert table.cells[0][col["gone"]] == "Failed"
+    assert table.cells[1][col["none"]] == "Failed"
     assert table.cells[2][col["gone"]] == "Failed"  # no non-failed cell: the mean is Failed too
     html = render_table(table, "html")
-    assert "<b>" not in html and "&lt;b&gt;LIO&lt;/b&gt;" in html and "&lt;seq &amp; 1&gt;" in html
+    assert "<b>" not in html
+    assert "&lt;b&gt;LIO&lt;/b&gt;" in html
+    assert "&lt;seq &amp; 1&gt;" in html
     tex = render_table(table, "latex")
-    assert r"\&" in tex and "\\toprule" in tex and "\\bottomrule" in tex
+    assert r"\&" in tex
+    assert "\\toprule" in tex
+    assert "\\bottomrule" in tex
     assert main(["table", str(tmp_path / "m.yaml"), "--out", str(tmp_path / "t.md")]) == 0
     assert "Failed" in (tmp_path / "t.md").read_text()
 
 
-@pytest.mark.parametrize("fmt, suffix", [("mcap", ".mcap"), ("bag", ".bag")])
+@pytest.mark.parametrize(("fmt", "suffix"), [("mcap", ".mcap"), ("bag", ".bag")])
 def test_log_topic_spec_reads_odometry_from_a_log(tmp_path: Path, fmt: str, suffix: str,
                                                   capsys: pytest.CaptureFixture[str]) -> None:
     from mrnc_eval.io.writers import LogWriter
@@ -149,7 +155,8 @@ def test_log_topic_spec_reads_odometry_from_a_log(tmp_path: Path, fmt: str, suff
     np.testing.assert_allclose(got.positions, ref.positions, atol=1e-12)
     assert main(["ape", str(tmp_path / "gt.tum"), f"{log_path}:/odom_est", f"{log_path}:/ground_truth", "--json"]) == 0
     out = json.loads(capsys.readouterr().out)
-    assert out[1]["max"] < 1e-6 and out[0]["rmse"] > 0.01
+    assert out[1]["max"] < 1e-6
+    assert out[0]["rmse"] > 0.01
     assert main(["ape", str(tmp_path / "gt.tum"), f"{log_path}:/nope"]) != 0
     assert "/nope" in capsys.readouterr().err
 
@@ -160,4 +167,6 @@ def test_plot_decimation_keeps_the_peak() -> None:
     e = np.zeros(1_000_003)
     e[777_777] = 5.0
     t, d = _decimated_max(np.arange(e.size, dtype=float), e)
-    assert d.size == 10000 and d.max() == 5.0 and t.size == d.size
+    assert d.size == 10000
+    assert d.max() == 5.0
+    assert t.size == d.size

@@ -29,7 +29,8 @@ def test_info_reports_duplicates_fix_ratio_and_coverage(tmp_path: Path, capsys: 
     info = _info(tmp_path / "dup.bag", capsys)
     assert info["container"] == "ros1"
     topics = {t["topic"]: t for t in info["topics"]}
-    assert topics["/ouster/imu"]["count"] == 52 and topics["/ouster/imu"]["duplicates"] == 2
+    assert topics["/ouster/imu"]["count"] == 52
+    assert topics["/ouster/imu"]["duplicates"] == 2
     assert topics["/ouster/imu"]["rate_hz"] == pytest.approx(51 / 0.49, abs=1e-3)
     assert topics["/ouster/points"]["max_gap_s"] == pytest.approx(0.1)
     assert ("warning", "2 duplicate header stamps (dropped when read)") in _messages(info, "/ouster/imu")
@@ -37,8 +38,10 @@ def test_info_reports_duplicates_fix_ratio_and_coverage(tmp_path: Path, capsys: 
     lidar = _messages(info, "/ouster/points")
     assert ("ok", "per-point time present") in lidar
     assert ("ok", "IMU covers 3 of 3 sweeps (sweep duration 94 ms)") in lidar
-    assert info["lidar"]["height"] == H and info["lidar"]["width"] == W
-    assert info["roles"]["commands"] == "/pump_cmd" and info["roles"]["tf_static"] == "/tf_static"
+    assert info["lidar"]["height"] == H
+    assert info["lidar"]["width"] == W
+    assert info["roles"]["commands"] == "/pump_cmd"
+    assert info["roles"]["tf_static"] == "/tf_static"
     assert info["duration_s"] == pytest.approx(0.49)
 
 
@@ -77,5 +80,7 @@ def test_duplicate_and_out_of_order_sweeps_are_skipped_and_noted(tmp_path: Path)
         got = [s.stamp for s in log.sweeps()]
         health = log.health("/ouster/points")
     assert got == pytest.approx([1.0, 1.1, 1.2])
-    assert health.count == 5 and health.duplicates == 1 and health.out_of_order == 1
+    assert health.count == 5
+    assert health.duplicates == 1
+    assert health.out_of_order == 1
     assert health.notes == ("2 sweep(s) skipped: header stamp not after the previous sweep",)

@@ -16,8 +16,11 @@ def test_info_real_recording(real_ouster_mcap: Path, capsys: pytest.CaptureFixtu
     counts = {t["topic"]: (t["msgtype"], t["count"]) for t in info["topics"]}
     assert counts["/ouster/points"] == ("sensor_msgs/msg/PointCloud2", 3)
     assert counts["/ouster/imu"] == ("sensor_msgs/msg/Imu", 30)
-    assert info["roles"]["lidar"] == "/ouster/points" and info["roles"]["imu"] == "/ouster/imu"
-    assert info["lidar"]["height"] == 128 and info["lidar"]["width"] == 1024 and info["lidar"]["per_point_time"]
+    assert info["roles"]["lidar"] == "/ouster/points"
+    assert info["roles"]["imu"] == "/ouster/imu"
+    assert info["lidar"]["height"] == 128
+    assert info["lidar"]["width"] == 1024
+    assert info["lidar"]["per_point_time"]
     assert 0.3 < info["duration_s"] < 0.32
 
 
@@ -29,5 +32,6 @@ def test_real_sweeps_have_per_point_time(real_ouster_mcap: Path) -> None:
     assert len(sweeps) == 3
     for s in sweeps:
         assert 50_000 < len(s) < 128 * 1024  # no-return points removed
-        assert 0.0 <= s.point_time.min() and s.point_time.max() < 0.1
+        assert s.point_time.min() >= 0.0
+        assert s.point_time.max() < 0.1
         assert s.ring.max() == 127

@@ -25,7 +25,7 @@ def _read_everything(path: Path) -> None:
                 pass
 
 
-@pytest.mark.parametrize("text, problem", [
+@pytest.mark.parametrize(("text", "problem"), [
     ("", "unrecognised log format"),
 ])
 def test_unknown_file(tmp_path: Path, text: str, problem: str) -> None:
@@ -38,7 +38,9 @@ def test_unknown_file(tmp_path: Path, text: str, problem: str) -> None:
 def test_missing_file_cli_exit_4(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["info", str(tmp_path / "missing.bag")]) == 4
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and "missing.bag" in err[0] and "no such file" in err[0]
+    assert len(err) == 1
+    assert "missing.bag" in err[0]
+    assert "no such file" in err[0]
 
 
 def test_absent_topic_names_topic(tmp_path: Path) -> None:
@@ -69,7 +71,7 @@ def test_cloud_without_xyz(tmp_path: Path) -> None:
         list(log.sweeps())
 
 
-@pytest.mark.parametrize("fmt, name", [("mcap", "f.mcap"), ("db3", "f.db3"), ("bag", "f.bag")])
+@pytest.mark.parametrize(("fmt", "name"), [("mcap", "f.mcap"), ("db3", "f.db3"), ("bag", "f.bag")])
 def test_fuzz_truncated_and_flipped(tmp_path: Path, fmt: str, name: str,
                                     capsys: pytest.CaptureFixture[str]) -> None:
     """Every damaged copy either reads cleanly or raises InputError naming the file (nothing
@@ -93,14 +95,16 @@ def test_fuzz_truncated_and_flipped(tmp_path: Path, fmt: str, name: str,
             _read_everything(case)
             outcomes["clean"] += 1
         except InputError as err:
-            assert str(case) in str(err) and "\n" not in str(err)
+            assert str(case) in str(err)  # noqa: PT017 - counting outcomes over many cases, not one raise
+            assert "\n" not in str(err)  # noqa: PT017
             outcomes["error"] += 1
         capsys.readouterr()
         rc = main(["info", str(case), "--json"])
         err_lines = capsys.readouterr().err.strip().splitlines()
         assert rc in (0, 4), (k, rc, err_lines)
         if rc == 4:
-            assert len(err_lines) == 1 and str(case) in err_lines[0], err_lines
+            assert len(err_lines) == 1, err_lines
+            assert str(case) in err_lines[0], err_lines
         shutil.rmtree(case.parent)
     assert outcomes["error"] >= 20  # truncation is detected, not read as a shorter log
 
@@ -119,12 +123,14 @@ def test_plain_mcap_with_unsupported_encoding(tmp_path: Path) -> None:
     with open_log(p) as log:
         assert log.container == "mcap"
         (info,) = log.topics
-        assert info.topic == "/pose_json" and info.count == 1 and "'json'" in info.problem
+        assert info.topic == "/pose_json"
+        assert info.count == 1
+        assert "'json'" in info.problem
         with pytest.raises(InputError, match=r"\[/pose_json\].*'json'.*not supported"):
             log.strings("/pose_json")
 
 
-@pytest.mark.parametrize("name, data, problem", [
+@pytest.mark.parametrize(("name", "data", "problem"), [
     ("e.mcap", b"", "not a readable MCAP file"),
     ("g.mcap", b"\x89MCAP0\r\n" + b"\x00" * 40, "not a readable MCAP file"),
     ("e.bag", b"", "cannot open ros1 log"),
@@ -140,7 +146,9 @@ def test_empty_and_garbage_files(tmp_path: Path, name: str, data: bytes, problem
         open_log(p)
     assert main(["info", str(p)]) == 4
     err = capsys.readouterr().err.strip().splitlines()
-    assert len(err) == 1 and str(p) in err[0] and problem in err[0]
+    assert len(err) == 1
+    assert str(p) in err[0]
+    assert problem in err[0]
 
 
 @pytest.mark.parametrize("text", ["", "::::", "- a\n- b", "rosbag2_bagfile_information: 3"])

@@ -60,7 +60,9 @@ def test_velodyne_cloud_decoded_by_field_name(tmp_path: Path) -> None:
         assert log.roles["lidar"] == "/points_raw"
         (sweep,) = list(log.sweeps())
     keep = np.isfinite(pts["x"])
-    assert sweep.stamp == pytest.approx(50.25) and len(sweep) == 198 and sweep.frame_id == "velodyne"
+    assert sweep.stamp == pytest.approx(50.25)
+    assert len(sweep) == 198
+    assert sweep.frame_id == "velodyne"
     np.testing.assert_array_equal(sweep.points[:, 0], pts["x"][keep])
     np.testing.assert_array_equal(sweep.ring, pts["ring"][keep])
     np.testing.assert_allclose(sweep.point_time, pts["time"][keep], atol=1e-7)
@@ -91,7 +93,8 @@ def test_cloud_without_time_field_has_no_point_time(tmp_path: Path) -> None:
     _write_cloud_bag(tmp_path / "xyz", [("x", 0, 7), ("y", 4, 7), ("z", 8, 7)], 12, pts.view(np.uint8).reshape(-1), 1.0)
     with open_log(tmp_path / "xyz") as log:
         (sweep,) = list(log.sweeps())
-    assert sweep.point_time is None and sweep.ring is None
+    assert sweep.point_time is None
+    assert sweep.ring is None
     np.testing.assert_array_equal(sweep.points, pts)
 
 
@@ -109,7 +112,8 @@ def test_split_ros1_bags_as_list_and_glob(tmp_path: Path) -> None:
             w.write_imu("/imu", _imu(10.0 + k, 100))
     with open_log([tmp_path / "run_2.bag", tmp_path / "run_0.bag", tmp_path / "run_1.bag"]) as log:
         imu = log.imu()
-        assert log.container == "ros1" and log.topics[0].count == 300
+        assert log.container == "ros1"
+        assert log.topics[0].count == 300
     np.testing.assert_allclose(imu.stamps, 10.0 + np.arange(300) * 0.01, atol=1e-9)  # merged and sorted
     np.testing.assert_allclose(imu.acc[:, 0], imu.stamps)
     with open_log(str(tmp_path / "run_*.bag")) as log:
@@ -149,8 +153,10 @@ def test_plain_mcap_with_ros1_encoded_channels(tmp_path: Path) -> None:
                           data=bytes(ts.serialize_ros1(msg, "sensor_msgs/msg/Imu")))
         w.finish()
     with open_log(p) as log:
-        assert log.container == "mcap" and log.roles["imu"] == "/imu"
-        assert log.topics[0].msgtype == "sensor_msgs/msg/Imu" and log.topics[0].count == 20
+        assert log.container == "mcap"
+        assert log.roles["imu"] == "/imu"
+        assert log.topics[0].msgtype == "sensor_msgs/msg/Imu"
+        assert log.topics[0].count == 20
         imu = log.imu()
     np.testing.assert_allclose(imu.stamps, 3.0 + 0.01 * np.arange(20), atol=1e-9)
     np.testing.assert_allclose(imu.gyro[:, 2], 0.1 * np.arange(20))
@@ -184,13 +190,15 @@ def test_unknown_message_type_is_listed_and_refused_when_read(tmp_path: Path) ->
     # the definition was stored: the custom type decodes
     db3 = tmp_path / "u" / "u.db3"  # the single file, opened on its own
     with open_log(db3) as log:
-        assert log.topics[0].problem is None and log.topics[0].count == 1
+        assert log.topics[0].problem is None
+        assert log.topics[0].count == 1
     # a recorder that stored no definition: the type is unknown, listed, refused by name when read
     with sqlite3.connect(db3) as db:
         db.execute("delete from message_definitions")
     with open_log(db3) as log:
         (info,) = log.topics
-        assert info.msgtype == "acme_msgs/msg/PumpState" and "unknown message type" in info.problem
+        assert info.msgtype == "acme_msgs/msg/PumpState"
+        assert "unknown message type" in info.problem
         with pytest.raises(InputError, match=r"\[/pump_state\]: unknown message type acme_msgs/msg/PumpState"):
             log.trajectory("/pump_state")
 
@@ -266,7 +274,8 @@ def test_gnss_without_covariance_gets_the_configured_variance(tmp_path: Path) ->
     np.testing.assert_allclose(gnss.covariance[0], np.diag([9.0, 9.0, 25.0]))
     np.testing.assert_allclose(gnss.covariance[1], np.diag([0.25, 0.25, 1.0]))
     np.testing.assert_allclose(gnss.enu[1], [3.0, 4.0, 0.0], atol=1e-6)
-    assert notes and "1 fix(es) without covariance" in notes[0]
+    assert notes
+    assert "1 fix(es) without covariance" in notes[0]
 
 
 def test_pose_stamped_and_tf_trajectories(tmp_path: Path) -> None:
@@ -291,7 +300,8 @@ def test_pose_stamped_and_tf_trajectories(tmp_path: Path) -> None:
     w.write_tf_static([("base_link", "os_sensor", np.eye(4))], 5.0)
     w.close()
     with open_log(tmp_path / "p.bag") as log:
-        assert log.roles["tf"] == "/tf" and log.roles["tf_static"] == "/tf_static"
+        assert log.roles["tf"] == "/tf"
+        assert log.roles["tf_static"] == "/tf_static"
         pose = log.trajectory("/slam/pose")
         tf = log.trajectory("/tf:odom.base_link")
         with pytest.raises(InputError, match=r"\[/tf\]: no transform map -> base_link"):
@@ -300,7 +310,9 @@ def test_pose_stamped_and_tf_trajectories(tmp_path: Path) -> None:
         np.testing.assert_allclose(traj.stamps, [5.0, 5.5, 6.0])
         np.testing.assert_allclose(traj.positions, xyz, atol=1e-12)
         np.testing.assert_allclose(np.abs(np.sum(traj.quat_xyzw * q, axis=1)), 1.0, atol=1e-12)
-    assert pose.frame_id == "map" and tf.frame_id == "odom" and tf.child_frame_id == "base_link"
+    assert pose.frame_id == "map"
+    assert tf.frame_id == "odom"
+    assert tf.child_frame_id == "base_link"
 
 
 @pytest.mark.parametrize("compression", ["LZ4", "ZSTD", "NONE"])
@@ -334,11 +346,12 @@ def test_ros2_mcap_chunk_compression(tmp_path: Path, compression: str) -> None:
 def test_bag_directory_given_by_its_metadata_file(tmp_path: Path) -> None:
     write_sample(tmp_path / "run", "db3")
     with open_log(tmp_path / "run" / "metadata.yaml") as log:
-        assert log.container == "ros2-sqlite3" and log.path == tmp_path / "run"
+        assert log.container == "ros2-sqlite3"
+        assert log.path == tmp_path / "run"
         assert log.imu().stamps.size == 50
 
 
-@pytest.mark.parametrize("fmt, name", [("mcap", "i.mcap"), ("db3", "i.db3"), ("bag", "i.bag")])
+@pytest.mark.parametrize(("fmt", "name"), [("mcap", "i.mcap"), ("db3", "i.db3"), ("bag", "i.bag")])
 def test_batched_imu_decoding_equals_per_message(tmp_path: Path, fmt: str, name: str) -> None:
     from scipy.spatial.transform import Rotation
 
@@ -370,7 +383,8 @@ def test_batched_imu_decoding_equals_per_message(tmp_path: Path, fmt: str, name:
 def test_batched_imu_on_the_real_recording(real_ouster_mcap: Path) -> None:
     with open_log(real_ouster_mcap) as log:
         fast, slow = log.imu(), log.imu(fast=False)
-    assert fast.stamps.size == 30 and fast.frame_id == slow.frame_id == "os_imu"
+    assert fast.stamps.size == 30
+    assert fast.frame_id == slow.frame_id == "os_imu"
     np.testing.assert_array_equal(fast.stamps, slow.stamps)
     np.testing.assert_array_equal(fast.acc, slow.acc)
     np.testing.assert_array_equal(fast.gyro, slow.gyro)

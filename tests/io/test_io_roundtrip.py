@@ -60,14 +60,17 @@ def write_sample(path: Path, fmt: str, *, duplicate_imu: bool = False) -> dict:
     return {"imu": imu, "clouds": clouds, "enu": enu, "gt": gt, "ext": ext}
 
 
-@pytest.mark.parametrize("fmt, name, container", FORMATS)
+@pytest.mark.parametrize(("fmt", "name", "container"), FORMATS)
 def test_round_trip_values(tmp_path: Path, fmt: str, name: str, container: str) -> None:
     src = write_sample(tmp_path / name, fmt)
     with open_log(tmp_path / name) as log:
         assert log.container == container
-        assert log.roles["lidar"] == "/ouster/points" and log.roles["imu"] == "/ouster/imu"
-        assert log.roles["commands"] == "/pump_cmd" and log.roles["wheel_speeds"] == "/wheel_speeds"
-        assert log.roles["ground_truth"] == "/ground_truth" and log.roles["gnss"] == "/gnss/fix"
+        assert log.roles["lidar"] == "/ouster/points"
+        assert log.roles["imu"] == "/ouster/imu"
+        assert log.roles["commands"] == "/pump_cmd"
+        assert log.roles["wheel_speeds"] == "/wheel_speeds"
+        assert log.roles["ground_truth"] == "/ground_truth"
+        assert log.roles["gnss"] == "/gnss/fix"
 
         imu = log.imu()
         np.testing.assert_allclose(imu.stamps, src["imu"].stamps, atol=1e-9)
@@ -84,7 +87,8 @@ def test_round_trip_values(tmp_path: Path, fmt: str, name: str, container: str) 
         np.testing.assert_array_equal(sweeps[1].ring, np.repeat(np.arange(H), W)[valid])
 
         gnss = log.gnss()
-        assert gnss.n_no_fix == 1 and len(gnss.stamps) == 3
+        assert gnss.n_no_fix == 1
+        assert len(gnss.stamps) == 3
         np.testing.assert_allclose(gnss.enu, src["enu"][:3], atol=1e-6)
 
         ws = log.wheel_speeds(wheel_radius_m=0.5)
@@ -105,7 +109,8 @@ def test_duplicate_stamps_are_counted_and_dropped(tmp_path: Path) -> None:
         imu = log.imu()
         health = log.health("/ouster/imu")
     assert health.duplicates == 2
-    assert np.all(np.diff(imu.stamps) > 0) and imu.stamps.size == 50
+    assert np.all(np.diff(imu.stamps) > 0)
+    assert imu.stamps.size == 50
 
 
 def test_out_of_order_header_stamps_are_sorted_and_counted(tmp_path: Path) -> None:
@@ -158,7 +163,7 @@ def test_same_input_gives_byte_identical_files(tmp_path: Path) -> None:
 
 
 def test_failed_write_leaves_nothing(tmp_path: Path) -> None:
-    with pytest.raises(RuntimeError), LogWriter(tmp_path / "x.mcap", "mcap") as w:
+    with pytest.raises(RuntimeError), LogWriter(tmp_path / "x.mcap", "mcap") as w:  # noqa: PT012 - fail mid-write
         w.write_tf_static([("a", "b", np.eye(4))], 1.0)
         raise RuntimeError("simulated failure")
     assert list(tmp_path.iterdir()) == []
@@ -171,7 +176,7 @@ def test_sweeps_skipped_before_decoding_at_a_lower_mapping_rate(tmp_path: Path) 
     assert kept == pytest.approx([100.0, 100.2])
 
 
-@pytest.mark.parametrize("fmt,name,_kind", FORMATS[:3])
+@pytest.mark.parametrize(("fmt", "name", "_kind"), FORMATS[:3])
 def test_overview_pass_keeps_small_topics_so_series_do_not_reread_the_file(tmp_path: Path, fmt: str, name: str,
                                                                             _kind: str) -> None:
     """After the overview pass, IMU, GNSS, ground truth and TF come from memory (one pass over a

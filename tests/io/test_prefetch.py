@@ -34,7 +34,7 @@ def test_a_source_error_is_raised_in_the_consumer_after_the_good_items() -> None
         raise InputError("log.mcap", "corrupted chunk", topic="/ouster/points")
 
     got = []
-    with pytest.raises(InputError, match="corrupted chunk"), Prefetched(source()) as it:
+    with pytest.raises(InputError, match="corrupted chunk"), Prefetched(source()) as it:  # noqa: PT012 - consume
         for x in it:
             got.append(x)
     assert got == [1, 2]

@@ -63,11 +63,13 @@ def test_in_process_pool_and_dask_cluster_give_the_same_history(imu_logs: Path, 
     with distributed.LocalCluster(n_workers=2, threads_per_worker=1, processes=True, host="127.0.0.1",
                                   dashboard_address="127.0.0.1:0") as cluster:
         workers = cluster.scheduler_info["workers"]
-        assert len(workers) == 2 and all(addr.startswith("tcp://127.0.0.1:") for addr in workers)
+        assert len(workers) == 2
+        assert all(addr.startswith("tcp://127.0.0.1:") for addr in workers)
         assert run_night(imu_logs, tmp_path / "dask", night=night, scheduler=cluster.scheduler_address) == 0
     reference = metrics(tmp_path / "inproc" / "history.sqlite", night)
     assert {log for log, _ in reference} == set(IDS)
-    assert reference[("l1", "info/messages")] == 50 and reference[("night_l3", "info/messages")] == 120
+    assert reference[("l1", "info/messages")] == 50
+    assert reference[("night_l3", "info/messages")] == 120
     assert reference[("night_l3", "info/duration_s")] == pytest.approx(1.19)  # 120 samples at 100 Hz
     for other in ("pool", "dask"):
         assert metrics(tmp_path / other / "history.sqlite", night) == reference, other
@@ -90,7 +92,8 @@ def test_a_native_crash_fails_only_its_own_log(imu_logs: Path, tmp_path: Path) -
     assert rows == {"a": "ok", "b_crash": "failed", "c": "ok", "d": "ok"}
     assert "worker process died" in error
     index = (out / "2026-11-02" / "index.html").read_text(encoding="utf-8")
-    assert "worker process died" in index and 'href="logs/c/report.html"' in index
+    assert "worker process died" in index
+    assert 'href="logs/c/report.html"' in index
 
 
 def test_killed_night_resumes_without_redoing_or_double_counting(imu_logs: Path, tmp_path: Path) -> None:
@@ -139,12 +142,14 @@ def test_killed_night_resumes_without_redoing_or_double_counting(imu_logs: Path,
                 [(log, "ok") for log in IDS]
             counts = con.execute("SELECT log_id, COUNT(*) FROM metrics GROUP BY log_id").fetchall()
         assert sorted(counts) == [(log, 4) for log in IDS]  # 3 metrics + gates_failed, each once
-        assert not list(out.rglob("*.partial")) and not list(out.rglob(".*.tmp"))
+        assert not list(out.rglob("*.partial"))
+        assert not list(out.rglob(".*.tmp"))
         # a re-run of the same night is idempotent: nothing redone, history unchanged
         before = metrics(db, "2026-11-03")
         n_calls = len(list(calls.iterdir()))
         assert run_night(imu_logs, out, night="2026-11-03") == 0
-        assert metrics(db, "2026-11-03") == before and len(list(calls.iterdir())) == n_calls
+        assert metrics(db, "2026-11-03") == before
+        assert len(list(calls.iterdir())) == n_calls
     finally:
         del os.environ[CALLS_ENV]
 
@@ -162,7 +167,8 @@ def test_later_nights_leave_earlier_ones_untouched_and_flag_regressions(imu_logs
         assert con.execute("SELECT COUNT(DISTINCT night) FROM runs").fetchone()[0] == 2
     assert again == first
     trends = (out / "trends.html").read_text(encoding="utf-8")
-    assert 'href="2026-11-04/index.html"' in trends and 'href="2026-11-05/index.html"' in trends
+    assert 'href="2026-11-04/index.html"' in trends
+    assert 'href="2026-11-05/index.html"' in trends
 
 
 def test_regression_flags_against_the_median_of_previous_nights() -> None:
@@ -191,7 +197,8 @@ def test_trends_page_flags_a_regressed_log(tmp_path: Path) -> None:
     assert [(r.log_id, r.metric, r.night) for r in regressions] == [("<b>worse</b>", "slam/ape/ape_rmse_m",
                                                                      "2026-10-03")]
     page = (tmp_path / "trends.html").read_text(encoding="utf-8")
-    assert "&lt;b&gt;worse&lt;/b&gt;: slam/ape/ape_rmse_m = 0.09 on 2026-10-03" in page and "<b>" not in page
+    assert "&lt;b&gt;worse&lt;/b&gt;: slam/ape/ape_rmse_m = 0.09 on 2026-10-03" in page
+    assert "<b>" not in page
     assert page.count("<figure>") == 2  # APE RMSE and RTF
 
 
@@ -214,7 +221,8 @@ def test_a_failed_gate_exits_1_and_is_named_in_the_index_and_history(imu_logs: P
     out = tmp_path / "out"
     assert run_night(imu_logs, out, night="2026-11-07", analysis="tests.reports.nightly_workers:gated_analysis") == 1
     index = (out / "2026-11-07" / "index.html").read_text(encoding="utf-8")
-    assert index.count("fail: APE RMSE") == 1 and index.count(">pass</td>") == len(IDS) - 1
+    assert index.count("fail: APE RMSE") == 1
+    assert index.count(">pass</td>") == len(IDS) - 1
     with sqlite3.connect(out / "history.sqlite") as con:
         assert con.execute("SELECT log_id FROM metrics WHERE metric = 'gate_failed/APE RMSE'").fetchall() == [("l1",)]
 

@@ -53,7 +53,8 @@ def open_in_chromium(page: Path, tmp_path: Path) -> tuple[dict[str, int], list[s
     finally:
         probe.unlink()
     body = re.search(r"<body[^>]*>", proc.stdout)
-    assert body and "data-probed" in body.group(0), proc.stderr[-2000:]
+    assert body, proc.stderr[-2000:]
+    assert "data-probed" in body.group(0), proc.stderr[-2000:]
     counts = {k: int(v) for k, v in re.findall(r'data-(\w+)="(\d+)"', body.group(0))}
     return counts, [ln for ln in proc.stderr.splitlines() if "CONSOLE" in ln or "Uncaught" in ln]
 
@@ -72,7 +73,8 @@ def test_report_opens_in_chromium_with_every_figure_drawn(night: Path, tmp_path:
     counts, console = open_in_chromium(report, tmp_path)
     # SLAM: trajectory, APE over time, timing; control replay: tracking, effort, path
     assert counts["figures"] == 6
-    assert counts["sized"] == counts["drawn"] == counts["figures"] and counts["broken"] == 0
+    assert counts["sized"] == counts["drawn"] == counts["figures"]
+    assert counts["broken"] == 0
     assert not console, console
     html = report.read_text(encoding="utf-8")
     assert not re.search(r'<img|<link|<script|src=|href="(?!#|data:)[a-z]+:|url\((?!#)', html)  # self-contained
@@ -88,11 +90,13 @@ def test_index_and_trends_open_in_chromium_and_link_every_report(night: Path, tm
     assert not console, console
     text = index.read_text(encoding="utf-8")
     for log_id in ("a", "nested_b"):
-        assert f'href="logs/{log_id}/report.html"' in text and f'href="logs/{log_id}/report.pdf"' in text
+        assert f'href="logs/{log_id}/report.html"' in text
+        assert f'href="logs/{log_id}/report.pdf"' in text
         assert (night / "logs" / log_id / "report.pdf").exists()
     counts, console = open_in_chromium(night.parent / "trends.html", tmp_path)
     assert not console, console
-    assert counts["figures"] >= 3 and counts["sized"] == counts["figures"]
+    assert counts["figures"] >= 3
+    assert counts["sized"] == counts["figures"]
 
 
 def test_pdf_pages_are_not_blank(night: Path, tmp_path: Path) -> None:
@@ -146,7 +150,8 @@ def test_pdf_falls_back_to_matplotlib_and_says_so(tmp_path: Path, monkeypatch) -
     assert write_pdf("<html><body>x</body></html>", tmp_path / "r.pdf") == "fallback"
     if shutil.which("pdftotext"):
         text = subprocess.run(["pdftotext", str(tmp_path / "r.pdf"), "-"], capture_output=True, text=True).stdout
-        assert "FALLBACK PDF" in text and "libpango" in text
+        assert "FALLBACK PDF" in text
+        assert "libpango" in text
     assert [p.name for p in tmp_path.iterdir()] == ["r.pdf"]
 
 
@@ -159,6 +164,8 @@ def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_p
     assert len(captions) == 6  # tracking, effort, path per controller
     assert [c for c in captions if "funnel" in c] == ["RAID: wheel-speed reference vs measured, funnel band "
                                                       "reference ± o(t)"]
-    assert "Table II" in html and (tmp_path / "rep" / "control_table1.tex").exists()
+    assert "Table II" in html
+    assert (tmp_path / "rep" / "control_table1.tex").exists()
     counts, console = open_in_chromium(tmp_path / "rep" / "report.html", tmp_path)
-    assert counts["figures"] == counts["sized"] == counts["drawn"] == 6 and not console
+    assert counts["figures"] == counts["sized"] == counts["drawn"] == 6
+    assert not console

@@ -38,7 +38,8 @@ def test_clean_imu_sorts_and_drops_duplicate_stamps() -> None:
     t = np.array([0.0, 0.02, 0.01, 0.02, 0.03])
     imu = ImuSeries(t, np.zeros((5, 3)), np.arange(15.0).reshape(5, 3))
     out = clean_imu(imu)
-    assert np.all(np.diff(out.stamps) > 0) and out.stamps.size == 4
+    assert np.all(np.diff(out.stamps) > 0)
+    assert out.stamps.size == 4
 
 
 def test_initial_attitude_from_accelerometer_matches_tilt() -> None:
@@ -122,7 +123,8 @@ def test_features_find_pillar_edges_and_wall_planes() -> None:
     scene = _room()
     pose = se3.make(np.eye(3), np.array([0.0, 0.0, 1.0]))
     f = _features(_scan(scene, pose))
-    assert len(f.edges) > 20 and len(f.surfs) > 500
+    assert len(f.edges) > 20
+    assert len(f.surfs) > 500
     world_s = se3.apply(pose, f.surfs)
     # planar points lie on a wall, floor or box face: distance to the nearest axis-aligned face is tiny
     on_face = (np.abs(np.abs(world_s[:, 1]) - 9.9) < 0.05) | (np.abs(world_s[:, 2]) < 0.05) | \
@@ -157,7 +159,8 @@ def test_scan_to_map_recovers_a_perturbed_pose_in_a_room() -> None:
     f = _features(_scan(scene, truth))
     guess = se3.make(Rotation.from_euler("xyz", [0.0, 0.0, 0.25]).as_matrix(), np.array([1.3, 0.3, 1.0]))
     res = match(f.edges, f.surfs, local, guess, MatchingConfig())
-    assert res.optimised and not res.degenerate
+    assert res.optimised
+    assert not res.degenerate
     err = se3.inv(truth) @ res.pose
     assert np.linalg.norm(err[:3, 3]) < 0.02
     assert np.degrees(se3.delta_angle(err)) < 0.2
@@ -171,7 +174,8 @@ def test_corridor_is_degenerate_along_its_axis_and_the_update_is_suppressed() ->
     f = _features(_scan(scene, truth))
     guess = se3.make(np.eye(3), np.array([2.6, 0.2, 1.0]))  # off along x (unobservable) and y (observable)
     res = match(f.edges, f.surfs, local, guess, MatchingConfig())
-    assert res.degenerate and res.n_degenerate >= 1
+    assert res.degenerate
+    assert res.n_degenerate >= 1
     assert abs(res.pose[1, 3]) < 0.02  # the observable direction is corrected
     assert abs(res.pose[0, 3] - 2.6) < 0.05  # the degenerate one is left at the guess, not driven anywhere
 
@@ -194,7 +198,8 @@ def test_enu_alignment_recovers_yaw_and_offset() -> None:
     c, s = np.cos(yaw), np.sin(yaw)
     mp = enu @ np.array([[c, -s], [s, c]]).T + t
     y, tt = fit_yaw_translation(enu, mp)
-    assert y == pytest.approx(yaw, abs=1e-12) and np.allclose(tt, t)
+    assert y == pytest.approx(yaw, abs=1e-12)
+    assert np.allclose(tt, t)
 
 
 def test_gnss_factors_pull_a_drifting_keyframe_chain_onto_the_fixes() -> None:

@@ -29,8 +29,10 @@ def test_circle_sample_log_ape_below_10cm(tmp_path: Path) -> None:
     assert result.metric("ape_span_s").value > 90.0  # the whole circle, not a piece of it
     back = read_result(tmp_path / "run")
     assert back.metric("ape_rmse_m").value == ape
-    assert (tmp_path / "run" / "trajectory.tum").exists() and (tmp_path / "run" / "map.ply").exists()
-    assert back.metric("rtf").value > 0 and "matching" in back.extra["timing_ms"]
+    assert (tmp_path / "run" / "trajectory.tum").exists()
+    assert (tmp_path / "run" / "map.ply").exists()
+    assert back.metric("rtf").value > 0
+    assert "matching" in back.extra["timing_ms"]
 
 
 def test_real_ouster_sweeps_register(real_ouster_mcap: Path) -> None:
@@ -51,7 +53,8 @@ def test_slam_verb_on_real_recording_says_there_is_no_ground_truth(real_ouster_m
 
     assert main(["slam", str(real_ouster_mcap), "--out", str(tmp_path), "--set", "slam.mapping_interval_s=0"]) == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
-    assert "APE RMSE n/a (no ground truth)" in line and "nan" not in line
+    assert "APE RMSE n/a (no ground truth)" in line
+    assert "nan" not in line
     (run_dir,) = tmp_path.iterdir()
     assert len((run_dir / "trajectory.tum").read_text().splitlines()) == 3
     assert read_result(run_dir).metric("ape_rmse_m") is None
@@ -78,7 +81,8 @@ def test_without_imu_and_point_time_runs_with_warnings(corridor_log: Path) -> No
     out = run_slam(sweeps, None, cfg.slam, sensor_to_imu=np.eye(4))
     assert any("no IMU" in w for w in out.warnings)
     assert any("per-point time" in w for w in out.warnings)
-    assert out.stamps.size > 10 and np.all(np.isfinite(out.poses))
+    assert out.stamps.size > 10
+    assert np.all(np.isfinite(out.poses))
 
 
 def test_voxel_downsample_keeps_one_centroid_per_voxel() -> None:
