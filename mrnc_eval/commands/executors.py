@@ -21,18 +21,18 @@ from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Protocol
 
-from mrnc_eval.commands.log_job import LogJob, failed_summary, process_log
+from mrnc_eval.commands.log_job import LogJob, LogSummary, failed_summary, process_log
 from mrnc_eval.errors import UsageError
 
 CRASHED = "worker process died while processing this log (native crash, out of memory or killed)"
 
 
 class Executor(Protocol):
-    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]: ...
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[LogSummary]: ...
 
 
 class InProcess:
-    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]:
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[LogSummary]:
         for job in jobs:
             yield process_log(job)
 
@@ -45,7 +45,7 @@ class LocalPool:
         return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                    max_tasks_per_child=1)
 
-    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]:
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[LogSummary]:
         queue = deque(jobs)
         while queue:
             suspects: list[LogJob] = []
@@ -53,7 +53,7 @@ class LocalPool:
             for job in suspects:  # alone in a fresh pool: a crash now is this log's own
                 yield from self._alone(job)
 
-    def _until_broken(self, queue: deque[LogJob], suspects: list[LogJob]) -> Iterator[dict]:
+    def _until_broken(self, queue: deque[LogJob], suspects: list[LogJob]) -> Iterator[LogSummary]:
         """Keep at most `workers` jobs in flight; stop submitting when the pool breaks and
         collect the jobs that were in flight then."""
         pool = self._pool(self.workers)
@@ -77,7 +77,7 @@ class LocalPool:
         if len(suspects) == 1:  # it was alone in flight or the only one hit: no need to re-run it
             yield failed_summary(suspects.pop(), CRASHED)
 
-    def _alone(self, job: LogJob) -> Iterator[dict]:
+    def _alone(self, job: LogJob) -> Iterator[LogSummary]:
         pool = self._pool(1)
         try:
             yield pool.submit(process_log, job).result()
@@ -91,7 +91,7 @@ class Dask:
     def __init__(self, address: str) -> None:
         self.address = address
 
-    def run(self, jobs: Iterable[LogJob]) -> Iterator[dict]:
+    def run(self, jobs: Iterable[LogJob]) -> Iterator[LogSummary]:
         try:
             from distributed import Client
             from distributed import as_completed as dask_completed

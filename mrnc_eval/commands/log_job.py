@@ -1,5 +1,5 @@
 """One log of the nightly job. Runs in a worker (this process, a spawned pool process or a Dask
-worker) and returns a plain, picklable summary; never raises.
+worker) and returns a picklable `LogSummary`; never raises.
 
 The analysis itself is injectable as a "module:function" name (resolved inside the worker, so
 it travels to spawned processes and Dask workers by name): the default runs the real
@@ -15,7 +15,7 @@ import numbers
 import shutil
 import traceback
 from collections.abc import Callable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 
 from mrnc_eval import __version__
@@ -39,6 +39,27 @@ class LogJob:
 class Analysis:
     metrics: list[MetricRow] = field(default_factory=list)
     gates_failed: list[str] = field(default_factory=list)  # labels of the gate cards that failed
+
+
+@dataclass(frozen=True)
+class LogSummary:
+    """What a worker reports for one log of the night (picklable: plain fields only)."""
+
+    log_id: str
+    log_path: str
+    status: str  # "ok" | "failed"
+    error: str = ""
+    metrics: tuple[MetricRow, ...] = ()
+    gates_failed: tuple[str, ...] = ()  # labels of the gate cards that failed
+    report: str = ""  # the HTML report's path, "" when none was written
+    config_hash: str = ""
+    tool_version: str = __version__
+    run_id: str = ""
+    traceback: str = ""  # for bugs (not MrncError), to find them in the logs
+
+    @property
+    def ok(self) -> bool:
+        return self.status == "ok"
 
 
 AnalyseFn = Callable[[Path, Config, Path, str, bool], Analysis]  # (log, cfg, work dir, log id, pdf)
@@ -73,7 +94,7 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
     return Analysis(metrics, [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"])
 
 
-def process_log(job: LogJob) -> dict:
+def process_log(job: LogJob) -> LogSummary:
     """Run job.analysis into a partial directory, move it into place, summarise. A failure
     becomes a summary with status "failed" and the error (and traceback for bugs)."""
     import yaml
@@ -83,41 +104,42 @@ def process_log(job: LogJob) -> dict:
 
     target = Path(job.out_dir)
     partial = target.with_name(f".{target.name}.partial")
-    summary: dict = {"log_id": job.log_id, "log_path": job.log_path, "status": "failed", "error": "",
-                     "metrics": [], "gates_failed": [], "report": "", "config_hash": "", "tool_version": __version__,
-                     "run_id": f"{job.log_id}-{dt.datetime.now(dt.UTC).strftime('%Y%m%dT%H%M%S.%fZ')}"}
+    run_id = f"{job.log_id}-{dt.datetime.now(dt.UTC).strftime('%Y%m%dT%H%M%S.%fZ')}"
+    failed = partial_summary = LogSummary(job.log_id, job.log_path, "failed", run_id=run_id)
     try:
         cfg = build(Config, yaml.safe_load(job.config_yaml) or {})
-        summary["config_hash"] = config_hash(cfg)
+        partial_summary = replace(failed, config_hash=config_hash(cfg))
         shutil.rmtree(partial, ignore_errors=True)
         partial.mkdir(parents=True)
         outcome = resolve(job.analysis)(Path(job.log_path), cfg, partial, job.log_id, job.pdf)
-        summary["metrics"] = [(str(n), _finite(v), str(u)) for n, v, u in outcome.metrics]
-        summary["gates_failed"] = list(outcome.gates_failed)
-        if target.exists():  # a re-run of the night replaces this log's previous outputs whole
-            old = target.with_name(f".{target.name}.old")
-            shutil.rmtree(old, ignore_errors=True)
-            target.replace(old)
-            partial.replace(target)
-            shutil.rmtree(old, ignore_errors=True)
-        else:
-            partial.replace(target)
-        summary["report"] = str(target / "report.html") if (target / "report.html").exists() else ""
-        summary["status"] = "ok"
+        _move_into_place(partial, target)
+        report = target / "report.html"
+        return replace(partial_summary, status="ok",
+                       metrics=tuple((str(n), _finite(v), str(u)) for n, v, u in outcome.metrics),
+                       gates_failed=tuple(outcome.gates_failed), report=str(report) if report.exists() else "")
     except MrncError as err:
-        summary["error"] = str(err)
+        return replace(partial_summary, error=str(err))
     except Exception as err:
-        summary["error"] = f"{type(err).__name__}: {err}"
-        summary["traceback"] = traceback.format_exc()
+        return replace(partial_summary, error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc())
     finally:
         shutil.rmtree(partial, ignore_errors=True)
-    return summary
 
 
-def failed_summary(job: LogJob, error: str) -> dict:
+def _move_into_place(partial: Path, target: Path) -> None:
+    """A re-run of the night replaces this log's previous outputs whole."""
+    if not target.exists():
+        partial.replace(target)
+        return
+    old = target.with_name(f".{target.name}.old")
+    shutil.rmtree(old, ignore_errors=True)
+    target.replace(old)
+    partial.replace(target)
+    shutil.rmtree(old, ignore_errors=True)
+
+
+def failed_summary(job: LogJob, error: str) -> LogSummary:
     """Summary of a job whose worker died before it could answer (native crash, killed, lost)."""
-    return {"log_id": job.log_id, "log_path": job.log_path, "status": "failed", "error": error, "metrics": [],
-            "gates_failed": [], "report": "", "config_hash": "", "tool_version": __version__, "run_id": ""}
+    return LogSummary(job.log_id, job.log_path, "failed", error=error)
 
 
 def _finite(v) -> float | None:

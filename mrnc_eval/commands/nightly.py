@@ -16,12 +16,12 @@ from typing import TYPE_CHECKING
 
 import yaml
 
-from mrnc_eval import __version__
-from mrnc_eval.commands.history import History, LogRecord, find_regressions
-from mrnc_eval.commands.log_job import DEFAULT_ANALYSIS, LogJob
+from mrnc_eval.commands.log_job import DEFAULT_ANALYSIS, LogJob, LogSummary
 from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, build, dump_config
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
+from mrnc_eval.history import History, LogRecord, find_regressions
+from mrnc_eval.reports.night import IndexRow
 from mrnc_eval.results import atomic_write_text, log_id_for
 
 if TYPE_CHECKING:
@@ -127,17 +127,17 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
         for summary in executor.run(todo):
             _record(history, night, summary)
             if bar:
-                bar.update(task, advance=1, description=f"night {night}: {summary['log_id']} {summary['status']}")
+                bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
     rows = _write_index(history, night, night_dir)
     regressions = _write_trends(history, out)
-    failed = [r for r in rows if r["status"] != "ok"]
-    gate_fail = [r for r in rows if r["gates_failed"]]
+    failed = [r for r in rows if r.status != "ok"]
+    gate_fail = [r for r in rows if r.gates_failed]
     sys.stdout.write(f"night {night}: {len(rows)} logs, {len(failed)} failed, {len(gate_fail)} with failed gates, "
                      f"{len(regressions)} trend regressions -> {night_dir / 'index.html'}\n")
     if failed:
-        raise SomeInputsFailed("; ".join(f"{r['log_id']}: {r['error']}" for r in failed))
+        raise SomeInputsFailed("; ".join(f"{r.log_id}: {r.error}" for r in failed))
     if gate_fail:
-        raise GateFailed("gates failed: " + "; ".join(f"{r['log_id']}: {', '.join(r['gates_failed'])}"
+        raise GateFailed("gates failed: " + "; ".join(f"{r.log_id}: {', '.join(r.gates_failed)}"
                                                       for r in gate_fail))
 
 
@@ -166,14 +166,13 @@ def _plain(obj) -> dict:
     return as_dict(obj)
 
 
-def _record(history: History, night: str, s: dict) -> None:
+def _record(history: History, night: str, s: LogSummary) -> None:
     """One (night, log) row set, written in one transaction once the log is complete."""
-    metrics = tuple((n, v, u) for n, v, u in s["metrics"])
-    metrics += (("gates_failed", float(len(s["gates_failed"])), ""),)
-    metrics += tuple((f"gate_failed/{label}", 1.0, "") for label in s["gates_failed"])
-    history.record(LogRecord(night, s["log_id"], s.get("run_id", ""), s["log_path"], s.get("tool_version", __version__),
-                             s.get("config_hash", ""), s["status"], s.get("error", ""),
-                             dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), metrics))
+    metrics = (*s.metrics, ("gates_failed", float(len(s.gates_failed)), ""),
+               *((f"gate_failed/{label}", 1.0, "") for label in s.gates_failed))
+    history.record(LogRecord(night=night, log_id=s.log_id, run_id=s.run_id, log_path=s.log_path,
+                             tool_version=s.tool_version, config_hash=s.config_hash, status=s.status, error=s.error,
+                             finished_utc=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), metrics=metrics))
 
 
 INDEX_COLUMNS = (  # (label, metric, format): the worst value over the log's groups
@@ -186,7 +185,7 @@ INDEX_COLUMNS = (  # (label, metric, format): the worst value over the log's gro
 )
 
 
-def _write_index(history: History, night: str, night_dir: Path) -> list[dict]:
+def _write_index(history: History, night: str, night_dir: Path) -> list[IndexRow]:
     from mrnc_eval.reports.night import render_index
 
     values: dict[str, dict[str, float]] = {}
@@ -200,10 +199,11 @@ def _write_index(history: History, night: str, night_dir: Path) -> list[dict]:
             hits = [v for m, v in mine.items() if m == key or ("/" not in key and m.endswith("/" + key))]
             cells.append(fmt.format(max(hits)) if hits else "\u2013")
         here = night_dir / "logs" / log_id
-        rows.append({"log_id": log_id, "log_path": log_path, "status": status, "error": error, "cells": cells,
-                     "report": f"logs/{log_id}/report.html" if (here / "report.html").exists() else "",
-                     "pdf": f"logs/{log_id}/report.pdf" if (here / "report.pdf").exists() else "",
-                     "gates_failed": sorted(m.split("/", 1)[1] for m in mine if m.startswith("gate_failed/"))})
+        rows.append(IndexRow(
+            log_id=log_id, log_path=log_path, status=status, error=error, cells=tuple(cells),
+            report=f"logs/{log_id}/report.html" if (here / "report.html").exists() else "",
+            pdf=f"logs/{log_id}/report.pdf" if (here / "report.pdf").exists() else "",
+            gates_failed=tuple(sorted(m.split("/", 1)[1] for m in mine if m.startswith("gate_failed/")))))
     html = render_index(night, rows, [c[0] for c in INDEX_COLUMNS])
     atomic_write_text(night_dir / "index.html", html)
     return rows

@@ -26,8 +26,8 @@ METHODS = ("lio", "kiss-icp")
 
 
 def _ground_truth(lg, log_path: Path) -> Trajectory | None:
+    from mrnc_eval.io.ground_truth import gt_tum_path
     from mrnc_eval.io.trajectory_files import read_tum
-    from mrnc_eval.sim.recorder import gt_tum_path
 
     if lg.has_role("ground_truth"):
         return lg.ground_truth()

@@ -17,9 +17,9 @@ from pathlib import Path
 
 import numpy as np
 
+from mrnc_eval import geodesy
 from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, StreamHealth, Sweep, Trajectory, Twists, Waypoints
 from mrnc_eval.errors import InputError
-from mrnc_eval.io import geodesy
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.containers import describe_error, detect_container
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch

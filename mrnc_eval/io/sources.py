@@ -50,7 +50,7 @@ class RosbagsSource:
     def __init__(self, paths: list[Path], ros1: bool) -> None:
         from rosbags.highlevel import AnyReader
 
-        from mrnc_eval.io.writers import typestore_for
+        from mrnc_eval.io.typestore import typestore_for
 
         default = typestore_for(ros1=ros1)
         self.ros1 = ros1

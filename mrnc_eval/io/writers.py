@@ -21,6 +21,7 @@ import numpy as np
 from mrnc_eval.data import ImuSeries, Trajectory, Twists, Waypoints
 from mrnc_eval.errors import InputError
 from mrnc_eval.io import messages as M
+from mrnc_eval.io.typestore import typestore_for
 
 Format = Literal["mcap", "db3", "bag"]
 
@@ -32,16 +33,6 @@ def _latched_qos():
     infinite = QosTime(2147483647, 4294967295)
     return [Qos(QosHistory.KEEP_LAST, 1, QosReliability.RELIABLE, QosDurability.TRANSIENT_LOCAL, infinite,
                 infinite, QosLiveliness.AUTOMATIC, infinite, False)]
-
-
-def typestore_for(*, ros1: bool):
-    """rosbags' typestore for ROS 1 Noetic or ROS 2 Humble, with tf2_msgs added for ROS 1."""
-    from rosbags.typesys import Stores, get_types_from_msg, get_typestore
-
-    ts = get_typestore(Stores.ROS1_NOETIC if ros1 else Stores.ROS2_HUMBLE)
-    if "tf2_msgs/msg/TFMessage" not in ts.types:
-        ts.register(get_types_from_msg("geometry_msgs/TransformStamped[] transforms", "tf2_msgs/msg/TFMessage"))
-    return ts
 
 
 def _ns(t: float) -> int:

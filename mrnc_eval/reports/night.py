@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from typing import TYPE_CHECKING
 
 from markupsafe import Markup
@@ -11,15 +12,29 @@ from mrnc_eval.reports.figures import new_figure, svg
 from mrnc_eval.reports.render import css, environment
 
 if TYPE_CHECKING:
-    from mrnc_eval.commands.history import Regression
+    from mrnc_eval.history import Regression
 
 MAX_LOGS_PER_TREND = 12  # more lines than this are unreadable: the worst latest values are drawn
 
 
-def render_index(night: str, rows: list[dict], columns: list[str]) -> str:
+@dataclass(frozen=True)
+class IndexRow:
+    """One log's row in a night's index: status, the worst value per column, links."""
+
+    log_id: str
+    log_path: str
+    status: str  # "ok" | "failed"
+    error: str
+    cells: tuple[str, ...]  # formatted; an en dash when not measured
+    report: str  # relative link to the HTML report, "" when none
+    pdf: str
+    gates_failed: tuple[str, ...]
+
+
+def render_index(night: str, rows: list[IndexRow], columns: list[str]) -> str:
     return environment().get_template("index.html.j2").render(
         css=css(), night=night, tool_version=__version__, rows=rows, columns=columns,
-        failed=sum(r["status"] != "ok" for r in rows), gate_failures=sum(bool(r["gates_failed"]) for r in rows))
+        failed=sum(r.status != "ok" for r in rows), gate_failures=sum(bool(r.gates_failed) for r in rows))
 
 
 def render_trends(nights: list[str], data: dict[str, dict[str, dict[str, float]]],

@@ -8,7 +8,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrnc_eval.io.geodesy import enu_to_lla
+from mrnc_eval.geodesy import enu_to_lla
 from mrnc_eval.sim.config import GnssSimConfig
 from mrnc_eval.sim.trajectory import BodyTrajectory
 

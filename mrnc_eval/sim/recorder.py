@@ -17,6 +17,7 @@ from mrnc_eval.control.closed_loop import run_closed_loop
 from mrnc_eval.control.scenario import scripted_scenario
 from mrnc_eval.data import Trajectory, Waypoints
 from mrnc_eval.errors import ConfigError
+from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
 from mrnc_eval.sim.gnss import simulate_gnss
@@ -52,14 +53,6 @@ def transform(xyz, rot=None) -> np.ndarray:
     if rot is not None:
         t[:3, :3] = rot
     return t
-
-
-def gt_tum_path(log_path: Path) -> Path:
-    """`<log name without suffix>.gt.tum` beside the log."""
-    name = log_path.name
-    for suffix in (".mcap", ".db3", ".bag"):
-        name = name.removesuffix(suffix)
-    return log_path.with_name(name + ".gt.tum")
 
 
 def validate(req: SimRequest) -> None:

@@ -12,10 +12,12 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mrnc_eval import geodesy
 from mrnc_eval.data import ImuSeries
 from mrnc_eval.errors import InputError
-from mrnc_eval.io import geodesy, open_log
-from mrnc_eval.io.writers import LogWriter, typestore_for
+from mrnc_eval.io import open_log
+from mrnc_eval.io.typestore import typestore_for
+from mrnc_eval.io.writers import LogWriter
 from tests.io.test_io_roundtrip import write_sample
 
 # ------------------------------------------------------------------ custom clouds

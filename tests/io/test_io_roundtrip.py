@@ -9,9 +9,10 @@ from pathlib import Path
 import numpy as np
 import pytest
 
+from mrnc_eval import geodesy
 from mrnc_eval.data import ImuSeries, Trajectory, Twists, Waypoints
 from mrnc_eval.errors import InputError
-from mrnc_eval.io import geodesy, open_log
+from mrnc_eval.io import open_log
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.writers import LogWriter
 

@@ -14,15 +14,19 @@ from mrnc_eval.io.prefetch import Prefetched
 def test_items_arrive_in_order_and_the_worker_runs_ahead() -> None:
     produced: list[int] = []
 
+    ran_ahead = threading.Event()
+
     def source():
         for i in range(50):
             produced.append(i)
+            if len(produced) == 4:  # the worker fills the queue (3) and holds one more
+                ran_ahead.set()
             yield i
 
     with Prefetched(source(), depth=3) as it:
         first = next(it)
-        while len(produced) < 4:  # the worker fills the queue (3) and holds one more
-            threading.Event().wait(0.01)
+        # Bounded wait: a worker that does not run ahead fails here in 5 s, not at the suite's timeout.
+        assert ran_ahead.wait(timeout=5.0), f"the worker produced {len(produced)} item(s) ahead, expected 4"
         rest = list(it)
     assert [first, *rest] == list(range(50))
 

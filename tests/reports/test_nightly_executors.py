@@ -16,9 +16,9 @@ from pathlib import Path
 import pytest
 
 from mrnc_eval.commands import nightly
-from mrnc_eval.commands.history import find_regressions
 from mrnc_eval.config import Config
 from mrnc_eval.errors import GateFailed, SomeInputsFailed
+from mrnc_eval.history import find_regressions
 
 from .nightly_workers import CALLS_ENV, SLEEP_ENV
 
@@ -185,7 +185,7 @@ def test_regression_flags_against_the_median_of_previous_nights() -> None:
 
 
 def test_trends_page_flags_a_regressed_log(tmp_path: Path) -> None:
-    from mrnc_eval.commands.history import History, LogRecord
+    from mrnc_eval.history import History, LogRecord
 
     history = History(tmp_path / "history.sqlite")
     ape = {"2026-10-01": 0.05, "2026-10-02": 0.05, "2026-10-03": 0.09}
