@@ -6,7 +6,15 @@ typestore decides the wire format).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
+from numpy.typing import ArrayLike
+
+# rosbags builds message classes at run time from the typestore: both are dynamic to a type checker.
+Typestore = Any
+RosMsg = Any
 
 OUSTER_FIELDS = (  # ouster-ros "original" layout, as in shared/data (point_step 48)
     ("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 16, 7), ("t", 20, 6),
@@ -15,7 +23,7 @@ OUSTER_FIELDS = (  # ouster-ros "original" layout, as in shared/data (point_step
 OUSTER_POINT_STEP = 48
 
 
-def stamp_msg(ts, t: float, ros1: bool):
+def stamp_msg(ts: Typestore, t: float, ros1: bool) -> RosMsg:
     sec = int(np.floor(t))
     nsec = int(round((t - sec) * 1e9))
     if nsec >= 1_000_000_000:
@@ -23,30 +31,34 @@ def stamp_msg(ts, t: float, ros1: bool):
     return ts.types["builtin_interfaces/msg/Time"](sec=sec, nanosec=nsec)
 
 
-def header(ts, t: float, frame_id: str, ros1: bool, seq: int = 0):
-    kwargs = {"stamp": stamp_msg(ts, t, ros1), "frame_id": frame_id}
+def header(ts: Typestore, t: float, frame_id: str, ros1: bool, seq: int = 0) -> RosMsg:
+    kwargs: dict[str, Any] = {"stamp": stamp_msg(ts, t, ros1), "frame_id": frame_id}
     if ros1:
         kwargs["seq"] = seq
     return ts.types["std_msgs/msg/Header"](**kwargs)
 
 
-def vector3(ts, v):
+def vector3(ts: Typestore, v: ArrayLike) -> RosMsg:
+    v = np.asarray(v, dtype=float)
     return ts.types["geometry_msgs/msg/Vector3"](x=float(v[0]), y=float(v[1]), z=float(v[2]))
 
 
-def quaternion(ts, q):
+def quaternion(ts: Typestore, q: ArrayLike) -> RosMsg:
+    q = np.asarray(q, dtype=float)
     return ts.types["geometry_msgs/msg/Quaternion"](x=float(q[0]), y=float(q[1]), z=float(q[2]), w=float(q[3]))
 
 
-def point(ts, p):
+def point(ts: Typestore, p: ArrayLike) -> RosMsg:
+    p = np.asarray(p, dtype=float)
     return ts.types["geometry_msgs/msg/Point"](x=float(p[0]), y=float(p[1]), z=float(p[2]))
 
 
-def pose(ts, p, q):
+def pose(ts: Typestore, p: ArrayLike, q: ArrayLike) -> RosMsg:
     return ts.types["geometry_msgs/msg/Pose"](position=point(ts, p), orientation=quaternion(ts, q))
 
 
-def imu(ts, t, frame_id, acc, gyro, q, ros1, seq=0, acc_var=0.01, gyro_var=6e-4):
+def imu(ts: Typestore, t: float, frame_id: str, acc: ArrayLike, gyro: ArrayLike, q: ArrayLike | None, ros1: bool,
+        seq: int = 0, acc_var: float = 0.01, gyro_var: float = 6e-4) -> RosMsg:
     cov0 = np.zeros(9)
     ocov = cov0.copy()
     if q is None:
@@ -72,7 +84,8 @@ OUSTER_DTYPE = np.dtype({
 })
 
 
-def ouster_cloud(ts, t, frame_id, xyz, t_ns, range_mm, reflectivity, intensity, ambient, ros1, seq=0):
+def ouster_cloud(ts: Typestore, t: float, frame_id: str, xyz: ArrayLike, t_ns: ArrayLike, range_mm: ArrayLike,
+                 reflectivity: ArrayLike, intensity: ArrayLike, ambient: ArrayLike, ros1: bool, seq: int = 0) -> RosMsg:
     h, w = np.shape(t_ns)
     rec = np.zeros(h * w, dtype=OUSTER_DTYPE)  # zeroed: padding bytes are deterministic
     xyz = np.asarray(xyz, dtype=np.float32).reshape(h * w, 3)
@@ -91,7 +104,9 @@ def ouster_cloud(ts, t, frame_id, xyz, t_ns, range_mm, reflectivity, intensity, 
     )
 
 
-def navsatfix(ts, t, frame_id, lla, cov, status, ros1, seq=0):
+def navsatfix(ts: Typestore, t: float, frame_id: str, lla: ArrayLike, cov: ArrayLike, status: int, ros1: bool,
+              seq: int = 0) -> RosMsg:
+    lla = np.asarray(lla, dtype=float)
     st = ts.types["sensor_msgs/msg/NavSatStatus"](status=int(status), service=1)
     return ts.types["sensor_msgs/msg/NavSatFix"](
         header=header(ts, t, frame_id, ros1, seq), status=st, latitude=float(lla[0]), longitude=float(lla[1]),
@@ -100,7 +115,7 @@ def navsatfix(ts, t, frame_id, lla, cov, status, ros1, seq=0):
     )
 
 
-def joint_state(ts, t, names, velocity, ros1, seq=0):
+def joint_state(ts: Typestore, t: float, names: Sequence[str], velocity: ArrayLike, ros1: bool, seq: int = 0) -> RosMsg:
     k = len(names)
     return ts.types["sensor_msgs/msg/JointState"](
         header=header(ts, t, "", ros1, seq), name=list(names), position=np.zeros(k),
@@ -108,7 +123,8 @@ def joint_state(ts, t, names, velocity, ros1, seq=0):
     )
 
 
-def odometry(ts, t, frame_id, child, p, q, lin, ang, ros1, seq=0):
+def odometry(ts: Typestore, t: float, frame_id: str, child: str, p: ArrayLike, q: ArrayLike, lin: ArrayLike,
+             ang: ArrayLike, ros1: bool, seq: int = 0) -> RosMsg:
     cov = np.zeros(36)
     pwc = ts.types["geometry_msgs/msg/PoseWithCovariance"](pose=pose(ts, p, q), covariance=cov)
     tw = ts.types["geometry_msgs/msg/Twist"](linear=vector3(ts, lin), angular=vector3(ts, ang))
@@ -117,19 +133,19 @@ def odometry(ts, t, frame_id, child, p, q, lin, ang, ros1, seq=0):
         header=header(ts, t, frame_id, ros1, seq), child_frame_id=child, pose=pwc, twist=twc)
 
 
-def path(ts, t, frame_id, xy, ros1):
+def path(ts: Typestore, t: float, frame_id: str, xy: ArrayLike, ros1: bool) -> RosMsg:
     ps = ts.types["geometry_msgs/msg/PoseStamped"]
     poses = [ps(header=header(ts, t, frame_id, ros1, i), pose=pose(ts, (x, y, 0.0), (0.0, 0.0, 0.0, 1.0)))
              for i, (x, y) in enumerate(np.asarray(xy, dtype=float))]
     return ts.types["nav_msgs/msg/Path"](header=header(ts, t, frame_id, ros1), poses=poses)
 
 
-def twist_stamped(ts, t, frame_id, v, omega, ros1, seq=0):
+def twist_stamped(ts: Typestore, t: float, frame_id: str, v: float, omega: float, ros1: bool, seq: int = 0) -> RosMsg:
     tw = ts.types["geometry_msgs/msg/Twist"](linear=vector3(ts, (v, 0, 0)), angular=vector3(ts, (0, 0, omega)))
     return ts.types["geometry_msgs/msg/TwistStamped"](header=header(ts, t, frame_id, ros1, seq), twist=tw)
 
 
-def tf_message(ts, t, transforms, ros1):
+def tf_message(ts: Typestore, t: float, transforms: Sequence[tuple[str, str, ArrayLike]], ros1: bool) -> RosMsg:
     from scipy.spatial.transform import Rotation
 
     out = []
@@ -142,5 +158,5 @@ def tf_message(ts, t, transforms, ros1):
     return ts.types["tf2_msgs/msg/TFMessage"](transforms=out)
 
 
-def string(ts, text):
+def string(ts: Typestore, text: str) -> RosMsg:
     return ts.types["std_msgs/msg/String"](data=text)

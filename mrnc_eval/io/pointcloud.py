@@ -9,6 +9,9 @@ header stamp (the sweep start).
 
 from __future__ import annotations
 
+from collections.abc import Sequence
+from typing import Any
+
 import numpy as np
 
 from mrnc_eval.data import Sweep
@@ -21,7 +24,7 @@ class CloudFormatError(ValueError):
     """The cloud's layout cannot be decoded (missing x/y/z, bad sizes)."""
 
 
-def structured_dtype(fields, point_step: int, big_endian: bool) -> np.dtype:
+def structured_dtype(fields: Sequence[Any], point_step: int, big_endian: bool) -> np.dtype[np.void]:
     names, formats, offsets = [], [], []
     order = ">" if big_endian else "<"
     for f in fields:
@@ -35,7 +38,7 @@ def structured_dtype(fields, point_step: int, big_endian: bool) -> np.dtype:
     return np.dtype({"names": names, "formats": formats, "offsets": offsets, "itemsize": point_step})
 
 
-def decode_cloud(msg, stamp: float) -> Sweep:
+def decode_cloud(msg: Any, stamp: float) -> Sweep:
     """Decode a sensor_msgs/PointCloud2 message into a Sweep (no-return points removed)."""
     names = {f.name for f in msg.fields}
     missing = {"x", "y", "z"} - names
@@ -106,5 +109,5 @@ def _point_time(arr: np.ndarray, names: set[str], stamp: float) -> np.ndarray | 
     return None
 
 
-def cloud_fields(msg) -> list[str]:
+def cloud_fields(msg: Any) -> list[str]:
     return [f.name for f in msg.fields]

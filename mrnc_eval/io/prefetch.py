@@ -6,7 +6,7 @@ from __future__ import annotations
 import queue
 import threading
 from collections.abc import Iterable, Iterator
-from typing import Generic, TypeVar
+from typing import Generic, TypeVar, cast
 
 T = TypeVar("T")
 _END = object()
@@ -22,7 +22,7 @@ class Prefetched(Generic[T]):
         if depth < 1:
             raise ValueError("depth must be >= 1")
         self._items = items
-        self._queue: queue.Queue = queue.Queue(maxsize=depth)
+        self._queue: queue.Queue[object] = queue.Queue(maxsize=depth)
         self._stop = threading.Event()
         self._thread = threading.Thread(target=self._work, name="prefetch", daemon=True)
 
@@ -61,8 +61,8 @@ class Prefetched(Generic[T]):
                 if item[1] is not None:
                     raise item[1]
                 return
-            yield item
+            yield cast(T, item)  # anything but the end marker is an item of the source
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self._stop.set()
         self._thread.join()

@@ -14,6 +14,7 @@ from array import array
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -25,7 +26,7 @@ from mrnc_eval.io.containers import describe_error, detect_container
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import detect_roles
-from mrnc_eval.io.sources import McapSource, RosbagsSource
+from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
 
 _BULK_TYPES = {  # never kept in memory by the overview pass
     "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage",
@@ -57,7 +58,7 @@ class TopicInfo:
     problem: str | None = None  # why the topic cannot be decoded (unknown type, unsupported encoding)
 
 
-def _stamp(msg) -> float:
+def _stamp(msg: Any) -> float:
     st = msg.header.stamp
     return float(st.sec) + float(st.nanosec) * 1e-9
 
@@ -65,7 +66,8 @@ def _stamp(msg) -> float:
 def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
     from scipy.spatial.transform import Rotation
 
-    return Rotation.from_quat(q).as_matrix()
+    matrix: np.ndarray = Rotation.from_quat(q).as_matrix()
+    return matrix
 
 
 def _sort_dedup(stamps: np.ndarray, topic: str) -> tuple[np.ndarray, StreamHealth]:
@@ -94,7 +96,7 @@ class LogReader:
         self.container = detect_container(paths)
         try:
             if self.container == "mcap":
-                self._src = McapSource(self.path)
+                self._src: McapSource | RosbagsSource = McapSource(self.path)
             else:
                 self._src = RosbagsSource(paths, ros1=self.container == "ros1")
         except InputError:
@@ -119,11 +121,11 @@ class LogReader:
     def __enter__(self) -> LogReader:
         return self
 
-    def __exit__(self, *exc) -> None:
+    def __exit__(self, *exc: object) -> None:
         self.close()
 
     # ------------------------------------------------------------------ raw access
-    def _channel(self, topic: str):
+    def _channel(self, topic: str) -> Channel:
         ch = self._channels.get(topic)
         if ch is None:
             names = sorted(self._channels)
@@ -154,14 +156,14 @@ class LogReader:
         for _topic, t_rec, raw in self._iterate([topic]):
             yield t_rec, raw
 
-    def _decode(self, raw: bytes, topic: str) -> object:
+    def _decode(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         try:
             return self._src.deserialize(raw, topic)
         except Exception as err:
             raise InputError(self.path, f"cannot decode {self._msgtype(topic)} message: {describe_error(err)}",
                              topic=topic) from err
 
-    def _messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[object]:
+    def _messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[Any]:
         for _t, msg in self._timed_messages(topic, expect):
             yield msg
 
@@ -173,7 +175,7 @@ class LogReader:
         if expect is not None and ch.msgtype not in expect:
             raise InputError(self.path, f"expected {' or '.join(expect)}, got {ch.msgtype}", topic=topic)
 
-    def _timed_messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[tuple[float, object]]:
+    def _timed_messages(self, topic: str, expect: tuple[str, ...] | None = None) -> Iterator[tuple[float, Any]]:
         """(record time s, message); with `expect`, the topic must carry one of those types."""
         self._check_type(topic, expect)
         for t_rec, raw in self._raw(topic):
@@ -188,7 +190,7 @@ class LogReader:
             sec, nsec = struct.unpack_from("<II", raw, 4)
         else:
             sec, nsec = struct.unpack_from("<iI" if raw[1] & 1 else ">iI", raw, 4)
-        return sec + nsec * 1e-9
+        return float(sec + nsec * 1e-9)
 
     # ------------------------------------------------------------------ overview
     @property

@@ -20,6 +20,7 @@ from __future__ import annotations
 from collections.abc import Iterator
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 from mrnc_eval.errors import InputError
 
@@ -58,7 +59,7 @@ class RosbagsSource:
         self._reader.open()
         self._add_missing_types(default)
         known = self._reader.typestore.fielddefs
-        self._conns: dict[str, list] = {}
+        self._conns: dict[str, list[Any]] = {}
         for c in self._reader.connections:
             self._conns.setdefault(c.topic, []).append(c)
         self.channels: dict[str, Channel] = {}
@@ -72,7 +73,7 @@ class RosbagsSource:
                 problem = _unknown_type(msgtype)
             self.channels[topic] = Channel(topic, msgtype, sum(c.msgcount for c in conns), fmt, problem)
 
-    def _add_missing_types(self, default) -> None:
+    def _add_missing_types(self, default: Any) -> None:
         """Logs that define some types but not others: take the rest from the standard store."""
         store = self._reader.typestore
         missing = {c.msgtype for c in self._reader.connections} - set(store.fielddefs)
@@ -87,7 +88,7 @@ class RosbagsSource:
         for conn, t_rec, raw in self._reader.messages(connections=conns):
             yield conn.topic, t_rec, raw
 
-    def deserialize(self, raw: bytes, topic: str) -> object:
+    def deserialize(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         return self._reader.deserialize(raw, self.channels[topic].msgtype)
 
     def close(self) -> None:
@@ -118,11 +119,11 @@ class McapSource:
             schema_enc = schema.encoding if schema else ""
             msgtype = normalize_msgtype(schema.name) if schema else ""
             problem = None
-            if ch.message_encoding == "cdr" and schema_enc in ("ros2msg", "ros2idl"):
+            if schema is not None and ch.message_encoding == "cdr" and schema_enc in ("ros2msg", "ros2idl"):
                 text = schema.data.decode("utf-8", errors="replace")
                 types = get_types_from_msg(text, msgtype) if schema_enc == "ros2msg" else get_types_from_idl(text)
                 self._register(self._stores["cdr"], types)
-            elif ch.message_encoding == "ros1" and schema_enc == "ros1msg":
+            elif schema is not None and ch.message_encoding == "ros1" and schema_enc == "ros1msg":
                 text = schema.data.decode("utf-8", errors="replace")
                 self._register(self._stores["ros1"], get_types_from_msg(text, msgtype))
             else:
@@ -133,14 +134,14 @@ class McapSource:
                                               count, ch.message_encoding, problem)
 
     @staticmethod
-    def _register(store, types: dict) -> None:
+    def _register(store: Any, types: dict[str, Any]) -> None:
         store.register({k: v for k, v in types.items() if k not in store.fielddefs})
 
     def messages(self, topics: list[str]) -> Iterator[tuple[str, int, bytes]]:
         for _schema, channel, message in self._reader.iter_messages(topics=topics, log_time_order=True):
             yield channel.topic, int(message.log_time), message.data
 
-    def deserialize(self, raw: bytes, topic: str) -> object:
+    def deserialize(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         ch = self.channels[topic]
         store = self._stores[ch.encoding]
         if ch.encoding == "ros1":

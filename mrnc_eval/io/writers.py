@@ -14,9 +14,10 @@ import heapq
 import shutil
 import tempfile
 from pathlib import Path
-from typing import Literal
+from typing import Any, Literal
 
 import numpy as np
+from numpy.typing import ArrayLike
 
 from mrnc_eval.data import ImuSeries, Trajectory, Twists, Waypoints
 from mrnc_eval.errors import InputError
@@ -26,7 +27,7 @@ from mrnc_eval.io.typestore import typestore_for
 Format = Literal["mcap", "db3", "bag"]
 
 
-def _latched_qos():
+def _latched_qos() -> list[Any]:
     """ROS 2 QoS of a latched topic (/tf_static): reliable, transient local, keep last 1."""
     from rosbags.interfaces import Qos, QosDurability, QosHistory, QosLiveliness, QosReliability, QosTime
 
@@ -50,15 +51,15 @@ class LogWriter:
         self.ts = typestore_for(ros1=self.ros1)
         parent = self.path.parent if self.path.parent.exists() else None  # same filesystem: the final move is a rename
         self._tmpdir = Path(tempfile.mkdtemp(prefix=".mrnc-write-", dir=parent))
-        self._pending: list[tuple[int, int, object, bytes]] = []  # heap of (stamp ns, order, conn, raw)
+        self._pending: list[tuple[int, int, Any, bytes]] = []  # heap of (stamp ns, order, conn, raw)
         self._order = 0
-        self._conns: dict[str, object] = {}
+        self._conns: dict[str, Any] = {}
         self._seq: dict[str, int] = {}
         if self.ros1:
             from rosbags.rosbag1 import Writer as Writer1
 
             self._inner_path = self._tmpdir / "log.bag"
-            self._writer = Writer1(self._inner_path)
+            self._writer: Any = Writer1(self._inner_path)  # rosbags' ROS 1 or ROS 2 writer
             if ros1_compression:
                 self._writer.set_compression(getattr(Writer1.CompressionFormat, ros1_compression.upper()))
         else:
@@ -79,7 +80,7 @@ class LogWriter:
 
     # ------------------------------------------------------------------ plumbing
 
-    def _conn(self, topic: str, msgtype: str, latched: bool = False):
+    def _conn(self, topic: str, msgtype: str, latched: bool = False) -> Any:
         conn = self._conns.get(topic)
         if conn is None:
             if self.ros1:
@@ -90,7 +91,7 @@ class LogWriter:
             self._conns[topic] = conn
         return conn
 
-    def _serialize(self, msg, msgtype: str) -> bytes:
+    def _serialize(self, msg: Any, msgtype: str) -> bytes:
         if self.ros1:
             return bytes(self.ts.serialize_ros1(msg, msgtype))
         return bytes(self.ts.serialize_cdr(msg, msgtype))
@@ -100,7 +101,7 @@ class LogWriter:
         self._seq[topic] = s + 1
         return s
 
-    def _queue(self, topic: str, msgtype: str, t: float, msg) -> None:
+    def _queue(self, topic: str, msgtype: str, t: float, msg: Any) -> None:
         conn = self._conn(topic, msgtype)
         heapq.heappush(self._pending, (_ns(t), self._order, conn, self._serialize(msg, msgtype)))
         self._order += 1
@@ -119,7 +120,8 @@ class LogWriter:
                         self.ros1, self._next_seq(topic), acc_var, gyro_var)
             self._queue(topic, "sensor_msgs/msg/Imu", float(t), msg)
 
-    def write_ouster_cloud(self, topic: str, stamp: float, xyz, t_ns, range_mm, reflectivity, intensity, ambient,
+    def write_ouster_cloud(self, topic: str, stamp: float, xyz: ArrayLike, t_ns: ArrayLike, range_mm: ArrayLike,
+                           reflectivity: ArrayLike, intensity: ArrayLike, ambient: ArrayLike,
                            frame_id: str = "os_sensor") -> None:
         """One organised sweep (H x W arrays); buffered messages up to `stamp` go first."""
         self._flush_until(_ns(stamp))
@@ -128,20 +130,21 @@ class LogWriter:
         conn = self._conn(topic, "sensor_msgs/msg/PointCloud2")
         self._writer.write(conn, _ns(stamp), self._serialize(msg, "sensor_msgs/msg/PointCloud2"))
 
-    def write_navsatfix(self, topic: str, stamps, lla, covariance, status, frame_id: str = "gnss") -> None:
+    def write_navsatfix(self, topic: str, stamps: np.ndarray, lla: np.ndarray, covariance: np.ndarray,
+                        status: np.ndarray, frame_id: str = "gnss") -> None:
         for i, t in enumerate(stamps):
             msg = M.navsatfix(self.ts, float(t), frame_id, lla[i], covariance[i], status[i], self.ros1,
                               self._next_seq(topic))
             self._queue(topic, "sensor_msgs/msg/NavSatFix", float(t), msg)
 
-    def write_joint_state(self, topic: str, stamps, names, velocity) -> None:
+    def write_joint_state(self, topic: str, stamps: np.ndarray, names: list[str], velocity: ArrayLike) -> None:
         velocity = np.asarray(velocity, dtype=float)
         for i, t in enumerate(stamps):
             msg = M.joint_state(self.ts, float(t), names, velocity[i], self.ros1, self._next_seq(topic))
             self._queue(topic, "sensor_msgs/msg/JointState", float(t), msg)
 
     def write_odometry(self, topic: str, traj: Trajectory, frame_id: str = "map", child_frame_id: str = "base_link",
-                       linear_velocity=None, angular_velocity=None) -> None:
+                       linear_velocity: ArrayLike | None = None, angular_velocity: ArrayLike | None = None) -> None:
         zeros = np.zeros((len(traj), 3))
         lin = zeros if linear_velocity is None else np.asarray(linear_velocity)
         ang = zeros if angular_velocity is None else np.asarray(angular_velocity)
@@ -165,7 +168,7 @@ class LogWriter:
         self._conn("/tf_static", "tf2_msgs/msg/TFMessage", latched=True)
         self._queue("/tf_static", "tf2_msgs/msg/TFMessage", stamp, msg)
 
-    def write_strings(self, topic: str, stamps, texts) -> None:
+    def write_strings(self, topic: str, stamps: np.ndarray, texts: list[str]) -> None:
         for t, text in zip(stamps, texts, strict=True):
             self._queue(topic, "std_msgs/msg/String", float(t), M.string(self.ts, text))
 
@@ -204,7 +207,7 @@ class LogWriter:
     def __enter__(self) -> LogWriter:
         return self
 
-    def __exit__(self, exc_type, exc, tb) -> None:
+    def __exit__(self, exc_type: type[BaseException] | None, exc: BaseException | None, tb: object) -> None:
         if exc_type is None:
             self.close()
         else:
