@@ -73,7 +73,7 @@ class History:
         with closing(self._connect()) as db:
             return {r[0] for r in db.execute("SELECT log_id FROM runs WHERE night = ? AND status = 'ok'", (night,))}
 
-    def runs(self, night: str) -> list[tuple]:
+    def runs(self, night: str) -> list[tuple[str, str, str, str]]:  # (log_id, status, error, log_path)
         with closing(self._connect()) as db:
             return list(db.execute("SELECT log_id, status, error, log_path FROM runs WHERE night = ? ORDER BY log_id",
                                    (night,)))

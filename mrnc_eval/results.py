@@ -160,7 +160,8 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
         for key, arr in arrays.items():
             if arr.dtype.hasobject:  # would need pickle to store and to load
                 raise TypeError(f"series {key!r} has dtype object; store numbers or strings")
-        np.savez_compressed(tmp / SERIES_FILE, **arrays)
+        # numpy's stub types **kwds like its allow_pickle flag; the arrays are plain numeric arrays
+        np.savez_compressed(tmp / SERIES_FILE, **arrays)  # type: ignore[arg-type]
         (tmp / CONFIG_FILE).write_text(config_yaml, encoding="utf-8")
         for name, src in (files or {}).items():
             dest = tmp / safe_name(name, max_len=120)

@@ -17,7 +17,7 @@ from __future__ import annotations
 import multiprocessing
 from collections import deque
 from collections.abc import Iterable, Iterator
-from concurrent.futures import FIRST_COMPLETED, ProcessPoolExecutor, wait
+from concurrent.futures import FIRST_COMPLETED, Future, ProcessPoolExecutor, wait
 from concurrent.futures.process import BrokenProcessPool
 from typing import Protocol
 
@@ -57,7 +57,7 @@ class LocalPool:
         """Keep at most `workers` jobs in flight; stop submitting when the pool breaks and
         collect the jobs that were in flight then."""
         pool = self._pool(self.workers)
-        inflight: dict = {}
+        inflight: dict[Future[LogSummary], LogJob] = {}
         try:
             while queue or inflight:
                 while queue and len(inflight) < self.workers and not suspects:

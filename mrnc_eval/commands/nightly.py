@@ -12,7 +12,7 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import yaml
 
@@ -20,7 +20,7 @@ from mrnc_eval.commands.log_job import DEFAULT_ANALYSIS, LogJob, LogSummary
 from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, build, dump_config
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
-from mrnc_eval.history import History, LogRecord, find_regressions
+from mrnc_eval.history import History, LogRecord, Regression, find_regressions
 from mrnc_eval.reports.night import IndexRow
 from mrnc_eval.results import atomic_write_text, log_id_for
 
@@ -160,7 +160,7 @@ def _since(since: str | None) -> dt.date | None:
         raise UsageError(f"--since {since!r}: expected YYYY-MM-DD") from err
 
 
-def _plain(obj) -> dict:
+def _plain(obj: object) -> dict[str, Any]:
     from mrnc_eval.config import as_dict
 
     return as_dict(obj)
@@ -209,7 +209,7 @@ def _write_index(history: History, night: str, night_dir: Path) -> list[IndexRow
     return rows
 
 
-def _write_trends(history: History, out: Path) -> list[str]:
+def _write_trends(history: History, out: Path) -> list[Regression]:
     from mrnc_eval.reports.night import render_trends
 
     data: dict[str, dict[str, dict[str, float]]] = {}

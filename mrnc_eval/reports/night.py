@@ -49,7 +49,7 @@ def render_trends(nights: list[str], data: dict[str, dict[str, dict[str, float]]
         shown = sorted(per_log, key=lambda log: per_log[log][max(per_log[log])], reverse=True)[:MAX_LOGS_PER_TREND]
         for log_id in sorted(shown):
             by_night = per_log[log_id]
-            xs = sorted(by_night, key=x_of.get)
+            xs = sorted(by_night, key=x_of.__getitem__)
             ax.plot([x_of[n] for n in xs], [by_night[n] for n in xs], marker="o", ms=3, lw=1, label=log_id)
         for reg in regressions.get(metric, []):
             ax.plot([x_of[reg.night]], [reg.value], "o", ms=9, mfc="none", mec="tab:red", mew=1.5)

@@ -18,7 +18,8 @@ from markupsafe import Markup
 
 from mrnc_eval import __version__
 from mrnc_eval.evaluation.config import GatesConfig
-from mrnc_eval.results import Metric, RunResult, Table, atomic_write_text, safe_name
+from mrnc_eval.reports.tables import is_number
+from mrnc_eval.results import Cell, Metric, RunResult, Table, atomic_write_text, safe_name
 
 TEMPLATES = Path(__file__).parent / "templates"
 MAX_EVENTS = 60  # rows of the events table; the rest is counted
@@ -60,15 +61,11 @@ def css() -> Markup:
     return Markup((TEMPLATES / "base.css").read_text(encoding="utf-8"))
 
 
-def _finite(v: Any) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
-
-
 def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
     """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value)."""
     def values(kind: str, name: str) -> list[float]:
         return [m.value for r in results if r.kind == kind for m in r.metrics
-                if m.name == name and _finite(m.value) and (kind != "control" or m.group.split("/")[1:2] in
+                if m.name == name and is_number(m.value) and (kind != "control" or m.group.split("/")[1:2] in
                                                             [[d] for d in DEPLOYED])]
 
     def card(label: str, vals: list[float], limit: float, fmt: str, unit: str = "") -> Gate:
@@ -83,7 +80,7 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
             card("Safety stops", values("control", "safety_stops"), gates.safety_stops_max, "{:.0f}")]
 
 
-def info_of(results: list[RunResult]) -> dict | None:
+def info_of(results: list[RunResult]) -> dict[str, Any] | None:
     """The `info` summary: a result of kind "info", or extra["info"] of any result."""
     for r in results:
         if isinstance(r.extra.get("info"), dict):
@@ -138,8 +135,9 @@ def _replay_table(r: RunResult) -> Table:
     groups = sorted({m.group for m in r.metrics}, key=lambda g: (g.endswith("/path"), g))
     by: dict[tuple[str, str], Metric] = {(m.group, m.name): m for m in r.metrics}
     rows = [(label, name) for label, name in CONTROL_ROWS if any((g, name) in by for g in groups)]
-    cells = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
-    cells = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row] for row in cells]
+    values = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
+    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row]
+                               for row in values]
     return Table("Table II layout: control performance of the recorded run", [label for label, _ in rows],
                  [g.split("/", 1)[-1].replace("/", " ") for g in groups], cells, best=None, precision=3)
 

@@ -10,6 +10,7 @@ import csv
 import html
 import io
 import math
+from typing import TypeGuard
 
 from mrnc_eval.results import Cell, Table
 
@@ -17,7 +18,8 @@ FORMATS = ("markdown", "latex", "csv", "html")
 SUFFIX_FORMAT = {".md": "markdown", ".tex": "latex", ".csv": "csv", ".html": "html", ".htm": "html"}
 
 
-def is_number(c: Cell) -> bool:
+def is_number(c: object) -> TypeGuard[float | int]:
+    """A finite int or float (not a bool): what tables compare and gates judge."""
     return isinstance(c, (int, float)) and not isinstance(c, bool) and math.isfinite(c)
 
 
@@ -31,8 +33,8 @@ def best_cells(table: Table) -> set[tuple[int, int]]:
     lines = ([[(r, c) for c in range(cols)] for r in range(rows)] if table.best_per == "row"
              else [[(r, c) for r in range(rows)] for c in range(cols)])
     for line in lines:
-        nums = [(table.cells[r][c], (r, c)) for r, c in line
-                if c < len(table.cells[r]) and is_number(table.cells[r][c])]
+        nums = [(cell, (r, c)) for r, c in line
+                if c < len(table.cells[r]) and is_number(cell := table.cells[r][c])]
         if len(nums) < 2:
             continue
         target = round(pick(v for v, _ in nums), table.precision)
