@@ -5,7 +5,9 @@ from __future__ import annotations
 
 import logging
 import math
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 
@@ -14,8 +16,10 @@ from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS, PAPER_ORDER
 from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
+from mrnc_eval.data import SidePair
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import path_metrics, tracking_metrics
+from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
 from mrnc_eval.results import Event, Metric, RunResult, Table, log_id_for, write_result
 
 log = logging.getLogger(__name__)
@@ -119,9 +123,7 @@ def _scenario_from_log(log_path: Path, cfg: Config) -> Scenario:
         wp = lg.waypoints().xy
         start = lg.ground_truth() if lg.has_role("ground_truth") else None
     if start is not None:
-        q = start.quat_xyzw[0]
-        yaw = math.atan2(2 * (q[3] * q[2] + q[0] * q[1]), 1 - 2 * (q[1] ** 2 + q[2] ** 2))
-        pose = (float(start.positions[0, 0]), float(start.positions[0, 1]), yaw)
+        pose = (float(start.positions[0, 0]), float(start.positions[0, 1]), float(_yaw(start.quat_xyzw[:1])[0]))
     else:
         pose = (float(wp[0, 0]), float(wp[0, 1]), math.atan2(wp[1, 1] - wp[0, 1], wp[1, 0] - wp[0, 0]))
     base = paper_circle_scenario(cfg.control)
@@ -133,6 +135,11 @@ def simulate(cfg: Config, names: tuple[str, ...], scenario: Scenario) -> tuple[d
     return traces, {n: evaluate_trace(tr, cfg) for n, tr in traces.items()}
 
 
+def _yaw(quat_xyzw: np.ndarray) -> np.ndarray:
+    """Heading (rad) of (N, 4) xyzw orientations, by the project's one quaternion-to-Euler path."""
+    return yaw_pitch_roll_sxyz(quat_xyzw_to_matrix(quat_xyzw))[0]
+
+
 def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:
     """(t, x, y, yaw, source) of the recorded motion: ground truth, else wheel odometry, else
     GNSS (ENU; heading from the track direction). The pose must be in the frame of the path."""
@@ -140,9 +147,7 @@ def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarra
     if "ground_truth" in roles or "wheel_odom" in roles:
         source = "ground_truth" if "ground_truth" in roles else "wheel_odom"
         traj = lg.ground_truth() if source == "ground_truth" else lg.wheel_odometry()
-        q = traj.quat_xyzw
-        yaw = np.arctan2(2 * (q[:, 3] * q[:, 2] + q[:, 0] * q[:, 1]), 1 - 2 * (q[:, 1] ** 2 + q[:, 2] ** 2))
-        return traj.stamps, traj.positions[:, 0], traj.positions[:, 1], yaw, source
+        return traj.stamps, traj.positions[:, 0], traj.positions[:, 1], _yaw(traj.quat_xyzw), source
     if "gnss" in roles:
         g = lg.gnss()
         if g.stamps.size < 3:
@@ -154,15 +159,20 @@ def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarra
                                "(none found; set io.roles.ground_truth, io.roles.wheel_odom or io.roles.gnss)")
 
 
-def replay(log_path: Path, cfg: Config) -> tuple[dict, dict, list[str]]:
-    """Recompute the references the chain would issue along the recorded pose (pure pursuit at its
-    rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
-    pump commands against them."""
-    from mrnc_eval.control.kinematics import inverse_kinematics, slew
-    from mrnc_eval.control.pure_pursuit import PurePursuit
+@dataclass(frozen=True)
+class _Recording:
+    """What a control replay reads from a log."""
+
+    waypoints: np.ndarray  # (N, 2) m
+    pose: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # t s, x m, y m, yaw rad
+    pose_source: str
+    speeds: SidePair  # wheel surface speeds, m/s
+    commands: SidePair | None  # pump commands, RPM
+
+
+def _read_recording(log_path: Path, cfg: Config) -> _Recording:
     from mrnc_eval.io import open_log
 
-    warnings: list[str] = []
     with open_log(log_path, cfg.io) as lg:
         roles = lg.roles
         for role in ("path", "wheel_speeds"):
@@ -176,13 +186,16 @@ def replay(log_path: Path, cfg: Config) -> tuple[dict, dict, list[str]]:
         raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles["path"])
     if speeds.stamps.size < 3:
         raise InputError(log_path, "too few wheel-speed messages to evaluate tracking", topic=roles["wheel_speeds"])
-    if source != "ground_truth":
-        warnings.append(f"recorded pose from {source} (no ground truth): it must be in the frame of the path")
-    if cmds is None:
-        warnings.append("no pump-command topic: command metrics (saturation, effort) are zero")
-    t = speeds.stamps
-    px, py = np.interp(t, pt, pxs), np.interp(t, pt, pys)
-    pyaw = np.interp(t, pt, np.unwrap(pyaws))
+    return _Recording(wp, (pt, pxs, pys, pyaws), source, speeds, cmds)
+
+
+def _replay_references(t: np.ndarray, px: np.ndarray, py: np.ndarray, pyaw: np.ndarray, speeds: SidePair,
+                       wp: np.ndarray, cfg: Config) -> tuple[np.ndarray, bool, float]:
+    """Per-side references (N, 2) m/s that pure pursuit (at its rate), inverse kinematics and the
+    reference slew issue along the recorded pose; whether and when (s after the start) it finished."""
+    from mrnc_eval.control.kinematics import inverse_kinematics, slew
+    from mrnc_eval.control.pure_pursuit import PurePursuit
+
     pp = PurePursuit(wp, cfg.control.pure_pursuit, cfg.robot.track_width_m, cfg.robot.max_speed_mps)
     v_ref = np.zeros((t.size, 2))
     next_pp, tl, tr_, vl, vr = t[0], 0.0, 0.0, 0.0, 0.0
@@ -198,22 +211,51 @@ def replay(log_path: Path, cfg: Config) -> tuple[dict, dict, list[str]]:
         dt_k = t[k] - t[k - 1] if k else 0.0
         vl, vr = slew(vl, tl, accel, dt_k), slew(vr, tr_, accel, dt_k)
         v_ref[k] = vl, vr
+    return v_ref, pp.done, done_at
+
+
+def _replay_slip(t: np.ndarray, px: np.ndarray, py: np.ndarray, pyaw: np.ndarray, speeds: SidePair,
+                 source: str, cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+    """Slip patches per side from wheel vs ground speed (zeros from wheel odometry, which moves with
+    the wheels and cannot show slip)."""
+    if source == "wheel_odom":
+        return np.zeros_like(t), np.zeros_like(t)
+    from mrnc_eval.evaluation.control_metrics import estimate_slip
+
+    v_body, w_body = _body_rates(t, px, py, pyaw)
+    half = 0.5 * cfg.robot.track_width_m
+    return (estimate_slip(t, speeds.left, v_body - w_body * half),
+            estimate_slip(t, speeds.right, v_body + w_body * half))
+
+
+def replay(log_path: Path, cfg: Config) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any], list[str]]:
+    """Recompute the references the chain would issue along the recorded pose (pure pursuit at its
+    rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
+    pump commands against them."""
+    rec = _read_recording(log_path, cfg)
+    warnings: list[str] = []
+    if rec.pose_source != "ground_truth":
+        warnings.append(f"recorded pose from {rec.pose_source} (no ground truth): it must be in the frame of the path")
+    if rec.commands is None:
+        warnings.append("no pump-command topic: command metrics (saturation, effort) are zero")
+    speeds, cmds = rec.speeds, rec.commands
+    t = speeds.stamps
+    pt, pxs, pys, pyaws = rec.pose
+    px, py = np.interp(t, pt, pxs), np.interp(t, pt, pys)
+    pyaw = np.interp(t, pt, np.unwrap(pyaws))
+    v_ref, done, done_at = _replay_references(t, px, py, pyaw, speeds, rec.waypoints, cfg)
     f = cfg.control.funnel
     o = (f.o_ov_mps - f.o_b_mps) * np.exp(-f.o_star_per_s * (t - t[0])) + f.o_b_mps
     u_l = np.interp(t, cmds.stamps, cmds.left) if cmds is not None else np.zeros_like(t)
     u_r = np.interp(t, cmds.stamps, cmds.right) if cmds is not None else np.zeros_like(t)
+    slip_l, slip_r = _replay_slip(t, px, py, pyaw, speeds, rec.pose_source, cfg)
     zeros = np.zeros_like(t)
-    slip_l, slip_r = zeros, zeros
-    if source != "wheel_odom":  # wheel odometry moves with the wheels: it cannot show slip
-        from mrnc_eval.evaluation.control_metrics import estimate_slip
-
-        v_body, w_body = _body_rates(t, px, py, pyaw)
-        half = 0.5 * cfg.robot.track_width_m
-        slip_l = estimate_slip(t, speeds.left, v_body - w_body * half)
-        slip_r = estimate_slip(t, speeds.right, v_body + w_body * half)
-    tr = ClosedLoopTrace("recorded", f"recorded ({source})", t - t[0], px, py, pyaw, zeros, zeros, zeros, zeros,
-                         v_ref[:, 0], v_ref[:, 1], speeds.left, speeds.right, slip_l, slip_r, u_l, u_r, o,
-                         completed=pp.done, completion_time_s=done_at, waypoints=wp)
+    tr = ClosedLoopTrace(controller="recorded", label=f"recorded ({rec.pose_source})", t=t - t[0], x=px, y=py,
+                         yaw=pyaw, v=zeros, omega=zeros, cmd_v=zeros, cmd_omega=zeros,
+                         v_ref_left=v_ref[:, 0], v_ref_right=v_ref[:, 1],
+                         v_wheel_left=speeds.left, v_wheel_right=speeds.right, slip_left=slip_l, slip_right=slip_r,
+                         u_left=u_l, u_right=u_r, funnel=o, completed=done, completion_time_s=done_at,
+                         waypoints=rec.waypoints)
     return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg)}, warnings
 
 
@@ -246,25 +288,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     result.series["path_xy"] = longest.waypoints
     result.series["funnel_o"] = longest.funnel[:: _decimate(longest.t)]
     for n in names:
-        tr = traces[n]
-        step = _decimate(tr.t)
-        for side in ("left", "right"):
-            group = f"control/{n}/{side}"
-            for key, val in metrics[n][side].items():
-                value = val if isinstance(val, int) else float(val)
-                result.metrics.append(Metric(key, value, UNITS.get(key, ""), group))
-            result.series[f"{n}_{side}_v_ref"] = getattr(tr, f"v_ref_{side}")[::step]
-            result.series[f"{n}_{side}_v_meas"] = getattr(tr, f"v_wheel_{side}")[::step]
-            result.series[f"{n}_{side}_u_rpm"] = getattr(tr, f"u_{side}")[::step]
-        cte = metrics[n]["path"].pop("_cte")
-        for key, val in metrics[n]["path"].items():
-            result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{n}/path"))
-        result.series[f"{n}_t"] = tr.t[::step]
-        result.series[f"{n}_xy"] = np.c_[tr.x, tr.y][::step]
-        result.series[f"{n}_cte_m"] = cte[::step]
-        result.series[f"{n}_funnel_o"] = tr.funnel[::step]
-        result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(n, n)}: {e['message']}", {"side": e["side"]})
-                          for e in tr.events]
+        _add_controller(result, n, traces[n], metrics[n])
     if mode == "simulate":
         result.tables.append(table_two(metrics, names, cfg))
     result.extra = {"mode": mode, "controllers": list(names),
@@ -275,6 +299,28 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                     "curvature": cfg.control.pure_pursuit.curvature}
     write_result(result, out_dir, dump_config(cfg))
     return result
+
+
+def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: dict[str, Any]) -> None:
+    """One controller's metrics (per side and path), decimated series and safety stops into `result`."""
+    step = _decimate(tr.t)
+    for side in ("left", "right"):
+        group = f"control/{name}/{side}"
+        for key, val in metrics[side].items():
+            value = val if isinstance(val, int) else float(val)
+            result.metrics.append(Metric(key, value, UNITS.get(key, ""), group))
+        result.series[f"{name}_{side}_v_ref"] = getattr(tr, f"v_ref_{side}")[::step]
+        result.series[f"{name}_{side}_v_meas"] = getattr(tr, f"v_wheel_{side}")[::step]
+        result.series[f"{name}_{side}_u_rpm"] = getattr(tr, f"u_{side}")[::step]
+    cte = metrics["path"].pop("_cte")
+    for key, val in metrics["path"].items():
+        result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{name}/path"))
+    result.series[f"{name}_t"] = tr.t[::step]
+    result.series[f"{name}_xy"] = np.c_[tr.x, tr.y][::step]
+    result.series[f"{name}_cte_m"] = cte[::step]
+    result.series[f"{name}_funnel_o"] = tr.funnel[::step]
+    result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(name, name)}: {e['message']}",
+                            {"side": e["side"]}) for e in tr.events]
 
 
 def _decimate(t: np.ndarray, max_points: int = 20000) -> int:

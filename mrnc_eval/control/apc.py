@@ -21,23 +21,24 @@ from __future__ import annotations
 
 import math
 
-from numba import njit
-
 from mrnc_eval.control.config import ControlConfig
+from mrnc_eval.control.jit_cache import FloatArray, kernel
 
 # law state slots
 _PHI, _U_PREV, _Y_PREV, _DU_PREV, _INIT, _PHI_1, _PHI_2, _TH0, _TH1, _TH2, _FB = range(11)
 
 
-@njit(cache=True)
+@kernel
 def _ppd_reset(phi: float, phi1: float, eps: float) -> float:
     if abs(phi) <= eps or phi * phi1 < 0.0 or not math.isfinite(phi):
         return phi1
     return phi
 
 
-@njit(cache=True)
-def mfapc_step(state, phi1, eta, mu, rho, lam, eps, unit, n_pred, delta_ar, theta_max, v_ref, y, u_ff, u_min, u_max):
+@kernel
+def mfapc_step(state: FloatArray, phi1: float, eta: float, mu: float, rho: float, lam: float, eps: float, unit: float,
+               n_pred: float, delta_ar: float, theta_max: float, v_ref: float, y: float, u_ff: float, u_min: float,
+               u_max: float) -> float:
     """One MFAPC update. Returns the held feedback part (RPM) to add to the feed-forward u_ff."""
     ff = u_ff / unit
     if state[_INIT] == 0.0:
@@ -73,7 +74,8 @@ def mfapc_step(state, phi1, eta, mu, rho, lam, eps, unit, n_pred, delta_ar, thet
     state[_DU_PREV] = total - state[_U_PREV]
     state[_U_PREV] = total
     state[_Y_PREV] = y
-    return state[_FB] * unit
+    fb: float = state[_FB]
+    return fb * unit
 
 
 def apc_params(cfg: ControlConfig) -> list[float]:

@@ -6,12 +6,11 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
-from numba import njit
 
-from mrnc_eval.config import RobotConfig
-from mrnc_eval.control.config import ControlConfig
+from mrnc_eval.control.config import ControlConfig, RobotGeometry
 from mrnc_eval.control.controllers import (
     CONTROLLER_ID,
     LABELS,
@@ -20,59 +19,107 @@ from mrnc_eval.control.controllers import (
     controller_step,
     funnel_at,
 )
+from mrnc_eval.control.jit_cache import FloatArray, kernel
 from mrnc_eval.control.kinematics import inverse_kinematics, slew
 from mrnc_eval.control.plant import body_step, drive_step, patches_array, slip_at
-from mrnc_eval.control.pure_pursuit import pp_step
+from mrnc_eval.control.pure_pursuit import pp_step, pure_pursuit_params
 from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.scenario import Scenario, waypoint_scenario
 
-N_OUT = 18  # recorded channels, see ClosedLoopTrace
+# Recorded channels: the columns of the compiled loop's output, one ClosedLoopTrace field each.
+(CH_T, CH_X, CH_Y, CH_YAW, CH_V, CH_OMEGA, CH_CMD_V, CH_CMD_OMEGA, CH_REF_L, CH_REF_R, CH_MEAS_L, CH_MEAS_R,
+ CH_SLIP_L, CH_SLIP_R, CH_U_L, CH_U_R, CH_FUNNEL_L, CH_FUNNEL_R) = range(18)
+N_OUT = 18
+
+# Plant parameter vector (per side where the drive may differ), see `plant_params`.
+(PL_GAIN_L, PL_GAIN_R, PL_TAU_L, PL_TAU_R, PL_DELAY_L, PL_DELAY_R, PL_DZ_L, PL_DZ_R, PL_CHI, PL_NOISE,
+ PL_TRACK) = range(11)
+PL_SIZE = 11
+
+# Run settings of the compiled loop (counts stored as floats), see `run_closed_loop`.
+(RUN_DT, RUN_STEPS, RUN_PP_EVERY, RUN_RECORD_EVERY, RUN_LINGER, RUN_X0, RUN_Y0, RUN_YAW0, RUN_ACCEL_LIMIT,
+ RUN_DERIV_TAU, RUN_SEED) = range(11)
+RUN_SIZE = 11
 
 
 @dataclass
 class ClosedLoopTrace:
     controller: str
     label: str
-    t: np.ndarray
-    x: np.ndarray
-    y: np.ndarray
-    yaw: np.ndarray
-    v: np.ndarray  # true body speed, m/s
-    omega: np.ndarray  # true yaw rate, rad/s
-    cmd_v: np.ndarray
-    cmd_omega: np.ndarray
-    v_ref_left: np.ndarray
-    v_ref_right: np.ndarray
-    v_wheel_left: np.ndarray  # measured (encoder) wheel surface speed, m/s
-    v_wheel_right: np.ndarray
-    slip_left: np.ndarray
-    slip_right: np.ndarray
-    u_left: np.ndarray  # pump command after the safety clamp, RPM
-    u_right: np.ndarray
-    funnel: np.ndarray  # o(t) of the left side, m/s (equal to the right's unless anchored per step)
-    events: list[dict] = field(default_factory=list)  # safety stops
+    t: FloatArray
+    x: FloatArray
+    y: FloatArray
+    yaw: FloatArray
+    v: FloatArray  # true body speed, m/s
+    omega: FloatArray  # true yaw rate, rad/s
+    cmd_v: FloatArray
+    cmd_omega: FloatArray
+    v_ref_left: FloatArray
+    v_ref_right: FloatArray
+    v_wheel_left: FloatArray  # measured (encoder) wheel surface speed, m/s
+    v_wheel_right: FloatArray
+    slip_left: FloatArray
+    slip_right: FloatArray
+    u_left: FloatArray  # pump command after the safety clamp, RPM
+    u_right: FloatArray
+    funnel: FloatArray  # o(t) of the left side, m/s (equal to the right's unless anchored per step)
+    events: list[dict[str, Any]] = field(default_factory=list)  # safety stops
     completed: bool = False
     completion_time_s: float = float("nan")  # when pure pursuit declared the goal reached
-    waypoints: np.ndarray | None = None
-    funnel_right: np.ndarray | None = None  # o(t) of the right side, m/s (None: same as `funnel`)
+    waypoints: FloatArray | None = None
+    funnel_right: FloatArray | None = None  # o(t) of the right side, m/s (None: same as `funnel`)
 
-    def funnel_of(self, side: str) -> np.ndarray:
+    def funnel_of(self, side: str) -> FloatArray:
         return self.funnel_right if side == "right" and self.funnel_right is not None else self.funnel
 
 
-@njit(cache=True)
-def _simulate(cid, p, centres, wp, patches, x0, y0, yaw0, dt, n_steps, pp_every, pp_args, track, chi, gain, tau,
-              delay_steps, dz, noise, accel_lim, deriv_tau, seed, record_every, linger_steps):
-    np.random.seed(seed)
+def plant_params(cfg: ControlConfig, robot: RobotGeometry, dt: float) -> FloatArray:
+    """Pack the drive and body model for the compiled loop (delays in whole periods of dt s)."""
+    pl = cfg.plant
+    p = np.zeros(PL_SIZE)
+    p[PL_GAIN_L] = p[PL_GAIN_R] = pl.gain_mps_per_rpm
+    p[PL_TAU_L] = p[PL_TAU_R] = pl.tau_s
+    p[PL_DELAY_L] = p[PL_DELAY_R] = int(round(pl.delay_s / dt))
+    p[PL_DZ_L] = p[PL_DZ_R] = pl.dead_band_rpm
+    p[PL_CHI] = pl.icr_expansion
+    p[PL_NOISE] = pl.speed_noise_mps
+    p[PL_TRACK] = robot.track_width_m
+    return p
+
+
+@kernel
+def _record(row: FloatArray, t: float, x: float, y: float, yaw: float, v_body: float, w_body: float,
+            cmd_v: float, cmd_w: float, ref_l: float, ref_r: float, meas_l: float, meas_r: float,
+            s_l: float, s_r: float, u_l: float, u_r: float, o_l: float, o_r: float) -> None:
+    row[CH_T], row[CH_X], row[CH_Y], row[CH_YAW], row[CH_V], row[CH_OMEGA] = t, x, y, yaw, v_body, w_body
+    row[CH_CMD_V], row[CH_CMD_OMEGA], row[CH_REF_L], row[CH_REF_R] = cmd_v, cmd_w, ref_l, ref_r
+    row[CH_MEAS_L], row[CH_MEAS_R], row[CH_SLIP_L], row[CH_SLIP_R] = meas_l, meas_r, s_l, s_r
+    row[CH_U_L], row[CH_U_R], row[CH_FUNNEL_L], row[CH_FUNNEL_R] = u_l, u_r, o_l, o_r
+
+
+@kernel
+def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patches: FloatArray,
+              pp_params: FloatArray, plant: FloatArray,
+              run: FloatArray) -> tuple[FloatArray, FloatArray, bool, int]:
+    """The compiled loop. Returns (recorded channels (n, N_OUT), safety stops per side (2, 2):
+    time s and cause (1 = barrier or non-finite), -1 when none; done; step index of the goal or -1)."""
+    dt = run[RUN_DT]
+    n_steps, pp_every = int(run[RUN_STEPS]), int(run[RUN_PP_EVERY])
+    record_every, linger_steps = int(run[RUN_RECORD_EVERY]), int(run[RUN_LINGER])
+    accel_lim, deriv_tau = run[RUN_ACCEL_LIMIT], run[RUN_DERIV_TAU]
+    np.random.seed(int(run[RUN_SEED]))
+    track, noise = plant[PL_TRACK], plant[PL_NOISE]
+    delay_l, delay_r = int(plant[PL_DELAY_L]), int(plant[PL_DELAY_R])
     n_rec = n_steps // record_every + 1
     out = np.zeros((n_rec, N_OUT))
-    stops = np.full((2, 2), -1.0)  # per side: (time, cause 1=barrier/non-finite)
+    stops = np.full((2, 2), -1.0)
     state_l = np.zeros(STATE_SIZE)
     state_r = np.zeros(STATE_SIZE)
-    buf_l = np.zeros(delay_steps + 1)
-    buf_r = np.zeros(delay_steps + 1)
-    a = math.exp(-dt / tau)
-    x, y, yaw = x0, y0, yaw0
+    buf_l = np.zeros(delay_l + 1)
+    buf_r = np.zeros(delay_r + 1)
+    a_l = math.exp(-dt / plant[PL_TAU_L])
+    a_r = math.exp(-dt / plant[PL_TAU_R])
+    x, y, yaw = run[RUN_X0], run[RUN_Y0], run[RUN_YAW0]
     v_body, w_body = 0.0, 0.0
     vw_l, vw_r = 0.0, 0.0
     ref_l, ref_r = 0.0, 0.0
@@ -87,10 +134,7 @@ def _simulate(cid, p, centres, wp, patches, x0, y0, yaw0, dt, n_steps, pp_every,
     for k in range(n_steps):
         t = k * dt
         if k % pp_every == 0 and not done:
-            cmd_v, cmd_w, idx, done, _, _ = pp_step(
-                x, y, yaw, v_body, wp, idx, pp_args[0], pp_args[1], pp_args[2], pp_args[3], track,
-                pp_args[4] > 0.5, pp_args[5] > 0.5, int(pp_args[6]), pp_args[7], pp_args[8], pp_args[9],
-                pp_args[10] > 0.5, pp_args[11], pp_args[12], pp_args[13])
+            cmd_v, cmd_w, idx, done, _, _ = pp_step(x, y, yaw, v_body, wp, idx, pp_params)
             if done:
                 cmd_v, cmd_w = 0.0, 0.0
                 done_at = k
@@ -115,32 +159,30 @@ def _simulate(cid, p, centres, wp, patches, x0, y0, yaw0, dt, n_steps, pp_every,
             if not ok:
                 stopped_r = True
                 stops[1, 0], stops[1, 1] = t, 1.0
-        # transport delay (ring buffer), dead band, lag, slip
-        slot = k % (delay_steps + 1)
-        ul_del, ur_del = buf_l[slot], buf_r[slot]
-        buf_l[slot], buf_r[slot] = u_l, u_r
+        # transport delay (ring buffers), dead band, lag, slip
+        slot_l, slot_r = k % (delay_l + 1), k % (delay_r + 1)
+        ul_del, ur_del = buf_l[slot_l], buf_r[slot_r]
+        buf_l[slot_l], buf_r[slot_r] = u_l, u_r
         cy, sy = math.cos(yaw), math.sin(yaw)
         s_l = slip_at(x - half * sy, y + half * cy, patches)
         s_r = slip_at(x + half * sy, y - half * cy, patches)
-        vw_l = drive_step(vw_l, ul_del, s_l, gain, a, dz)
-        vw_r = drive_step(vw_r, ur_del, s_r, gain, a, dz)
-        x, y, yaw, v_body, w_body = body_step(x, y, yaw, (1.0 - s_l) * vw_l, (1.0 - s_r) * vw_r, track * chi, dt)
+        vw_l = drive_step(vw_l, ul_del, s_l, plant[PL_GAIN_L], a_l, plant[PL_DZ_L])
+        vw_r = drive_step(vw_r, ur_del, s_r, plant[PL_GAIN_R], a_r, plant[PL_DZ_R])
+        x, y, yaw, v_body, w_body = body_step(x, y, yaw, (1.0 - s_l) * vw_l, (1.0 - s_r) * vw_r,
+                                              track * plant[PL_CHI], dt)
         if k % record_every == 0:
             o_l, _ = funnel_at(state_l, p, t)
             o_r, _ = funnel_at(state_r, p, t)
-            row = out[k_rec]
-            row[0], row[1], row[2], row[3], row[4], row[5] = t, x, y, yaw, v_body, w_body
-            row[6], row[7], row[8], row[9] = cmd_v, cmd_w, ref_l, ref_r
-            row[10], row[11], row[12], row[13] = meas_l, meas_r, s_l, s_r
-            row[14], row[15], row[16], row[17] = u_l, u_r, o_l, o_r
+            _record(out[k_rec], t, x, y, yaw, v_body, w_body, cmd_v, cmd_w, ref_l, ref_r, meas_l, meas_r,
+                    s_l, s_r, u_l, u_r, o_l, o_r)
             k_rec += 1
         if done_at >= 0 and k - done_at >= linger_steps:
             break
     return out[:k_rec], stops, done, done_at
 
 
-def run_closed_loop(scenario: Scenario | np.ndarray, cfg: ControlConfig, robot: RobotConfig, controller: str = "raid",
-                    *, duration_s: float | None = None, seed: int | None = None,
+def run_closed_loop(scenario: Scenario | FloatArray, cfg: ControlConfig, robot: RobotGeometry,
+                    controller: str = "raid", *, duration_s: float | None = None, seed: int | None = None,
                     record_every: int = 1) -> ClosedLoopTrace:
     """Drive `scenario` (or bare waypoints (N, 2) m, no slip) with `controller` at cfg.rate_hz
     until the path is done (plus 2 s) or `duration_s` has passed. Deterministic for a seed."""
@@ -153,25 +195,35 @@ def run_closed_loop(scenario: Scenario | np.ndarray, cfg: ControlConfig, robot: 
     path_len = float(np.sum(np.linalg.norm(np.diff(scenario.waypoints_xy, axis=0), axis=1)))
     if duration_s is None:  # time to drive the path at a fraction of the desired speed, generous
         duration_s = 3.0 * path_len / max(pp.desired_speed_mps, 0.05) + 10.0
-    n_steps = int(round(duration_s / dt))
-    pp_args = np.array([pp.lookahead_m, pp.desired_speed_mps, pp.max_speed_mps, robot.max_speed_mps,
-                        1.0 if pp.curvature == "paper_literal" else 0.0, 1.0 if pp.speed_cap else 0.0,
-                        float(pp.search_window), pp.goal_tolerance_m, pp.approach_distance_m,
-                        pp.min_approach_speed_mps, 1.0 if pp.velocity_scaled_lookahead else 0.0,
-                        pp.lookahead_time_s, pp.lookahead_min_m, pp.lookahead_max_m])
-    pl = cfg.plant
-    x0, y0, yaw0 = scenario.start_pose
+    run = np.zeros(RUN_SIZE)
+    run[RUN_DT] = dt
+    run[RUN_STEPS] = int(round(duration_s / dt))
+    run[RUN_PP_EVERY] = max(1, int(round(cfg.rate_hz / pp.rate_hz)))
+    run[RUN_RECORD_EVERY] = max(1, int(record_every))
+    run[RUN_LINGER] = int(round(2.0 / dt))
+    run[RUN_X0], run[RUN_Y0], run[RUN_YAW0] = scenario.start_pose
+    run[RUN_ACCEL_LIMIT] = cfg.kinematics.reference_accel_limit_mps2
+    run[RUN_DERIV_TAU] = cfg.kinematics.reference_derivative_tau_s
+    run[RUN_SEED] = cfg.seed if seed is None else seed
     out, stops, done, done_at = _simulate(
         CONTROLLER_ID[controller], controller_params(controller, cfg), rbf_centres(cfg),
         np.ascontiguousarray(scenario.waypoints_xy, dtype=np.float64), patches_array(list(scenario.slip_patches)),
-        x0, y0, yaw0, dt, n_steps, max(1, int(round(cfg.rate_hz / pp.rate_hz))), pp_args, robot.track_width_m,
-        pl.icr_expansion, pl.gain_mps_per_rpm, pl.tau_s, int(round(pl.delay_s / dt)), pl.dead_band_rpm,
-        pl.speed_noise_mps, cfg.kinematics.reference_accel_limit_mps2, cfg.kinematics.reference_derivative_tau_s,
-        cfg.seed if seed is None else seed, max(1, int(record_every)), int(round(2.0 / dt)))
-    cols = out.T
-    events = [{"t_s": float(stops[i, 0]), "kind": "safety_stop", "side": side, "cause": "barrier_or_non_finite",
-               "message": f"{side} side: |e| reached the funnel o(t) or a value became non-finite; command set to 0"}
-              for i, side in enumerate(("left", "right")) if stops[i, 0] >= 0]
-    return ClosedLoopTrace(controller, LABELS[controller], *cols[:17], events=events, completed=bool(done),
-                           completion_time_s=done_at * dt if done else float("nan"),
-                           waypoints=scenario.waypoints_xy, funnel_right=cols[17])
+        pure_pursuit_params(pp, robot.track_width_m, robot.max_speed_mps), plant_params(cfg, robot, dt), run)
+    return _trace(controller, out, stops, bool(done), done_at * dt if done else float("nan"), scenario)
+
+
+def _trace(controller: str, out: FloatArray, stops: FloatArray, done: bool, completion_time_s: float,
+           scenario: Scenario) -> ClosedLoopTrace:
+    """The compiled loop's output as a trace, channel by channel."""
+    events: list[dict[str, Any]] = [
+        {"t_s": float(stops[i, 0]), "kind": "safety_stop", "side": side, "cause": "barrier_or_non_finite",
+         "message": f"{side} side: |e| reached the funnel o(t) or a value became non-finite; command set to 0"}
+        for i, side in enumerate(("left", "right")) if stops[i, 0] >= 0]
+    c = out.T
+    return ClosedLoopTrace(
+        controller=controller, label=LABELS[controller], t=c[CH_T], x=c[CH_X], y=c[CH_Y], yaw=c[CH_YAW],
+        v=c[CH_V], omega=c[CH_OMEGA], cmd_v=c[CH_CMD_V], cmd_omega=c[CH_CMD_OMEGA],
+        v_ref_left=c[CH_REF_L], v_ref_right=c[CH_REF_R], v_wheel_left=c[CH_MEAS_L], v_wheel_right=c[CH_MEAS_R],
+        slip_left=c[CH_SLIP_L], slip_right=c[CH_SLIP_R], u_left=c[CH_U_L], u_right=c[CH_U_R],
+        funnel=c[CH_FUNNEL_L], funnel_right=c[CH_FUNNEL_R], events=events, completed=done,
+        completion_time_s=completion_time_s, waypoints=scenario.waypoints_xy)

@@ -7,9 +7,23 @@ and its default documented; reports print the effective values.
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
+from typing import Literal, Protocol
 
 from mrnc_eval.params import param, section
+
+
+class RobotGeometry(Protocol):
+    """What the control chain needs to know about the machine (the config's robot section has it)."""
+
+    @property
+    def track_width_m(self) -> float:
+        """Effective track Lr used by inverse kinematics, m."""
+        ...
+
+    @property
+    def max_speed_mps(self) -> float:
+        """Top forward speed of the machine, m/s (the pure pursuit speed cap)."""
+        ...
 
 
 @dataclass(frozen=True)

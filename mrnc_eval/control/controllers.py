@@ -11,11 +11,11 @@ e = v - v_ref (paper), the baselines r - y. Stand-ins are labelled as such every
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
 from mrnc_eval.control.apc import apc_params, mfapc_step
 from mrnc_eval.control.config import ControlConfig
 from mrnc_eval.control.foptc import foptc_params, foptc_step
+from mrnc_eval.control.jit_cache import FloatArray, kernel
 from mrnc_eval.control.pid import pid_params, pid_step
 from mrnc_eval.control.raid import funnel, raid_params, raid_step, rbf_centres
 
@@ -40,7 +40,7 @@ S_SEG_START, S_LAST_REF, S_HELD, S_NEXT_UPDATE, S_INIT = range(LAW_SLOTS, LAW_SL
 STATE_SIZE = LAW_SLOTS + 5
 
 
-def controller_params(name: str, cfg: ControlConfig) -> np.ndarray:
+def controller_params(name: str, cfg: ControlConfig) -> FloatArray:
     """Pack the configuration of one law into a float vector for the compiled kernels."""
     if name not in _PARAMS:
         raise ValueError(f"unknown controller {name!r}; choose from {', '.join(CONTROLLERS)}")
@@ -51,15 +51,16 @@ def controller_params(name: str, cfg: ControlConfig) -> np.ndarray:
     return np.asarray(common + _PARAMS[name](cfg), dtype=np.float64)
 
 
-@njit(cache=True)
-def funnel_at(state, p, t):
+@kernel
+def funnel_at(state: FloatArray, p: FloatArray, t: float) -> tuple[float, float]:
     """o(t), do/dt of this side's funnel, anchored at run start or at the last reference step."""
     t0 = state[S_SEG_START] if p[P_ANCHOR] > 0.5 else 0.0
     return funnel(t - t0, p[P_OOV], p[P_OB], p[P_OSTAR])
 
 
-@njit(cache=True)
-def controller_step(cid, state, p, centres, t, v_ref, vdot_ref, v_meas, dt):
+@kernel
+def controller_step(cid: int, state: FloatArray, p: FloatArray, centres: FloatArray, t: float, v_ref: float,
+                    vdot_ref: float, v_meas: float, dt: float) -> tuple[float, bool]:
     """One control period of law `cid` for one side: (pump command RPM after the clamp, ok).
     ok is False on a RAID safety stop (barrier reached or non-finite); the command is then 0."""
     u_ff = p[P_FF] * v_ref

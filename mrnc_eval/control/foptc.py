@@ -11,22 +11,24 @@ the clamp; without it the integral winds up against the 1250 RPM limit.
 
 from __future__ import annotations
 
-from numba import njit
-
 from mrnc_eval.control.config import ControlConfig
+from mrnc_eval.control.jit_cache import FloatArray, kernel
 
 
-@njit(cache=True)
-def foptc_step(state, k0, c_h, horizon, freeze, ki, tau_hat, k_hat, anti_windup, t_seg, err, u_ff, u_min, u_max, dt):
+@kernel
+def foptc_step(state: FloatArray, k0: float, c_h: float, horizon: float, freeze: float, ki: float, tau_hat: float,
+               k_hat: float, anti_windup: bool, t_seg: float, err: float, u_ff: float, u_min: float, u_max: float,
+               dt: float) -> float:
     """state = [integral m/s]. t_seg: time since the segment (reference step) started, s."""
     ts = min(t_seg, horizon - freeze)
     g = k0 + c_h / (horizon - ts)
     scale = tau_hat / k_hat
     integral = state[0] + ki * err * dt
-    u_fb = scale * (g * err + integral)
+    held: float = state[0]
+    u_fb: float = scale * (g * err + integral)
     total = u_ff + u_fb
     if anti_windup and ((total > u_max and err > 0.0) or (total < u_min and err < 0.0)):
-        return scale * (g * err + state[0])  # clamped and pushing further: hold the integral
+        return scale * (g * err + held)  # clamped and pushing further: hold the integral
     state[0] = integral
     return u_fb
 

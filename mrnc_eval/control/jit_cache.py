@@ -1,4 +1,5 @@
-"""Keep numba's on-disk cache of the control kernels consistent with their sources.
+"""The compiled-kernel decorator of the control package, and keeping numba's on-disk cache of
+those kernels consistent with their sources.
 
 numba invalidates a cached function only when its own file changes; the closed loop inlines
 kernels from other modules (raid.py, plant.py, ...), so editing one of those would silently
@@ -9,7 +10,23 @@ cache files when the hash differs from the one recorded beside them.
 from __future__ import annotations
 
 import hashlib
+from collections.abc import Callable
 from pathlib import Path
+from typing import Any, TypeVar, cast
+
+import numpy as np
+from numba import njit
+from numpy.typing import NDArray
+
+FloatArray = NDArray[np.float64]
+F = TypeVar("F", bound=Callable[..., Any])
+
+
+def kernel(fn: F) -> F:
+    """numba.njit(cache=True) that keeps the function's signature for the type checker (numba
+    ships no type information, so a bare @njit would make every kernel untyped)."""
+    return cast(F, njit(cache=True)(fn))
+
 
 _HERE = Path(__file__).parent
 _STAMP = "control-sources.sha256"

@@ -2,17 +2,17 @@
 
 from __future__ import annotations
 
-from numba import njit
+from mrnc_eval.control.jit_cache import kernel
 
 
-@njit(cache=True)
+@kernel
 def inverse_kinematics(v: float, omega: float, track: float) -> tuple[float, float]:
     """(v_left, v_right) in m/s for body speed v (m/s), yaw rate omega (rad/s), track Lr (m)."""
     half = 0.5 * omega * track
     return v - half, v + half
 
 
-@njit(cache=True)
+@kernel
 def slew(previous: float, target: float, max_rate: float, dt: float) -> float:
     """Rate-limit a reference (max_rate in units per second; <= 0 disables)."""
     if max_rate <= 0.0:

@@ -8,22 +8,22 @@ back-calculation I += dt (ki err + (u_sat - u) / T_t), conditional integration
 
 from __future__ import annotations
 
-from numba import njit
-
 from mrnc_eval.control.config import ControlConfig
+from mrnc_eval.control.jit_cache import FloatArray, kernel
 
 ANTI_WINDUP = {"back_calculation": 0, "conditional": 1, "none": 2}
 
 
-@njit(cache=True)
-def pid_step(state, kp, ki, kd, mode, tt, err, u_ff, u_min, u_max, dt):
+@kernel
+def pid_step(state: FloatArray, kp: float, ki: float, kd: float, mode: int, tt: float, err: float, u_ff: float,
+             u_min: float, u_max: float, dt: float) -> float:
     """state = [integral RPM, previous error, initialised]. Returns u_fb (RPM)."""
     if state[2] == 0.0:
         state[1] = err
         state[2] = 1.0
     deriv = (err - state[1]) / dt
     state[1] = err
-    u_unsat = kp * err + state[0] + kd * deriv
+    u_unsat: float = kp * err + state[0] + kd * deriv
     total = u_ff + u_unsat
     sat = min(max(total, u_min), u_max)
     if mode == 0:

@@ -13,7 +13,8 @@ import math
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
+
+from mrnc_eval.control.jit_cache import FloatArray, kernel
 
 
 @dataclass(frozen=True)
@@ -24,12 +25,12 @@ class SlipPatch:
     slip: float
 
 
-def patches_array(patches: list[SlipPatch]) -> np.ndarray:
+def patches_array(patches: list[SlipPatch]) -> FloatArray:
     return np.asarray([[p.x, p.y, p.radius_m, p.slip] for p in patches], dtype=np.float64).reshape(-1, 4)
 
 
-@njit(cache=True)
-def slip_at(x: float, y: float, patches: np.ndarray) -> float:
+@kernel
+def slip_at(x: float, y: float, patches: FloatArray) -> float:
     s = 0.0
     for k in range(patches.shape[0]):
         if (x - patches[k, 0]) ** 2 + (y - patches[k, 1]) ** 2 <= patches[k, 2] ** 2:
@@ -37,7 +38,7 @@ def slip_at(x: float, y: float, patches: np.ndarray) -> float:
     return s
 
 
-@njit(cache=True)
+@kernel
 def dead_band(u: float, width: float) -> float:
     if u > width:
         return u - width
@@ -46,14 +47,16 @@ def dead_band(u: float, width: float) -> float:
     return 0.0
 
 
-@njit(cache=True)
+@kernel
 def drive_step(v_wheel: float, u_delayed: float, slip: float, gain: float, a: float, dz: float) -> float:
     """Wheel surface speed (m/s) after one period."""
     return a * v_wheel + (1.0 - a) * gain * (1.0 - slip) * dead_band(u_delayed, dz)
 
 
-@njit(cache=True)
-def body_step(x, y, yaw, vg_left, vg_right, track_eff, dt):
+@kernel
+def body_step(x: float, y: float, yaw: float, vg_left: float, vg_right: float, track_eff: float,
+              dt: float) -> tuple[float, float, float, float, float]:
+    """Pose (x m, y m, yaw rad) after dt s on the ground speeds of both sides (m/s), and (v m/s, omega rad/s)."""
     v = 0.5 * (vg_left + vg_right)
     w = (vg_right - vg_left) / track_eff
     # exact integration of a constant-twist arc over dt

@@ -18,20 +18,20 @@ from __future__ import annotations
 import math
 
 import numpy as np
-from numba import njit
 
 from mrnc_eval.control.config import ControlConfig
+from mrnc_eval.control.jit_cache import FloatArray, kernel
 
 
-@njit(cache=True)
+@kernel
 def funnel(t: float, o_ov: float, o_b: float, o_star: float) -> tuple[float, float]:
     """o(t) (m/s) and do/dt (m/s^2) for t >= 0 in seconds and o* in 1/s."""
     ex = (o_ov - o_b) * math.exp(-o_star * t)
     return ex + o_b, -o_star * ex
 
 
-@njit(cache=True)
-def rbf_norms(v: float, centres: np.ndarray, gamma: float) -> tuple[float, float]:
+@kernel
+def rbf_norms(v: float, centres: FloatArray, gamma: float) -> tuple[float, float]:
     """(||Phi(v)||, ||Phi(v)||^2) of the Gaussian RBF layer."""
     norm2 = 0.0
     for k in range(centres.size):
@@ -40,8 +40,9 @@ def rbf_norms(v: float, centres: np.ndarray, gamma: float) -> tuple[float, float
     return math.sqrt(norm2), norm2
 
 
-@njit(cache=True)
-def raid_step(state, centres, gamma, beta, kappa, scale, e, o, odot, vdot_ref, v_meas, dt):
+@kernel
+def raid_step(state: FloatArray, centres: FloatArray, gamma: float, beta: float, kappa: float, scale: float,
+              e: float, o: float, odot: float, vdot_ref: float, v_meas: float, dt: float) -> tuple[float, bool]:
     """RAID feedback in RPM (scale RPM per law unit). state[0] = phi, advanced by one period.
     Returns (u_fb, ok); ok is False at or beyond the barrier or on non-finite values
     (then phi is left unchanged and u_fb = 0)."""
@@ -65,6 +66,6 @@ def raid_params(cfg: ControlConfig) -> list[float]:
     return [r.gamma, r.beta, r.kappa, r.feedback_scale_rpm, r.phi0]
 
 
-def rbf_centres(cfg: ControlConfig) -> np.ndarray:
+def rbf_centres(cfg: ControlConfig) -> FloatArray:
     """alpha = 2 rand - 1 (uniform in [-1, 1] m/s), seeded with raid.centre_seed (printed in reports)."""
     return 2.0 * np.random.default_rng(cfg.raid.centre_seed).random(cfg.raid.n_neurons) - 1.0

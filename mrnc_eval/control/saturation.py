@@ -7,7 +7,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 
-def clamp(u: NDArray[np.float64] | float, u_min: float, u_max: float):
+def clamp(u: NDArray[np.float64] | float, u_min: float, u_max: float) -> NDArray[np.float64]:
     return np.clip(u, u_min, u_max)
 
 

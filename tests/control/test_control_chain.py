@@ -11,10 +11,10 @@ import pytest
 
 from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import run_closed_loop
-from mrnc_eval.control.config import ActuatorConfig, FunnelConfig, MetricsConfig
+from mrnc_eval.control.config import ActuatorConfig, FunnelConfig, MetricsConfig, PurePursuitConfig
 from mrnc_eval.control.controllers import make_controller
 from mrnc_eval.control.plant import body_step, drive_step
-from mrnc_eval.control.pure_pursuit import PurePursuit, pp_step
+from mrnc_eval.control.pure_pursuit import PurePursuit, pp_step, pure_pursuit_params
 from mrnc_eval.control.scenario import paper_circle_scenario, scripted_scenario
 from mrnc_eval.evaluation.control_metrics import cross_track, recovery_time, tracking_metrics
 
@@ -52,8 +52,9 @@ def test_body_step_drives_the_icr_circle() -> None:
 # ---- pure pursuit ------------------------------------------------------------------------
 
 def _pp(x, y, yaw, wp, literal, L=1.0):
-    return pp_step(x, y, yaw, 0.0, np.asarray(wp, float), 0, L, 0.38, 10.0, 10.0, 1.6, literal, False, 3,
-                   0.25, 0.0, 0.05, False, 2.6, 0.6, 1.5)
+    cfg = PurePursuitConfig(lookahead_m=L, max_speed_mps=10.0, curvature="paper_literal" if literal else "standard",
+                            speed_cap=False, approach_distance_m=0.0)
+    return pp_step(x, y, yaw, 0.0, np.asarray(wp, float), 0, pure_pursuit_params(cfg, 1.6, 10.0))
 
 
 def test_curvature_standard_and_paper_literal() -> None:
