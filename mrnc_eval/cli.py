@@ -131,12 +131,13 @@ def slam(
         typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout."),
     ],
     method: Annotated[
-        str,
-        typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra)."),
-    ] = "lio",
+        str | None,
+        typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra); "
+                     "sets slam.method (default lio)."),
+    ] = None,
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
-    no_loop: Annotated[bool, typer.Option("--no-loop", help="Disable loop closure.")] = False,
-    no_gps: Annotated[bool, typer.Option("--no-gps", help="Do not add GNSS factors.")] = False,
+    no_loop: Annotated[bool, typer.Option("--no-loop", help="No loop closure (sets slam.loop.enabled=false).")] = False,
+    no_gps: Annotated[bool, typer.Option("--no-gps", help="No GNSS factors (sets slam.gps.enabled=false).")] = False,
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,

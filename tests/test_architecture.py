@@ -29,9 +29,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
 KNOWN_WRONG_WAY: dict[tuple[str, str], str] = {
     ("mrnc_eval.evaluation.comparison", "mrnc_eval.results"): "Table/Cell live beside the folder writer",
 }
-KNOWN_CYCLES: dict[frozenset[str], str] = {
-    frozenset({"mrnc_eval.slam.gnss", "mrnc_eval.slam.replay"}): "SlamEvent defined in replay, used by gnss",
-}
+KNOWN_CYCLES: dict[frozenset[str], str] = {}
 
 
 def module_name(path: Path) -> str:

@@ -3,42 +3,140 @@
 from __future__ import annotations
 
 import datetime as dt
+import json
 import logging
 import shutil
 import sys
 import tempfile
+import time
+from dataclasses import dataclass
 from pathlib import Path
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, config_hash, dump_config, replace_path
-from mrnc_eval.data import Trajectory
+from mrnc_eval.data import GnssSeries, ImuSeries, Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.io.prefetch import Prefetched
 from mrnc_eval.results import Event, Metric, RunResult, json_safe, log_id_for, write_result
-from mrnc_eval.slam.replay import STAGES, SlamOutput
+from mrnc_eval.slam.output import STAGES, SlamOutput
 
 log = logging.getLogger(__name__)
 METHODS = ("lio", "kiss-icp")
 
 
-def _ground_truth(lg, log_path: Path) -> Trajectory | None:
+@dataclass(frozen=True)
+class LogInputs:
+    """What the SLAM needs from a log besides the sweeps, read in the overview pass."""
+
+    duration_s: float
+    base_to_sensor: np.ndarray  # LiDAR pose in base_link (/tf_static), 4x4
+    imu: ImuSeries | None
+    sensor_to_imu: np.ndarray  # IMU pose in the LiDAR frame, 4x4
+    gnss: GnssSeries | None
+    ground_truth: Trajectory | None
+    antenna: np.ndarray  # GNSS antenna in base_link, m
+    antenna_in_sensor: np.ndarray  # ... in the LiDAR frame, m
+    n_sweeps: int  # LiDAR messages in the log
+
+
+def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = None, progress: bool = False,
+            log_id: str | None = None) -> RunResult:
+    """Replay `method` (default: the config's slam.method; given, it is written into the config)
+    on one log into `out_dir`; `log_id` names the log in results (default: from its file name;
+    the nightly job passes its own, unique within the night)."""
+    from mrnc_eval.io import open_log
+
+    cfg = with_method(cfg, method)
+    method = cfg.slam.method
+    wall_start = time.perf_counter()
+    result = RunResult(kind="slam", log_path=str(log_path), log_id=log_id or log_id_for(log_path),
+                       config_hash=config_hash(cfg))
+    with open_log(log_path, cfg.io) as lg:
+        if not lg.has_role("lidar"):
+            raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
+        inputs = _read_inputs(lg, log_path, cfg)
+        out = _replay(lg, inputs, cfg, progress)
+    if out.stamps.size < 2:
+        raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s)")
+    est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, method)
+    keyframes = _to_base(out.kf_stamps, out.kf_poses, inputs.base_to_sensor, f"{method} keyframes")
+    _add_events(result, out, inputs)
+    _add_run_metrics(result, out, inputs, method, time.perf_counter() - wall_start)
+    _add_trajectory_series(result, est, keyframes, float(out.stamps[0]))
+    if inputs.ground_truth is not None:
+        _add_ape(result, inputs.ground_truth, est, method, cfg, float(out.stamps[0]))
+    else:
+        result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
+    if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
+        _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method)
+    _write_files(result, out_dir, cfg, est, keyframes, out.map_points)
+    return result
+
+
+def with_method(cfg: Config, method: str | None) -> Config:
+    """The config with slam.method set to `method` (when given) and checked: one source of truth,
+    so the effective config.yaml records the method that actually ran."""
+    if method is not None:
+        cfg = replace_path(cfg, "slam.method", method)
+    if cfg.slam.method not in METHODS:
+        raise UsageError(f"--method {cfg.slam.method!r}: choose from {', '.join(METHODS)}")
+    return cfg
+
+
+def _read_inputs(lg: Any, log_path: Path, cfg: Config) -> LogInputs:
+    """IMU, GNSS, /tf_static and ground truth: the overview pass keeps them in memory."""
+    duration = lg.duration_s  # the overview pass first
+    lidar_frame = cfg.slam.sensor.lidar_frame
+    statics = lg.static_transforms()
+    frames = {c for _, c in statics} | {p for p, _ in statics}
+    base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
+    imu = lg.imu() if lg.has_role("imu") else None
+    sensor_to_imu = np.eye(4)
+    if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
+        sensor_to_imu = lg.transform(lidar_frame, imu.frame_id)
+    gnss = lg.gnss() if lg.has_role("gnss") else None
+    has_antenna = "gnss" in frames and "base_link" in frames
+    antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
+    antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
+    total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
+    return LogInputs(duration, base_to_sensor, imu, sensor_to_imu, gnss, _ground_truth(lg, log_path), antenna,
+                     antenna_in_sensor, total)
+
+
+def _ground_truth(lg: Any, log_path: Path) -> Trajectory | None:
     from mrnc_eval.io.ground_truth import gt_tum_path
     from mrnc_eval.io.trajectory_files import read_tum
 
     if lg.has_role("ground_truth"):
-        return lg.ground_truth()
+        return lg.ground_truth()  # type: ignore[no-any-return]
     beside = gt_tum_path(log_path)
     return read_tum(beside) if beside.exists() else None
 
 
-def _kiss_icp(sweeps, cfg: Config) -> SlamOutput:
-    """The peer on the same Sweep arrays: KISS-ICP's own deskew and adaptive threshold."""
-    import time
+def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutput:
+    """Run the configured method over the sweep stream; both methods read the same way (decoding
+    runs ahead in a thread; "read" = the time still waited)."""
+    from mrnc_eval.slam.replay import run_slam
 
+    lio = cfg.slam.method == "lio"
+    with progress_bar(inputs.n_sweeps, progress) as b:
+        task = b.add_task("SLAM sweeps", total=inputs.n_sweeps) if b else None
+        tick = (lambda n: b.update(task, completed=n)) if b else None
+        stream = lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s) if lio else lg.sweeps()
+        with Prefetched(stream, depth=4) as sweeps:
+            if lio:
+                return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
+                                antenna_in_sensor=inputs.antenna_in_sensor, progress=tick)
+            return _kiss_icp(sweeps, cfg)
+
+
+def _kiss_icp(sweeps: Any, cfg: Config) -> SlamOutput:
+    """The peer on the same Sweep arrays: KISS-ICP's own deskew and adaptive threshold."""
     try:
         from kiss_icp.config import load_config
         from kiss_icp.kiss_icp import KissICP
@@ -79,72 +177,19 @@ def _to_base(stamps: np.ndarray, sensor_poses: np.ndarray, base_to_sensor: np.nd
                       frame_id="map", child_frame_id="base_link")
 
 
-def _end_drift(gt: Trajectory, est: Trajectory) -> float:
-    """Distance (m) between the estimated and true last position once the first poses coincide."""
-    from mrnc_eval.evaluation.ape import ape
-
-    return float(ape(gt, est, align="origin", max_diff=0.02).errors[-1])
-
-
-def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", progress: bool = False,
-            log_id: str | None = None) -> RunResult:
-    """Replay `method` on one log into `out_dir`; `log_id` names the log in results (default:
-    from its file name; the nightly job passes its own, unique within the night)."""
-    from mrnc_eval.evaluation.ape import ape
-    from mrnc_eval.io import open_log
-    from mrnc_eval.io.trajectory_files import write_tum
-    from mrnc_eval.slam.replay import run_slam
-
-    if method not in METHODS:
-        raise UsageError(f"--method {method!r}: choose from {', '.join(METHODS)}")
-    import json
-    import time
-
-    wall_start = time.perf_counter()
-    result = RunResult(kind="slam", log_path=str(log_path), log_id=log_id or log_id_for(log_path),
-                       config_hash=config_hash(cfg))
-    with open_log(log_path, cfg.io) as lg:
-        if not lg.has_role("lidar"):
-            raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
-        duration = lg.duration_s  # the overview pass first: it keeps IMU, GNSS, TF and ground truth in memory
-        lidar_frame = cfg.slam.sensor.lidar_frame
-        statics = lg.static_transforms()
-        frames = {c for _, c in statics} | {p for p, _ in statics}
-        base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
-        imu = lg.imu() if lg.has_role("imu") else None
-        sensor_to_imu = np.eye(4)
-        if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
-            sensor_to_imu = lg.transform(lidar_frame, imu.frame_id)
-        gnss = lg.gnss() if lg.has_role("gnss") else None
-        gt = _ground_truth(lg, log_path)
-        has_antenna = "gnss" in frames and "base_link" in frames
-        antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
-        antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
-        total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
-        with progress_bar(total, progress) as b:
-            task = b.add_task("SLAM sweeps", total=total) if b else None
-            tick = (lambda n: b.update(task, completed=n)) if b else None
-            # both methods read the same way: decoding runs ahead in a thread ("read" = time still waited)
-            stream = lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s) if method == "lio" else lg.sweeps()
-            with Prefetched(stream, depth=4) as sweeps:
-                if method == "lio":
-                    out = run_slam(sweeps, imu, cfg.slam, sensor_to_imu=sensor_to_imu, gnss=gnss,
-                                   antenna_in_sensor=antenna_in_sensor, progress=tick)
-                else:
-                    out = _kiss_icp(sweeps, cfg)
-    if out.stamps.size < 2:
-        raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s)")
-    est = _to_base(out.stamps, out.poses, base_to_sensor, method)
-    keyframes = _to_base(out.kf_stamps, out.kf_poses, base_to_sensor, f"{method} keyframes")
+def _add_events(result: RunResult, out: SlamOutput, inputs: LogInputs) -> None:
     result.warnings += out.warnings
-    if imu is None:
+    if inputs.imu is None:
         result.warnings.append("log has no IMU topic")
     t_start = float(out.stamps[0])
     for e in out.events:
         result.events.append(Event(e.t - t_start, e.kind, e.message, e.data))
-    # ---- metrics
+
+
+def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, total_s: float) -> None:
+    """Real-time factors, counts, per-stage timing and run details."""
+    duration = inputs.duration_s
     rtf = duration / out.wall_s if out.wall_s > 0 else float("inf")
-    total_s = time.perf_counter() - wall_start
     result.metrics += [Metric("rtf", rtf, "", "slam", lower_is_better=False,
                               note="log duration / wall time of the SLAM over the sweep stream (decoding included)"),
                        Metric("rtf_end_to_end", duration / total_s, "", "slam", lower_is_better=False,
@@ -153,110 +198,154 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str = "lio", 
                        Metric("keyframes", int(out.kf_stamps.size), "", "slam"),
                        Metric("loop_closures", sum(e.kind == "loop_closure" for e in out.events), "", "slam"),
                        Metric("degeneracy_events", sum(e.kind == "degeneracy" for e in out.events), "", "slam")]
-    timing = {}
-    first_ms = float(sum(v[0] for v in out.timing_ms.values() if v))
-    for stage in STAGES:  # the first sweep is left out: on a fresh install it includes numba's one-off compilation
-        vals = np.asarray(out.timing_ms[stage][1:] or out.timing_ms[stage] or [0.0])
-        timing[stage] = {"mean": float(vals.mean()), "p95": float(np.percentile(vals, 95)), "max": float(vals.max())}
+    timing = _stage_timing(out)
+    for stage in STAGES:
         result.metrics.append(Metric(f"ms_per_sweep_{stage}", timing[stage]["mean"], "ms", "slam/timing"))
     result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
-                         "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s, "first_sweep_ms": first_ms,
+                         "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
+                         "first_sweep_ms": float(sum(v[0] for v in out.timing_ms.values() if v)),
                          "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
                          "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static)",
                                     "stamps": "sweep header stamps (sweep start)"}})
+    if method == "lio" and inputs.imu is not None and inputs.imu.orientation_xyzw is None:
+        result.extra["notes"] = ["6-axis IMU (no orientation): the 9-axis roll/pitch blend "
+                                 "(slam.imu.rpy_weight) does not apply"]
+
+
+def _stage_timing(out: SlamOutput) -> dict[str, dict[str, float]]:
+    """Mean, p95 and max ms per stage; the first sweep is left out: on a fresh install it includes
+    numba's one-off compilation."""
+    timing = {}
+    for stage in STAGES:
+        vals = np.asarray(out.timing_ms[stage][1:] or out.timing_ms[stage] or [0.0])
+        timing[stage] = {"mean": float(vals.mean()), "p95": float(np.percentile(vals, 95)), "max": float(vals.max())}
+    return timing
+
+
+def _add_trajectory_series(result: RunResult, est: Trajectory, keyframes: Trajectory, t_start: float) -> None:
     result.series["est_t"] = est.stamps - t_start
     result.series["est_xyz"] = est.positions
     result.series["kf_xyz"] = keyframes.positions
-    if gt is not None:
-        try:
-            r = ape(gt, est, align="se3", max_diff=0.02)
-            result.metrics += [Metric("ape_rmse_m", r.stats["rmse"], "m", "slam/ape"),
-                               Metric("ape_mean_m", r.stats["mean"], "m", "slam/ape"),
-                               Metric("ape_max_m", r.stats["max"], "m", "slam/ape"),
-                               Metric("ape_n", r.n, "", "slam/ape"), Metric("ape_span_s", r.span_s, "s", "slam/ape"),
-                               Metric("end_drift_m", _end_drift(gt, est), "m", "slam/ape",
-                                      note="position error of the last pose with the first pose aligned to the "
-                                           "ground truth: the drift accumulated over the log")]
-            result.series["ape_t"] = r.stamps - t_start
-            result.series["ape_err_m"] = r.errors
-            result.series["ref_xyz"] = r.ref_poses[:, :3, 3]
-            result.series["est_aligned_xyz"] = r.est_poses[:, :3, 3]
-            cell = judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
-                         min_span_fraction=cfg.evaluation.failed_min_span_fraction)
-        except EvaluationError as err:
-            result.warnings.append(f"APE against ground truth failed: {err}")
-            cell = Cell(None, str(err))
-        result.tables.append(table_one({(result.log_id, method): cell}, [result.log_id], [method],
-                                       title="APE RMSE (SE(3) aligned)"))
-    else:
-        result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
-    if gnss is not None and gnss.stamps.size > 3:
-        try:
-            ref = Trajectory(gnss.stamps, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
-            shifted = Trajectory(est.stamps, est.positions + Rotation.from_quat(est.quat_xyzw).apply(antenna),
-                                 est.quat_xyzw, name=method)
-            rg = ape(ref, shifted, align="yaw", relation="point", max_diff=0.1, plane="xy")
-            result.metrics.append(Metric("ape_gnss_rmse_m", rg.stats["rmse"], "m", "slam/ape",
-                                         note="2-D, yaw + translation alignment, against GNSS in ENU"))
-        except EvaluationError as err:
-            result.warnings.append(f"APE against GNSS failed: {err}")
-    # ---- files
-    tmp = Path(tempfile.mkdtemp(prefix=".slam-files-"))
-    write_tum(tmp / "trajectory.tum", est)
-    write_tum(tmp / "keyframes.tum", keyframes)
-    files = {"trajectory.tum": tmp / "trajectory.tum", "keyframes.tum": tmp / "keyframes.tum"}
-    if out.map_points.size:
-        import open3d as o3d
 
-        pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(out.map_points))
-        for name in ("map.ply", "map.pcd"):
-            o3d.io.write_point_cloud(str(tmp / name), pc)
-            files[name] = tmp / name
-    metrics = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
-    (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")
-    files["metrics.json"] = tmp / "metrics.json"
+
+def _end_drift(gt: Trajectory, est: Trajectory) -> float:
+    """Distance (m) between the estimated and true last position once the first poses coincide."""
+    from mrnc_eval.evaluation.ape import ape
+
+    return float(ape(gt, est, align="origin", max_diff=0.02).errors[-1])
+
+
+def _add_ape(result: RunResult, gt: Trajectory, est: Trajectory, method: str, cfg: Config, t_start: float) -> None:
+    """APE (SE(3) aligned) and end drift against ground truth, and the one-cell Table I."""
+    from mrnc_eval.evaluation.ape import ape
+
     try:
+        r = ape(gt, est, align="se3", max_diff=0.02)
+        result.metrics += [Metric("ape_rmse_m", r.stats["rmse"], "m", "slam/ape"),
+                           Metric("ape_mean_m", r.stats["mean"], "m", "slam/ape"),
+                           Metric("ape_max_m", r.stats["max"], "m", "slam/ape"),
+                           Metric("ape_n", r.n, "", "slam/ape"), Metric("ape_span_s", r.span_s, "s", "slam/ape"),
+                           Metric("end_drift_m", _end_drift(gt, est), "m", "slam/ape",
+                                  note="position error of the last pose with the first pose aligned to the "
+                                       "ground truth: the drift accumulated over the log")]
+        result.series["ape_t"] = r.stamps - t_start
+        result.series["ape_err_m"] = r.errors
+        result.series["ref_xyz"] = r.ref_poses[:, :3, 3]
+        result.series["est_aligned_xyz"] = r.est_poses[:, :3, 3]
+        cell = judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
+                     min_span_fraction=cfg.evaluation.failed_min_span_fraction)
+    except EvaluationError as err:
+        result.warnings.append(f"APE against ground truth failed: {err}")
+        cell = Cell(None, str(err))
+    result.tables.append(table_one({(result.log_id, method): cell}, [result.log_id], [method],
+                                   title="APE RMSE (SE(3) aligned)"))
+
+
+def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str) -> None:
+    """2-D APE of the antenna track against the GNSS fixes (yaw + translation aligned)."""
+    from mrnc_eval.evaluation.ape import ape
+
+    try:
+        ref = Trajectory(gnss.stamps, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
+        shifted = Trajectory(est.stamps, est.positions + Rotation.from_quat(est.quat_xyzw).apply(antenna),
+                             est.quat_xyzw, name=method)
+        rg = ape(ref, shifted, align="yaw", relation="point", max_diff=0.1, plane="xy")
+        result.metrics.append(Metric("ape_gnss_rmse_m", rg.stats["rmse"], "m", "slam/ape",
+                                     note="2-D, yaw + translation alignment, against GNSS in ENU"))
+    except EvaluationError as err:
+        result.warnings.append(f"APE against GNSS failed: {err}")
+
+
+def _write_files(result: RunResult, out_dir: Path, cfg: Config, est: Trajectory, keyframes: Trajectory,
+                 map_points: np.ndarray) -> None:
+    """Trajectories (TUM), the map (PLY, PCD), metrics.json and the result, written atomically."""
+    from mrnc_eval.io.trajectory_files import write_tum
+
+    tmp = Path(tempfile.mkdtemp(prefix=".slam-files-"))
+    try:
+        write_tum(tmp / "trajectory.tum", est)
+        write_tum(tmp / "keyframes.tum", keyframes)
+        files = {"trajectory.tum": tmp / "trajectory.tum", "keyframes.tum": tmp / "keyframes.tum"}
+        if map_points.size:
+            import open3d as o3d
+
+            pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(map_points))
+            for name in ("map.ply", "map.pcd"):
+                o3d.io.write_point_cloud(str(tmp / name), pc)
+                files[name] = tmp / name
+        metrics = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
+        (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")
+        files["metrics.json"] = tmp / "metrics.json"
         write_result(result, out_dir, dump_config(cfg), files)
     finally:
         shutil.rmtree(tmp, ignore_errors=True)
-    return result
 
 
-def main(logs: list[Path], cfg: Config, *, method: str, out: Path, no_loop: bool, no_gps: bool, json_out: bool) -> None:
+def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loop: bool, no_gps: bool,
+         json_out: bool) -> None:
+    """The `slam` verb: the CLI flags set config values (slam.method, slam.loop.enabled,
+    slam.gps.enabled), which are then the one source of truth."""
     from mrnc_eval.errors import SomeInputsFailed
-    from mrnc_eval.reports.tables import render_table
 
+    cfg = with_method(cfg, method)
     if no_loop:
-        cfg = replace_path(cfg, "slam.use_loop_closure", False)
+        cfg = replace_path(cfg, "slam.loop.enabled", False)
     if no_gps:
-        cfg = replace_path(cfg, "slam.use_gps", False)
+        cfg = replace_path(cfg, "slam.gps.enabled", False)
     stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
     results, failed, cells = [], [], {}
     for path in logs:
-        run_dir = out / f"{log_id_for(path)}-slam-{method}-{stamp}"
+        run_dir = out / f"{log_id_for(path)}-slam-{cfg.slam.method}-{stamp}"
         try:
-            r = run_log(path, cfg, run_dir, method=method, progress=True)
+            r = run_log(path, cfg, run_dir, progress=True)
         except InputError as err:
             if len(logs) == 1:
                 raise
             failed.append((path, str(err)))
-            cells[(log_id_for(path), method)] = Cell(None, str(err))
+            cells[(log_id_for(path), cfg.slam.method)] = Cell(None, str(err))
             continue
         results.append((run_dir, r))
         m = r.metric("ape_rmse_m")
-        cells[(r.log_id, method)] = Cell(m.value if m else None, "" if m else "no ground truth")
+        cells[(r.log_id, cfg.slam.method)] = Cell(m.value if m else None, "" if m else "no ground truth")
+    _print_summary(results, cells, logs, cfg.slam.method, json_out)
+    if failed:
+        raise SomeInputsFailed("; ".join(f"{p}: {e}" for p, e in failed))
+
+
+def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str, str], Cell], logs: list[Path],
+                   method: str, json_out: bool) -> None:
+    from mrnc_eval.reports.tables import render_table
+
     if json_out:
         from mrnc_eval.commands.output import emit_json
 
         emit_json([{"log": r.log_path, "run_dir": str(d), **{m.name: m.value for m in r.metrics}}
-                    for d, r in results])
-    else:
-        for d, r in results:
-            vals = {m.name: m.value for m in r.metrics}
-            ape = f"{vals['ape_rmse_m']:.4f} m" if "ape_rmse_m" in vals else "n/a (no ground truth)"
-            sys.stdout.write(f"{r.log_id}: APE RMSE {ape}, RTF {vals['rtf']:.2f}, "
-                             f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
-        if len(logs) > 1:
-            sys.stdout.write(render_table(table_one(cells, [log_id_for(p) for p in logs], [method]), "markdown"))
-    if failed:
-        raise SomeInputsFailed("; ".join(f"{p}: {e}" for p, e in failed))
+                   for d, r in results])
+        return
+    for d, r in results:
+        vals = {m.name: m.value for m in r.metrics}
+        ape = f"{vals['ape_rmse_m']:.4f} m" if "ape_rmse_m" in vals else "n/a (no ground truth)"
+        sys.stdout.write(f"{r.log_id}: APE RMSE {ape}, RTF {vals['rtf']:.2f}, "
+                         f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
+    if len(logs) > 1:
+        sys.stdout.write(render_table(table_one(cells, [log_id_for(p) for p in logs], [method]), "markdown"))

@@ -73,13 +73,20 @@ def relative(r_i: NDArray, p_i: NDArray, r_j: NDArray, p_j: NDArray) -> tuple[ND
     return np.matmul(rt, r_j), np.einsum("nij,nj->ni", rt, p_j - p_i)
 
 
+def homogeneous(r: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.float64]:
+    """(..., 3, 3) rotations and (..., 3) translations -> (..., 4, 4) poses [R t; 0 1]: the one
+    place a pose matrix is assembled (the SLAM's se3.make uses it too)."""
+    r = np.asarray(r, dtype=float)
+    out = np.zeros((*r.shape[:-2], 4, 4))
+    out[..., :3, :3] = r
+    out[..., :3, 3] = t
+    out[..., 3, 3] = 1.0
+    return out
+
+
 def poses(traj: Trajectory) -> NDArray[np.float64]:
     """(N, 4, 4) homogeneous poses of a trajectory."""
-    t = np.zeros((len(traj), 4, 4))
-    t[:, :3, :3] = quat_xyzw_to_matrix(traj.quat_xyzw)
-    t[:, :3, 3] = traj.positions
-    t[:, 3, 3] = 1.0
-    return t
+    return homogeneous(quat_xyzw_to_matrix(traj.quat_xyzw), traj.positions)
 
 
 def inverse(t: NDArray[np.float64]) -> NDArray[np.float64]:

@@ -30,7 +30,8 @@ class ImuConfig:
     gyro_bias_noise: float = param(3.5640318696367613e-05, "gyroscope bias random walk (imuGyrBiasN)", "rad/s^2")
     integration_noise: float = param(1e-4, "integration noise sigma of the preintegration")
     gravity: float = param(9.80511, "gravity magnitude (imuGravity)", "m/s^2")
-    rpy_weight: float = param(0.01, "slerp weight pulling the matched roll/pitch towards the IMU (imuRPYWeight)")
+    rpy_weight: float = param(0.01, "slerp weight pulling the matched roll/pitch towards the IMU's orientation "
+                              "(imuRPYWeight); 9-axis IMUs only: a 6-axis IMU has no orientation, the blend is off")
     extrinsic_rot: list[list[float]] | None = param(None, "3x3 rotation taking IMU-frame vectors into the "
                                                     "LiDAR frame (extrinsicRot); None = from /tf_static")
     extrinsic_trans: list[float] | None = param(None, "IMU position in the LiDAR frame (extrinsicTrans); "
@@ -63,8 +64,9 @@ class FeatureConfig:
     occlusion_jump_m: float = param(0.3, "range jump marking an occlusion", "m")
     parallel_ratio: float = param(0.02, "neighbour range differences above this fraction mark a parallel beam")
     surf_leaf_m: float = param(0.4, "voxel size of the planar cloud (odometrySurfLeafSize)", "m")
-    smoothness: Literal["range", "xyz"] = param("range", "smoothness from ranges (LIO-SAM code) or from xyz "
-                                                "differences (the paper's formula)")
+    smoothness: Literal["range", "paper"] = param(
+        "range", "range: LIO-SAM's code, (sum of 10 neighbour ranges - 10 r)^2 in m^2; paper: the paper's (LOAM's) "
+        "formula |sum(p - p_u)| / (10 |p|), dimensionless, so edge/surf thresholds must be set for its scale")
 
 
 @dataclass(frozen=True)
@@ -108,14 +110,14 @@ class GraphConfig:
 
 @dataclass(frozen=True)
 class LoopConfig:
-    enabled: bool = param(True, "radius-search loop closure (loopClosureEnableFlag)")
+    enabled: bool = param(True, "radius-search loop closure (loopClosureEnableFlag); the CLI's --no-loop sets it "
+                          "to false")
     search_radius_m: float = param(15.0, "candidate keyframes within this (historyKeyframeSearchRadius)", "m")
     time_gap_s: float = param(30.0, "... and older than this (historyKeyframeSearchTimeDiff)", "s")
     neighbours: int = param(25, "submap of +/- this many keyframes (historyKeyframeSearchNum)")
     fitness_threshold_m2: float = param(0.3, "accept ICP if mean squared NN distance below "
                                         "(historyKeyframeFitnessScore)", "m^2")
     icp_max_correspondence_m: float = param(30.0, "ICP max correspondence distance (first stage)", "m")
-    every_n_keyframes: int = param(1, "try a loop closure every n keyframes (LIO-SAM: a 1 Hz thread)")
     interval_s: float = param(1.0, "at most one loop search per this much log time (loopClosureFrequency 1 Hz)", "s")
     leaf_m: float = param(0.4, "voxel size of the loop source and target clouds", "m")
     min_source_points: int = param(300, "skip the check with a smaller source cloud")
@@ -125,7 +127,7 @@ class LoopConfig:
 
 @dataclass(frozen=True)
 class GpsConfig:
-    enabled: bool = param(True, "add GNSS factors when the log has GNSS")
+    enabled: bool = param(True, "add GNSS factors when the log has GNSS; the CLI's --no-gps sets it to false")
     pose_cov_threshold_m2: float = param(25.0, "only when the x/y pose variance exceeds this (poseCovThreshold)", "m^2")
     gps_cov_threshold_m2: float = param(2.0, "drop fixes with a larger variance (gpsCovThreshold)", "m^2")
     min_spacing_m: float = param(5.0, "distance between GNSS factors", "m")
@@ -137,9 +139,8 @@ class GpsConfig:
 
 @dataclass(frozen=True)
 class SlamConfig:
-    method: str = param("lio", "SLAM method: lio (this project's LIO-SAM replay) or kiss-icp (peer)")
-    use_loop_closure: bool = param(True, "enable radius-search loop closure")
-    use_gps: bool = param(True, "add GNSS factors when the log has GNSS")
+    method: Literal["lio", "kiss-icp"] = param("lio", "SLAM method: lio (this project's LIO-SAM replay) or "
+                                               "kiss-icp (peer); the CLI's --method sets it")
     mapping_interval_s: float = param(0.15, "process a sweep only if this much later than the last "
                                       "(mappingProcessInterval)", "s")
     deskew_translation: bool = param(True, "also remove the translation during the sweep (constant velocity); "

@@ -12,7 +12,8 @@ QUANTUM_S = 1e-3  # rotations tabulated per millisecond: < 0.001 deg error at 1 
 
 
 @njit(cache=True)
-def _apply(points, t, t0, table, velocity, out):
+def _apply(points: np.ndarray, t: np.ndarray, t0: float, table: np.ndarray, velocity: np.ndarray,
+           out: np.ndarray) -> None:
     for i in range(points.shape[0]):
         k = int(np.floor((t[i] - t0) / 1e-3 + 0.5))
         k = min(max(k, 0), table.shape[0] - 1)

@@ -19,7 +19,7 @@ class Features:
 
 
 @njit(cache=True)
-def _mark_neighbours(picked, col, i):
+def _mark_neighbours(picked: np.ndarray, col: np.ndarray, i: int) -> None:
     """A selected feature blocks its +/-5 neighbours on the ring, up to a column gap > 10."""
     n = picked.size
     picked[i] = True
@@ -36,19 +36,22 @@ def _mark_neighbours(picked, col, i):
 
 
 @njit(cache=True)
-def _smoothness(rng, xyz, use_xyz):
-    """LIO-SAM: (sum of the 10 neighbour ranges - 10 r_i)^2; the paper: the same on xyz, squared norm."""
+def _smoothness(rng: np.ndarray, xyz: np.ndarray, paper: bool) -> np.ndarray:
+    """LIO-SAM's code: c = (sum of the 10 neighbour ranges - 10 r_i)^2 (m^2). The paper's formula
+    (LOAM): c = |sum_u (p_i - p_u)| / (|S| |p_i|) over the same 10 neighbours (dimensionless; the
+    edge/surf thresholds must then be chosen on that scale)."""
     n = rng.size
     curv = np.zeros(n)
     for i in range(5, n - 5):
-        if use_xyz:
+        if paper:
             acc = 0.0
             for a in range(3):
-                d = -10.0 * xyz[i, a]
+                d = 10.0 * xyz[i, a]
                 for k in range(1, 6):
-                    d += xyz[i - k, a] + xyz[i + k, a]
+                    d -= xyz[i - k, a] + xyz[i + k, a]
                 acc += d * d
-            curv[i] = acc
+            norm = np.sqrt(xyz[i, 0] ** 2 + xyz[i, 1] ** 2 + xyz[i, 2] ** 2)
+            curv[i] = np.sqrt(acc) / (10.0 * norm) if norm > 0 else 0.0
         else:
             d = -10.0 * rng[i]
             for k in range(1, 6):
@@ -58,10 +61,12 @@ def _smoothness(rng, xyz, use_xyz):
 
 
 @njit(cache=True)
-def _extract(rng, curv, col, ring_start, ring_end, edge_thr, surf_thr, max_edges, sectors, occ_jump, par_ratio):
+def _mark_occluded_and_parallel(rng: np.ndarray, col: np.ndarray, occ_jump: float, par_ratio: float) -> np.ndarray:
+    """LIO-SAM's unreliable points: the far side of an occlusion (a range jump > occ_jump between
+    neighbouring columns) and beams nearly parallel to the surface (both neighbours' ranges differ
+    by more than par_ratio r)."""
     n = rng.size
     picked = np.zeros(n, np.bool_)
-    label = np.zeros(n, np.int8)  # 1 edge, -1 surf
     for i in range(5, n - 6):  # occlusion
         if abs(col[i + 1] - col[i]) < 10:
             if rng[i] - rng[i + 1] > occ_jump:
@@ -73,6 +78,45 @@ def _extract(rng, curv, col, ring_start, ring_end, edge_thr, surf_thr, max_edges
     for i in range(5, n - 6):  # parallel beams
         if abs(rng[i - 1] - rng[i]) > par_ratio * rng[i] and abs(rng[i + 1] - rng[i]) > par_ratio * rng[i]:
             picked[i] = True
+    return picked
+
+
+@njit(cache=True)
+def _label_sector(sp: int, ep: int, curv: np.ndarray, col: np.ndarray, picked: np.ndarray, label: np.ndarray,
+                  edge_thr: float, surf_thr: float, max_edges: int) -> None:
+    """One sector [sp, ep]: the sharpest unpicked points above edge_thr become edges (at most
+    max_edges), the flattest below surf_thr planes; each blocks its neighbours; every other
+    non-edge point of the sector joins the planar cloud (label -2), as in LIO-SAM."""
+    idx = np.argsort(curv[sp:ep + 1]) + sp
+    count = 0
+    for q in range(idx.size - 1, -1, -1):
+        i = idx[q]
+        if picked[i] or curv[i] <= edge_thr:
+            continue
+        count += 1
+        if count > max_edges:
+            break
+        label[i] = 1
+        _mark_neighbours(picked, col, i)
+    for q in range(idx.size):
+        i = idx[q]
+        if picked[i] or curv[i] >= surf_thr:
+            continue
+        label[i] = -1
+        _mark_neighbours(picked, col, i)
+    for i in range(sp, ep + 1):
+        if label[i] == 0:
+            label[i] = -2
+
+
+@njit(cache=True)
+def _extract(rng: np.ndarray, curv: np.ndarray, col: np.ndarray, ring_start: np.ndarray, ring_end: np.ndarray,
+             edge_thr: float, surf_thr: float, max_edges: int, sectors: int, occ_jump: float,
+             par_ratio: float) -> np.ndarray:
+    """Labels per point: 1 edge, -1 / -2 planar, 0 neither. Rings are split into `sectors` equal
+    sectors so features spread around the sweep."""
+    picked = _mark_occluded_and_parallel(rng, col, occ_jump, par_ratio)
+    label = np.zeros(rng.size, np.int8)
     for r in range(ring_start.size):
         s, e = ring_start[r], ring_end[r]
         if e - s < 6 * sectors:
@@ -80,33 +124,13 @@ def _extract(rng, curv, col, ring_start, ring_end, edge_thr, surf_thr, max_edges
         for j in range(sectors):
             sp = (s * (sectors - j) + e * j) // sectors
             ep = (s * (sectors - 1 - j) + e * (j + 1)) // sectors - 1
-            if sp >= ep:
-                continue
-            idx = np.argsort(curv[sp:ep + 1]) + sp
-            count = 0
-            for q in range(idx.size - 1, -1, -1):
-                i = idx[q]
-                if picked[i] or curv[i] <= edge_thr:
-                    continue
-                count += 1
-                if count > max_edges:
-                    break
-                label[i] = 1
-                _mark_neighbours(picked, col, i)
-            for q in range(idx.size):
-                i = idx[q]
-                if picked[i] or curv[i] >= surf_thr:
-                    continue
-                label[i] = -1
-                _mark_neighbours(picked, col, i)
-            for i in range(sp, ep + 1):  # LIO-SAM: every non-edge point of the sector joins the surf cloud
-                if label[i] == 0:
-                    label[i] = -2
+            if sp < ep:
+                _label_sector(sp, ep, curv, col, picked, label, edge_thr, surf_thr, max_edges)
     return label
 
 
 @njit(cache=True)
-def _voxel_centroids(points, leaf):
+def _voxel_centroids(points: np.ndarray, leaf: float) -> np.ndarray:
     """Open-addressing hash of packed voxel keys (21 bits per axis): O(N), first-seen order."""
     n = points.shape[0]
     cap, bits = 1, 0
@@ -151,7 +175,8 @@ def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
     within +/-1e6 per axis."""
     if points.shape[0] == 0 or leaf <= 0:
         return points
-    return _voxel_centroids(np.ascontiguousarray(points, dtype=np.float64), float(leaf))
+    out: np.ndarray = _voxel_centroids(np.ascontiguousarray(points, dtype=np.float64), float(leaf))
+    return out
 
 
 def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) -> Features:
@@ -162,7 +187,7 @@ def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) 
     ring, rng = image.ring, image.range_m
     starts = np.flatnonzero(np.r_[True, ring[1:] != ring[:-1]])
     counts = np.diff(np.r_[starts, ring.size])
-    curv = _smoothness(rng, points, cfg.smoothness == "xyz")
+    curv = _smoothness(rng, points, cfg.smoothness == "paper")
     label = _extract(rng, curv, image.column, starts + 5, starts + counts - 6, cfg.edge_threshold,
                      cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
                      cfg.parallel_ratio)

@@ -1,32 +1,36 @@
 """GNSS factors for graph #1. LIO-SAM receives GNSS already in its odom frame (navsat_transform
 with a magnetometer heading); a 6-axis replay has no heading, so the ENU -> map yaw and offset
 are estimated from the first `align_min_travel_m` of keyframes (2-D Umeyama, rotation about z
-plus translation), then fixes enter as GPS factors under LIO-SAM's gates."""
+plus translation: evaluation.align.yaw_align), then fixes enter as GPS factors under LIO-SAM's gates."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
+from mrnc_eval.evaluation.align import yaw_align
 from mrnc_eval.slam.config import GpsConfig
+from mrnc_eval.slam.graph import KeyframeGraph
+from mrnc_eval.slam.output import SlamEvent
 
 
-def fit_yaw_translation(src_xy: np.ndarray, dst_xy: np.ndarray) -> tuple[float, np.ndarray]:
-    """yaw, t minimising sum |R(yaw) src + t - dst|^2 (closed form)."""
-    ms, md = src_xy.mean(axis=0), dst_xy.mean(axis=0)
-    a, b = src_xy - ms, dst_xy - md
-    cross = np.sum(a[:, 0] * b[:, 1] - a[:, 1] * b[:, 0])
-    dot = np.sum(a[:, 0] * b[:, 0] + a[:, 1] * b[:, 1])
-    yaw = float(np.arctan2(cross, dot))
-    c, s = np.cos(yaw), np.sin(yaw)
-    return yaw, md - np.array([[c, -s], [s, c]]) @ ms
+def fit_yaw_translation(src_xy: np.ndarray, dst_xy: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """2x2 rotation R(yaw) and t minimising sum |R src + t - dst|^2 (the evaluation's 4-DoF fit on z = 0)."""
+    r, t = yaw_align(_on_ground(src_xy), _on_ground(dst_xy))
+    return r[:2, :2], t[:2]
+
+
+def _on_ground(xy: np.ndarray) -> np.ndarray:
+    return np.asarray(np.c_[xy, np.zeros(len(xy))], np.float64)
 
 
 class GnssAligner:
+    """Estimates the ENU -> map alignment, then adds GNSS factors at keyframes under LIO-SAM's gates."""
+
     def __init__(self, gnss: GnssSeries, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None) -> None:
         self.gnss, self.cfg = gnss, cfg
         self.lever = np.zeros(3) if antenna_in_sensor is None else np.asarray(antenna_in_sensor, float)
-        self.enu_to_map: tuple[float, np.ndarray] | None = None
+        self.enu_to_map: tuple[np.ndarray, np.ndarray] | None = None  # 2x2 rotation, translation (m)
         self.pairs_map: list[np.ndarray] = []
         self.pairs_enu: list[np.ndarray] = []
 
@@ -34,16 +38,12 @@ class GnssAligner:
         i = int(np.argmin(np.abs(self.gnss.stamps - t)))
         return i if abs(self.gnss.stamps[i] - t) <= self.cfg.max_time_diff_s else None
 
-    def _to_map(self, enu: np.ndarray) -> np.ndarray:
-        yaw, t = self.enu_to_map
-        c, s = np.cos(yaw), np.sin(yaw)
-        xy = np.array([[c, -s], [s, c]]) @ enu[:2] + t
-        return np.r_[xy, enu[2]]
+    def _to_map(self, enu: np.ndarray, enu_to_map: tuple[np.ndarray, np.ndarray]) -> np.ndarray:
+        rot, t = enu_to_map
+        return np.asarray(np.r_[rot @ enu[:2] + t, enu[2]], np.float64)
 
-    def maybe_add(self, graph, stamp: float, events: list) -> bool:
+    def maybe_add(self, graph: KeyframeGraph, stamp: float, events: list[SlamEvent]) -> bool:
         """Called at each new keyframe; returns True when a GNSS factor was added."""
-        from mrnc_eval.slam.replay import SlamEvent
-
         g = self.cfg
         i = self._fix_near(stamp)
         pose = graph.poses[-1]
@@ -55,8 +55,9 @@ class GnssAligner:
             travel = np.linalg.norm(self.pairs_map[-1] - self.pairs_map[0]) if self.pairs_map else 0.0
             if len(self.pairs_map) >= 3 and travel >= g.align_min_travel_m:
                 self.enu_to_map = fit_yaw_translation(np.array(self.pairs_enu), np.array(self.pairs_map))
+                yaw = np.arctan2(self.enu_to_map[0][1, 0], self.enu_to_map[0][0, 0])
                 events.append(SlamEvent(stamp, "gps", f"ENU -> map alignment from {len(self.pairs_map)} fixes: "
-                                        f"yaw {np.degrees(self.enu_to_map[0]):.1f} deg"))
+                                        f"yaw {np.degrees(yaw):.1f} deg"))
             return False
         if len(graph.poses) < 2 or np.linalg.norm(pose[:3, 3] - graph.poses[0][:3, 3]) < g.min_travel_m:
             return False
@@ -67,7 +68,7 @@ class GnssAligner:
         var = np.diag(self.gnss.covariance[i]).copy()
         if var[0] > g.gps_cov_threshold_m2 or var[1] > g.gps_cov_threshold_m2:
             return False
-        p = self._to_map(self.gnss.enu[i])
+        p = self._to_map(self.gnss.enu[i], self.enu_to_map)
         if not g.use_elevation:
             p[2], var[2] = antenna[2], 0.01
         if abs(p[0]) < 1e-6 and abs(p[1]) < 1e-6:

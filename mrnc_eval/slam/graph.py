@@ -4,14 +4,16 @@ loop-closure factors checked by ICP (fitness = mean squared nearest-neighbour di
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
-from scipy.spatial import cKDTree
 
 from mrnc_eval.errors import ProcessingError
 from mrnc_eval.slam import se3
 from mrnc_eval.slam.config import GraphConfig, LoopConfig
+from mrnc_eval.slam.nearest import KdTree
 
 
 @dataclass
@@ -33,7 +35,7 @@ class KeyframeGraph:
         params.setFactorization(self.cfg.factorization)
         self.isam = gtsam.ISAM2(params)
 
-    def _noise(self, variances) -> object:
+    def _noise(self, variances: Sequence[float] | np.ndarray) -> Any:
         return self.gtsam.noiseModel.Diagonal.Variances(np.asarray(variances, float))
 
     def add_keyframe(self, pose: np.ndarray, stamp: float) -> np.ndarray:
@@ -77,7 +79,7 @@ class KeyframeGraph:
         cov = self.isam.marginalCovariance(len(self.poses) - 1)  # [rot, trans]
         return float(max(cov[3, 3], cov[4, 4]))
 
-    def _update(self, graph, values, extra: int) -> None:
+    def _update(self, graph: Any, values: Any, extra: int) -> None:
         try:
             self.isam.update(graph, values)
             self.isam.update()
@@ -89,9 +91,9 @@ class KeyframeGraph:
         self.poses = [est.atPose3(i).matrix() for i in range(len(self.poses))]
 
 
-def icp_fitness(source: np.ndarray, target_tree: cKDTree, max_dist: float) -> float:
+def icp_fitness(source: np.ndarray, target: np.ndarray, max_dist: float) -> float:
     """PCL's fitness score: mean squared distance to the nearest target point (within max_dist)."""
-    d, _ = target_tree.query(source, k=1, distance_upper_bound=max_dist)
+    d, _ = KdTree(target).query(source, k=1, max_dist=max_dist)
     d = d[np.isfinite(d)]
     return float(np.mean(d * d)) if d.size else float("inf")
 
@@ -121,5 +123,5 @@ def register_loop(src: np.ndarray, tgt: np.ndarray, guess: np.ndarray,
     res = o3d.pipelines.registration.registration_icp(s, t, cfg.icp_max_correspondence_m, guess, est, crit)
     res = o3d.pipelines.registration.registration_icp(s, t, 1.0, res.transformation, est, crit)  # refine
     T = np.asarray(res.transformation)
-    fitness = icp_fitness(se3.apply(T, src), cKDTree(tgt), cfg.icp_max_correspondence_m)
+    fitness = icp_fitness(se3.apply(T, src), tgt, cfg.icp_max_correspondence_m)
     return T, fitness, bool(res.fitness > 0)

@@ -6,7 +6,9 @@ velocity and bias estimates."""
 
 from __future__ import annotations
 
+from collections.abc import Sequence
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numba import njit
@@ -41,7 +43,7 @@ def lidar_to_imu(cfg: ImuConfig, from_tf: np.ndarray | None) -> np.ndarray:
 
 
 @njit(cache=True)
-def _integrate_gyro(gyro, dt):
+def _integrate_gyro(gyro: np.ndarray, dt: np.ndarray) -> np.ndarray:
     """Quaternions (w, x, y, z) of the raw gyro integration, one per sample (first = identity)."""
     n = gyro.shape[0]
     q = np.zeros((n, 4))
@@ -142,10 +144,11 @@ class ImuOdometry:
         self.key = -1
         self.t_last: float | None = None
         self.resets = 0
+        self._last_pose: Any = None  # gtsam.Pose3 of the latest key
         self._start_graph()
 
     # ---- helpers
-    def _noise(self, sigmas) -> object:
+    def _noise(self, sigmas: Sequence[float] | np.ndarray) -> Any:
         return self.g.noiseModel.Diagonal.Sigmas(np.asarray(sigmas, float))
 
     def _start_graph(self) -> None:
@@ -156,7 +159,7 @@ class ImuOdometry:
         self.isam = self.g.ISAM2(params)
         self.key = -1
 
-    def _pim(self, t0: float, t1: float):
+    def _pim(self, t0: float, t1: float) -> Any:
         pim = self.g.PreintegratedImuMeasurements(self.params, self.bias)
         s = self.track.stamps
         i0 = max(int(np.searchsorted(s, t0, side="right")) - 1, 0)
@@ -174,7 +177,7 @@ class ImuOdometry:
         pim = self._pim(t0, t1)
         state = self.g.NavState(self.g.Pose3(lidar_pose @ self.lever), self.velocity)
         nxt = pim.predict(state, self.bias)
-        return nxt.pose().matrix() @ np.linalg.inv(self.lever)
+        return np.asarray(nxt.pose().matrix() @ np.linalg.inv(self.lever), np.float64)
 
     def add_lidar_pose(self, lidar_pose: np.ndarray, t: float, degenerate: bool) -> str | None:
         """Correct the states with a scan-to-map pose; returns a warning text after a reset."""
@@ -195,6 +198,7 @@ class ImuOdometry:
             values.insert(g.symbol("b", k), self.bias)
         else:
             k = self.key + 1
+            assert self.t_last is not None  # set with the first key, kept by restart()
             pim = self._pim(self.t_last, t)
             dt = max(t - self.t_last, 1e-6)
             graph.add(g.ImuFactor(g.symbol("x", k - 1), g.symbol("v", k - 1), g.symbol("x", k), g.symbol("v", k),
@@ -232,7 +236,7 @@ class ImuOdometry:
         the global pose)."""
         self.key = -1
 
-    def _reset(self, t: float, body, why: str) -> str:
+    def _reset(self, t: float, body: Any, why: str) -> str:
         self.resets += 1
         self.bias = self.g.imuBias.ConstantBias()
         self.velocity = np.zeros(3)
@@ -243,4 +247,4 @@ class ImuOdometry:
     @property
     def bias_vector(self) -> np.ndarray:
         """[acc bias (3), gyro bias (3)] in LiDAR axes."""
-        return np.r_[self.bias.accelerometer(), self.bias.gyroscope()]
+        return np.asarray(np.r_[self.bias.accelerometer(), self.bias.gyroscope()], np.float64)

@@ -28,7 +28,7 @@ def azimuth_column(points: np.ndarray, horizon_scan: int) -> np.ndarray:
     """LIO-SAM's column: -round((atan2(x, y) - 90 deg) / (360 deg / H)) + H / 2, wrapped into [0, H)."""
     deg = np.degrees(np.arctan2(points[:, 0], points[:, 1]))
     col = -np.round((deg - 90.0) / (360.0 / horizon_scan)).astype(np.int64) + horizon_scan // 2
-    return np.mod(col, horizon_scan)
+    return np.asarray(np.mod(col, horizon_scan), np.int64)
 
 
 def elevation_ring(points: np.ndarray, sensor: SensorConfig) -> np.ndarray:
@@ -36,7 +36,7 @@ def elevation_ring(points: np.ndarray, sensor: SensorConfig) -> np.ndarray:
     lo, hi = sensor.vertical_fov_deg
     el = np.degrees(np.arctan2(points[:, 2], np.hypot(points[:, 0], points[:, 1])))
     ring = np.round((hi - el) / (hi - lo) * (sensor.n_scan - 1)).astype(np.int64)  # ring 0 = top beam (Ouster)
-    return np.clip(ring, 0, sensor.n_scan - 1)
+    return np.asarray(np.clip(ring, 0, sensor.n_scan - 1), np.int64)
 
 
 def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> RangeImage:

@@ -20,46 +20,11 @@ from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
 from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.graph import KeyframeGraph, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
-from mrnc_eval.slam.range_image import project
+from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
+from mrnc_eval.slam.range_image import RangeImage, project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
 
-STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: waiting for the sweep iterator (decode)
-
-
-@dataclass
-class SlamEvent:
-    t: float  # log time, s
-    kind: str  # "degeneracy", "loop_closure", "warning", "gps"
-    message: str
-    data: dict = field(default_factory=dict)
-
-
-@dataclass
-class SlamOutput:
-    stamps: np.ndarray  # processed sweeps, s
-    poses: np.ndarray  # (N, 4, 4) LiDAR poses in the map frame, loop-corrected through their keyframe
-    kf_stamps: np.ndarray
-    kf_poses: np.ndarray
-    map_points: np.ndarray
-    timing_ms: dict[str, list[float]]
-    events: list[SlamEvent]
-    warnings: list[str]
-    n_sweeps: int
-    wall_s: float
-    imu_bias: np.ndarray | None = None  # final [acc (3), gyro (3)] bias estimate of graph #2, LiDAR axes
-    degenerate: np.ndarray | None = None  # (N,) bool per processed sweep
-
-
-@dataclass
-class _State:
-    """What the replay carries from one mapped sweep to the next."""
-
-    pose: np.ndarray | None = None
-    t: float | None = None
-    velocity: np.ndarray | None = None  # world frame, m/s
-    last_mapped: float = -np.inf
-    last_loop_t: float = -np.inf
-    warned: set = field(default_factory=set)
+__all__ = ["STAGES", "SlamEvent", "SlamOutput", "run_slam"]
 
 
 def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
@@ -69,97 +34,203 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     """Replay the SLAM over `sweeps` (LiDAR frame). `sensor_to_imu` is the IMU pose in the LiDAR
     frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors."""
     wall0 = time.perf_counter()
-    warnings: list[str] = []
-    events: list[SlamEvent] = []
-    timing: dict[str, list[float]] = {s: [] for s in STAGES}
-    extr = lidar_to_imu(cfg.imu, sensor_to_imu)
-    track, odom, imu = _imu_setup(imu, extr, cfg, warnings)
-    graph = KeyframeGraph(cfg.graph)
-    aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if (gnss is not None and cfg.use_gps and cfg.gps.enabled
-                                                              and gnss.stamps.size > 0) else None
-    kf_features: list[Features] = []
-    map_cache: dict[int, tuple[np.ndarray, np.ndarray]] = {}
-    local_map: LocalMap | None = None
-    stamps, rel_to_kf, ref_kf, degenerate = [], [], [], []
-    st = _State()
+    replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor)
     n_sweeps = 0
-    use_loop = cfg.use_loop_closure and cfg.loop.enabled
     t_read = time.perf_counter()
-
     for sweep in sweeps:
         n_sweeps += 1
         if progress is not None:
             progress(n_sweeps)
-        if sweep.stamp - st.last_mapped < cfg.mapping_interval_s or len(sweep) == 0:
-            continue
-        st.last_mapped = sweep.stamp
-        timing["read"].append((time.perf_counter() - t_read) * 1e3)
-        clock = _Clock(timing)
-        # ---- range image + deskew
-        image = project(sweep, cfg.sensor, cfg.features)
-        pts = _deskew(image, sweep, track, st, cfg, warnings, events)
-        clock.lap("deskew")
-        # ---- features
-        feats = extract_features(image, pts, cfg.features)
-        clock.lap("features")
-        # ---- guess and scan-to-map
-        guess = _guess(st, sweep.stamp, track, odom, imu, extr, cfg)
-        res: MatchResult | None = None
-        pose = guess
-        if local_map is not None:
-            res = match(feats.edges, feats.surfs, local_map, guess, cfg.matching)
-            pose = _imu_attitude_blend(res.pose, imu, extr, sweep.stamp, cfg)
-            _report_match(res, sweep.stamp, cfg, events)
-        is_degenerate = bool(res is not None and res.degenerate)
-        if odom is not None:
-            why = odom.add_lidar_pose(pose, sweep.stamp, is_degenerate)
-            if why:
-                events.append(SlamEvent(sweep.stamp, "warning", why))
-        clock.lap("matching")
-        # ---- keyframe: graph #1, GNSS, loop closure, local map
-        loop_ms = 0.0
-        if _is_keyframe(graph, pose, cfg):
-            pose = graph.add_keyframe(pose, sweep.stamp)
-            kf_features.append(feats)
-            if aligner is not None and aligner.maybe_add(graph, sweep.stamp, events):
-                map_cache.clear()
-            if use_loop and sweep.stamp - st.last_loop_t >= cfg.loop.interval_s:
-                st.last_loop_t = sweep.stamp
-                tl = time.perf_counter()
-                moved = _try_loop(graph, kf_features, cfg, events, sweep.stamp)
-                if moved is not None:
-                    map_cache.clear()
-                    if odom is not None and moved > cfg.imu.restart_after_loop_m:
-                        odom.restart()  # the global pose jumped: graph #2 restarts from it
-                loop_ms = (time.perf_counter() - tl) * 1e3
-            pose = graph.poses[-1]
-            local_map = _local_map(graph, kf_features, map_cache, cfg)
-        clock.lap("graph", minus_ms=loop_ms)
-        timing["loop"].append(loop_ms)
-        # ---- bookkeeping
-        k_ref = len(graph.poses) - 1
-        stamps.append(sweep.stamp)
-        ref_kf.append(k_ref)
-        rel_to_kf.append(se3.inv(graph.poses[k_ref]) @ pose)
-        degenerate.append(is_degenerate)
-        if odom is not None:
-            st.velocity = odom.velocity.copy()
-        elif st.pose is not None and sweep.stamp > st.t:
-            st.velocity = (pose[:3, 3] - st.pose[:3, 3]) / (sweep.stamp - st.t)
-        st.pose, st.t = pose, sweep.stamp
+        if sweep.stamp - replay.st.last_mapped < cfg.mapping_interval_s or len(sweep) == 0:
+            continue  # mappingProcessInterval
+        replay.st.last_mapped = sweep.stamp
+        replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
+        replay.map_sweep(sweep)
         t_read = time.perf_counter()
+    return replay.output(n_sweeps, wall0)
 
-    kf_poses = np.array(graph.poses) if graph.poses else np.zeros((0, 4, 4))
-    poses = np.zeros((0, 4, 4))
-    if stamps:
-        poses = np.array([kf_poses[k] @ r for k, r in zip(ref_kf, rel_to_kf, strict=True)])
-    map_points = np.zeros((0, 3))
-    if kf_features:
-        map_points = voxel_downsample(np.vstack([se3.apply(kf_poses[i], np.r_[f.edges, f.surfs])
-                                                 for i, f in enumerate(kf_features)]), cfg.matching.surf_leaf_m)
-    return SlamOutput(np.asarray(stamps), poses, np.asarray(graph.stamps), kf_poses, map_points, timing, events,
-                      warnings, n_sweeps, time.perf_counter() - wall0,
-                      odom.bias_vector if odom is not None else None, np.asarray(degenerate, bool))
+
+@dataclass
+class _State:
+    """What the replay carries from one mapped sweep to the next."""
+
+    pose: np.ndarray | None = None
+    t: float = 0.0  # stamp of `pose`, s (meaningful once pose is set)
+    velocity: np.ndarray | None = None  # world frame, m/s
+    last_mapped: float = -np.inf
+    last_loop_t: float = -np.inf
+    warned: set[str] = field(default_factory=set)
+
+
+@dataclass
+class _Trace:
+    """Per mapped sweep: its stamp, the keyframe it hangs from and its pose relative to it (so a
+    loop closure that moves the keyframe moves the sweep too), and whether matching was degenerate."""
+
+    stamps: list[float] = field(default_factory=list)
+    ref_kf: list[int] = field(default_factory=list)
+    rel_to_kf: list[np.ndarray] = field(default_factory=list)
+    degenerate: list[bool] = field(default_factory=list)
+
+
+@dataclass
+class _Replay:
+    """The replay's components and state; `map_sweep` is one pass of LIO-SAM's mapping."""
+
+    cfg: SlamConfig
+    extr: np.ndarray  # IMU pose in the LiDAR frame
+    imu: ImuSeries | None
+    track: ImuTrack | None
+    odom: ImuOdometry | None
+    graph: KeyframeGraph
+    aligner: GnssAligner | None
+    timing: dict[str, list[float]]
+    warnings: list[str]
+    events: list[SlamEvent] = field(default_factory=list)
+    kf_features: list[Features] = field(default_factory=list)
+    map_cache: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
+    local_map: LocalMap | None = None
+    st: _State = field(default_factory=_State)
+    trace: _Trace = field(default_factory=_Trace)
+
+    @classmethod
+    def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
+              gnss: GnssSeries | None, antenna_in_sensor: np.ndarray | None) -> _Replay:
+        warnings: list[str] = []
+        extr = lidar_to_imu(cfg.imu, sensor_to_imu)
+        track, odom, imu = _imu_setup(imu, extr, cfg, warnings)
+        use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
+        aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
+        return cls(cfg, extr, imu, track, odom, KeyframeGraph(cfg.graph), aligner, {s: [] for s in STAGES}, warnings)
+
+    # ---- one mapped sweep
+    def map_sweep(self, sweep: Sweep) -> None:
+        """Range image and deskew -> features -> scan-to-map -> keyframe -> bookkeeping."""
+        clock = _Clock(self.timing)
+        image = project(sweep, self.cfg.sensor, self.cfg.features)
+        points = self.deskew(image, sweep)
+        clock.lap("deskew")
+        feats = extract_features(image, points, self.cfg.features)
+        clock.lap("features")
+        pose, degenerate = self.scan_to_map(sweep.stamp, feats)
+        clock.lap("matching")
+        loop_ms = 0.0
+        if _is_keyframe(self.graph, pose, self.cfg):
+            pose, loop_ms = self.add_keyframe(pose, sweep.stamp, feats)
+        clock.lap("graph", minus_ms=loop_ms)
+        self.timing["loop"].append(loop_ms)
+        self.record(sweep.stamp, pose, degenerate)
+
+    def deskew(self, image: RangeImage, sweep: Sweep) -> np.ndarray:
+        """Points at the sweep stamp: rotation from the IMU track, translation at constant velocity."""
+        st, cfg = self.st, self.cfg
+        if image.point_time is None:
+            self.warn_once(sweep.stamp, "no_time", "sweeps have no per-point time: processed without deskew "
+                           "(the trajectory will drift with fast rotation)")
+            return image.points
+        t_end = sweep.stamp + float(image.point_time.max(initial=0.0))
+        if self.track is not None and not self.track.covers(sweep.stamp, t_end):
+            self.warn_once(sweep.stamp, "no_cover", f"IMU does not cover the sweep at {sweep.stamp:.3f} s: "
+                           "rotation deskew clamped to the IMU span")
+        v_sensor = None
+        if cfg.deskew_translation and st.velocity is not None and st.pose is not None:
+            v_sensor = st.pose[:3, :3].T @ st.velocity
+        return deskew(image.points, image.point_time, sweep.stamp, self.track, v_sensor)
+
+    def scan_to_map(self, stamp: float, feats: Features) -> tuple[np.ndarray, bool]:
+        """Guess -> match against the local map -> roll/pitch blend -> correct graph #2.
+        Returns the pose and whether matching was degenerate."""
+        pose = self.guess(stamp)
+        res: MatchResult | None = None
+        if self.local_map is not None:
+            res = match(feats.edges, feats.surfs, self.local_map, pose, self.cfg.matching)
+            pose = _imu_attitude_blend(res.pose, self.imu, self.extr, stamp, self.cfg)
+            self.events += _match_events(res, stamp, self.cfg)
+        degenerate = bool(res is not None and res.degenerate)
+        if self.odom is not None:
+            why = self.odom.add_lidar_pose(pose, stamp, degenerate)
+            if why:
+                self.events.append(SlamEvent(stamp, "warning", why))
+        return pose, degenerate
+
+    def guess(self, t: float) -> np.ndarray:
+        """Initial pose: IMU attitude for the first sweep; then graph #2's prediction, else the IMU
+        rotation increment with constant velocity, else constant velocity."""
+        st, track, odom = self.st, self.track, self.odom
+        if st.pose is None:
+            att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t) if self.imu is not None \
+                else Rotation.identity()
+            return se3.make(att.as_matrix(), np.zeros(3))
+        covered = track is not None and track.covers(st.t, t)
+        if odom is not None and covered and odom.can_predict:  # also right after a loop restarted graph #2
+            return odom.predict(st.pose, st.t, t)
+        step = (st.velocity if st.velocity is not None else np.zeros(3)) * (t - st.t)
+        rot = st.pose[:3, :3]
+        if covered and track is not None:
+            rot = rot @ track.rotation_between(st.t, np.array([t]))[0].as_matrix()
+        return se3.make(rot, st.pose[:3, 3] + step)
+
+    def add_keyframe(self, pose: np.ndarray, stamp: float, feats: Features) -> tuple[np.ndarray, float]:
+        """Graph #1 keyframe, GNSS factor, loop closure (timed apart), new local map.
+        Returns the optimised pose and the loop-closure time (ms)."""
+        self.graph.add_keyframe(pose, stamp)
+        self.kf_features.append(feats)
+        if self.aligner is not None and self.aligner.maybe_add(self.graph, stamp, self.events):
+            self.map_cache.clear()
+        loop_ms = 0.0
+        if self.cfg.loop.enabled and stamp - self.st.last_loop_t >= self.cfg.loop.interval_s:
+            self.st.last_loop_t = stamp
+            t0 = time.perf_counter()
+            self.close_loop(stamp)
+            loop_ms = (time.perf_counter() - t0) * 1e3
+        self.local_map = _local_map(self.graph, self.kf_features, self.map_cache, self.cfg)
+        return self.graph.poses[-1], loop_ms
+
+    def close_loop(self, stamp: float) -> None:
+        moved = _try_loop(self.graph, self.kf_features, self.cfg, self.events, stamp)
+        if moved is not None:
+            self.map_cache.clear()
+            if self.odom is not None and moved > self.cfg.imu.restart_after_loop_m:
+                self.odom.restart()  # the global pose jumped: graph #2 restarts from it
+
+    def record(self, stamp: float, pose: np.ndarray, degenerate: bool) -> None:
+        """Keep the sweep relative to the latest keyframe; update the motion state."""
+        st, tr = self.st, self.trace
+        k_ref = len(self.graph.poses) - 1
+        tr.stamps.append(stamp)
+        tr.ref_kf.append(k_ref)
+        tr.rel_to_kf.append(se3.inv(self.graph.poses[k_ref]) @ pose)
+        tr.degenerate.append(degenerate)
+        if self.odom is not None:
+            st.velocity = self.odom.velocity.copy()
+        elif st.pose is not None and stamp > st.t:
+            st.velocity = (pose[:3, 3] - st.pose[:3, 3]) / (stamp - st.t)
+        st.pose, st.t = pose, stamp
+
+    def warn_once(self, t: float, key: str, text: str) -> None:
+        """A condition that holds for the whole log: one warning (and one event at its first sweep)."""
+        if key not in self.st.warned:
+            self.st.warned.add(key)
+            self.warnings.append(text)
+            self.events.append(SlamEvent(t, "warning", text))
+
+    # ---- the end
+    def output(self, n_sweeps: int, wall0: float) -> SlamOutput:
+        """Sweep poses re-anchored to their final keyframes, the map from every keyframe's features."""
+        tr = self.trace
+        kf_poses = np.array(self.graph.poses) if self.graph.poses else np.zeros((0, 4, 4))
+        poses = np.zeros((0, 4, 4))
+        if tr.stamps:
+            poses = np.array([kf_poses[k] @ r for k, r in zip(tr.ref_kf, tr.rel_to_kf, strict=True)])
+        map_points = np.zeros((0, 3))
+        if self.kf_features:
+            map_points = voxel_downsample(np.vstack([se3.apply(kf_poses[i], np.r_[f.edges, f.surfs])
+                                                     for i, f in enumerate(self.kf_features)]),
+                                          self.cfg.matching.surf_leaf_m)
+        return SlamOutput(np.asarray(tr.stamps), poses, np.asarray(self.graph.stamps), kf_poses, map_points,
+                          self.timing, self.events, self.warnings, n_sweeps, time.perf_counter() - wall0,
+                          self.odom.bias_vector if self.odom is not None else None,
+                          np.asarray(tr.degenerate, bool))
 
 
 class _Clock:
@@ -174,7 +245,8 @@ class _Clock:
         self.t = now
 
 
-def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warnings: list[str]):
+def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig,
+               warnings: list[str]) -> tuple[ImuTrack | None, ImuOdometry | None, ImuSeries | None]:
     if imu is None or imu.stamps.size < 3:
         warnings.append("no IMU: no deskew rotation, no attitude initialisation, constant-velocity guess only")
         return None, None, None
@@ -187,50 +259,10 @@ def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warning
     return track, odom, imu
 
 
-def _deskew(image, sweep: Sweep, track: ImuTrack | None, st: _State, cfg: SlamConfig, warnings: list[str],
-            events: list[SlamEvent]) -> np.ndarray:
-    if image.point_time is None:
-        _warn_once(st, warnings, events, sweep.stamp, "no_time", "sweeps have no per-point time: processed "
-                   "without deskew (the trajectory will drift with fast rotation)")
-        return image.points
-    t_end = sweep.stamp + float(image.point_time.max(initial=0.0))
-    if track is not None and not track.covers(sweep.stamp, t_end):
-        _warn_once(st, warnings, events, sweep.stamp, "no_cover", f"IMU does not cover the sweep at "
-                   f"{sweep.stamp:.3f} s: rotation deskew clamped to the IMU span")
-    v_sensor = None
-    if cfg.deskew_translation and st.velocity is not None and st.pose is not None:
-        v_sensor = st.pose[:3, :3].T @ st.velocity
-    return deskew(image.points, image.point_time, sweep.stamp, track, v_sensor)
-
-
-def _warn_once(st: _State, warnings: list[str], events: list[SlamEvent], t: float, key: str, text: str) -> None:
-    """A condition that holds for the whole log: one warning (and one event at its first sweep)."""
-    if key not in st.warned:
-        st.warned.add(key)
-        warnings.append(text)
-        events.append(SlamEvent(t, "warning", text))
-
-
-def _guess(st: _State, t: float, track: ImuTrack | None, odom: ImuOdometry | None, imu: ImuSeries | None,
-           extr: np.ndarray, cfg: SlamConfig) -> np.ndarray:
-    """Initial pose: IMU attitude for the first sweep; then graph #2's prediction, else the IMU
-    rotation increment with constant velocity, else constant velocity."""
-    if st.pose is None:
-        att = initial_attitude(imu, extr[:3, :3], cfg.imu, t) if imu is not None else Rotation.identity()
-        return se3.make(att.as_matrix(), np.zeros(3))
-    covered = track is not None and track.covers(st.t, t)
-    if odom is not None and covered and odom.can_predict:  # also right after a loop restarted graph #2
-        return odom.predict(st.pose, st.t, t)
-    step = (st.velocity if st.velocity is not None else np.zeros(3)) * (t - st.t)
-    rot = st.pose[:3, :3]
-    if covered:
-        rot = rot @ track.rotation_between(st.t, np.array([t]))[0].as_matrix()
-    return se3.make(rot, st.pose[:3, 3] + step)
-
-
 def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarray, t: float,
                         cfg: SlamConfig) -> np.ndarray:
-    """9-axis IMU: slerp the matched roll/pitch towards the IMU's by rpy_weight (LIO-SAM, |pitch| < 1.4 rad)."""
+    """9-axis IMU only: slerp the matched roll/pitch towards the IMU's orientation by rpy_weight
+    (LIO-SAM, |pitch| < 1.4 rad). A 6-axis IMU has no orientation to blend towards: unchanged."""
     if imu is None or imu.orientation_xyzw is None or cfg.imu.rpy_weight <= 0:
         return pose
     r, p, y = Rotation.from_matrix(pose[:3, :3]).as_euler("xyz")
@@ -243,16 +275,19 @@ def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarra
     return se3.make(Rotation.from_euler("xyz", [br, bp, y]).as_matrix(), pose[:3, 3])
 
 
-def _report_match(res: MatchResult, t: float, cfg: SlamConfig, events: list[SlamEvent]) -> None:
+def _match_events(res: MatchResult, t: float, cfg: SlamConfig) -> list[SlamEvent]:
+    events = []
     if res.degenerate:
         threshold = cfg.matching.degeneracy_eigen_threshold
         events.append(SlamEvent(t, "degeneracy", f"scan-to-map degenerate: {res.n_degenerate} direction(s) with "
                                 f"eigenvalue < {threshold:g} (min {res.min_eigenvalue:.1f}); "
                                 "updates along them suppressed",
-                                {"min_eigenvalue": res.min_eigenvalue, "directions": res.n_degenerate}))
+                                {"min_eigenvalue": res.min_eigenvalue, "directions": res.n_degenerate,
+                                 "weakest_direction": res.weakest_direction}))
     if not res.optimised:
         events.append(SlamEvent(t, "warning", f"too few features ({res.n_edges} edges, {res.n_surfs} planes, "
                                 f"need {cfg.matching.min_edges}/{cfg.matching.min_surfs}): kept the IMU guess"))
+    return events
 
 
 def _is_keyframe(graph: KeyframeGraph, pose: np.ndarray, cfg: SlamConfig) -> bool:
@@ -263,9 +298,10 @@ def _is_keyframe(graph: KeyframeGraph, pose: np.ndarray, cfg: SlamConfig) -> boo
                 or np.any(np.abs(se3.rpy(d)) >= cfg.graph.keyframe_angle_rad))
 
 
-def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict, cfg: SlamConfig) -> LocalMap:
+def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict[int, tuple[np.ndarray, np.ndarray]],
+               cfg: SlamConfig) -> LocalMap:
     """Keyframes within map_radius of the last one, thinned to one per keyframe_density voxel
-    (the nearest to the voxel centroid), plus every keyframe of the last map_recent_s."""
+    (the first keyframe in each voxel), plus every keyframe of the last map_recent_s."""
     m = cfg.matching
     pos = np.array([p[:3, 3] for p in graph.poses])
     t = np.asarray(graph.stamps)
@@ -287,6 +323,11 @@ def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict, cfg: Sl
                           voxel_downsample(np.vstack(surfs), m.surf_leaf_m))
 
 
+def _keyframe_cloud(graph: KeyframeGraph, feats: list[Features], i: int) -> np.ndarray:
+    """Keyframe i's edges and planes in the map frame."""
+    return se3.apply(graph.poses[i], np.r_[feats[i].edges, feats[i].surfs])
+
+
 def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, events: list[SlamEvent],
               stamp: float) -> float | None:
     """Radius search for an old keyframe, ICP of the latest keyframe cloud onto the old one's
@@ -297,17 +338,15 @@ def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, even
     if prev is None:
         return None
     cur = len(graph.poses) - 1
-    src = voxel_downsample(se3.apply(graph.poses[cur], np.r_[feats[cur].edges, feats[cur].surfs]), lc.leaf_m)
+    src = voxel_downsample(_keyframe_cloud(graph, feats, cur), lc.leaf_m)
     lo, hi = max(0, prev - lc.neighbours), min(cur, prev + lc.neighbours + 1)
-    tgt = voxel_downsample(np.vstack([se3.apply(graph.poses[i], np.r_[feats[i].edges, feats[i].surfs])
-                                      for i in range(lo, hi)]), lc.leaf_m)
+    tgt = voxel_downsample(np.vstack([_keyframe_cloud(graph, feats, i) for i in range(lo, hi)]), lc.leaf_m)
     if len(src) < lc.min_source_points or len(tgt) < lc.min_target_points:
         return None
     T, fitness, ok = register_loop(src, tgt, np.eye(4), lc)
     if not ok or fitness > lc.fitness_threshold_m2:
         return None
-    corrected = T @ graph.poses[cur]
-    relative = se3.inv(graph.poses[prev]) @ corrected
+    relative = se3.inv(graph.poses[prev]) @ (T @ graph.poses[cur])  # corrected current pose, seen from prev
     before = graph.poses[cur][:3, 3].copy()
     try:
         graph.add_loop(cur, prev, relative, fitness)

@@ -10,32 +10,19 @@ from numba import njit
 
 from mrnc_eval.slam import se3
 from mrnc_eval.slam.config import MatchingConfig
-
-
-class _Tree:
-    """5-NN search over a map cloud with pykdtree (OpenMP): 3x faster to build and 1.4x faster to
-    query than scipy's cKDTree on 120k map points on 2 cores."""
-
-    def __init__(self, points: np.ndarray) -> None:
-        from pykdtree.kdtree import KDTree
-
-        self._tree = KDTree(np.ascontiguousarray(points))
-
-    def query(self, q: np.ndarray, k: int) -> tuple[np.ndarray, np.ndarray]:
-        d, i = self._tree.query(np.ascontiguousarray(q), k=k)
-        return d, i.astype(np.int64)
+from mrnc_eval.slam.nearest import KdTree
 
 
 @dataclass
 class LocalMap:
     edges: np.ndarray
     surfs: np.ndarray
-    edge_tree: _Tree | None
-    surf_tree: _Tree | None
+    edge_tree: KdTree | None
+    surf_tree: KdTree | None
 
     @classmethod
     def build(cls, edges: np.ndarray, surfs: np.ndarray) -> LocalMap:
-        return cls(edges, surfs, _Tree(edges) if len(edges) >= 5 else None, _Tree(surfs) if len(surfs) >= 5 else None)
+        return cls(edges, surfs, KdTree(edges) if len(edges) >= 5 else None, KdTree(surfs) if len(surfs) >= 5 else None)
 
 
 @dataclass(frozen=True)
@@ -49,13 +36,18 @@ class MatchResult:
     n_surfs: int
     optimised: bool
     n_degenerate: int = 0  # directions projected out
+    weakest_direction: tuple[float, ...] = ()  # unit eigenvector of J^T J with the smallest eigenvalue,
+    # [rotation (3), translation (3)] in map axes (first iteration); empty when not optimised
 
 
 @njit(cache=True)
-def _plane_rows(q, o, nb, ok, max_offset, J, r):
+def _plane_rows(q: np.ndarray, o: np.ndarray, nb: np.ndarray, ok: np.ndarray, max_offset: float, J: np.ndarray,
+                r: np.ndarray) -> int:
     """Point-to-plane rows (LIO-SAM): plane n.x + 1 = 0 fitted to the 5 neighbours by least
     squares, rejected when a neighbour is > max_offset off; weight s = 1 - 0.9 |pd| / sqrt(|q|).
-    Writes J (m, 6) = s [q x n, n] and r = s pd; returns the number of rows."""
+    Writes J (m, 6) = s [q x n, n] and r = s pd; returns the number of rows. One numba loop
+    over the queries with the 3x3 solve written out: longer than 50 lines, but a split would
+    pass the plane through arrays in the hottest loop of the replay."""
     m = 0
     for i in range(q.shape[0]):
         if not ok[i]:
@@ -112,7 +104,7 @@ def _plane_rows(q, o, nb, ok, max_offset, J, r):
 
 
 @njit(cache=True)
-def _edge_rows(q, o, nb, ok, J, r):
+def _edge_rows(q: np.ndarray, o: np.ndarray, nb: np.ndarray, ok: np.ndarray, J: np.ndarray, r: np.ndarray) -> int:
     """Point-to-line rows (LIO-SAM): the 5 neighbours form a line when the largest eigenvalue of
     their covariance exceeds 3x the second; residual = distance to the line through the centroid,
     weight s = 1 - 0.9 ld."""
@@ -155,7 +147,7 @@ class _Correspondences:
     """Nearest map neighbours of one feature set, re-queried only when the pose has moved more
     than `requery_m` since the last query (0 = every iteration, as LIO-SAM)."""
 
-    def __init__(self, tree: _Tree, cloud: np.ndarray, max_sq: float, requery_m: float) -> None:
+    def __init__(self, tree: KdTree, cloud: np.ndarray, max_sq: float, requery_m: float) -> None:
         self.tree, self.cloud, self.max_sq, self.requery_m = tree, cloud, max_sq, requery_m
         self.at: np.ndarray | None = None
 
@@ -172,7 +164,8 @@ def _motion(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(d[:3, 3]) + 10.0 * se3.delta_angle(d))
 
 
-def _terms(q: np.ndarray, origin: np.ndarray, corr: _Correspondences, T: np.ndarray, kind: str, max_offset: float):
+def _terms(q: np.ndarray, origin: np.ndarray, corr: _Correspondences, T: np.ndarray, kind: str,
+           max_offset: float) -> tuple[np.ndarray, np.ndarray]:
     """Residual rows of the transformed features q against the map's planes or lines. A row's
     Jacobian w.r.t. the perturbation T <- [exp(dtheta) R, t + dt] (rotation about the sensor,
     map axes) is [(q - t) x n, n]."""
@@ -191,6 +184,7 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
     T = guess.copy()
     P = np.eye(6)
     degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
+    weakest: tuple[float, ...] = ()
     edge_corr = _Correspondences(local_map.edge_tree, local_map.edges, cfg.max_nn_sq_dist_m2, cfg.requery_motion_m)
     surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, cfg.max_nn_sq_dist_m2, cfg.requery_motion_m)
     for it in range(1, cfg.max_iterations + 1):
@@ -204,7 +198,7 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
         dx = np.linalg.lstsq(H, g, rcond=None)[0]
         if it == 1:  # degeneracy: project out directions with tiny curvature (LIO-SAM remapping)
             w, V = np.linalg.eigh(H)
-            min_eig = float(w[0])
+            min_eig, weakest = float(w[0]), tuple(float(v) for v in V[:, 0])
             V2 = V.copy()
             bad = w < cfg.degeneracy_eigen_threshold
             if bad.any():
@@ -218,4 +212,4 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
         if rot_deg < cfg.converge_rot_deg and trans_cm < cfg.converge_trans_cm:
             converged = True
             break
-    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad)
+    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad, weakest)

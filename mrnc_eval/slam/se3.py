@@ -1,20 +1,21 @@
-"""Small SE(3)/SO(3) helpers for the SLAM (4x4 homogeneous matrices, rotation vectors)."""
+"""Small SE(3)/SO(3) helpers for the SLAM (4x4 homogeneous matrices, rotation vectors).
+Pose matrices are assembled by evaluation.lie.homogeneous, the project's one builder."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mrnc_eval.evaluation.lie import homogeneous
+
 
 def exp_so3(w: np.ndarray) -> np.ndarray:
-    return Rotation.from_rotvec(w).as_matrix()
+    return np.asarray(Rotation.from_rotvec(w).as_matrix(), np.float64)
 
 
 def make(R: np.ndarray, t: np.ndarray) -> np.ndarray:
-    T = np.eye(4)
-    T[:3, :3] = R
-    T[:3, 3] = t
-    return T
+    """4x4 pose [R t; 0 1]."""
+    return homogeneous(R, t)
 
 
 def inv(T: np.ndarray) -> np.ndarray:
@@ -23,7 +24,7 @@ def inv(T: np.ndarray) -> np.ndarray:
 
 
 def apply(T: np.ndarray, p: np.ndarray) -> np.ndarray:
-    return p @ T[:3, :3].T + T[:3, 3]
+    return np.asarray(p @ T[:3, :3].T + T[:3, 3], np.float64)
 
 
 def delta_angle(T: np.ndarray) -> float:
@@ -31,4 +32,4 @@ def delta_angle(T: np.ndarray) -> float:
 
 
 def rpy(T: np.ndarray) -> np.ndarray:
-    return Rotation.from_matrix(T[:3, :3]).as_euler("xyz")
+    return np.asarray(Rotation.from_matrix(T[:3, :3]).as_euler("xyz"), np.float64)

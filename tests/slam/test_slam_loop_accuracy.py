@@ -37,7 +37,7 @@ def loop_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _run(log: Path, out: Path, *, loop: bool, map_radius_m: float = 50.0, method: str = "lio"):
     from mrnc_eval.commands.slam import run_log
 
-    cfg = replace_path(Config(), "slam.use_loop_closure", loop)
+    cfg = replace_path(Config(), "slam.loop.enabled", loop)
     cfg = replace_path(cfg, "slam.matching.map_radius_m", map_radius_m)
     r = run_log(log, cfg, out, method=method)
     return {m.name: m.value for m in r.metrics}
@@ -94,7 +94,7 @@ def test_featureless_stretch_reported_and_loop_closure_does_not_make_it_worse(cr
     from mrnc_eval.commands.slam import run_log
 
     with_loop = run_log(crown_log, Config(), tmp_path / "loop")
-    without = run_log(crown_log, replace_path(Config(), "slam.use_loop_closure", False), tmp_path / "noloop")
+    without = run_log(crown_log, replace_path(Config(), "slam.loop.enabled", False), tmp_path / "noloop")
     v = lambda r, n: r.metric(n).value  # noqa: E731
     print(f"\ncrown stretch: APE {v(with_loop, 'ape_rmse_m'):.4f} m with loops, {v(without, 'ape_rmse_m'):.4f} m "
           f"without; {v(with_loop, 'degeneracy_events')} degeneracy events")

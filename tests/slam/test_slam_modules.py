@@ -186,7 +186,7 @@ def test_loop_fitness_is_pcl_mean_squared_distance() -> None:
     tgt = np.random.default_rng(1).uniform(-5, 5, (2000, 3))
     src = tgt[:500] + np.array([0.1, 0.0, 0.0])
     d, _ = cKDTree(tgt).query(src)
-    assert icp_fitness(src, cKDTree(tgt), 30.0) == pytest.approx(float(np.mean(d * d)), rel=1e-12)
+    assert icp_fitness(src, tgt, 30.0) == pytest.approx(float(np.mean(d * d)), rel=1e-12)
 
 
 def test_enu_alignment_recovers_yaw_and_offset() -> None:
@@ -197,8 +197,8 @@ def test_enu_alignment_recovers_yaw_and_offset() -> None:
     yaw, t = 0.7, np.array([3.0, -4.0])
     c, s = np.cos(yaw), np.sin(yaw)
     mp = enu @ np.array([[c, -s], [s, c]]).T + t
-    y, tt = fit_yaw_translation(enu, mp)
-    assert y == pytest.approx(yaw, abs=1e-12)
+    rot, tt = fit_yaw_translation(enu, mp)
+    assert np.arctan2(rot[1, 0], rot[0, 0]) == pytest.approx(yaw, abs=1e-12)
     assert np.allclose(tt, t)
 
 
@@ -241,3 +241,20 @@ def test_deskew_matches_per_point_rotation_and_velocity() -> None:
     # 1 ms rotation quanta: error below 0.8 rad/s * 0.5 ms * 35 m
     assert np.max(np.linalg.norm(got - want, axis=1)) < 0.8 * 0.5e-3 * 35 + 1e-6
     assert np.max(np.linalg.norm(got - pts, axis=1)) > 1.0  # a real motion was removed
+
+
+def test_paper_smoothness_is_the_normalised_sum_of_differences() -> None:
+    """The paper's (LOAM's) c = |sum_u (p_k - p_u)| / (|S| |p_k|): zero on a straight evenly
+    sampled line, |10 p_k - sum p_u| / (10 |p_k|) at a kink, checked against numpy."""
+    from mrnc_eval.slam.features import _smoothness
+
+    x = np.linspace(-5.0, 5.0, 21)
+    line = np.c_[x, np.full_like(x, 4.0), np.zeros_like(x)]
+    kinked = line.copy()
+    kinked[10, 1] += 0.5
+    rng = np.linalg.norm(kinked, axis=1)
+    c = _smoothness(rng, kinked, True)
+    assert np.allclose(_smoothness(np.linalg.norm(line, axis=1), line, True)[5:-5], 0.0, atol=1e-12)
+    expected = np.linalg.norm(10 * kinked[10] - kinked[5:10].sum(0) - kinked[11:16].sum(0)) / (10 * rng[10])
+    assert c[10] == pytest.approx(expected, rel=1e-12)
+    assert c[10] == c.max()

@@ -1,0 +1,35 @@
+"""What the SLAM replay hands back: events raised while it runs and the finished output.
+Shared by replay.py and the modules it drives (gnss.py), so neither imports the other."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+from typing import Any
+
+import numpy as np
+
+STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: waiting for the sweep iterator (decode)
+
+
+@dataclass
+class SlamEvent:
+    t: float  # log time, s
+    kind: str  # "degeneracy", "loop_closure", "warning", "gps"
+    message: str
+    data: dict[str, Any] = field(default_factory=dict)
+
+
+@dataclass
+class SlamOutput:
+    stamps: np.ndarray  # processed sweeps, s
+    poses: np.ndarray  # (N, 4, 4) LiDAR poses in the map frame, loop-corrected through their keyframe
+    kf_stamps: np.ndarray
+    kf_poses: np.ndarray
+    map_points: np.ndarray
+    timing_ms: dict[str, list[float]]
+    events: list[SlamEvent]
+    warnings: list[str]
+    n_sweeps: int
+    wall_s: float
+    imu_bias: np.ndarray | None = None  # final [acc (3), gyro (3)] bias estimate of graph #2, LiDAR axes
+    degenerate: np.ndarray | None = None  # (N,) bool per processed sweep
