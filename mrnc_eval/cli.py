@@ -352,6 +352,10 @@ def simulate(
     ] = "mcap",
     seed: Annotated[int | None, typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
                                                   "byte-identical logs.")] = None,
+    profile: Annotated[str | None, typer.Option(help="Sensor profile: ideal (exact sensors, one clock) or field "
+                                                     "(biases, vibration, clock offsets, miscalibrated tf, noisy "
+                                                     "returns, body in the cloud, stones, a moving object, GNSS "
+                                                     "multipath; sim.field.*). Default: sim.profile.")] = None,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
@@ -361,7 +365,7 @@ def simulate(
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import simulate as simulate_command
     simulate_command.main(out, cfg, scene=scene, path=path, duration=duration, lidar=lidar, columns=columns,
-                               rate=rate, fmt=fmt, seed=seed)
+                               rate=rate, fmt=fmt, seed=seed, profile=profile)
 
 
 # ------------------------------------------------------------------ entry point

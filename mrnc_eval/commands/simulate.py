@@ -11,12 +11,12 @@ from mrnc_eval.errors import UsageError
 
 
 def main(out: Path, cfg: Config, *, scene: str, path: str, duration: float | None, lidar: str, columns: int,
-         rate: float, fmt: str, seed: int | None) -> None:
+         rate: float, fmt: str, seed: int | None, profile: str | None = None) -> None:
     from mrnc_eval.commands.progress import progress_bar
     from mrnc_eval.sim.recorder import SimRequest, simulate_log, validate
 
     req = SimRequest(scene=scene, path=path, duration_s=duration, lidar=lidar, columns=columns, rate_hz=rate,
-                     fmt=fmt, seed=seed)
+                     fmt=fmt, seed=seed, profile=profile)
     try:
         validate(req)
     except ValueError as exc:
@@ -25,6 +25,6 @@ def main(out: Path, cfg: Config, *, scene: str, path: str, duration: float | Non
         if bar is None:
             written = simulate_log(out, cfg, req)
         else:
-            task = bar.add_task(f"simulating {req.lidar} sweeps", total=None)
+            task = bar.add_task(f"simulating {req.lidar} sweeps ({req.profile or cfg.sim.profile} profile)", total=None)
             written = simulate_log(out, cfg, req, lambda n, total: bar.update(task, completed=n, total=total))
     sys.stderr.write(f"wrote {written}\n")

@@ -142,6 +142,8 @@ def _kiss_icp(sweeps: Any, cfg: Config) -> SlamOutput:
         from kiss_icp.kiss_icp import KissICP
     except ImportError as err:
         raise UsageError("--method kiss-icp needs the kiss-icp extra: pip install 'mrnc-eval[kiss-icp]'") from err
+    from mrnc_eval.slam.range_image import outside_box
+
     kcfg = load_config(None)
     kcfg.data.max_range = 100.0
     kcfg.data.min_range = cfg.slam.features.min_range_m
@@ -159,7 +161,8 @@ def _kiss_icp(sweeps: Any, cfg: Config) -> SlamOutput:
             ts = np.zeros(len(s))
         else:  # kiss-icp deskews with per-point time normalised to [0, 1]
             ts = s.point_time.astype(np.float64) / max(float(s.point_time.max()), 1e-9)
-        icp.register_frame(s.points.astype(np.float64), ts)
+        keep = outside_box(s.points, cfg.slam.features.body_crop_box_m)  # the same body crop as lio
+        icp.register_frame(s.points[keep].astype(np.float64), ts[keep])
         t_match.append((time.perf_counter() - t0) * 1e3)
         stamps.append(s.stamp)
         poses.append(np.asarray(icp.last_pose))

@@ -9,7 +9,10 @@ os_sensor at that time. Ranges are quantised to mm and xyz derived from them, li
 
 Returns: detection needs albedo * cos(incidence) / r^2 above what a 10 % target gives at the
 detection range; intensity is the photon signal (Poisson); reflectivity is the calibrated
-0-100 % Lambertian scale (falls at grazing incidence); ambient is sunlight NIR (Poisson)."""
+0-100 % Lambertian scale (falls at grazing incidence); ambient is sunlight NIR (Poisson).
+With a `FieldLidar` (field profile) a moving object is cast per column and the returns get the
+range-, reflectivity- and incidence-dependent noise, mixed pixels, outliers and dropouts of
+sim/lidar_field.py; without one, every draw is the ideal model's (byte-identical logs)."""
 
 from __future__ import annotations
 
@@ -19,7 +22,8 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrnc_eval.sim.config import LidarSimConfig
+from mrnc_eval.sim.config import FieldLidarConfig, LidarSimConfig
+from mrnc_eval.sim.lidar_field import MovingBox, Puddles, dark_dropout, mixed_pixels, outliers, range_sigma
 from mrnc_eval.sim.trajectory import BodyTrajectory
 
 SIGNAL_AT_DETECTION_LIMIT = 30.0  # photon signal of the weakest detected return
@@ -99,9 +103,20 @@ def _body_hits(body: BodyBox, base_to_sensor: np.ndarray, bm: BeamModel) -> tupl
     return dist, np.abs((normal * bm.directions).sum(axis=2))
 
 
+@dataclass(frozen=True)
+class FieldLidar:
+    """Field-profile additions: the return model, puddles on the ground, a moving object and a
+    generator of their own (so the ideal draws are untouched)."""
+
+    cfg: FieldLidarConfig
+    puddles: Puddles
+    moving: MovingBox | None
+    rng: np.random.Generator
+
+
 class LidarSimulator:
     def __init__(self, scene, cfg: LidarSimConfig, base_to_sensor: np.ndarray, rng: np.random.Generator,
-                 body: BodyBox | None = None) -> None:
+                 body: BodyBox | None = None, field: FieldLidar | None = None) -> None:
         import open3d as o3d
 
         self._o3d = o3d
@@ -121,6 +136,16 @@ class LidarSimulator:
         # weakest detectable albedo * cos / r^2 (10 % target, normal incidence, at the detection range)
         self._min_return = 0.1 / cfg.detect_range_10pct_m ** 2
         self._body = None if body is None else (*_body_hits(body, base_to_sensor, self.beams), body.albedo)
+        self.field = field
+        self._terrain = scene.terrain
+        self._moving_rs = None
+        if field is not None and field.moving is not None:
+            from mrnc_eval.sim.scene import box_mesh
+
+            sx, sy, sz = field.moving.size
+            v, t = box_mesh(0.0, 0.0, 0.0, sx, sy, sz)
+            self._moving_rs = o3d.t.geometry.RaycastingScene()
+            self._moving_rs.add_triangles(o3d.core.Tensor(v.astype(np.float32)), o3d.core.Tensor(t.astype(np.uint32)))
 
     def sweep(self, traj: BodyTrajectory, stamp: float) -> OrganisedSweep:
         c, bm = self.cfg, self.beams
@@ -140,6 +165,9 @@ class LidarSimulator:
         gid = np.where(found, np.minimum(gid, self._albedo.size - 1), self._albedo.size - 1)
         albedo = self._albedo[gid]
         cos_inc = np.abs((normal * d_world).sum(axis=2))
+        if self.field is not None:
+            dist, cos_inc, found, albedo = self._field_world(col_t, origin_w, d_world, dist, gid, cos_inc, found,
+                                                             albedo)
         if self._body is not None:  # the robot's own body is in front of the world for these pixels
             body_dist, body_cos, body_albedo = self._body
             own = body_dist < np.where(found, dist, np.inf)
@@ -147,8 +175,12 @@ class LidarSimulator:
             albedo = np.where(own, body_albedo, albedo)
         safe = np.where(found, np.maximum(dist + bm.beam_offset_m, 0.1), 1.0)
         strength = albedo * cos_inc / safe ** 2
-        rng_m = safe + self.rng.normal(0.0, c.range_noise_m, dist.shape)
-        valid = found & (strength >= self._min_return) & (rng_m <= c.max_range_m) & (rng_m >= c.min_range_m)
+        if self.field is None:
+            rng_m = safe + self.rng.normal(0.0, c.range_noise_m, dist.shape)
+            detected = found & (strength >= self._min_return)
+        else:
+            rng_m, detected = self._field_ranges(safe, found, albedo, cos_inc, strength)
+        valid = detected & (rng_m <= c.max_range_m) & (rng_m >= c.min_range_m)
         step_mm = 8.0 if low_bandwidth else 1.0
         range_mm = np.where(valid, np.round(rng_m * 1000.0 / step_mm) * step_mm, 0.0).astype(np.uint32)
         along = np.where(valid, range_mm / 1000.0 - bm.beam_offset_m, 0.0)
@@ -166,6 +198,61 @@ class LidarSimulator:
             intensity = refl.astype(np.float32)
             ambient = np.minimum(ambient // 16, 255) * 16
         return OrganisedSweep(stamp, xyz, self._t_ns, range_mm, refl, intensity, ambient.astype(np.uint16))
+
+
+    def _field_world(self, col_t, origin_w, d_world, dist, gid, cos_inc, found, albedo):
+        """Puddles darken the ground (geometry 0); the moving object is in front where it is hit."""
+        f = self.field
+        assert f is not None
+        ground = found & (gid == 0)
+        if ground.any() and len(f.puddles.radii):
+            hit_xy = (origin_w[None, :, :2] + d_world[..., :2] * np.where(found, dist, 0.0)[..., None])[ground]
+            wet = np.zeros_like(ground)
+            wet[ground] = f.puddles.contains(hit_xy)
+            albedo = np.where(wet, f.cfg.wet_albedo, albedo)
+        if self._moving_rs is None or f.moving is None:
+            return dist, cos_inc, found, albedo
+        m = f.moving
+        centre = m.centre_xy(col_t)  # (W, 2)
+        rel = centre - origin_w[:, :2]
+        reach = np.hypot(*m.size[:2]) / 2 + 0.5
+        span = np.arctan2(reach, np.maximum(np.linalg.norm(rel, axis=1), 1e-3))
+        mid = d_world[d_world.shape[0] // 2]
+        off = np.angle(np.exp(1j * (np.arctan2(mid[:, 1], mid[:, 0]) - np.arctan2(rel[:, 1], rel[:, 0]))))
+        cols = np.flatnonzero((np.abs(off) < span + 0.05) & (np.linalg.norm(rel, axis=1) < self.cfg.max_range_m))
+        if cols.size == 0:
+            return dist, cos_inc, found, albedo
+        yaw = math.atan2(m.direction[1], m.direction[0])
+        rot = np.array([[math.cos(yaw), -math.sin(yaw), 0.0], [math.sin(yaw), math.cos(yaw), 0.0], [0.0, 0.0, 1.0]])
+        base = np.c_[centre[cols], self._terrain.height(centre[cols, 0], centre[cols, 1])]  # (C, 3)
+        o_local = (origin_w[cols] - base) @ rot  # R^T (o - c)
+        d_local = d_world[:, cols] @ rot
+        rays = np.concatenate([np.broadcast_to(o_local[None], d_local.shape), d_local], axis=2)
+        hit = self._moving_rs.cast_rays(self._o3d.core.Tensor(np.ascontiguousarray(rays, np.float32).reshape(-1, 6)))
+        h = d_world.shape[0]
+        t_obj = hit["t_hit"].numpy().reshape(h, cols.size).astype(np.float64)
+        n_obj = hit["primitive_normals"].numpy().reshape(h, cols.size, 3).astype(np.float64)
+        sub = np.where(found[:, cols], dist[:, cols], np.inf)
+        own = t_obj < sub
+        dist, cos_inc, found, albedo = dist.copy(), cos_inc.copy(), found.copy(), albedo.copy()
+        dist[:, cols] = np.where(own, t_obj, dist[:, cols])
+        cos_inc[:, cols] = np.where(own, np.abs((n_obj * d_local).sum(axis=2)), cos_inc[:, cols])
+        found[:, cols] |= own
+        albedo[:, cols] = np.where(own, m.albedo, albedo[:, cols])
+        return dist, cos_inc, found, albedo
+
+    def _field_ranges(self, safe, found, albedo, cos_inc, strength):
+        """Measured ranges (m) and the detection mask of the field return model."""
+        f = self.field
+        assert f is not None
+        c = self.cfg
+        true_range = np.where(found, safe, np.inf)
+        mixed, _ = mixed_pixels(np.where(found, safe, 0.0), found, c.columns, f.cfg, f.rng)
+        sigma = range_sigma(mixed, albedo, cos_inc, f.cfg)
+        rng_m = np.where(found, mixed, safe) + self.rng.normal(0.0, 1.0, safe.shape) * sigma
+        detected = found & (strength >= self._min_return) & dark_dropout(albedo * cos_inc, f.cfg, f.rng)
+        rng_m, _ = outliers(rng_m, detected & np.isfinite(true_range), c.min_range_m, f.cfg, f.rng)
+        return rng_m, detected
 
 
 def ouster_metadata(cfg: LidarSimConfig, sensor_to_imu: np.ndarray, model: str) -> str:

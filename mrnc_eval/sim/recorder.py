@@ -15,21 +15,24 @@ from scipy.spatial.transform import Rotation
 from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import run_closed_loop
 from mrnc_eval.control.scenario import scripted_scenario
-from mrnc_eval.data import Trajectory, Waypoints
+from mrnc_eval.data import ImuSeries, Trajectory, Waypoints
 from mrnc_eval.errors import ConfigError
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
-from mrnc_eval.sim.gnss import simulate_gnss
-from mrnc_eval.sim.imu import ImuNoise, simulate_imu
-from mrnc_eval.sim.lidar import BodyBox, LidarSimulator, ouster_metadata
-from mrnc_eval.sim.scene import SCENES, build_scene
-from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory
+from mrnc_eval.sim.gnss import simulate_field_gnss, simulate_gnss
+from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
+from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, ouster_metadata
+from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
+from mrnc_eval.sim.scene import SCENES, Scene, build_scene
+from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
 from mrnc_eval.sim.wheels import drive_signals
 
 LOG_EPOCH_S = 1_763_800_000.0  # sensor-clock time of every simulated log's t = 0, s
 LIDAR_MODELS = {"os0-128": 128, "os0-64": 64, "os0-32": 32}
 PATHS = ("circle", "figure8", "loop", "line")
+PROFILES = ("ideal", "field")
+FIELD_STREAM = 13  # the field profile draws from default_rng([seed, FIELD_STREAM]): ideal draws stay as they were
 TOPICS = {"lidar": "/ouster/points", "metadata": "/ouster/metadata", "imu": "/ouster/imu",
           "chassis_imu": "/chassis/imu", "gnss": "/gnss/fix", "wheels": "/wheel_speeds", "pumps": "/pump_cmd",
           "cmd_vel": "/cmd_vel", "wheel_odom": "/wheel_odom", "plan": "/plan", "ground_truth": "/ground_truth"}
@@ -45,6 +48,22 @@ class SimRequest:
     rate_hz: float = 10.0
     fmt: str = "mcap"
     seed: int | None = None  # None: cfg.sim.seed
+    profile: str | None = None  # ideal or field; None: cfg.sim.profile
+
+
+def mounts(cfg: Config) -> tuple[np.ndarray, np.ndarray]:
+    """(written, true) base_link -> os_sensor: /tf_static carries the nominal mount; with the field
+    profile the LiDAR (and the IMU inside it) really sits at nominal x calibration error."""
+    written = transform(cfg.sim.lidar.mount_xyz_m)
+    if cfg.sim.profile != "field":
+        return written, written
+    cal = cfg.sim.field.calibration
+    error = transform(cal.lidar_xyz_error_m, Rotation.from_euler("xyz", cal.lidar_rpy_error_deg, degrees=True)
+                      .as_matrix())
+    true = written.copy()
+    true[:3, :3] = written[:3, :3] @ error[:3, :3]
+    true[:3, 3] = written[:3, 3] + error[:3, 3]
+    return written, true
 
 
 def transform(xyz, rot=None) -> np.ndarray:
@@ -69,6 +88,8 @@ def validate(req: SimRequest) -> None:
         problems.append("2048 columns only at 10 Hz (OS0 modes)")
     if req.fmt not in ("mcap", "db3", "bag"):
         problems.append(f"format {req.fmt!r} (mcap, db3 or bag)")
+    if req.profile is not None and req.profile not in PROFILES:
+        problems.append(f"profile {req.profile!r} (ideal or field)")
     if req.duration_s is not None and req.duration_s <= 0.5:
         problems.append(f"duration {req.duration_s:g} s (must exceed 0.5 s)")
     if problems:
@@ -85,36 +106,51 @@ def _driven_path(trace) -> np.ndarray:
 def simulate_log(out: Path, cfg: Config, req: SimRequest,
                  progress: Callable[[int, int], None] | None = None) -> Path:
     """Write the log to `out` (atomically) and the ground truth TUM beside it; returns the log
-    path. `progress(done, total)` is called after each recorded sweep."""
+    path. `progress(done, total)` is called after each recorded sweep. Long because it is the
+    table of contents of a recording: world, motion, then every sensor in a fixed draw order."""
     validate(req)
     if not cfg.sim.scene_scale > 0:
         raise ConfigError(f"sim.scene_scale must be > 0, got {cfg.sim.scene_scale:g}")
+    if req.profile is not None:
+        cfg = replace(cfg, sim=replace(cfg.sim, profile=req.profile))
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     scfg = cfg.sim
+    field = scfg.field if scfg.profile == "field" else None
     lcfg = replace(scfg.lidar, beams=LIDAR_MODELS[req.lidar], columns=req.columns, rate_hz=req.rate_hz)
     seed = cfg.sim.seed if req.seed is None else req.seed
     rng = np.random.default_rng(seed)
+    frng = np.random.default_rng([seed, FIELD_STREAM])
 
     scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
     trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
-    scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m,
-                        roughness_m=scfg.terrain_roughness_m, centre=tuple(scenario.waypoints_xy.mean(axis=0)),
-                        keep_clear_xy=_driven_path(trace), clearance_m=cfg.robot.width_m / 2 + 0.5,
+    centre = tuple(scenario.waypoints_xy.mean(axis=0))
+    roughness = scfg.terrain_roughness_m if field is None else field.world.terrain_roughness_m
+    scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m, roughness_m=roughness,
+                        centre=centre, keep_clear_xy=_driven_path(trace), clearance_m=cfg.robot.width_m / 2 + 0.5,
                         scale=scfg.scene_scale)
-    traj = BodyTrajectory.from_trace(trace, scene.terrain)
+    shake = None
+    if field is not None:
+        w = field.world
+        shake = stone_shake(np.asarray(trace.t, float), np.c_[trace.x, trace.y], stones_per_m=w.stones_per_m,
+                            height_m=w.stone_height_m, track_m=cfg.robot.track_width_m, wheelbase_m=w.wheelbase_m,
+                            natural_hz=w.shake_hz, damping=w.shake_damping, rng=frng)
+    traj = BodyTrajectory.from_trace(trace, scene.terrain, shake)
     t_end = float(trace.t[-1]) if req.duration_s is None else float(req.duration_s)
 
-    base_to_sensor = transform(lcfg.mount_xyz_m)
+    base_to_sensor, true_base_to_sensor = mounts(cfg)
     sensor_to_lidar = transform((0.0, 0.0, lcfg.lidar_to_sensor_z_m), Rotation.from_euler("z", math.pi).as_matrix())
     sensor_to_imu = transform(scfg.imu.mount_xyz_m)
-    base_to_imu = base_to_sensor @ sensor_to_imu
+    base_to_imu = true_base_to_sensor @ sensor_to_imu
     base_to_gnss = transform(scfg.gnss.antenna_xyz_m)
     base_to_chassis = transform(scfg.imu.chassis_mount_xyz_m,
                                 Rotation.from_euler("xyz", scfg.imu.chassis_mount_rpy_deg, degrees=True).as_matrix())
 
     def stamps(rate: float) -> np.ndarray:
         return np.arange(0.0, t_end, 1.0 / rate)
+
+    def host_stamps(times: np.ndarray) -> np.ndarray:  # header stamps of host-stamped topics, log time
+        return times if field is None else times + frng.normal(0.0, field.clock.host_jitter_s, times.size)
 
     t0 = LOG_EPOCH_S
     compression = None if scfg.bag_compression == "none" else scfg.bag_compression
@@ -125,23 +161,39 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
                                 ("base_link", "gnss", base_to_gnss)], t0)
         writer.write_strings(TOPICS["metadata"], [t0], [ouster_metadata(lcfg, sensor_to_imu, req.lidar)])
         writer.write_path(TOPICS["plan"], Waypoints(scenario.waypoints_xy, frame_id="map"), t0)
-        noise = ImuNoise.from_config(scfg.imu)
-        _write_imu(writer, TOPICS["imu"], simulate_imu(traj, stamps(scfg.imu.rate_hz), base_to_imu, noise, rng,
-                                                       "os_imu"), noise, t0)
-        if scfg.imu.chassis_rate_hz > 0:
-            chassis = simulate_imu(traj, stamps(scfg.imu.chassis_rate_hz), base_to_chassis, noise, rng, "chassis_imu")
-            _write_imu(writer, TOPICS["chassis_imu"], chassis, noise, t0)
-        fixes = simulate_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, rng)
-        writer.write_navsatfix(TOPICS["gnss"], fixes.stamps + t0, fixes.lla, fixes.covariance, fixes.status)
-        _write_drive(writer, trace, stamps(scfg.wheel_rate_hz), cfg, t0)
+        if field is None:
+            noise = ImuNoise.from_config(scfg.imu)
+            imu = simulate_imu(traj, stamps(scfg.imu.rate_hz), base_to_imu, noise, rng, "os_imu")
+        else:
+            noise = ImuNoise(field.imu.acc_noise_density, field.imu.gyro_noise_density, field.imu.acc_bias_walk,
+                             field.imu.gyro_bias_walk)
+            imu = _field_imu_series(traj, stamps(scfg.imu.rate_hz), base_to_imu, cfg, frng)
+        _write_imu(writer, TOPICS["imu"], imu, noise, t0)
+        if scfg.imu.chassis_rate_hz > 0:  # an ADIS16475-class part: the ideal model in both profiles
+            chassis_noise = ImuNoise.from_config(scfg.imu)
+            chassis = simulate_imu(traj, stamps(scfg.imu.chassis_rate_hz), base_to_chassis, chassis_noise, rng,
+                                   "chassis_imu")
+            _write_imu(writer, TOPICS["chassis_imu"], chassis, chassis_noise, t0)
+        if field is None:
+            fixes = simulate_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, rng)
+            gnss_stamps = fixes.stamps
+        else:
+            fixes = simulate_field_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, field.gnss,
+                                        _structures_xy(scene), frng)
+            gnss_stamps = host_stamps(fixes.stamps + field.clock.gnss_latency_s)
+        writer.write_navsatfix(TOPICS["gnss"], gnss_stamps + t0, fixes.lla, fixes.covariance, fixes.status)
+        _write_drive(writer, trace, stamps(scfg.wheel_rate_hz), cfg, t0, host_stamps)
         gt = _write_ground_truth(writer, traj, stamps(scfg.ground_truth_rate_hz), t0)
 
-        lidar = LidarSimulator(scene, lcfg, base_to_sensor, rng, _body_box(cfg) if lcfg.self_occlusion else None)
+        body = _body_box(cfg) if lcfg.self_occlusion or (field is not None and field.lidar.body_in_cloud) else None
+        lidar = LidarSimulator(scene, lcfg, true_base_to_sensor, rng, body,
+                               None if field is None else _field_lidar(cfg, scene, trace, centre, frng))
         sweep_starts = np.arange(0.0, t_end - 1.0 / lcfg.rate_hz, 1.0 / lcfg.rate_hz)
         kept = sweep_starts[::max(1, lcfg.record_every)]  # a throttled recording keeps every n-th sweep
         for n, start in enumerate(kept):
             s = lidar.sweep(traj, float(start))
-            writer.write_ouster_cloud(TOPICS["lidar"], t0 + s.stamp, s.xyz, s.t_ns, s.range_mm, s.reflectivity,
+            stamp = s.stamp if field is None else s.stamp + frng.normal(0.0, field.clock.lidar_jitter_s)
+            writer.write_ouster_cloud(TOPICS["lidar"], t0 + stamp, s.xyz, s.t_ns, s.range_mm, s.reflectivity,
                                       s.intensity, s.ambient)
             if progress is not None:
                 progress(n + 1, kept.size)
@@ -151,6 +203,31 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         raise
     write_tum(gt_tum_path(path), gt)
     return path
+
+
+def _field_imu_series(traj: BodyTrajectory, times: np.ndarray, base_to_imu: np.ndarray, cfg: Config,
+                      rng: np.random.Generator) -> ImuSeries:
+    """The Ouster IMU of the field profile with its header stamps: true time + constant offset + jitter."""
+    clock = cfg.sim.field.clock
+    s = field_imu(traj, times, base_to_imu, cfg.sim.field.imu, rng)
+    header = s.times + clock.imu_offset_s + rng.normal(0.0, clock.imu_jitter_s, s.times.size)
+    return ImuSeries(header, s.acc, s.gyro, None, "os_imu")
+
+
+def _structures_xy(scene: Scene) -> np.ndarray:
+    """Horizontal positions of every object vertex (not the ground): what shades and reflects GNSS."""
+    parts = [v[:, :2] for v in scene.vertices[1:]]
+    return np.concatenate(parts).astype(float) if parts else np.zeros((0, 2))
+
+
+def _field_lidar(cfg: Config, scene: Scene, trace, centre: tuple[float, float], rng: np.random.Generator) -> FieldLidar:
+    w = cfg.sim.field.world
+    puddles = scatter_puddles(centre, 30.0 * cfg.sim.scene_scale, cfg.sim.field.lidar, rng)
+    moving = None
+    if w.moving_object != "none":
+        moving = place_moving_box(w.moving_object, np.c_[trace.x, trace.y], np.asarray(trace.t, float), centre,
+                                  w.moving_speed_mps, w.moving_clearance_m, cfg.robot.length_m / 2, rng)
+    return FieldLidar(cfg.sim.field.lidar, puddles, moving, rng)
 
 
 def _body_box(cfg: Config) -> BodyBox:
@@ -165,13 +242,16 @@ def _write_imu(writer: LogWriter, topic: str, imu, noise: ImuNoise, t0: float) -
     writer.write_imu(topic, replace(imu, stamps=imu.stamps + t0), acc_var=acc_var, gyro_var=gyro_var)
 
 
-def _write_drive(writer: LogWriter, trace, times: np.ndarray, cfg: Config, t0: float) -> None:
+def _write_drive(writer: LogWriter, trace, times: np.ndarray, cfg: Config, t0: float,
+                 stamp: Callable[[np.ndarray], np.ndarray]) -> None:
+    """Drive-train topics; `stamp` maps true times to header stamps (the identity when ideal)."""
     d = drive_signals(trace, times, cfg.robot.wheel_radius_m, cfg.robot.track_width_m)
-    writer.write_joint_state(TOPICS["wheels"], d.stamps + t0, ["left_wheel", "right_wheel"], d.wheel_rad_s)
-    writer.write_joint_state(TOPICS["pumps"], d.stamps + t0, ["left_pump", "right_pump"], d.pump_rpm)
-    writer.write_twist_stamped(TOPICS["cmd_vel"], replace(d.cmd_vel, stamps=d.cmd_vel.stamps + t0))
+    header = stamp(d.stamps) + t0
+    writer.write_joint_state(TOPICS["wheels"], header, ["left_wheel", "right_wheel"], d.wheel_rad_s)
+    writer.write_joint_state(TOPICS["pumps"], header, ["left_pump", "right_pump"], d.pump_rpm)
+    writer.write_twist_stamped(TOPICS["cmd_vel"], replace(d.cmd_vel, stamps=header))
     zero = np.zeros_like(d.odom_v)
-    writer.write_odometry(TOPICS["wheel_odom"], replace(d.odometry, stamps=d.odometry.stamps + t0), "odom",
+    writer.write_odometry(TOPICS["wheel_odom"], replace(d.odometry, stamps=header), "odom",
                           "base_link", linear_velocity=np.c_[d.odom_v, zero, zero],
                           angular_velocity=np.c_[zero, zero, d.odom_omega])
 

@@ -57,6 +57,10 @@ class ImuConfig:
 class FeatureConfig:
     min_range_m: float = param(1.0, "drop points closer than this (LIO-SAM lidarMinRange)", "m")
     max_range_m: float = param(1000.0, "drop points farther than this (lidarMaxRange)", "m")
+    body_crop_box_m: tuple[float, float, float, float, float, float] | None = param(
+        (-3.35, -1.15, -2.35, 0.95, 1.15, -0.85), "drop points inside this box of the cloud frame [x_min, y_min, "
+        "z_min, x_max, y_max, z_max]: the machine's own body (lidarMinRange shaped to the body; default: the MPD's "
+        "4 x 2 x 1.2 m body seen from its OS0 mount, plus 0.15 m); None = off", "m")
     edge_threshold: float = param(1.0, "smoothness above this is an edge candidate (edgeThreshold)")
     surf_threshold: float = param(0.1, "smoothness below this is a planar candidate (surfThreshold)")
     max_edges_per_sector: int = param(20, "edges kept per sector")

@@ -1,6 +1,6 @@
-"""Range-image projection (LIO-SAM imageProjection): keep points within the range limits,
-row = ring (every downsample_rate-th), column from the cloud layout or from the azimuth,
-first point per pixel wins, then flatten ring-major so each ring is a contiguous run."""
+"""Range-image projection (LIO-SAM imageProjection): keep points within the range limits and
+outside the body crop box, row = ring (every downsample_rate-th), column from the cloud layout
+or from the azimuth, first point per pixel wins, then flatten ring-major so each ring is a contiguous run."""
 
 from __future__ import annotations
 
@@ -39,6 +39,16 @@ def elevation_ring(points: np.ndarray, sensor: SensorConfig) -> np.ndarray:
     return np.asarray(np.clip(ring, 0, sensor.n_scan - 1), np.int64)
 
 
+def outside_box(points: np.ndarray, box: tuple[float, ...] | None) -> np.ndarray:
+    """(N,) True for points outside the axis-aligned `box` [x_min, y_min, z_min, x_max, y_max,
+    z_max] (m, cloud frame); all True when box is None."""
+    if box is None:
+        return np.ones(len(points), bool)
+    lo, hi = np.asarray(box[:3]), np.asarray(box[3:])
+    inside: np.ndarray = np.all((points >= lo) & (points <= hi), axis=1)
+    return ~inside
+
+
 def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> RangeImage:
     pts = sweep.points.astype(np.float64)
     rng = np.linalg.norm(pts, axis=1)
@@ -50,6 +60,7 @@ def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> Rang
         column = azimuth_column(pts, sensor.horizon_scan)
         width = sensor.horizon_scan
     keep = (rng >= features.min_range_m) & (rng <= features.max_range_m) & np.isfinite(rng)
+    keep &= outside_box(pts, features.body_crop_box_m)
     if sensor.downsample_rate > 1:
         keep &= ring % sensor.downsample_rate == 0
     idx = np.flatnonzero(keep)
