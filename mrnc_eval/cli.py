@@ -48,6 +48,8 @@ DumpOpt = Annotated[
     bool, typer.Option("--dump-config", help="Print the effective configuration as YAML and exit.")
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON to stdout.")]
+JunitOpt = Annotated[Path | None, typer.Option(
+    help="Also write the metric gates as JUnit XML (one test case per gate per log) for CI.")]
 
 
 def _config(path: Path | None, overrides: list[str] | None, dump: bool = False):  # -> Config
@@ -309,10 +311,11 @@ def report(
     ],
     out: Annotated[Path | None, typer.Option(help="Output directory (default: next to each result).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
+    junit: JunitOpt = None,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
     from mrnc_eval.commands import report as report_command
-    report_command.main(result_dirs, out=out, pdf=pdf)
+    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit)
 
 
 @app.command()
@@ -325,6 +328,7 @@ def nightly(
     gates: Annotated[Path | None, typer.Option(help="YAML with gate thresholds (overrides config gates).")] = None,
     date: Annotated[str | None, typer.Option(help="Night label YYYY-MM-DD (default: today).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write PDF reports.")] = True,
+    junit: JunitOpt = None,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
@@ -334,7 +338,26 @@ def nightly(
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import nightly as nightly_command
     nightly_command.main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
-                              gates=gates, date=date, pdf=pdf)
+                              gates=gates, date=date, pdf=pdf, junit=junit)
+
+
+@app.command()
+def export(
+    run_dirs: Annotated[
+        list[Path],
+        typer.Argument(metavar="RUN_DIR...", help="Result directories of one log (slam, control, info), "
+                       "or a folder holding them (a nightly per-log folder)."),
+    ],
+    mcap: Annotated[Path, typer.Option(help="Output .mcap file (Foxglove / Lichtblick, JSON + Foxglove schemas).")],
+    with_log: Annotated[bool, typer.Option("--with-log", help="Also copy the original log's sensor topics, raw.")]
+    = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing output file.")] = False,
+) -> None:
+    """Write one MCAP on the original log's timeline: trajectories and ground truth as poses, the
+    APE (m) over time, the map (downsampled), the keyframe graph with loop closures, control
+    references, speeds (m/s), commands (RPM), funnel, saturation and safety stops, events as logs."""
+    from mrnc_eval.commands import export as export_command
+    export_command.main(run_dirs, mcap=mcap, with_log=with_log, force=force)
 
 
 @app.command()

@@ -84,8 +84,10 @@ def _night(date: str | None) -> str:
 
 
 def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | None, since: str | None,
-         gates: Path | None, date: str | None, pdf: bool, analysis: str = DEFAULT_ANALYSIS) -> None:
-    """`analysis` names the per-log function ("module:function", see log_job); tests inject fakes."""
+         gates: Path | None, date: str | None, pdf: bool, analysis: str = DEFAULT_ANALYSIS,
+         junit: Path | None = None) -> None:
+    """`analysis` names the per-log function ("module:function", see log_job); tests inject fakes.
+    `junit`: also write the night's gates as JUnit XML there (one test case per gate per log)."""
     from mrnc_eval.commands.executors import make_executor
 
     night = _night(date)
@@ -95,7 +97,7 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     logs = discover_logs(log_dir, since_date)
     out.mkdir(parents=True, exist_ok=True)
     with _exclusive(out / ".nightly.lock"):
-        _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis)
+        _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis, junit)
 
 
 @contextmanager
@@ -113,7 +115,7 @@ def _exclusive(lock_path: Path) -> Iterator[None]:
 
 
 def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: str, executor: Executor, pdf: bool,
-               analysis: str) -> None:
+               analysis: str, junit: Path | None = None) -> None:
     night_dir = out / night
     history = History(out / "history.sqlite")
     done = history.finished(night)
@@ -130,6 +132,10 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
                 bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
     rows = _write_index(history, night, night_dir)
     regressions = _write_trends(history, out)
+    if junit is not None:
+        from mrnc_eval.commands.junit import night_suites, write_junit
+
+        write_junit(junit, night_suites(rows, night_dir, cfg.gates), f"mrnc-eval nightly {night}")
     failed = [r for r in rows if r.status != "ok"]
     gate_fail = [r for r in rows if r.gates_failed]
     sys.stdout.write(f"night {night}: {len(rows)} logs, {len(failed)} failed, {len(gate_fail)} with failed gates, "

@@ -28,7 +28,7 @@ def result_dirs_of(paths: list[Path]) -> list[Path]:
     return found
 
 
-def main(result_dirs: list[Path], *, out: Path | None, pdf: bool) -> None:
+def main(result_dirs: list[Path], *, out: Path | None, pdf: bool, junit: Path | None = None) -> None:
     from mrnc_eval.reports.render import write_report
 
     dirs = result_dirs_of(result_dirs)
@@ -41,5 +41,12 @@ def main(result_dirs: list[Path], *, out: Path | None, pdf: bool) -> None:
     cfg = load_config(config_path) if config_path else load_config()
     target = out or (result_dirs[0] if len(dirs) > 1 or not (result_dirs[0] / RESULT_FILE).is_file() else dirs[0])
     written = write_report(results, target, gates=cfg.gates, config_text=config_text, pdf=pdf)
+    if junit is not None:
+        from mrnc_eval.commands.junit import write_junit
+        from mrnc_eval.reports.junit import suite_of_results
+
+        write_junit(junit, [suite_of_results(results[0].log_id, results[0].log_path, results, cfg.gates)],
+                    f"mrnc-eval report {results[0].log_id}")
+        written["junit"] = junit
     for kind, path in written.items():
         sys.stdout.write(f"{kind}: {path}\n")

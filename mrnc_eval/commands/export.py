@@ -1,0 +1,192 @@
+"""`mrnc-eval export RUN_DIR... --mcap OUT.mcap`: one log's results (and optionally its sensor
+topics) as one MCAP file for Foxglove / Lichtblick, on the original log's timeline.
+
+Reads result directories only (never recomputes a metric); the log itself is read for the
+ground truth, the time origin of a control replay and `--with-log`. The file is written under
+a temporary name beside OUT and renamed into place when complete; an existing OUT is only
+replaced with `--force`."""
+
+from __future__ import annotations
+
+import contextlib
+import os
+import sys
+import tempfile
+from collections import Counter
+from dataclasses import dataclass, field
+from pathlib import Path
+
+from mrnc_eval.config import CONFIG_FILE_NAME, Config, load_config
+from mrnc_eval.data import Trajectory
+from mrnc_eval.errors import EvaluationError, InputError, UsageError
+from mrnc_eval.export import topics
+from mrnc_eval.export.mcap_file import JsonMcap
+from mrnc_eval.results import RunResult, read_result
+
+
+@dataclass
+class ExportSummary:
+    path: Path
+    size_bytes: int = 0
+    counts: Counter[str] = field(default_factory=Counter)  # messages per topic
+    map_points: int = 0
+    warnings: list[str] = field(default_factory=list)
+
+
+@dataclass(frozen=True)
+class LogContext:
+    """What the export needs from the original log (None when the log is not at its recorded path)."""
+
+    path: Path
+    start_s: float
+    end_s: float
+    ground_truth: Trajectory | None
+    wheel_t0_s: float | None  # first wheel-speed stamp: the time origin of a control replay
+
+
+def load_runs(run_dirs: list[Path]) -> list[tuple[Path, RunResult]]:
+    """Result directories (or folders of them) of one log, in the order info, slam, control."""
+    from mrnc_eval.commands.report import KIND_ORDER, result_dirs_of
+
+    runs = sorted(((d, read_result(d)) for d in result_dirs_of(run_dirs)), key=lambda r: KIND_ORDER.get(r[1].kind, 9))
+    logs = sorted({str(Path(r.log_path).resolve()) for _, r in runs if r.log_path != "paper-scenario"})
+    if len(logs) > 1:
+        raise InputError(run_dirs[0], f"results of different logs ({', '.join(logs)}); one log per export")
+    return runs
+
+
+def _run_config(run_dir: Path) -> Config:
+    path = run_dir / CONFIG_FILE_NAME
+    return load_config(path) if path.is_file() else load_config()
+
+
+def read_log_context(log_path: Path, cfg: Config) -> LogContext:
+    from mrnc_eval.io import open_log
+    from mrnc_eval.io.ground_truth import gt_tum_path
+    from mrnc_eval.io.trajectory_files import read_tum
+
+    with open_log(log_path, cfg.io) as lg:
+        start, end = lg.start_s, lg.end_s
+        gt = lg.ground_truth() if lg.has_role("ground_truth") else None
+        wheel = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m) if lg.has_role("wheel_speeds") else None
+    if gt is None and gt_tum_path(log_path).is_file():
+        gt = read_tum(gt_tum_path(log_path))
+    return LogContext(log_path, start, end, gt, float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size
+                      else None)
+
+
+def _slam_files(run_dir: Path) -> topics.SlamFiles:
+    from mrnc_eval.io.trajectory_files import read_tum
+
+    def tum(name: str) -> Trajectory | None:
+        return read_tum(run_dir / name) if (run_dir / name).is_file() else None
+
+    trajectory = tum("trajectory.tum")
+    if trajectory is None or len(trajectory) == 0:
+        raise InputError(run_dir, "SLAM result without trajectory.tum: nothing to export")
+    return topics.SlamFiles(trajectory, tum("trajectory_online.tum"), tum("keyframes.tum"), _read_map(run_dir))
+
+
+def _read_map(run_dir: Path):
+    for name in ("map.ply", "map.pcd"):
+        if (run_dir / name).is_file():
+            import numpy as np
+            import open3d as o3d
+
+            return np.asarray(o3d.io.read_point_cloud(str(run_dir / name)).points)
+    return None
+
+
+def _control_t0(result: RunResult, ctx: LogContext | None, summary: ExportSummary) -> float:
+    """Control series are in seconds since the run's first sample: a replay starts at the first
+    wheel-speed stamp (as commands.control.replay uses it), a simulation at the log start."""
+    if "t0_stamp_s" in result.extra:
+        return float(result.extra["t0_stamp_s"])
+    if ctx is not None:
+        if result.extra.get("mode") == "replay" and ctx.wheel_t0_s is not None:
+            return ctx.wheel_t0_s
+        return ctx.start_s
+    summary.warnings.append(f"{result.log_id}: control result without its log: time starts at 0")
+    return 0.0
+
+
+def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContext | None,
+               summary: ExportSummary) -> None:
+    from mrnc_eval.evaluation.ape import ape
+
+    gt_written = False
+    for run_dir, result in runs:
+        if result.kind == "slam":
+            files = _slam_files(run_dir)
+            method = result.extra.get("method", "lio")
+            summary.map_points += topics.write_slam(out, result, files)
+            t0 = float(files.trajectory.stamps[0])
+            topics.write_events(out, result, t0, f"slam/{method}")
+            if ctx is not None and ctx.ground_truth is not None and not gt_written:
+                topics.write_ground_truth(out, ctx.ground_truth)
+                gt_written = True
+                try:
+                    align = ape(ctx.ground_truth, files.trajectory, align="se3", max_diff=0.02)
+                    topics.write_alignment(out, topics.stamp_ns(t0), align.transform)
+                except EvaluationError as err:
+                    summary.warnings.append(f"no world -> map alignment: {err}")
+        elif result.kind == "control":
+            cfg = _run_config(run_dir).control
+            t0 = _control_t0(result, ctx, summary)
+            topics.write_control(out, result, t0, u_max_rpm=cfg.actuator.u_max_rpm,
+                                 saturation_tol_rpm=cfg.metrics.saturation_tolerance_rpm)
+            topics.write_events(out, result, t0, "control")
+        elif result.kind == "info" and ctx is not None:
+            topics.write_events(out, result, ctx.start_s, "info")
+    if ctx is not None and ctx.ground_truth is not None and not gt_written:
+        topics.write_ground_truth(out, ctx.ground_truth)
+
+
+def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False, force: bool = False
+                ) -> ExportSummary:
+    """Write the MCAP; see the module docstring."""
+    if out_path.suffix.lower() != ".mcap":
+        raise UsageError(f"--mcap {out_path}: the file name must end in .mcap")
+    if out_path.exists() and not force:
+        raise UsageError(f"{out_path}: exists; pass --force to replace it")
+    runs = load_runs(run_dirs)
+    summary = ExportSummary(out_path)
+    log_path = next((Path(r.log_path) for _, r in runs if r.log_path != "paper-scenario"), None)
+    ctx = None
+    if log_path is not None and log_path.exists():
+        ctx = read_log_context(log_path, _run_config(runs[0][0]))
+    elif with_log:
+        raise InputError(log_path or run_dirs[0], "--with-log: the original log is not at its recorded path")
+    else:
+        summary.warnings.append(f"log {log_path} not found: no ground truth, control time from 0")
+    out_path.parent.mkdir(parents=True, exist_ok=True)
+    fd, tmp = tempfile.mkstemp(prefix=f".{out_path.name}.", suffix=".tmp", dir=out_path.parent)
+    try:
+        with os.fdopen(fd, "wb") as fh:
+            out = JsonMcap(fh)
+            _write_all(out, runs, ctx, summary)
+            summary.counts.update(out.counts)
+            if with_log and ctx is not None:
+                from mrnc_eval.export.log_copy import copy_log
+
+                summary.counts.update(copy_log(out.writer, ctx.path, topics.ROOT))
+            out.finish()
+        os.replace(tmp, out_path)
+    except BaseException:
+        with contextlib.suppress(OSError):
+            os.unlink(tmp)
+        raise
+    summary.size_bytes = out_path.stat().st_size
+    return summary
+
+
+def main(run_dirs: list[Path], *, mcap: Path, with_log: bool, force: bool) -> None:
+    summary = export_mcap(run_dirs, mcap, with_log=with_log, force=force)
+    for w in summary.warnings:
+        sys.stderr.write(f"warning: {w}\n")
+    total = sum(summary.counts.values())
+    sys.stdout.write(f"{summary.path}: {summary.size_bytes / 1e6:.2f} MB, {total} messages on "
+                     f"{len(summary.counts)} topics, map {summary.map_points} points\n")
+    for topic, n in sorted(summary.counts.items()):
+        shown = "".join(c if c.isprintable() else repr(c)[1:-1] for c in topic)  # a log's topic names
+        sys.stdout.write(f"  {shown}: {n}\n")

@@ -1,0 +1,191 @@
+"""`mrnc-eval export --mcap`: the file read back with the mcap library (independent of our writer)."""
+
+from __future__ import annotations
+
+import json
+from collections import Counter
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrnc_eval.cli import main
+from mrnc_eval.io import open_log
+from mrnc_eval.io.trajectory_files import read_tum
+from mrnc_eval.results import read_result
+from tests.export.conftest import Runs
+
+FOXGLOVE = {"foxglove.PoseInFrame", "foxglove.PosesInFrame", "foxglove.PointCloud", "foxglove.SceneUpdate",
+            "foxglove.FrameTransform"}
+
+
+def read_mcap(path: Path) -> tuple[dict, list[tuple[str, str, int, bytes]]]:
+    """(summary, [(topic, schema name, log_time ns, data)]) through the mcap library's reader."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as fh:
+        reader = make_reader(fh)
+        summary = reader.get_summary()
+        messages = [(ch.topic, sc.name if sc else "", m.log_time, m.data) for sc, ch, m in reader.iter_messages()]
+    return summary, messages
+
+
+@pytest.fixture(scope="module")
+def exported(sim_runs: Runs, tmp_path_factory) -> Path:
+    out = tmp_path_factory.mktemp("mcap") / "yard.mcap"
+    assert main(["export", str(sim_runs.root), "--mcap", str(out)]) == 0
+    return out
+
+
+def test_schema_names_counts_and_encodings(exported: Path, sim_runs: Runs) -> None:
+    summary, messages = read_mcap(exported)
+    schemas = {s.name: s.encoding for s in summary.schemas.values()}
+    assert set(schemas) >= FOXGLOVE
+    assert set(schemas.values()) == {"jsonschema"}
+    assert {c.message_encoding for c in summary.channels.values()} == {"json"}
+    counts = Counter(topic for topic, *_ in messages)
+    slam, control = read_result(sim_runs.slam), read_result(sim_runs.control)
+    traj = read_tum(sim_runs.slam / "trajectory.tum")
+    with open_log(sim_runs.log) as lg:
+        n_gt = len(lg.ground_truth())
+    assert counts["/eval/slam/lio/pose"] == len(traj)
+    assert counts["/eval/slam/lio/path"] == 1
+    assert counts["/eval/slam/lio/ape"] == slam.series["ape_err_m"].size
+    assert counts["/eval/ground_truth/pose"] == n_gt
+    assert counts["/eval/slam/lio/map"] == 1
+    assert counts["/eval/slam/lio/keyframes"] == len(read_tum(sim_runs.slam / "keyframes.tum"))
+    assert counts["/eval/control/recorded/tracking"] == control.series["recorded_t"].size
+    assert counts["/eval/control/recorded/planned_path"] == counts["/eval/control/recorded/driven_path"] == 1
+    assert counts["/eval/tf"] == 1
+    assert summary.statistics.message_count == len(messages)
+
+
+def test_every_stamp_inside_the_log_and_equal_to_the_body_stamp(exported: Path, sim_runs: Runs) -> None:
+    _, messages = read_mcap(exported)
+    with open_log(sim_runs.log) as lg:
+        start, end = lg.start_s, lg.end_s
+    for topic, _schema, t_ns, data in messages:
+        assert start - 1e-6 <= t_ns * 1e-9 <= end + 1e-6, topic
+        body = json.loads(data)
+        if "timestamp" in body:
+            assert body["timestamp"]["sec"] * 1_000_000_000 + body["timestamp"]["nsec"] == t_ns, topic
+
+
+def test_decoded_poses_equal_the_tum_file(exported: Path, sim_runs: Runs) -> None:
+    _, messages = read_mcap(exported)
+    poses = [(t, json.loads(d)) for topic, _s, t, d in messages if topic == "/eval/slam/lio/pose"]
+    traj = read_tum(sim_runs.slam / "trajectory.tum")
+    assert len(poses) == len(traj)
+    for (t_ns, body), stamp, xyz, q in zip(poses, traj.stamps, traj.positions, traj.quat_xyzw, strict=True):
+        p, o = body["pose"]["position"], body["pose"]["orientation"]
+        assert body["frame_id"] == "map"
+        assert abs(t_ns * 1e-9 - stamp) < 1e-6  # float64 of a 1.7e9 s stamp: 0.24 us resolution
+        np.testing.assert_allclose([p["x"], p["y"], p["z"]], xyz, rtol=0, atol=1e-12)
+        np.testing.assert_allclose([o["x"], o["y"], o["z"], o["w"]], q, rtol=0, atol=1e-12)
+
+
+def test_map_cloud_and_control_values_decode_to_the_results(exported: Path, sim_runs: Runs) -> None:
+    import base64
+
+    _, messages = read_mcap(exported)
+    by_topic: dict[str, list[dict]] = {}
+    for topic, _s, _t, data in messages:
+        by_topic.setdefault(topic, []).append(json.loads(data))
+    cloud = by_topic["/eval/slam/lio/map"][0]
+    xyz = np.frombuffer(base64.b64decode(cloud["data"]), dtype="<f4").reshape(-1, cloud["point_stride"] // 4)
+    import open3d as o3d
+
+    full = np.asarray(o3d.io.read_point_cloud(str(sim_runs.slam / "map.ply")).points)
+    assert 0 < xyz.shape[0] <= 100_000
+    assert xyz.shape[0] == min(full.shape[0], xyz.shape[0])
+    np.testing.assert_allclose(xyz.min(axis=0), full.min(axis=0), atol=1e-3)
+    control = read_result(sim_runs.control)
+    tracking = by_topic["/eval/control/recorded/tracking"]
+    np.testing.assert_allclose([m["v_left_mps"] for m in tracking], control.series["recorded_left_v_meas"])
+    np.testing.assert_allclose([m["error_right_mps"] for m in tracking],
+                               control.series["recorded_right_v_meas"] - control.series["recorded_right_v_ref"])
+    np.testing.assert_allclose([m["funnel_upper_mps"] for m in tracking], control.series["recorded_funnel_o"])
+
+
+def test_messages_validate_against_their_own_schemas(exported: Path) -> None:
+    jsonschema = pytest.importorskip("jsonschema", reason="jsonschema not installed")
+    from mcap.reader import make_reader
+
+    seen: set[str] = set()
+    with exported.open("rb") as fh:
+        for schema, channel, message in make_reader(fh).iter_messages():
+            if channel.topic in seen:
+                continue
+            seen.add(channel.topic)
+            jsonschema.validate(json.loads(message.data), json.loads(schema.data))
+    assert len(seen) >= 10
+
+
+def test_with_log_copies_every_topic_raw(sim_runs: Runs, tmp_path: Path) -> None:
+    from mcap.reader import make_reader
+
+    out = tmp_path / "all.mcap"
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--with-log"]) == 0
+    with sim_runs.log.open("rb") as fh:
+        original = Counter(ch.topic for _s, ch, _m in make_reader(fh).iter_messages())
+        fh.seek(0)
+        first = {}
+        for _s, ch, m in make_reader(fh).iter_messages():
+            first.setdefault(ch.topic, m.data)
+    summary, messages = read_mcap(out)
+    counts = Counter(topic for topic, *_ in messages)
+    for topic, n in original.items():
+        assert counts[topic] == n, topic
+        assert next(d for t, _s, _ts, d in messages if t == topic) == first[topic]
+    assert {s.encoding for s in summary.schemas.values()} >= {"jsonschema", "ros2msg"}
+
+
+def test_with_log_from_a_ros1_bag_keeps_ros1_encoding(tmp_path: Path) -> None:
+    from mrnc_eval.config import Config, config_hash, dump_config
+    from mrnc_eval.results import RunResult, write_result
+    from tests.reports.conftest import write_imu_log
+
+    bag = write_imu_log(tmp_path / "imu.bag", 40, "bag")
+    write_result(RunResult(kind="info", log_path=str(bag), log_id="imu", warnings=["IMU <only> & short"],
+                           config_hash=config_hash(Config())), tmp_path / "info", dump_config(Config()))
+    out = tmp_path / "imu_export.mcap"
+    assert main(["export", str(tmp_path / "info"), "--mcap", str(out), "--with-log"]) == 0
+    summary, messages = read_mcap(out)
+    imu = [c for c in summary.channels.values() if c.topic == "/imu"]
+    assert imu
+    assert imu[0].message_encoding == "ros1"
+    assert summary.schemas[imu[0].schema_id].encoding == "ros1msg"
+    assert sum(t == "/imu" for t, *_ in messages) == 40
+    log = [json.loads(d) for t, _s, _ts, d in messages if t == "/eval/events"]
+    assert log[0]["message"] == "[warning] IMU <only> & short"
+
+
+def test_never_overwrites_without_force_and_leaves_nothing_on_failure(sim_runs: Runs, tmp_path: Path,
+                                                                      capsys) -> None:
+    out = tmp_path / "x.mcap"
+    out.write_bytes(b"keep me")
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out)]) == 2
+    assert out.read_bytes() == b"keep me"
+    assert "--force" in capsys.readouterr().err
+    broken = tmp_path / "broken"
+    broken.mkdir()
+    for name in ("result.json", "config.yaml", "series.npz"):
+        (broken / name).write_bytes((sim_runs.slam / name).read_bytes())  # no trajectory.tum
+    assert main(["export", str(broken), "--mcap", str(tmp_path / "new.mcap")]) == 4
+    assert "trajectory.tum" in capsys.readouterr().err
+    assert sorted(p.name for p in tmp_path.iterdir()) == ["broken", "x.mcap"]  # no partial or temporary file
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 0
+    assert out.read_bytes()[:8] == b"\x89MCAP0\r\n"
+
+
+def test_downsample_keeps_extent_and_caps_the_size() -> None:
+    from mrnc_eval.export.topics import downsample
+
+    rng = np.random.default_rng(0)
+    xyz = rng.uniform(-50, 50, size=(300_000, 3))
+    small = downsample(xyz, 100_000)
+    assert 10_000 < small.shape[0] <= 100_000
+    assert np.isin(small.view([("", small.dtype)] * 3), xyz.view([("", xyz.dtype)] * 3)).all()
+    np.testing.assert_allclose(small.min(axis=0), xyz.min(axis=0), atol=2.0)
+    np.testing.assert_allclose(small.max(axis=0), xyz.max(axis=0), atol=2.0)
+    assert downsample(xyz[:50], 100).shape[0] == 50
