@@ -20,7 +20,7 @@ from mrnc_eval.config import CONFIG_FILE_NAME, Config, load_config
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.export import topics
-from mrnc_eval.export.mcap_file import JsonMcap
+from mrnc_eval.export.mcap_file import JsonMcap, stamp_ns
 from mrnc_eval.results import RunResult, read_result
 
 
@@ -93,7 +93,7 @@ def _read_map(run_dir: Path):
             import numpy as np
             import open3d as o3d
 
-            return np.asarray(o3d.io.read_point_cloud(str(run_dir / name)).points)
+            return np.asarray(o3d.io.read_point_cloud(run_dir / name).points)
     return None
 
 
@@ -127,7 +127,7 @@ def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContex
                 gt_written = True
                 try:
                     align = ape(ctx.ground_truth, files.trajectory, align="se3", max_diff=0.02)
-                    topics.write_alignment(out, topics.stamp_ns(t0), align.transform)
+                    topics.write_alignment(out, stamp_ns(t0), align.transform)
                 except EvaluationError as err:
                     summary.warnings.append(f"no world -> map alignment: {err}")
         elif result.kind == "control":

@@ -8,6 +8,7 @@ SE(3) alignment of the estimate to the ground truth (world -> map) so both overl
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
@@ -42,7 +43,7 @@ TRACKING_FIELDS = {
     "cross_track_m": "cross-track error to the planned path, m", "safety_stops": "safety stops so far (count)"}
 
 
-def _poses(traj: Trajectory) -> list[dict]:
+def _poses(traj: Trajectory) -> list[dict[str, Any]]:
     return [pose(p, q) for p, q in zip(traj.positions, traj.quat_xyzw, strict=True)]
 
 
@@ -167,9 +168,10 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
         o = s[f"{name}_funnel_o"]
         for i in range(t.size):
             t_ns = stamp_ns(t0_s + float(t[i]))
-            body: dict = {"timestamp": time_of(t_ns), "funnel_upper_mps": float(o[i]), "funnel_lower_mps": -float(o[i]),
-                          "cross_track_m": float(s[f"{name}_cte_m"][i]),
-                          "safety_stops": int(np.searchsorted(stops, t[i], side="right"))}
+            body: dict[str, Any] = {
+                "timestamp": time_of(t_ns), "funnel_upper_mps": float(o[i]), "funnel_lower_mps": -float(o[i]),
+                "cross_track_m": float(s[f"{name}_cte_m"][i]),
+                "safety_stops": int(np.searchsorted(stops, t[i], side="right"))}
             for k, v in side.items():
                 u = float(v["u_rpm"][i])
                 body.update({f"v_ref_{k}_mps": float(v["v_ref"][i]), f"v_{k}_mps": float(v["v_meas"][i]),
@@ -182,7 +184,7 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
         out.write(f"{topic}/driven_path", S.POSES_IN_FRAME, t0, _path_2d(t0, s[f"{name}_xy"]))
 
 
-def _path_2d(t_ns: int, xy: np.ndarray) -> dict:
+def _path_2d(t_ns: int, xy: np.ndarray) -> dict[str, Any]:
     """Planar path: heading along the path (the last point keeps the previous heading)."""
     d = np.diff(xy, axis=0, append=xy[-1:] + (xy[-1:] - xy[-2:-1] if len(xy) > 1 else 0.0))
     yaw = np.arctan2(d[:, 1], d[:, 0])
