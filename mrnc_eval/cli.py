@@ -18,6 +18,7 @@ from typer.exceptions import TyperException
 
 from mrnc_eval import __version__
 from mrnc_eval.errors import MrncError
+from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
 
 log = logging.getLogger("mrnc_eval")
 
@@ -185,25 +186,7 @@ def control(
     control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out)
 
 
-class Align(StrEnum):
-    se3 = "se3"
-    sim3 = "sim3"
-    scale = "scale"
-    origin = "origin"
-    yaw = "yaw"
-    none = "none"
-
-
-class Relation(StrEnum):
-    trans = "trans"
-    rot = "rot"
-    full = "full"
-    angle_deg = "angle_deg"
-    angle_rad = "angle_rad"
-    point = "point"
-
-
-AlignOpt = Annotated[Align, typer.Option(help="Alignment of each estimate to the reference.")]
+AlignOpt = Annotated[AlignMode, typer.Option(help="Alignment of each estimate to the reference.")]
 NAlignOpt = Annotated[
     int | None, typer.Option("--n-to-align", help="Align on the first N matched poses only (default: all).")
 ]
@@ -221,7 +204,7 @@ PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.
 def ape(
     ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
     est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
-    align: AlignOpt = Align.se3,
+    align: AlignOpt = AlignMode.se3,
     n_to_align: NAlignOpt = None,
     relation: RelationOpt = Relation.trans,
     max_diff: MaxDiffOpt = 0.01,
@@ -234,14 +217,9 @@ def ape(
     """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
-        ref, est, align=align.value, n_to_align=n_to_align, relation=relation.value, max_diff=max_diff,
+        ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
         offset=offset, plane=plane, json_out=json_out, table=table, plot=plot,
     )
-
-
-class DeltaUnit(StrEnum):
-    frames = "frames"
-    m = "m"
 
 
 @app.command()
@@ -251,7 +229,7 @@ def rpe(
     delta: Annotated[float, typer.Option(help="Pair spacing, in --delta-unit.")] = 1.0,
     delta_unit: Annotated[DeltaUnit, typer.Option(help="frames or m (distance travelled).")] = DeltaUnit.frames,
     all_pairs: Annotated[bool, typer.Option("--all-pairs", help="Use all pairs instead of consecutive ones.")] = False,
-    align: AlignOpt = Align.none,
+    align: AlignOpt = AlignMode.none,
     n_to_align: NAlignOpt = None,
     relation: RelationOpt = Relation.trans,
     max_diff: MaxDiffOpt = 0.01,
@@ -270,10 +248,10 @@ def rpe(
     """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.rpe_main(
-        ref, est, delta=delta, delta_unit=delta_unit.value, all_pairs=all_pairs, align=align.value,
-        n_to_align=n_to_align, relation=relation.value, max_diff=max_diff, offset=offset, plane=plane,
+        ref, est, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
+        n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=plane,
         json_out=json_out, table=table, plot=plot,
-        pairs_from="reference" if pairs_from_reference else "estimate", drift=drift,
+        pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
     )
 
 
@@ -288,7 +266,7 @@ def table(
         Path | None,
         typer.Option(help="Write the table (.md, .tex, .csv, .html by suffix); default: Markdown on stdout."),
     ] = None,
-    align: AlignOpt = Align.se3,
+    align: AlignOpt = AlignMode.se3,
     max_diff: MaxDiffOpt = 0.01,
     json_out: JsonOpt = False,
     min_span_fraction: Annotated[float, typer.Option(
@@ -298,7 +276,7 @@ def table(
     """Table I layout: APE RMSE (m), sequences as rows, methods as columns, 'Failed' cells,
     mean row over non-failed cells, best per row marked."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
-    trajectory_eval_command.table_main(source, out=out, align=align.value, max_diff=max_diff, json_out=json_out,
+    trajectory_eval_command.table_main(source, out=out, align=align, max_diff=max_diff, json_out=json_out,
                                             min_span_fraction=min_span_fraction, min_matches=min_matches)
 
 

@@ -19,18 +19,17 @@ import shutil
 import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any, Literal
+from typing import Any
 
 import numpy as np
 
 from mrnc_eval import __version__
 from mrnc_eval.errors import InputError
+from mrnc_eval.tables import Table
 
 RESULT_FILE = "result.json"
 SERIES_FILE = "series.npz"
 CONFIG_FILE = "config.yaml"
-
-Cell = float | int | str | None  # None or a str such as "Failed" marks a cell without a number
 
 
 @dataclass
@@ -41,21 +40,6 @@ class Metric:
     group: str = ""  # e.g. "slam", "control/raid/left"
     lower_is_better: bool = True
     note: str = ""
-
-
-@dataclass
-class Table:
-    """A labelled grid: rows x columns of numbers or text cells ("Failed", "n/a")."""
-
-    title: str
-    row_labels: list[str]
-    column_labels: list[str]
-    cells: list[list[Cell]]
-    unit: str = ""
-    best: Literal["min", "max", None] = "min"  # which number per row is marked best, if any
-    best_per: Literal["row", "column"] = "row"
-    precision: int = 3
-    notes: list[str] = field(default_factory=list)
 
 
 @dataclass

@@ -15,11 +15,13 @@ from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.ape import ApeResult, ape
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.evaluation.config import EvaluationConfig
+from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
 from mrnc_eval.evaluation.relations import TITLES
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
 from mrnc_eval.io.trajectory_files import read_trajectory
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
-from mrnc_eval.results import Table, atomic_write_text
+from mrnc_eval.results import atomic_write_text
+from mrnc_eval.tables import Table
 
 log = logging.getLogger(__name__)
 STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
@@ -119,7 +121,7 @@ def _load(ref: str, est: list[str]) -> tuple[Any, list[tuple[Any, bool]]]:
     return reference, estimates
 
 
-def ape_main(ref: str, est: list[str], *, align: str, n_to_align: int | None, relation: str, max_diff: float,
+def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | None, relation: Relation, max_diff: float,
              offset: float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None) -> None:
     reference, estimates = _load(ref, est)
     results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
@@ -127,9 +129,9 @@ def ape_main(ref: str, est: list[str], *, align: str, n_to_align: int | None, re
     _emit(results, f"APE w.r.t. {TITLES[relation]} ({align} alignment)", json_out, table, plot)
 
 
-def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: str, all_pairs: bool, align: str,
-             n_to_align: int | None, relation: str, max_diff: float, offset: float, plane: str | None,
-             json_out: bool, table: Path | None, plot: Path | None, pairs_from: str = "estimate",
+def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: DeltaUnit, all_pairs: bool, align: AlignMode,
+             n_to_align: int | None, relation: Relation, max_diff: float, offset: float, plane: str | None,
+             json_out: bool, table: Path | None, plot: Path | None, pairs_from: PairsFrom = PairsFrom.estimate,
              drift: bool = False) -> None:
     reference, estimates = _load(ref, est)
     results = [rpe(reference, e, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
@@ -192,7 +194,7 @@ def _manifest(source: Path) -> dict[str, dict[str, Any]]:
     return out
 
 
-def build_table_one(source: Path, *, align: str = "se3", max_diff: float = 0.01,
+def build_table_one(source: Path, *, align: AlignMode = AlignMode.se3, max_diff: float = 0.01,
                     cfg: EvaluationConfig | None = None) -> Table:
     cfg = cfg or EvaluationConfig()
     manifest = _manifest(source)
@@ -220,7 +222,7 @@ def build_table_one(source: Path, *, align: str = "se3", max_diff: float = 0.01,
     return table
 
 
-def table_main(source: Path, *, out: Path | None, align: str, max_diff: float, json_out: bool,
+def table_main(source: Path, *, out: Path | None, align: AlignMode, max_diff: float, json_out: bool,
                min_span_fraction: float | None = None, min_matches: int | None = None) -> None:
     import dataclasses
 

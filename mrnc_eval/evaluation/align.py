@@ -8,22 +8,19 @@ gravity-aligned or GNSS references). `n_to_align` uses the first N matched poses
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
 
-from mrnc_eval.data import Trajectory
+from mrnc_eval.data import F64, Trajectory
 from mrnc_eval.errors import EvaluationError
 from mrnc_eval.evaluation import lie, sync
-
-AlignMode = Literal["none", "se3", "sim3", "scale", "origin", "yaw"]
-ALIGN_MODES = ("none", "se3", "sim3", "scale", "origin", "yaw")
+from mrnc_eval.evaluation.modes import AlignMode, parse_choice
 
 
 @dataclass(frozen=True)
 class Alignment:
-    mode: str
+    mode: AlignMode
     rotation: NDArray[np.float64]  # (3, 3)
     translation: NDArray[np.float64]  # (3,)
     scale: float
@@ -36,7 +33,7 @@ class Alignment:
         return t
 
 
-def _sequential_outer_sum(yc: NDArray, xc: NDArray) -> NDArray:
+def _sequential_outer_sum(yc: NDArray[np.float64], xc: NDArray[np.float64]) -> NDArray[np.float64]:
     """sum_i yc_i xc_i^T added one point after the other, as evo's loop does (cumsum is
     sequential, sum is pairwise). A BLAS product rounds differently, and for nearly
     collinear paths the SVD turns that 1e-16 into 1e-12 in R; this order gives evo's bits."""
@@ -45,7 +42,7 @@ def _sequential_outer_sum(yc: NDArray, xc: NDArray) -> NDArray:
     return np.array([[np.cumsum(ycc[a] * xcc[b])[-1] for b in range(3)] for a in range(3)])
 
 
-def umeyama(x: NDArray[np.float64], y: NDArray[np.float64], with_scale: bool) -> tuple[NDArray, NDArray, float]:
+def umeyama(x: F64, y: F64, with_scale: bool) -> tuple[F64, F64, float]:
     """R, t, c minimising sum |y - (c R x + t)|^2; x, y are (n, 3) matched positions
     (Umeyama 1991, eqs. 34-43; same operation order as evo, so the same bits)."""
     x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)  # the reduction order depends on layout
@@ -67,7 +64,7 @@ def umeyama(x: NDArray[np.float64], y: NDArray[np.float64], with_scale: bool) ->
     return r, t, c
 
 
-def yaw_align(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray, NDArray]:
+def yaw_align(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64]]:
     """Rotation about z and translation minimising sum |y - (Rz x + t)|^2 (closed form)."""
     mx, my = x.mean(axis=0), y.mean(axis=0)
     xc, yc = x - mx, y - my
@@ -79,45 +76,46 @@ def yaw_align(x: NDArray[np.float64], y: NDArray[np.float64]) -> tuple[NDArray, 
     return r, my - r @ mx
 
 
-def estimate_alignment(ref: Trajectory, est: Trajectory, mode: str, n_to_align: int | None = None) -> Alignment:
+def estimate_alignment(ref: Trajectory, est: Trajectory, mode: AlignMode | str,
+                       n_to_align: int | None = None) -> Alignment:
     """Alignment of the matched estimate onto the matched reference (same length, paired)."""
-    if mode not in ALIGN_MODES:
-        raise EvaluationError(f"unknown alignment {mode!r}; choose one of {', '.join(ALIGN_MODES)}")
+    mode = parse_choice(AlignMode, mode, "alignment")
     n = len(ref) if n_to_align is None else int(n_to_align)
     if n < 1 or n > len(ref):
         raise EvaluationError(f"n_to_align must be in 1..{len(ref)}, got {n_to_align}")
-    if mode == "none":
+    if mode is AlignMode.none:
         return Alignment(mode, np.eye(3), np.zeros(3), 1.0)
-    if mode == "origin":  # T = Q_0 P_0^-1: the first poses coincide
-        q0, p0 = lie.poses(sync.take(ref, [0]))[0], lie.poses(sync.take(est, [0]))[0]
+    if mode is AlignMode.origin:  # T = Q_0 P_0^-1: the first poses coincide
+        q0, p0 = lie.poses(sync.take(ref, np.array([0])))[0], lie.poses(sync.take(est, np.array([0])))[0]
         t = q0 @ lie.inverse(p0)
         return Alignment(mode, t[:3, :3], t[:3, 3], 1.0)
     x, y = est.positions[:n], ref.positions[:n]
-    if mode == "yaw":
+    if mode is AlignMode.yaw:
         if n < 2:
             raise EvaluationError("yaw alignment needs at least 2 matched poses")
         r, t = yaw_align(x, y)
         return Alignment(mode, r, t, 1.0)
     if n < 3:
         raise EvaluationError(f"{mode} alignment needs at least 3 matched poses, got {n}")
-    r, t, c = umeyama(x, y, with_scale=mode in ("sim3", "scale"))
-    if mode == "scale":
+    r, t, c = umeyama(x, y, with_scale=mode in (AlignMode.sim3, AlignMode.scale))
+    if mode is AlignMode.scale:
         return Alignment(mode, np.eye(3), np.zeros(3), c)
     return Alignment(mode, r, t, c)
 
 
-def align_positions(xyz: NDArray, a: Alignment) -> NDArray:
+def align_positions(xyz: NDArray[np.float64], a: Alignment) -> NDArray[np.float64]:
     """p' = c R p + t (scale first, then the rigid part, as evo)."""
-    if a.mode == "none":
+    if a.mode is AlignMode.none:
         return xyz
     return a.scale * xyz @ a.rotation.T + a.translation
 
 
-def align_rotations(rot: NDArray, a: Alignment) -> NDArray:
+def align_rotations(rot: NDArray[np.float64], a: Alignment) -> NDArray[np.float64]:
     """R_i' = R R_i (left-multiplied, as evo)."""
-    if a.mode in ("none", "scale"):
+    if a.mode in (AlignMode.none, AlignMode.scale):
         return rot
-    return np.matmul(a.rotation, rot)
+    out: NDArray[np.float64] = np.matmul(a.rotation, rot)
+    return out
 
 
 _PLANE_NORMAL = {"xy": 2, "xz": 1, "yz": 0}
@@ -128,7 +126,7 @@ def check_plane(plane: str | None) -> None:
         raise EvaluationError(f"plane must be xy, xz or yz, got {plane!r}")
 
 
-def project_positions(xyz: NDArray, plane: str) -> NDArray:
+def project_positions(xyz: NDArray[np.float64], plane: str) -> NDArray[np.float64]:
     """Drop the coordinate along the plane normal (z = 0 for xy)."""
     check_plane(plane)
     out = xyz.copy()
@@ -136,7 +134,7 @@ def project_positions(xyz: NDArray, plane: str) -> NDArray:
     return out
 
 
-def project_rotations(rot: NDArray, plane: str) -> NDArray:
+def project_rotations(rot: NDArray[np.float64], plane: str) -> NDArray[np.float64]:
     """Keep only the rotation about the plane normal (its static-xyz Euler angle), as evo's
     --project_to_plane; applied after the 3-D alignment, so it is not an SE(2) alignment."""
     check_plane(plane)

@@ -23,6 +23,7 @@ from mrnc_eval.evaluation.align import (
     project_positions,
     project_rotations,
 )
+from mrnc_eval.evaluation.modes import AlignMode, Relation
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
 from mrnc_eval.evaluation.sync import associate, associate_by_index, check_trajectory, take
@@ -50,7 +51,7 @@ class AlignedPair:
         return project_rotations(r, self.plane) if self.plane else r
 
 
-def _homogeneous(rot: NDArray, xyz: NDArray) -> NDArray:
+def _homogeneous(rot: NDArray[np.float64], xyz: NDArray[np.float64]) -> NDArray[np.float64]:
     t = np.zeros((xyz.shape[0], 4, 4))
     t[:, :3, :3] = rot
     t[:, :3, 3] = xyz
@@ -61,7 +62,7 @@ def _homogeneous(rot: NDArray, xyz: NDArray) -> NDArray:
 @dataclass(frozen=True, eq=False)
 class ApeResult:
     name: str
-    relation: str
+    relation: Relation
     unit: str
     stats: dict[str, float]
     n: int  # matched poses
@@ -121,7 +122,7 @@ def matched_pair(ref: Trajectory, est: Trajectory, *, max_diff: float, offset: f
     return take(ref, m.ref_idx), take(est, m.est_idx)
 
 
-def aligned_pair(ref_m: Trajectory, est_m: Trajectory, align: str, n_to_align: int | None,
+def aligned_pair(ref_m: Trajectory, est_m: Trajectory, align: AlignMode | str, n_to_align: int | None,
                  plane: str | None) -> AlignedPair:
     """Order as evo: align (or scale, or origin), then project to the plane."""
     check_plane(plane)
@@ -132,13 +133,13 @@ def aligned_pair(ref_m: Trajectory, est_m: Trajectory, align: str, n_to_align: i
     return AlignedPair(ref_m, est_m, a, plane, q, p)
 
 
-def ape(ref: Trajectory, est: Trajectory, *, align: str = "se3", n_to_align: int | None = None,
-        relation: str = "trans", max_diff: float = 0.01, offset: float = 0.0, plane: str | None = None,
-        by_index: bool = False) -> ApeResult:
-    check_relation(relation)
+def ape(ref: Trajectory, est: Trajectory, *, align: AlignMode | str = AlignMode.se3, n_to_align: int | None = None,
+        relation: Relation | str = Relation.trans, max_diff: float = 0.01, offset: float = 0.0,
+        plane: str | None = None, by_index: bool = False) -> ApeResult:
+    relation = check_relation(relation)
     ref_m, est_m = matched_pair(ref, est, max_diff=max_diff, offset=offset, by_index=by_index)
     pair = aligned_pair(ref_m, est_m, align, n_to_align, plane)
-    if relation in ("trans", "point"):
+    if relation in (Relation.trans, Relation.point):
         errors = np.linalg.norm(pair.est_xyz - pair.ref_xyz, axis=1)
     else:  # E = P^-1 Q
         rot, trans = lie.relative(pair.est_rot, pair.est_xyz, pair.ref_rot, pair.ref_xyz)

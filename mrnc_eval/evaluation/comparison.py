@@ -11,7 +11,7 @@ from dataclasses import dataclass
 
 import numpy as np
 
-from mrnc_eval.results import Table
+from mrnc_eval.tables import Table
 
 FAILED = "Failed"
 
@@ -50,7 +50,7 @@ def table_one(cells: dict[tuple[str, str], Cell], sequences: list[str], methods:
     means: list[float | str | None] = []
     counts = []
     for k, m in enumerate(methods):
-        vals = [r[k] for r in grid if isinstance(r[k], float)]
+        vals = [v for r in grid if isinstance(v := r[k], float)]
         means.append(float(np.mean(vals)) if vals else FAILED)
         counts.append(f"{m} {len(vals)}/{len(sequences)}")
     notes.insert(0, "Mean over non-failed sequences: " + ", ".join(counts))

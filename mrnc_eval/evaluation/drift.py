@@ -14,9 +14,10 @@ from dataclasses import dataclass
 import numpy as np
 from numpy.typing import NDArray
 
-from mrnc_eval.data import Trajectory
+from mrnc_eval.data import F64, Trajectory
 from mrnc_eval.errors import EvaluationError
 from mrnc_eval.evaluation import lie
+from mrnc_eval.evaluation.modes import AlignMode
 
 KITTI_LENGTHS = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0)
 
@@ -47,7 +48,7 @@ def segment_lengths(path_length: float) -> tuple[float, ...]:
     return tuple(round(L * scale, 3) for L in KITTI_LENGTHS)
 
 
-def kitti_drift_rt(ref_rot: NDArray, ref_xyz: NDArray, est_rot: NDArray, est_xyz: NDArray, *, step: int = 10,
+def kitti_drift_rt(ref_rot: F64, ref_xyz: F64, est_rot: F64, est_xyz: F64, *, step: int = 10,
                    lengths: tuple[float, ...] | None = None) -> DriftResult:
     """Drift from matched rotations (N, 3, 3) and positions (N, 3) of reference and estimate."""
     d = np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(ref_xyz, axis=0), axis=1))])
@@ -74,15 +75,16 @@ def kitti_drift_rt(ref_rot: NDArray, ref_xyz: NDArray, est_rot: NDArray, est_xyz
                        float(np.mean(list(rot.values()))), sum(count.values()), float(d[-1]))
 
 
-def kitti_drift(ref_poses: NDArray, est_poses: NDArray, *, step: int = 10,
+def kitti_drift(ref_poses: NDArray[np.float64], est_poses: NDArray[np.float64], *, step: int = 10,
                 lengths: tuple[float, ...] | None = None) -> DriftResult:
     """Drift from matched (N, 4, 4) poses."""
     return kitti_drift_rt(ref_poses[:, :3, :3], ref_poses[:, :3, 3], est_poses[:, :3, :3], est_poses[:, :3, 3],
                           step=step, lengths=lengths)
 
 
-def drift(ref: Trajectory, est: Trajectory, *, align: str = "none", max_diff: float = 0.01, offset: float = 0.0,
-          by_index: bool = False, step: int = 10, lengths: tuple[float, ...] | None = None) -> DriftResult:
+def drift(ref: Trajectory, est: Trajectory, *, align: AlignMode | str = AlignMode.none, max_diff: float = 0.01,
+          offset: float = 0.0, by_index: bool = False, step: int = 10,
+          lengths: tuple[float, ...] | None = None) -> DriftResult:
     """Associate, align (drift is invariant to rigid alignment; sim3/scale change it), then drift."""
     from mrnc_eval.evaluation.ape import aligned_pair, matched_pair
 

@@ -5,7 +5,7 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from mrnc_eval.data import Trajectory
+from mrnc_eval.data import F64, Trajectory
 
 EPS = np.finfo(float).eps
 
@@ -55,7 +55,8 @@ def matrix_to_quat_xyzw(r: NDArray[np.float64]) -> NDArray[np.float64]:
         q[c, j] = r[c, j, i] + r[c, i, j]
         q[c, k] = r[c, k, i] + r[c, i, k]
         q[c, 3] = r[c, k, j] - r[c, j, k]
-    return q / np.linalg.norm(q, axis=1)[:, None]
+    unit: NDArray[np.float64] = q / np.linalg.norm(q, axis=1)[:, None]
+    return unit
 
 
 def rotations(traj: Trajectory) -> NDArray[np.float64]:
@@ -67,7 +68,7 @@ def transpose(r: NDArray[np.float64]) -> NDArray[np.float64]:
     return np.swapaxes(r, -1, -2)
 
 
-def relative(r_i: NDArray, p_i: NDArray, r_j: NDArray, p_j: NDArray) -> tuple[NDArray, NDArray]:
+def relative(r_i: F64, p_i: F64, r_j: F64, p_j: F64) -> tuple[F64, F64]:
     """Rotation and translation of T_i^-1 T_j for stacks: (R_i^T R_j, R_i^T (p_j - p_i))."""
     rt = transpose(r_i)
     return np.matmul(rt, r_j), np.einsum("nij,nj->ni", rt, p_j - p_i)
@@ -101,7 +102,8 @@ def inverse(t: NDArray[np.float64]) -> NDArray[np.float64]:
 
 def compose(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
     """Batched product a @ b of (N, 4, 4) stacks."""
-    return np.matmul(a, b)
+    out: NDArray[np.float64] = np.matmul(a, b)
+    return out
 
 
 def rotation_angle(r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -110,10 +112,11 @@ def rotation_angle(r: NDArray[np.float64]) -> NDArray[np.float64]:
     More accurate than arccos((tr R - 1) / 2) for small angles (error ~eps/theta there).
     """
     q = matrix_to_quat_xyzw(r)
-    return 2.0 * np.arctan2(np.linalg.norm(q[:, :3], axis=1), np.abs(q[:, 3]))
+    angle: NDArray[np.float64] = 2.0 * np.arctan2(np.linalg.norm(q[:, :3], axis=1), np.abs(q[:, 3]))
+    return angle
 
 
-def yaw_pitch_roll_sxyz(r: NDArray[np.float64]) -> tuple[NDArray, NDArray, NDArray]:
+def yaw_pitch_roll_sxyz(r: NDArray[np.float64]) -> tuple[NDArray[np.float64], NDArray[np.float64], NDArray[np.float64]]:
     """Static-xyz Euler angles (yaw about z, pitch about y, roll about x) of R = Rz Ry Rx.
     At gimbal lock (cos pitch <= 4 eps) yaw is 0 and roll takes the whole rotation."""
     cy = np.sqrt(r[:, 0, 0] * r[:, 0, 0] + r[:, 1, 0] * r[:, 1, 0])

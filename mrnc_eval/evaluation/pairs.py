@@ -7,8 +7,10 @@ from numpy.typing import NDArray
 
 from mrnc_eval.errors import EvaluationError
 
+IndexPairs = tuple[NDArray[np.int64], NDArray[np.int64]]  # (first, second) pose indices
 
-def pairs_by_frames(n: int, delta: int, all_pairs: bool) -> tuple[NDArray, NDArray]:
+
+def pairs_by_frames(n: int, delta: int, all_pairs: bool) -> IndexPairs:
     if delta < 1:
         raise EvaluationError(f"delta in frames must be >= 1, got {delta}")
     if all_pairs:
@@ -18,7 +20,7 @@ def pairs_by_frames(n: int, delta: int, all_pairs: bool) -> tuple[NDArray, NDArr
     return ids[:-1], ids[1:]
 
 
-def _pairs_by_distance_incremental(positions: NDArray, delta: float) -> tuple[NDArray, NDArray]:
+def _pairs_by_distance_incremental(positions: NDArray[np.float64], delta: float) -> IndexPairs:
     # Sequential by nature (the accumulator resets at each pair, overshoot discarded);
     # compiled with numba so float summation order equals evo's step-by-step sum.
     from numba import njit
@@ -41,10 +43,11 @@ def _pairs_by_distance_incremental(positions: NDArray, delta: float) -> tuple[ND
         return first[:k], second[:k]
 
     steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
-    return walk(steps, float(delta))
+    first, second = walk(steps, float(delta))
+    return first, second
 
 
-def pairs_by_distance(positions: NDArray, delta: float, all_pairs: bool, tol: float = 0.1) -> tuple[NDArray, NDArray]:
+def pairs_by_distance(positions: NDArray[np.float64], delta: float, all_pairs: bool, tol: float = 0.1) -> IndexPairs:
     if delta <= 0:
         raise EvaluationError(f"delta in metres must be > 0, got {delta}")
     if not all_pairs:
@@ -57,7 +60,8 @@ def pairs_by_distance(positions: NDArray, delta: float, all_pairs: bool, tol: fl
     n = d.size
     i = np.arange(n - 1)
     k = np.minimum(np.searchsorted(d, d[i] + delta, side="left"), n - 1)
-    run_start = lambda j: np.searchsorted(d, d[j], side="left")  # noqa: E731
+    def run_start(j: NDArray[np.int64]) -> NDArray[np.int64]:
+        return np.searchsorted(d, d[j], side="left")
     before = run_start(np.maximum(k - 1, 0))
     cands = np.stack([run_start(np.maximum(before - 1, 0)), before, run_start(k),
                       np.searchsorted(d, d[k], side="right")], axis=1)

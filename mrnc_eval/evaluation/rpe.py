@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
-from typing import Literal
 
 import numpy as np
 from numpy.typing import NDArray
@@ -12,6 +11,7 @@ from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
 from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.ape import aligned_pair, matched_pair
+from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, parse_choice
 from mrnc_eval.evaluation.pairs import pairs_by_distance, pairs_by_frames
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
@@ -20,11 +20,11 @@ from mrnc_eval.evaluation.stats import error_stats
 @dataclass(frozen=True)
 class RpeResult:
     name: str
-    relation: str
+    relation: Relation
     unit: str
     delta: float
-    delta_unit: str
-    pairs_from: str
+    delta_unit: DeltaUnit
+    pairs_from: PairsFrom
     stats: dict[str, float]
     n: int  # pairs
     span_s: float
@@ -35,30 +35,28 @@ class RpeResult:
         return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s}
 
 
-def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: Literal["frames", "m"] = "frames",
-        all_pairs: bool = False, align: str = "none", n_to_align: int | None = None, relation: str = "trans",
-        max_diff: float = 0.01, offset: float = 0.0, plane: str | None = None,
-        pairs_from: Literal["estimate", "reference"] = "estimate", tol: float = 0.1,
+def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: DeltaUnit | str = DeltaUnit.frames,
+        all_pairs: bool = False, align: AlignMode | str = AlignMode.none, n_to_align: int | None = None,
+        relation: Relation | str = Relation.trans, max_diff: float = 0.01, offset: float = 0.0,
+        plane: str | None = None, pairs_from: PairsFrom | str = PairsFrom.estimate, tol: float = 0.1,
         by_index: bool = False) -> RpeResult:
-    check_relation(relation)
+    relation = check_relation(relation)
+    pairs_from = parse_choice(PairsFrom, pairs_from, "pairs_from")
+    delta_unit = parse_choice(DeltaUnit, delta_unit, "delta unit")
     ref_m, est_m = matched_pair(ref, est, max_diff=max_diff, offset=offset, by_index=by_index)
     pair = aligned_pair(ref_m, est_m, align, n_to_align, plane)
     q, p = pair.ref_xyz, pair.est_xyz
-    if pairs_from not in ("estimate", "reference"):
-        raise EvaluationError(f"pairs_from must be estimate or reference, got {pairs_from!r}")
-    if delta_unit == "frames":
+    if delta_unit is DeltaUnit.frames:
         if float(delta) != int(delta):
             raise EvaluationError(f"delta in frames must be a whole number, got {delta}")
         i, j = pairs_by_frames(len(p), int(delta), all_pairs)
-    elif delta_unit == "m":
-        i, j = pairs_by_distance(q if pairs_from == "reference" else p, float(delta), all_pairs, tol)
     else:
-        raise EvaluationError(f"delta unit must be frames or m, got {delta_unit!r}")
+        i, j = pairs_by_distance(q if pairs_from is PairsFrom.reference else p, float(delta), all_pairs, tol)
     if i.size == 0:
         raise EvaluationError(f"no pose pairs for delta {delta} {delta_unit} (trajectory too short)")
-    if relation == "point":  # | |q_j - q_i| - |p_j - p_i| |, no rotations
+    if relation is Relation.point:  # | |q_j - q_i| - |p_j - p_i| |, no rotations
         errors = np.abs(np.linalg.norm(q[j] - q[i], axis=1) - np.linalg.norm(p[j] - p[i], axis=1))
-    elif relation == "trans":  # | R_Pi^T (p_j - p_i) - R_Qi^T (q_j - q_i) |
+    elif relation is Relation.trans:  # | R_Pi^T (p_j - p_i) - R_Qi^T (q_j - q_i) |
         rel_p = np.einsum("nji,nj->ni", pair.est_rot[i], p[j] - p[i])
         rel_q = np.einsum("nji,nj->ni", pair.ref_rot[i], q[j] - q[i])
         errors = np.linalg.norm(rel_p - rel_q, axis=1)

@@ -43,7 +43,8 @@ def check_trajectory(traj: Trajectory, role: str) -> Trajectory:
     return traj
 
 
-def _nearest_within(long_t: NDArray, short_t: NDArray, max_diff: float) -> tuple[NDArray, NDArray]:
+def _nearest_within(long_t: NDArray[np.float64], short_t: NDArray[np.float64],
+                    max_diff: float) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """(short indices, long indices) of accepted matches; long_t sorted."""
     n = long_t.size
     inside = (short_t >= long_t[0] - max_diff) & (short_t <= long_t[-1] + max_diff)
@@ -71,7 +72,9 @@ def associate(ref: Trajectory, est: Trajectory, *, max_diff: float = 0.01, offse
         short_t, long_t = ref.stamps, est.stamps + offset
     short_idx, long_idx = _nearest_within(long_t, short_t, max_diff)
     if short_idx.size == 0:
-        span = lambda t: f"{t.stamps[0]:.3f}..{t.stamps[-1]:.3f} s"  # noqa: E731
+        def span(t: Trajectory) -> str:
+            return f"{t.stamps[0]:.3f}..{t.stamps[-1]:.3f} s"
+
         raise EvaluationError(
             f"found no matching time stamps between reference ({span(ref)}) and estimate ({span(est)}) "
             f"with max_diff {max_diff} s and offset {offset} s"

@@ -10,6 +10,7 @@ import math
 from pathlib import Path
 
 import numpy as np
+from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
@@ -17,7 +18,7 @@ from mrnc_eval.errors import InputError
 _LOG_SUFFIXES = (".bag", ".mcap", ".db3")
 
 
-def _load_table(path: Path, ncols: int, *, delimiter: str = " ", skip_header: bool = False) -> np.ndarray:
+def _load_table(path: Path, ncols: int, *, delimiter: str = " ", skip_header: bool = False) -> NDArray[np.float64]:
     import pandas as pd
 
     try:
@@ -31,7 +32,7 @@ def _load_table(path: Path, ncols: int, *, delimiter: str = " ", skip_header: bo
         raise InputError(path, _first_bad_line(path, ncols, delimiter)) from err
     if df.shape[1] != ncols:
         raise InputError(path, _first_bad_line(path, ncols, delimiter))
-    arr = df.to_numpy()
+    arr: NDArray[np.float64] = df.to_numpy()
     if not np.isfinite(arr).all():
         raise InputError(path, _first_bad_line(path, ncols, delimiter))
     return arr

@@ -19,7 +19,8 @@ from markupsafe import Markup
 from mrnc_eval import __version__
 from mrnc_eval.evaluation.config import GatesConfig
 from mrnc_eval.reports.tables import is_number
-from mrnc_eval.results import Cell, Metric, RunResult, Table, atomic_write_text, safe_name
+from mrnc_eval.results import Metric, RunResult, atomic_write_text, safe_name
+from mrnc_eval.tables import Cell, Table
 
 TEMPLATES = Path(__file__).parent / "templates"
 MAX_EVENTS = 60  # rows of the events table; the rest is counted

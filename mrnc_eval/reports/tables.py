@@ -1,4 +1,4 @@
-"""Render a results.Table as Markdown, LaTeX (booktabs), CSV or HTML (escaped).
+"""Render a tables.Table as Markdown, LaTeX (booktabs), CSV or HTML (escaped).
 
 Numbers are printed with the table's precision; the best number per row (or column) is
 bold; text cells such as "Failed" pass through (escaped).
@@ -12,7 +12,7 @@ import io
 import math
 from typing import TypeGuard
 
-from mrnc_eval.results import Cell, Table
+from mrnc_eval.tables import Cell, Table
 
 FORMATS = ("markdown", "latex", "csv", "html")
 SUFFIX_FORMAT = {".md": "markdown", ".tex": "latex", ".csv": "csv", ".html": "html", ".htm": "html"}

@@ -10,9 +10,9 @@ from mrnc_eval.data import Trajectory
 from mrnc_eval.evaluation.pairs import pairs_by_distance
 from mrnc_eval.evaluation.rpe import rpe
 from mrnc_eval.evaluation.sync import associate, take
-from tests.evaluation.evo_reference import evo_rpe, make_pair, to_evo
+from tests.evaluation.evo_reference import evo_rpe, make_pair, require_evo, to_evo
 
-pytest.importorskip("evo")
+require_evo()
 
 
 def _traj(stamps: np.ndarray, name: str) -> Trajectory:
