@@ -26,8 +26,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
 
 # Known violations still being removed, each with its reason. An entry that no longer occurs
 # fails the test too, so the list can only shrink.
-KNOWN_WRONG_WAY: dict[tuple[str, str], str] = {
-}
+KNOWN_WRONG_WAY: dict[tuple[str, str], str] = {}
 KNOWN_CYCLES: dict[frozenset[str], str] = {}
 
 
