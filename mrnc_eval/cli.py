@@ -338,6 +338,35 @@ def export(
     export_command.main(run_dirs, mcap=mcap, with_log=with_log, force=force)
 
 
+class CompareFormat(StrEnum):
+    terminal = "terminal"
+    markdown = "markdown"
+    html = "html"
+
+
+@app.command()
+def compare(
+    runs: Annotated[
+        list[Path] | None,
+        typer.Argument(metavar="[RUN_A RUN_B]", help="Two result directories, or two folders of one log's results."),
+    ] = None,
+    history: Annotated[Path | None, typer.Option(help="Nightly report root (history.sqlite): compare two nights.")]
+    = None,
+    nights: Annotated[tuple[str, str] | None, typer.Option(help="The two nights of --history: D1 D2 (YYYY-MM-DD).")]
+    = None,
+    log_id: Annotated[str | None, typer.Option("--log", help="With --history: only this log id.")] = None,
+    fmt: Annotated[CompareFormat, typer.Option("--format", help="Output on stdout.")] = CompareFormat.terminal,
+    out: Annotated[Path | None, typer.Option(help="Write the tables to a .md or .html file instead.")] = None,
+    changed_only: Annotated[bool, typer.Option("--changed-only", help="Leave out metrics that did not change.")]
+    = False,
+) -> None:
+    """The same metrics of two runs (or two nights) side by side with B - A and the relative change,
+    and the configuration keys that differ."""
+    from mrnc_eval.commands import compare as compare_command
+    compare_command.main(runs or [], history=history, nights=nights, log_id=log_id, fmt=fmt.value, out=out,
+                         only_changed=changed_only)
+
+
 @app.command()
 def simulate(
     out: Annotated[Path, typer.Argument(metavar="OUT", help="Output log path (.mcap, .db3 directory or .bag).")],

@@ -10,9 +10,13 @@ Conventions (used everywhere in the project):
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 F64 = NDArray[np.float64]
 F32 = NDArray[np.float32]
@@ -45,6 +49,13 @@ class Trajectory:
 
     def __len__(self) -> int:
         return int(self.stamps.shape[0])
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """One row per pose: t_s, x, y, z (m), qx, qy, qz, qw."""
+        import pandas as pd
+
+        data = np.column_stack([self.stamps, self.positions, self.quat_xyzw])
+        return pd.DataFrame(data, columns=["t_s", "x", "y", "z", "qx", "qy", "qz", "qw"])
 
 
 @dataclass(frozen=True)

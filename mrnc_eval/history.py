@@ -24,6 +24,8 @@ CREATE TABLE IF NOT EXISTS metrics (
   PRIMARY KEY (night, log_id, metric));
 """
 
+METRIC_ROW_COLUMNS = ("night", "log_id", "metric", "value", "unit", "status", "config_hash")
+
 
 @dataclass(frozen=True)
 class LogRecord:
@@ -83,6 +85,13 @@ class History:
         where = "status = 'ok' AND value IS NOT NULL" + (" AND night = ?" if night else "")
         with closing(self._connect()) as db:
             return list(db.execute(f"SELECT night, log_id, metric, value FROM metrics WHERE {where} "
+                                   "ORDER BY night, log_id, metric", (night,) if night else ()))
+
+    def metric_rows(self, night: str | None = None) -> list[tuple[str, str, str, float | None, str, str, str]]:
+        """Every stored metric (of one night if given) as METRIC_ROW_COLUMNS, ordered by night, log, metric."""
+        where = " WHERE night = ?" if night else ""
+        with closing(self._connect()) as db:
+            return list(db.execute(f"SELECT {', '.join(METRIC_ROW_COLUMNS)} FROM metrics{where} "
                                    "ORDER BY night, log_id, metric", (night,) if night else ()))
 
     def nights(self) -> list[str]:

@@ -19,13 +19,16 @@ import shutil
 import tempfile
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
 from mrnc_eval import __version__
 from mrnc_eval.errors import InputError
 from mrnc_eval.tables import Table
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 RESULT_FILE = "result.json"
 SERIES_FILE = "series.npz"
@@ -67,6 +70,13 @@ class RunResult:
 
     def metric(self, name: str) -> Metric | None:
         return next((m for m in self.metrics if m.name == name), None)
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """The metrics, one row each: kind, log_id, group, name, value, unit, lower_is_better, note."""
+        import pandas as pd
+
+        return pd.DataFrame([{"kind": self.kind, "log_id": self.log_id, **asdict(m)} for m in self.metrics],
+                            columns=["kind", "log_id", "group", "name", "value", "unit", "lower_is_better", "note"])
 
 
 # ------------------------------------------------------------------ names and atomic IO

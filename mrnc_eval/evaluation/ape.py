@@ -8,6 +8,7 @@ from __future__ import annotations
 
 from dataclasses import dataclass, field
 from functools import cached_property
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -27,6 +28,9 @@ from mrnc_eval.evaluation.modes import AlignMode, Relation
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
 from mrnc_eval.evaluation.sync import associate, associate_by_index, check_trajectory, take
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @dataclass(frozen=True, eq=False)
@@ -112,6 +116,19 @@ class ApeResult:
 
     def summary(self) -> dict[str, float | int | str]:
         return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s}
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """One row per matched pose: t_s (the estimate's stamp), the error (column "error_<unit>"),
+        the aligned estimate and the reference positions (m); the statistics in `.attrs`."""
+        import pandas as pd
+
+        columns = {"t_s": self.stamps, f"error_{self.unit or 'unitless'}": self.errors}
+        for k, axis in enumerate("xyz"):
+            columns[f"est_{axis}"] = self.est_xyz[:, k]
+            columns[f"ref_{axis}"] = self.ref_xyz[:, k]
+        frame = pd.DataFrame(columns)
+        frame.attrs.update(self.summary())
+        return frame
 
 
 def matched_pair(ref: Trajectory, est: Trajectory, *, max_diff: float, offset: float,

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import TYPE_CHECKING
 
 import numpy as np
 from numpy.typing import NDArray
@@ -15,6 +16,9 @@ from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
 from mrnc_eval.evaluation.pairs import pairs_by_distance, pairs_by_frames
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
+
+if TYPE_CHECKING:
+    import pandas as pd
 
 
 @dataclass(frozen=True)
@@ -33,6 +37,16 @@ class RpeResult:
 
     def summary(self) -> dict[str, float | int | str]:
         return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s}
+
+    def to_dataframe(self) -> pd.DataFrame:
+        """One row per pair: t_s (the estimate's stamp at the pair's end), the error (column
+        "error_<unit>"); the statistics in `.attrs`."""
+        import pandas as pd
+
+        columns = {"t_s": self.stamps, f"error_{self.unit or 'unitless'}": self.errors}
+        frame = pd.DataFrame(columns)
+        frame.attrs.update(self.summary())
+        return frame
 
 
 def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: DeltaUnit | str = DeltaUnit.frames,

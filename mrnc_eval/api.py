@@ -1,0 +1,119 @@
+"""Python API for notebooks and scripts: the functions the CLI verbs run, returning the same
+result objects the CLI writes, each with `.to_dataframe()` (pandas).
+
+    from mrnc_eval import api
+
+    result = api.run_slam("sample_logs/loop_forest.mcap", "results/loop")   # RunResult, as `mrnc-eval slam`
+    result.to_dataframe()                                       # one row per metric
+    ape = api.ape("sample_logs/loop_forest.gt.tum", "results/loop/trajectory.tum")
+    ape.stats["rmse"], ape.to_dataframe()                       # one row per matched pose
+    api.load_history("nightly_reports")                         # every night's metrics
+
+Each function is a thin wrapper over the command or evaluation code the CLI calls: the same
+numbers, files and errors (typed, from mrnc_eval.errors). Configuration: pass a `Config`
+(`api.config("cfg.yaml", ["control.raid.beta=1.5"])`) or overrides as KEY=VALUE strings."""
+
+from __future__ import annotations
+
+from collections.abc import Sequence
+from pathlib import Path
+from typing import TYPE_CHECKING, Any
+
+from mrnc_eval.config import Config, load_config
+from mrnc_eval.data import Trajectory
+from mrnc_eval.evaluation.ape import ApeResult
+from mrnc_eval.evaluation.rpe import RpeResult
+from mrnc_eval.io import LogReader
+from mrnc_eval.results import RunResult
+
+if TYPE_CHECKING:
+    import pandas as pd
+
+__all__ = ["ape", "config", "load_history", "load_result", "read_log", "read_trajectory", "rpe", "run_control",
+           "run_slam"]
+
+TrajectoryLike = Trajectory | str | Path  # a trajectory, a file (TUM, KITTI, EuRoC) or "log.mcap:/topic"
+
+
+def config(path: str | Path | None = None, overrides: Sequence[str] = ()) -> Config:
+    """The effective configuration: defaults, then a YAML file, then KEY=VALUE overrides."""
+    return load_config(path, overrides)
+
+
+def _cfg(cfg: Config | None, overrides: Sequence[str]) -> Config:
+    if cfg is not None and overrides:
+        from mrnc_eval.errors import UsageError
+
+        raise UsageError("pass cfg or overrides, not both (api.config(path, overrides) builds a Config)")
+    return cfg if cfg is not None else load_config(None, overrides)
+
+
+def read_log(path: str | Path, cfg: Config | None = None) -> LogReader:
+    """An open log (ROS 1 bag, ROS 2 bag directory, .db3, .mcap); use it in a `with` block."""
+    from mrnc_eval.io import open_log
+
+    return open_log(path, (cfg or Config()).io)
+
+
+def read_trajectory(spec: TrajectoryLike) -> Trajectory:
+    """A trajectory from a TUM/KITTI/EuRoC file or a `log.mcap:/topic` spec (as `mrnc-eval ape` reads)."""
+    from mrnc_eval.io.trajectory_files import read_trajectory as read
+
+    return spec if isinstance(spec, Trajectory) else read(spec)
+
+
+def ape(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> ApeResult:
+    """Absolute pose error (evo-compatible); options as `mrnc-eval ape`: align="se3", relation="trans",
+    max_diff=0.01, offset=0.0, n_to_align=None, plane=None."""
+    from mrnc_eval.evaluation.ape import ape as compute
+
+    return compute(read_trajectory(ref), read_trajectory(est), **options)
+
+
+def rpe(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> RpeResult:
+    """Relative pose error (evo-compatible); options as `mrnc-eval rpe`: delta=1.0, delta_unit="frames",
+    all_pairs=False, relation="trans", align="none", pairs_from="estimate"..."""
+    from mrnc_eval.evaluation.rpe import rpe as compute
+
+    return compute(read_trajectory(ref), read_trajectory(est), **options)
+
+
+def run_slam(log: str | Path, out_dir: str | Path, *, method: str = "lio", cfg: Config | None = None,
+             overrides: Sequence[str] = ()) -> RunResult:
+    """The SLAM replay of `mrnc-eval slam` on one log; writes its result directory to `out_dir`."""
+    from mrnc_eval.commands.slam import run_log
+
+    return run_log(Path(log), _cfg(cfg, overrides), Path(out_dir), method=method)
+
+
+def run_control(log: str | Path | None, out_dir: str | Path, *, mode: str = "replay",
+                controllers: Sequence[str] | None = None, cfg: Config | None = None,
+                overrides: Sequence[str] = ()) -> RunResult:
+    """The control evaluation of `mrnc-eval control` (mode "replay" or "simulate"; log None with
+    "simulate": the paper's circle); writes its result directory to `out_dir`."""
+    from mrnc_eval.commands.control import run_log
+    from mrnc_eval.control.controllers import CONTROLLERS
+
+    return run_log(None if log is None else Path(log), _cfg(cfg, overrides), Path(out_dir), mode=mode,
+                   controllers=tuple(controllers) if controllers else CONTROLLERS)
+
+
+def load_result(run_dir: str | Path) -> RunResult:
+    """A result directory written by the CLI (slam, control, info), as `mrnc-eval report` reads it."""
+    from mrnc_eval.results import read_result
+
+    return read_result(Path(run_dir))
+
+
+def load_history(root: str | Path) -> pd.DataFrame:
+    """The nightly history of a report root (ROOT/history.sqlite): one row per night, log and metric,
+    columns night, log_id, metric, value, unit, status, config_hash."""
+    import pandas as pd
+
+    from mrnc_eval.errors import InputError
+    from mrnc_eval.history import METRIC_ROW_COLUMNS, History
+
+    path = Path(root) / "history.sqlite"
+    if not path.is_file():
+        raise InputError(path, "no nightly history here (history.sqlite)")
+    return pd.DataFrame(History(path).metric_rows(), columns=list(METRIC_ROW_COLUMNS))
