@@ -79,3 +79,40 @@ def test_one_hour_at_1khz_four_controllers() -> None:
           f"-> {peer_hour / wall:.0f}x")
     assert wall < 60.0
     assert peer_hour / wall > 20.0
+
+
+SWEEP_RUNS = 500
+PEER_DRAWS = 25  # draws run serially in this process as the peer, extrapolated to SWEEP_RUNS
+
+
+def test_sweep_500_runs_x_5_controllers_of_the_paper_circle() -> None:
+    """control --mode sweep: 500 drawn plants x 5 controllers x the paper's 100 s circle at 1 kHz, in
+    worker processes on all cores, against the serial loop (same function, this process) in the same run."""
+    import resource
+
+    from mrnc_eval.commands.control_sweep import run_chunk, run_sweep
+    from mrnc_eval.control.sweep import draw_plants
+
+    cfg = Config()
+    assert cfg.control.sweep.duration_s == 100.0
+    assert cfg.control.rate_hz == 1000.0
+    run_sweep(cfg, CONTROLLERS, 1, 0, workers=1)  # compile / load the kernel cache outside the timing
+    workers = os.cpu_count() or 1
+    children0 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    t0 = time.perf_counter()
+    runs = run_sweep(cfg, CONTROLLERS, SWEEP_RUNS, 0, workers=workers)
+    wall = time.perf_counter() - t0
+    children1 = resource.getrusage(resource.RUSAGE_CHILDREN)
+    cpu = (children1.ru_utime - children0.ru_utime) + (children1.ru_stime - children0.ru_stime)
+    assert len(runs) == SWEEP_RUNS * len(CONTROLLERS)
+    draws = draw_plants(cfg.control.sweep, PEER_DRAWS, 0)
+    t0 = time.perf_counter()
+    serial = run_chunk(draws, CONTROLLERS, cfg, 0)
+    peer = (time.perf_counter() - t0) * SWEEP_RUNS / PEER_DRAWS
+    assert serial == runs[:PEER_DRAWS * len(CONTROLLERS)]  # the pool computes exactly what the loop does
+    load = os.getloadavg()[0]
+    print(f"\nsweep {SWEEP_RUNS} runs x {len(CONTROLLERS)} controllers x 100 s at 1 kHz: {wall:.1f} s wall on "
+          f"{workers} worker processes (worker CPU {cpu:.1f} s); serial loop {peer:.1f} s extrapolated from "
+          f"{PEER_DRAWS} draws -> {peer / wall:.2f}x; 1-min load average {load:.1f} on {os.cpu_count()} cores")
+    assert wall < 60.0
+    assert peer / wall > 1.3

@@ -156,6 +156,7 @@ def slam(
 class ControlMode(StrEnum):
     replay = "replay"
     simulate = "simulate"
+    sweep = "sweep"
 
 
 @app.command()
@@ -166,12 +167,16 @@ def control(
     ] = None,
     mode: Annotated[
         ControlMode,
-        typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant."),
+        typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant; "
+                          "sweep: every controller on --runs drawn plants (robustness)."),
     ] = ControlMode.replay,
     controllers: Annotated[
         str,
-        typer.Option(help="Comma-separated: raid,pid,apc,foptc (apc and foptc are labelled stand-ins)."),
-    ] = "raid,pid,apc,foptc",
+        typer.Option(help="Comma-separated: raid,pid,apc,foptc,ff (apc and foptc are labelled stand-ins; "
+                          "ff is the feed-forward alone, the negative control)."),
+    ] = "raid,pid,apc,foptc,ff",
+    runs: Annotated[int | None, typer.Option(help="sweep: plants drawn (default control.sweep.runs).")] = None,
+    seed: Annotated[int | None, typer.Option(help="sweep: seed of the draws (default control.sweep.seed).")] = None,
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
@@ -183,7 +188,8 @@ def control(
     error m/s, funnel violations, saturation, safety stops, cross-track error m)."""
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import control as control_command
-    control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out)
+    control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out,
+                         runs=runs, seed=seed)
 
 
 AlignOpt = Annotated[AlignMode, typer.Option(help="Alignment of each estimate to the reference.")]

@@ -14,6 +14,8 @@ from mrnc_eval.control.config import ControlConfig, RobotGeometry
 from mrnc_eval.control.controllers import (
     CONTROLLER_ID,
     LABELS,
+    P_ANCHOR,
+    P_FF,
     STATE_SIZE,
     controller_params,
     controller_step,
@@ -28,8 +30,15 @@ from mrnc_eval.control.scenario import Scenario, waypoint_scenario
 
 # Recorded channels: the columns of the compiled loop's output, one ClosedLoopTrace field each.
 (CH_T, CH_X, CH_Y, CH_YAW, CH_V, CH_OMEGA, CH_CMD_V, CH_CMD_OMEGA, CH_REF_L, CH_REF_R, CH_MEAS_L, CH_MEAS_R,
- CH_SLIP_L, CH_SLIP_R, CH_U_L, CH_U_R, CH_FUNNEL_L, CH_FUNNEL_R) = range(18)
-N_OUT = 18
+ CH_SLIP_L, CH_SLIP_R, CH_U_L, CH_U_R, CH_FUNNEL_L, CH_FUNNEL_R, CH_UFB_L, CH_UFB_R, CH_PHI_L, CH_PHI_R) = range(22)
+N_OUT = 22
+
+# Counted at the full control rate (not only on recorded samples), per side: samples with |e| >= o(t),
+# samples with |U| at the limit, and IAE (m).
+ST_FUNNEL, ST_SATURATED, ST_IAE = range(3)
+N_STATS = 3
+
+CONTROLLER_ID_RAID = CONTROLLER_ID["raid"]
 
 # Plant parameter vector (per side where the drive may differ), see `plant_params`.
 (PL_GAIN_L, PL_GAIN_R, PL_TAU_L, PL_TAU_R, PL_DELAY_L, PL_DELAY_R, PL_DZ_L, PL_DZ_R, PL_CHI, PL_NOISE,
@@ -38,8 +47,8 @@ PL_SIZE = 11
 
 # Run settings of the compiled loop (counts stored as floats), see `run_closed_loop`.
 (RUN_DT, RUN_STEPS, RUN_PP_EVERY, RUN_RECORD_EVERY, RUN_LINGER, RUN_X0, RUN_Y0, RUN_YAW0, RUN_ACCEL_LIMIT,
- RUN_DERIV_TAU, RUN_SEED) = range(11)
-RUN_SIZE = 11
+ RUN_DERIV_TAU, RUN_SEED, RUN_SAT_LEVEL) = range(12)
+RUN_SIZE = 12
 
 
 @dataclass
@@ -68,6 +77,11 @@ class ClosedLoopTrace:
     completion_time_s: float = float("nan")  # when pure pursuit declared the goal reached
     waypoints: FloatArray | None = None
     funnel_right: FloatArray | None = None  # o(t) of the right side, m/s (None: same as `funnel`)
+    u_fb_left: FloatArray | None = None  # applied feedback U - f, RPM (None: unknown, e.g. a recording)
+    u_fb_right: FloatArray | None = None
+    phi_left: FloatArray | None = None  # RAID's adaptive parameter phi-hat (None for the other laws)
+    phi_right: FloatArray | None = None
+    full_rate_stats: FloatArray | None = None  # (2, N_STATS) left/right, counted every control period
 
     def funnel_of(self, side: str) -> FloatArray:
         return self.funnel_right if side == "right" and self.funnel_right is not None else self.funnel
@@ -77,10 +91,10 @@ def plant_params(cfg: ControlConfig, robot: RobotGeometry, dt: float) -> FloatAr
     """Pack the drive and body model for the compiled loop (delays in whole periods of dt s)."""
     pl = cfg.plant
     p = np.zeros(PL_SIZE)
-    p[PL_GAIN_L] = p[PL_GAIN_R] = pl.gain_mps_per_rpm
-    p[PL_TAU_L] = p[PL_TAU_R] = pl.tau_s
-    p[PL_DELAY_L] = p[PL_DELAY_R] = int(round(pl.delay_s / dt))
-    p[PL_DZ_L] = p[PL_DZ_R] = pl.dead_band_rpm
+    p[PL_GAIN_L], p[PL_GAIN_R] = pl.left.gain_mps_per_rpm, pl.right.gain_mps_per_rpm
+    p[PL_TAU_L], p[PL_TAU_R] = pl.left.tau_s, pl.right.tau_s
+    p[PL_DELAY_L], p[PL_DELAY_R] = int(round(pl.left.delay_s / dt)), int(round(pl.right.delay_s / dt))
+    p[PL_DZ_L], p[PL_DZ_R] = pl.left.dead_band_rpm, pl.right.dead_band_rpm
     p[PL_CHI] = pl.icr_expansion
     p[PL_NOISE] = pl.speed_noise_mps
     p[PL_TRACK] = robot.track_width_m
@@ -90,19 +104,33 @@ def plant_params(cfg: ControlConfig, robot: RobotGeometry, dt: float) -> FloatAr
 @kernel
 def _record(row: FloatArray, t: float, x: float, y: float, yaw: float, v_body: float, w_body: float,
             cmd_v: float, cmd_w: float, ref_l: float, ref_r: float, meas_l: float, meas_r: float,
-            s_l: float, s_r: float, u_l: float, u_r: float, o_l: float, o_r: float) -> None:
+            s_l: float, s_r: float, u_l: float, u_r: float, o_l: float, o_r: float, fb_l: float, fb_r: float,
+            phi_l: float, phi_r: float) -> None:
     row[CH_T], row[CH_X], row[CH_Y], row[CH_YAW], row[CH_V], row[CH_OMEGA] = t, x, y, yaw, v_body, w_body
     row[CH_CMD_V], row[CH_CMD_OMEGA], row[CH_REF_L], row[CH_REF_R] = cmd_v, cmd_w, ref_l, ref_r
     row[CH_MEAS_L], row[CH_MEAS_R], row[CH_SLIP_L], row[CH_SLIP_R] = meas_l, meas_r, s_l, s_r
     row[CH_U_L], row[CH_U_R], row[CH_FUNNEL_L], row[CH_FUNNEL_R] = u_l, u_r, o_l, o_r
+    row[CH_UFB_L], row[CH_UFB_R], row[CH_PHI_L], row[CH_PHI_R] = fb_l, fb_r, phi_l, phi_r
+
+
+@kernel
+def _count(stats: FloatArray, e: float, o: float, u: float, sat_level: float, dt: float) -> None:
+    """Full-rate counters of one side: funnel violation, saturation, IAE."""
+    if abs(e) >= o:
+        stats[ST_FUNNEL] += 1.0
+    if abs(u) >= sat_level:
+        stats[ST_SATURATED] += 1.0
+    stats[ST_IAE] += abs(e) * dt
 
 
 @kernel
 def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patches: FloatArray,
               pp_params: FloatArray, plant: FloatArray,
-              run: FloatArray) -> tuple[FloatArray, FloatArray, bool, int]:
-    """The compiled loop. Returns (recorded channels (n, N_OUT), safety stops per side (2, 2):
-    time s and cause (1 = barrier or non-finite), -1 when none; done; step index of the goal or -1)."""
+              run: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, bool, int]:
+    """The compiled loop (one function so numba keeps the whole chain in registers; split into
+    kernels where a piece has its own meaning). Returns (recorded channels (n, N_OUT); safety stops
+    per side (2, 2): time s and cause (1 = barrier or non-finite), -1 when none; full-rate counters
+    (2, N_STATS); done; step index of the goal or -1)."""
     dt = run[RUN_DT]
     n_steps, pp_every = int(run[RUN_STEPS]), int(run[RUN_PP_EVERY])
     record_every, linger_steps = int(run[RUN_RECORD_EVERY]), int(run[RUN_LINGER])
@@ -113,6 +141,11 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
     n_rec = n_steps // record_every + 1
     out = np.zeros((n_rec, N_OUT))
     stops = np.full((2, 2), -1.0)
+    stats = np.zeros((2, N_STATS))
+    sat_level = run[RUN_SAT_LEVEL]
+    u_ff_per_mps = p[P_FF]
+    raid = cid == CONTROLLER_ID_RAID
+    per_step_funnel = p[P_ANCHOR] > 0.5
     state_l = np.zeros(STATE_SIZE)
     state_r = np.zeros(STATE_SIZE)
     buf_l = np.zeros(delay_l + 1)
@@ -159,6 +192,10 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
             if not ok:
                 stopped_r = True
                 stops[1, 0], stops[1, 1] = t, 1.0
+        o_l, _ = funnel_at(state_l, p, t)
+        o_r = funnel_at(state_r, p, t)[0] if per_step_funnel else o_l  # run-start anchoring: one o(t)
+        _count(stats[0], meas_l - ref_l, o_l, u_l, sat_level, dt)
+        _count(stats[1], meas_r - ref_r, o_r, u_r, sat_level, dt)
         # transport delay (ring buffers), dead band, lag, slip
         slot_l, slot_r = k % (delay_l + 1), k % (delay_r + 1)
         ul_del, ur_del = buf_l[slot_l], buf_r[slot_r]
@@ -171,14 +208,17 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
         x, y, yaw, v_body, w_body = body_step(x, y, yaw, (1.0 - s_l) * vw_l, (1.0 - s_r) * vw_r,
                                               track * plant[PL_CHI], dt)
         if k % record_every == 0:
-            o_l, _ = funnel_at(state_l, p, t)
-            o_r, _ = funnel_at(state_r, p, t)
+            # applied feedback: what the command holds beyond the feed-forward (0 after a safety stop)
+            fb_l = u_l - u_ff_per_mps * ref_l if not stopped_l else 0.0
+            fb_r = u_r - u_ff_per_mps * ref_r if not stopped_r else 0.0
+            phi_l = state_l[0] if raid else math.nan
+            phi_r = state_r[0] if raid else math.nan
             _record(out[k_rec], t, x, y, yaw, v_body, w_body, cmd_v, cmd_w, ref_l, ref_r, meas_l, meas_r,
-                    s_l, s_r, u_l, u_r, o_l, o_r)
+                    s_l, s_r, u_l, u_r, o_l, o_r, fb_l, fb_r, phi_l, phi_r)
             k_rec += 1
         if done_at >= 0 and k - done_at >= linger_steps:
             break
-    return out[:k_rec], stops, done, done_at
+    return out[:k_rec], stops, stats, done, done_at
 
 
 def run_closed_loop(scenario: Scenario | FloatArray, cfg: ControlConfig, robot: RobotGeometry,
@@ -205,15 +245,16 @@ def run_closed_loop(scenario: Scenario | FloatArray, cfg: ControlConfig, robot: 
     run[RUN_ACCEL_LIMIT] = cfg.kinematics.reference_accel_limit_mps2
     run[RUN_DERIV_TAU] = cfg.kinematics.reference_derivative_tau_s
     run[RUN_SEED] = cfg.seed if seed is None else seed
-    out, stops, done, done_at = _simulate(
+    run[RUN_SAT_LEVEL] = cfg.actuator.u_max_rpm - cfg.metrics.saturation_tolerance_rpm
+    out, stops, stats, done, done_at = _simulate(
         CONTROLLER_ID[controller], controller_params(controller, cfg), rbf_centres(cfg),
         np.ascontiguousarray(scenario.waypoints_xy, dtype=np.float64), patches_array(list(scenario.slip_patches)),
         pure_pursuit_params(pp, robot.track_width_m, robot.max_speed_mps), plant_params(cfg, robot, dt), run)
-    return _trace(controller, out, stops, bool(done), done_at * dt if done else float("nan"), scenario)
+    return _trace(controller, out, stops, stats, bool(done), done_at * dt if done else float("nan"), scenario)
 
 
-def _trace(controller: str, out: FloatArray, stops: FloatArray, done: bool, completion_time_s: float,
-           scenario: Scenario) -> ClosedLoopTrace:
+def _trace(controller: str, out: FloatArray, stops: FloatArray, stats: FloatArray, done: bool,
+           completion_time_s: float, scenario: Scenario) -> ClosedLoopTrace:
     """The compiled loop's output as a trace, channel by channel."""
     events: list[dict[str, Any]] = [
         {"t_s": float(stops[i, 0]), "kind": "safety_stop", "side": side, "cause": "barrier_or_non_finite",
@@ -226,4 +267,5 @@ def _trace(controller: str, out: FloatArray, stops: FloatArray, done: bool, comp
         v_ref_left=c[CH_REF_L], v_ref_right=c[CH_REF_R], v_wheel_left=c[CH_MEAS_L], v_wheel_right=c[CH_MEAS_R],
         slip_left=c[CH_SLIP_L], slip_right=c[CH_SLIP_R], u_left=c[CH_U_L], u_right=c[CH_U_R],
         funnel=c[CH_FUNNEL_L], funnel_right=c[CH_FUNNEL_R], events=events, completed=done,
-        completion_time_s=completion_time_s, waypoints=scenario.waypoints_xy)
+        completion_time_s=completion_time_s, waypoints=scenario.waypoints_xy, u_fb_left=c[CH_UFB_L],
+        u_fb_right=c[CH_UFB_R], phi_left=c[CH_PHI_L], phi_right=c[CH_PHI_R], full_rate_stats=stats)

@@ -1,6 +1,7 @@
 """Per-side wheel-speed controllers behind one step interface.
 
-Every law adds its feedback to the shared feed-forward f = 3000 v_ref RPM; the safety clamp
+Every law adds its feedback to the shared feed-forward f = 3000 v_ref RPM (control.model; `ff` is
+that feed-forward alone, the negative control); the safety clamp
 +/-u_max bounds the total command (default) or only the feedback part (paper-notes 4.3).
 The compiled `controller_step` dispatches on a law id so the closed-loop engine stays one
 compiled loop; the classes below wrap it for Python callers (replay, tests), one per law:
@@ -19,16 +20,25 @@ from mrnc_eval.control.jit_cache import FloatArray, kernel
 from mrnc_eval.control.pid import pid_params, pid_step
 from mrnc_eval.control.raid import funnel, raid_params, raid_step, rbf_centres
 
-CONTROLLERS = ("raid", "pid", "apc", "foptc")
+CONTROLLERS = ("raid", "pid", "apc", "foptc", "ff")
 PAPER_ORDER = ("raid", "apc", "pid", "foptc")  # column order of the paper's Table II
+FEEDBACK_LAWS = ("raid", "pid", "apc", "foptc")  # every law but the negative control
 LABELS = {
     "raid": "RAID",
     "pid": "PID",
     "apc": "APC (stand-in: CFDL-MFAPC)",
     "foptc": "FOPTC (stand-in: prescribed-time gain)",
+    "ff": "FF only (negative control)",
 }
 CONTROLLER_ID = {name: k for k, name in enumerate(CONTROLLERS)}
-_PARAMS = {"raid": raid_params, "pid": pid_params, "apc": apc_params, "foptc": foptc_params}
+FF_ID = CONTROLLER_ID["ff"]
+
+
+def _no_params(cfg: ControlConfig) -> list[float]:
+    return []
+
+
+_PARAMS = {"raid": raid_params, "pid": pid_params, "apc": apc_params, "foptc": foptc_params, "ff": _no_params}
 
 # common parameter vector head, then the law's own parameters from P_LAW on
 P_FF, P_UMAX, P_SATFB, P_STEP, P_ANCHOR, P_OOV, P_OB, P_OSTAR = range(8)
@@ -45,7 +55,7 @@ def controller_params(name: str, cfg: ControlConfig) -> FloatArray:
     if name not in _PARAMS:
         raise ValueError(f"unknown controller {name!r}; choose from {', '.join(CONTROLLERS)}")
     a, f = cfg.actuator, cfg.funnel
-    common = [a.feedforward_rpm_per_mps, a.u_max_rpm, 1.0 if a.saturation_applies_to == "feedback" else 0.0,
+    common = [cfg.model.feedforward_rpm_per_mps, a.u_max_rpm, 1.0 if a.saturation_applies_to == "feedback" else 0.0,
               cfg.metrics.step_threshold_mps, 1.0 if f.anchor == "reference_change" else 0.0,
               f.o_ov_mps, f.o_b_mps, f.o_star_per_s]
     return np.asarray(common + _PARAMS[name](cfg), dtype=np.float64)
@@ -82,6 +92,8 @@ def controller_step(cid: int, state: FloatArray, p: FloatArray, centres: FloatAr
     elif cid == 1:
         u_fb = pid_step(state, p[q], p[q + 1], p[q + 2], int(p[q + 3]), p[q + 4], v_ref - v_meas, u_ff,
                         -u_max, u_max, dt)
+    elif cid == FF_ID:  # negative control: the shared feed-forward alone
+        u_fb = 0.0
     elif cid == 2:
         if t >= state[S_NEXT_UPDATE] - 1e-12:  # slow rate, held in between
             state[S_HELD] = mfapc_step(state, p[q], p[q + 1], p[q + 2], p[q + 3], p[q + 4], p[q + 5], p[q + 6],
@@ -140,8 +152,15 @@ class FoptcController(WheelController):
     name = "foptc"
 
 
+class FeedForwardOnly(WheelController):
+    """Negative control: f = 3000 v_ref and no feedback. A test that credits a law with keeping the
+    funnel or removing the error must fail for this one under the default plant."""
+
+    name = "ff"
+
+
 CONTROLLER_CLASSES: dict[str, type[WheelController]] = {
-    c.name: c for c in (RaidController, PidController, ApcController, FoptcController)}
+    c.name: c for c in (RaidController, PidController, ApcController, FoptcController, FeedForwardOnly)}
 
 
 def make_controller(name: str, cfg: ControlConfig) -> WheelController:

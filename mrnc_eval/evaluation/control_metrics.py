@@ -14,11 +14,14 @@ y(0) = 0 and mishandles both).
 from __future__ import annotations
 
 from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 from numpy.typing import NDArray
 
-from mrnc_eval.control.config import MetricsConfig
+from mrnc_eval.control.config import MetricsConfig, PaperMetricsConfig
+
+FloatArray = NDArray[np.float64]
 
 
 @dataclass(frozen=True)
@@ -32,7 +35,7 @@ class StepMetrics:
     steady_state_abs_error: float = float("nan")  # mean |r - y| over the window
 
 
-def step_response(t: NDArray, y: NDArray, r: NDArray | float, y0: float, cfg: MetricsConfig,
+def step_response(t: FloatArray, y: FloatArray, r: FloatArray | float, y0: float, cfg: MetricsConfig,
                   target: float | None = None) -> StepMetrics:
     """Metrics of one segment: response y to reference r (array or constant) from y0; the step
     size is target - y0 (target defaults to the final reference value)."""
@@ -64,7 +67,7 @@ def step_response(t: NDArray, y: NDArray, r: NDArray | float, y0: float, cfg: Me
     return StepMetrics(float(t[0]), float(delta), ts, overshoot, sse, rise, sse_abs)
 
 
-def step_segments(t: NDArray, r: NDArray, cfg: MetricsConfig) -> list[tuple[int, int, int]]:
+def step_segments(t: FloatArray, r: FloatArray, cfg: MetricsConfig) -> list[tuple[int, int, int]]:
     """(start, ramp_end, end) of each step: a jump or ramp of the reference changing it by at least
     min_step, up to the start of the next one. Slew-limited references are ramps, not jumps."""
     rate = np.abs(np.diff(r)) / np.maximum(np.diff(t), 1e-12)
@@ -82,8 +85,8 @@ def step_segments(t: NDArray, r: NDArray, cfg: MetricsConfig) -> list[tuple[int,
     return out
 
 
-def tracking_metrics(t: NDArray, r: NDArray, y: NDArray, u: NDArray, o: NDArray, *, u_max: float,
-                     slip: NDArray | None, cfg: MetricsConfig) -> dict[str, float]:
+def tracking_metrics(t: FloatArray, r: FloatArray, y: FloatArray, u: FloatArray, o: FloatArray, *, u_max: float,
+                     slip: FloatArray | None, cfg: MetricsConfig) -> dict[str, float]:
     """Per-side metrics with unit-bearing keys. Reference changes smaller than cfg.min_step_mps
     (continuous pure-pursuit corrections) are not steps."""
     dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 0.0))
@@ -121,6 +124,65 @@ def tracking_metrics(t: NDArray, r: NDArray, y: NDArray, u: NDArray, o: NDArray,
     return out
 
 
+def feedback_share(u: FloatArray, u_fb: FloatArray, min_rpm: float) -> tuple[float, float]:
+    """(mean, 95th percentile) of |u_fb| / |U| over samples with |U| > min_rpm: how much of the
+    applied command is feedback rather than feed-forward (0 for the feed-forward alone)."""
+    active = np.abs(u) > min_rpm
+    if not active.any():
+        return float("nan"), float("nan")
+    share = np.abs(u_fb[active]) / np.abs(u[active])
+    return float(np.mean(share)), float(np.percentile(share, 95))
+
+
+def moving_mean(y: FloatArray, n: int) -> FloatArray:
+    """Centred moving mean over n samples (edges: mean of the samples available)."""
+    if n <= 1:
+        return np.asarray(y, dtype=float)
+    kernel = np.ones(n)
+    return np.convolve(y, kernel, mode="same") / np.convolve(np.ones_like(y, dtype=float), kernel, mode="same")
+
+
+def paper_metrics(t: FloatArray, r: FloatArray, y: FloatArray, cfg: PaperMetricsConfig) -> dict[str, float]:
+    """Table II read the way the paper's numbers read, for one side (keys prefixed `paper_`):
+    - cruise speed r_c: median reference over the second half of the start-up window;
+    - start-up step 0 -> r_c: the window [t0, t0 + startup_window_s], t0 = first non-zero reference;
+      settling time = first time after t0 from which |y - r_c| <= band r_c to the window's end
+      (inf: not settled), overshoot % = 100 max(0, max y - r_c) / r_c over the window;
+    - steady-state error = mean |r - y| after the window wherever the reference is within
+      cruise_tolerance of r_c (steady cruise; slip patches included, as in a field run).
+    y is smoothed by a centred moving mean over smoothing_s first (white measurement noise)."""
+    nan = float("nan")
+    out = {"paper_cruise_speed_mps": nan, "paper_settling_time_s": nan, "paper_overshoot_pct": nan,
+           "paper_steady_state_error_mps": nan}
+    moving = np.flatnonzero(np.abs(r) > 1e-6)
+    if moving.size == 0 or t.size < 3:
+        return out
+    dt = float(np.median(np.diff(t)))
+    ys = moving_mean(y, int(round(cfg.smoothing_s / dt)))
+    t0 = t[moving[0]]
+    window = (t >= t0) & (t <= t0 + cfg.startup_window_s)
+    late = window & (t >= t0 + 0.5 * cfg.startup_window_s)
+    if not late.any():
+        return out
+    rc = float(np.median(r[late]))
+    if rc <= 0.0:
+        return out
+    out["paper_cruise_speed_mps"] = rc
+    tw, yw = t[window], ys[window]
+    outside = np.flatnonzero(np.abs(yw - rc) > cfg.band * rc)
+    if outside.size == 0:
+        out["paper_settling_time_s"] = 0.0
+    elif outside[-1] == yw.size - 1:
+        out["paper_settling_time_s"] = float("inf")
+    else:
+        out["paper_settling_time_s"] = float(tw[outside[-1] + 1] - t0)
+    out["paper_overshoot_pct"] = 100.0 * max(0.0, float(np.max(yw)) - rc) / rc
+    cruise = (t > t0 + cfg.startup_window_s) & (np.abs(r - rc) <= cfg.cruise_tolerance * rc)
+    if cruise.any():
+        out["paper_steady_state_error_mps"] = float(np.mean(np.abs(r[cruise] - ys[cruise])))
+    return out
+
+
 def _worst(values: list[float]) -> float:
     """Largest value; an unsettled step (NaN) makes the aggregate inf."""
     if not values:
@@ -128,7 +190,7 @@ def _worst(values: list[float]) -> float:
     return float("inf") if any(np.isnan(values)) else float(max(values))
 
 
-def _longest_run(mask: NDArray, dt: NDArray) -> float:
+def _longest_run(mask: NDArray[np.bool_], dt: FloatArray) -> float:
     if not mask.any():
         return 0.0
     edges = np.diff(np.concatenate([[0], mask.astype(np.int8), [0]]))
@@ -137,7 +199,7 @@ def _longest_run(mask: NDArray, dt: NDArray) -> float:
     return float(np.max(csum[ends] - csum[starts]))
 
 
-def recovery_time(t: NDArray, abs_err: NDArray, slip: NDArray, band: float, hold_s: float = 1.0,
+def recovery_time(t: FloatArray, abs_err: FloatArray, slip: FloatArray, band: float, hold_s: float = 1.0,
                   horizon_s: float = 15.0) -> float:
     """Worst time (s) from a slip event (a patch entered or left) until |e| is back below band
     and stays there for hold_s; NaN if there was no event, inf if not recovered within horizon_s."""
@@ -163,8 +225,8 @@ def recovery_time(t: NDArray, abs_err: NDArray, slip: NDArray, band: float, hold
     return worst
 
 
-def estimate_slip(t: NDArray, v_wheel: NDArray, v_ground: NDArray, *, window_s: float = 1.0,
-                  threshold: float = 0.05, min_speed_mps: float = 0.05, min_duration_s: float = 1.0) -> NDArray:
+def estimate_slip(t: FloatArray, v_wheel: FloatArray, v_ground: FloatArray, *, window_s: float = 1.0,
+                  threshold: float = 0.05, min_speed_mps: float = 0.05, min_duration_s: float = 1.0) -> FloatArray:
     """Slip patches of one side from a recording: s = 1 - v_ground / v_wheel, averaged over
     window_s, is a patch where it exceeds threshold for at least min_duration_s. Returns the
     mean slip inside each patch and 0 elsewhere (a piecewise-constant series, as simulated)."""
@@ -182,7 +244,8 @@ def estimate_slip(t: NDArray, v_wheel: NDArray, v_ground: NDArray, *, window_s: 
     return out
 
 
-def cross_track(x: NDArray, y: NDArray, waypoints: NDArray, chunk: int = 4096) -> tuple[NDArray, NDArray]:
+def cross_track(x: FloatArray, y: FloatArray, waypoints: FloatArray,
+                chunk: int = 4096) -> tuple[FloatArray, FloatArray]:
     """Signed distance (m, + = left of the path) to the nearest path segment and that segment's
     heading (rad), per sample; computed in chunks so long logs with dense paths stay bounded."""
     a, b = waypoints[:-1], waypoints[1:]
@@ -205,8 +268,8 @@ def cross_track(x: NDArray, y: NDArray, waypoints: NDArray, chunk: int = 4096) -
     return cte, np.arctan2(d[seg, 1], d[seg, 0])
 
 
-def path_metrics(x: NDArray, y: NDArray, yaw: NDArray, waypoints: NDArray,
-                 completion_time_s: float) -> dict[str, float]:
+def path_metrics(x: FloatArray, y: FloatArray, yaw: FloatArray, waypoints: FloatArray,
+                 completion_time_s: float) -> dict[str, Any]:
     """Cross-track error against the path segments, heading error against the nearest segment's
     direction, completion time (NaN when the goal was not reached) and final distance to the goal.
     The signed cross-track series is returned under "_cte" (m)."""

@@ -115,6 +115,9 @@ def slam_figures(r: RunResult) -> list[tuple[str, str]]:
 def control_figures(r: RunResult) -> list[tuple[str, str]]:
     s = r.series
     out = []
+    if r.extra.get("mode") == "sweep" and "sweep_gain_mismatch_mid" in s:
+        return [("Robustness sweep: fraction of runs with a funnel violation against the drive-gain mismatch",
+                 _sweep_violations(s, r))]
     for ctrl in r.extra.get("controllers", []):
         label = r.extra.get("labels", {}).get(ctrl, ctrl)
         t = s.get(f"{ctrl}_t", s.get("t"))
@@ -125,6 +128,10 @@ def control_figures(r: RunResult) -> list[tuple[str, str]]:
         out.append((caption, _tracking(s, ctrl, label, t, funnel)))
         if f"{ctrl}_left_u_rpm" in s:
             out.append((f"{label}: pump commands with the ±{U_MAX_RPM:.0f} RPM limits", _effort(s, r, ctrl, label, t)))
+        if f"{ctrl}_left_u_fb_rpm" in s:
+            caption = f"{label}: feedback share |u_fb|/|U| per side" + (
+                " and the adaptive parameter phi-hat(t)" if f"{ctrl}_left_phi_hat" in s else "")
+            out.append((caption, _feedback(s, ctrl, label, t)))
         if f"{ctrl}_xy" in s and f"{ctrl}_cte_m" in s:
             out.append((f"{label}: driven path and cross-track error", _path(s, ctrl, label, t)))
     return out
@@ -168,6 +175,46 @@ def _effort(s, r: RunResult, ctrl: str, label: str, t: np.ndarray) -> str:
     ax.set(xlabel="time (s)", ylabel="pump command (RPM)",
            title=f"{label}: control effort" + (" (dotted: safety stops)" if stops else ""))
     ax.legend(fontsize="small", loc="lower right", ncols=2)
+    ax.grid(alpha=0.3)
+    return svg(fig)
+
+
+def _feedback(s, ctrl: str, label: str, t: np.ndarray) -> str:
+    """What the feedback does: |u_fb|/|U| (0 = feed-forward alone) and, for RAID, phi-hat(t)."""
+    phi = f"{ctrl}_left_phi_hat" in s
+    fig, axes = new_figure(7.5, 4.6 if phi else 2.6, rows=2 if phi else 1, sharex=True)
+    ax = axes[0, 0]
+    for side, colour in (("left", "tab:blue"), ("right", "tab:orange")):
+        u, fb = np.abs(s[f"{ctrl}_{side}_u_rpm"]), np.abs(s[f"{ctrl}_{side}_u_fb_rpm"])
+        share = np.where(u > 1.0, fb / np.maximum(u, 1.0), np.nan)
+        tt, sh = decimate(t, share)
+        ax.plot(tt, sh, lw=0.7, color=colour, label=side)
+    ax.set(ylabel="|u_fb| / |U|", ylim=(0.0, 1.05), title=f"{label}: share of the command that is feedback")
+    ax.legend(fontsize="small", loc="upper right", ncols=2)
+    ax.grid(alpha=0.3)
+    if phi:
+        ax = axes[1, 0]
+        for side, colour in (("left", "tab:blue"), ("right", "tab:orange")):
+            tt, ph = decimate(t, s[f"{ctrl}_{side}_phi_hat"])
+            ax.plot(tt, ph, lw=0.8, color=colour, label=side)
+        ax.set(ylabel="phi-hat", title="RAID adaptive parameter phi-hat(t)")
+        ax.grid(alpha=0.3)
+    axes[-1, 0].set_xlabel("time (s)")
+    return svg(fig)
+
+
+def _sweep_violations(s, r: RunResult) -> str:
+    fig, ax = new_figure(7.0, 3.2)
+    ax = ax[0, 0]
+    mid = 100.0 * s["sweep_gain_mismatch_mid"]
+    for ctrl in r.extra.get("controllers", []):
+        if f"sweep_{ctrl}_violation_rate" in s:
+            ax.plot(mid, s[f"sweep_{ctrl}_violation_rate"], marker="o", lw=1.0,
+                    label=r.extra.get("labels", {}).get(ctrl, ctrl))
+    ax.set(xlabel="drive gain mismatch (%, plant vs the controllers' model)",
+           ylabel="runs with a funnel violation", ylim=(-0.03, 1.03),
+           title=f"Robustness sweep ({r.extra.get('runs', '?')} plants per controller)")
+    ax.legend(fontsize="x-small", loc="best")
     ax.grid(alpha=0.3)
     return svg(fig)
 

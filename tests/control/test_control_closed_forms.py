@@ -12,7 +12,7 @@ from mrnc_eval.cli import main
 from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import run_closed_loop
 from mrnc_eval.control.config import MetricsConfig, PurePursuitConfig
-from mrnc_eval.control.controllers import CONTROLLERS, make_controller
+from mrnc_eval.control.controllers import CONTROLLERS, FEEDBACK_LAWS, make_controller
 from mrnc_eval.control.pure_pursuit import PurePursuit, wrap_angle
 from mrnc_eval.control.saturation import clamp, lambda_construction
 from mrnc_eval.control.scenario import paper_circle_scenario
@@ -109,8 +109,10 @@ def test_pure_pursuit_circle_curvature_and_monotonic_index() -> None:
 
 
 def test_wheel_controllers_track_a_first_order_drive() -> None:
+    # a smoke test on an exact plant (gain 1/3000, no dead band); the feed-forward alone would pass it,
+    # so the claims that separate feedback from `ff` live in test_control_evaluation.py (default plant)
     cfg = Config().control
-    for name in CONTROLLERS:
+    for name in FEEDBACK_LAWS:
         c = make_controller(name, cfg)
         v, dt = 0.0, 0.001
         for k in range(10000):
@@ -129,14 +131,19 @@ def paper_runs():
     return cfg, {n: run_closed_loop(sc, cfg.control, cfg.robot, n) for n in CONTROLLERS}
 
 
+def _inside_funnel(tr) -> bool:
+    return all(np.all(np.abs(getattr(tr, f"v_wheel_{s}") - getattr(tr, f"v_ref_{s}")) < tr.funnel_of(s))
+               for s in ("left", "right"))
+
+
 def test_raid_stays_in_the_funnel_on_the_paper_scenario(paper_runs) -> None:
     cfg, runs = paper_runs
     tr = runs["raid"]
     assert tr.completed
     assert not tr.events
+    assert _inside_funnel(tr)
+    assert not _inside_funnel(runs["ff"])  # negative control: the feed-forward alone leaves the funnel
     for side in ("left", "right"):
-        e = getattr(tr, f"v_wheel_{side}") - getattr(tr, f"v_ref_{side}")
-        assert np.all(np.abs(e) < tr.funnel), side
         assert np.max(np.abs(getattr(tr, f"u_{side}"))) <= 1250.0
     # the robot went round: it passed the far side of the circle and came back
     _, cy = cfg.control.scenario.centre_xy_m
@@ -157,18 +164,30 @@ def test_every_controller_finishes_and_respects_the_actuator_limit(paper_runs) -
 
 
 def test_control_cli_json_and_table(tmp_path, capsys) -> None:
-    assert main(["control", "--mode", "simulate", "--controllers", "raid,pid", "--out", str(tmp_path), "--json"]) == 0
+    assert main(["control", "--mode", "simulate", "--controllers", "raid,pid,ff", "--out", str(tmp_path),
+                 "--json"]) == 0
     body = json.loads(capsys.readouterr().out)
     raid = body["controllers"]["raid"]
     assert raid["left"]["funnel_violations"] == 0
     assert raid["right"]["safety_stops"] == 0
+    ff = body["controllers"]["ff"]
+    assert ff["left"]["funnel_violations"] + ff["right"]["funnel_violations"] > 0  # the negative control fails
+    assert ff["left"]["feedback_share_mean"] == 0.0
+    phi = raid["left"]["phi_hat"]
+    assert len(phi["t_s"]) == len(phi["value"]) > 50  # RAID's phi-hat(t) at ~1 Hz
+    assert "phi_hat" not in body["controllers"]["pid"]["left"]
+    for key in ("paper_settling_time_s", "paper_overshoot_pct", "paper_steady_state_error_mps",
+                "feedback_share_p95"):
+        assert key in raid["left"]
     for key in ("settling_time_s", "overshoot_pct", "steady_state_error_mps", "max_abs_command_rpm"):
         assert key in raid["left"]
     from mrnc_eval.results import read_result
 
     result = read_result(next(tmp_path.iterdir()))
-    table = result.tables[0]
-    assert table.column_labels == ["RAID", "PID"]
+    paper, table = result.tables
+    assert paper.column_labels == ["RAID", "PID", "FF only (negative control)", "paper: RAID", "paper: PID"]
+    assert paper.cells[0][3:] == [3.2, 5.8]  # the printed settling times beside ours
+    assert table.column_labels == ["RAID", "PID", "FF only (negative control)"]
     assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]
     assert main(["control", "--mode", "simulate", "--controllers", "raid,lqr"]) == 2
 
@@ -183,12 +202,14 @@ def test_table_two_has_the_papers_structure(paper_runs) -> None:
     # the paper: criteria as rows (settling time, overshoot, steady-state error), RAID | APC | PID | FOPTC
     assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]
     assert table.column_labels == ["RAID", "APC (stand-in: CFDL-MFAPC)", "PID",
-                                   "FOPTC (stand-in: prescribed-time gain)"]
+                                   "FOPTC (stand-in: prescribed-time gain)", "FF only (negative control)"]
     raid = [row[0] for row in table.cells]
     assert raid[table.row_labels.index("Funnel violations (samples)")] == 0
+    ff = [row[4] for row in table.cells]
+    assert ff[table.row_labels.index("Funnel violations (samples)")] > 0
     assert raid[table.row_labels.index("Safety stops")] == 0
     assert raid[table.row_labels.index("Max |U*| (RPM)")] <= 1250.0
-    assert all(len(row) == 4 for row in table.cells)
+    assert all(len(row) == 5 for row in table.cells)
     assert any("2 % of the step" in n for n in table.notes)  # the effective definitions are printed
     md = render_table(table, "markdown")
     assert "Settling time" in md

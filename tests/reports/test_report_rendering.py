@@ -161,11 +161,12 @@ def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_p
     assert main(["report", str(result_dir), "--out", str(tmp_path / "rep")]) == 0
     html = (tmp_path / "rep" / "report.html").read_text(encoding="utf-8")
     captions = re.findall(r"<figcaption>([^<]*)</figcaption>", html)
-    assert len(captions) == 6  # tracking, effort, path per controller
+    assert len(captions) == 8  # tracking, effort, feedback share (and phi-hat for RAID), path per controller
+    assert sum("phi-hat" in c for c in captions) == 1
     assert [c for c in captions if "funnel" in c] == ["RAID: wheel-speed reference vs measured, funnel band "
                                                       "reference ± o(t)"]
     assert "Table II" in html
     assert (tmp_path / "rep" / "control_table1.tex").exists()
     counts, console = open_in_chromium(tmp_path / "rep" / "report.html", tmp_path)
-    assert counts["figures"] == counts["sized"] == counts["drawn"] == 6
+    assert counts["figures"] == counts["sized"] == counts["drawn"] == 8
     assert not console
