@@ -171,6 +171,7 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
 
                 summary.counts.update(copy_log(out.writer, ctx.path, topics.ROOT))
             out.finish()
+        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; the export is an ordinary file
         os.replace(tmp, out_path)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -178,6 +179,12 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
         raise
     summary.size_bytes = out_path.stat().st_size
     return summary
+
+
+def _umask() -> int:
+    mask = os.umask(0)
+    os.umask(mask)
+    return mask
 
 
 def main(run_dirs: list[Path], *, mcap: Path, with_log: bool, force: bool) -> None:

@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import json
+import os
 from collections import Counter
 from pathlib import Path
 
@@ -176,6 +177,7 @@ def test_never_overwrites_without_force_and_leaves_nothing_on_failure(sim_runs: 
     assert sorted(p.name for p in tmp_path.iterdir()) == ["broken", "x.mcap"]  # no partial or temporary file
     assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 0
     assert out.read_bytes()[:8] == b"\x89MCAP0\r\n"
+    assert out.stat().st_mode & 0o044 == 0o044 or os.umask(os.umask(0)) & 0o044  # readable as any file is
 
 
 def test_downsample_keeps_extent_and_caps_the_size() -> None:
@@ -189,3 +191,36 @@ def test_downsample_keeps_extent_and_caps_the_size() -> None:
     np.testing.assert_allclose(small.min(axis=0), xyz.min(axis=0), atol=2.0)
     np.testing.assert_allclose(small.max(axis=0), xyz.max(axis=0), atol=2.0)
     assert downsample(xyz[:50], 100).shape[0] == 50
+
+
+def test_online_trajectory_is_exported_when_the_result_has_one(sim_runs: Runs, tmp_path: Path) -> None:
+    import shutil
+
+    run = tmp_path / "slam"
+    shutil.copytree(sim_runs.slam, run)
+    lines = (run / "trajectory.tum").read_text(encoding="utf-8").splitlines()
+    (run / "trajectory_online.tum").write_text("\n".join(lines[::2]) + "\n", encoding="utf-8")
+    out = tmp_path / "online.mcap"
+    assert main(["export", str(run), "--mcap", str(out)]) == 0
+    _, messages = read_mcap(out)
+    online = [json.loads(d) for t, _s, _ts, d in messages if t == "/eval/slam/lio/online/pose"]
+    assert len(online) == len(lines[::2])
+    assert online[1]["pose"]["position"]["x"] == pytest.approx(float(lines[2].split()[1]), abs=1e-12)
+
+
+def test_with_log_from_a_ros2_sqlite_bag_keeps_cdr(tmp_path: Path) -> None:
+    from mrnc_eval.config import Config, config_hash, dump_config
+    from mrnc_eval.results import RunResult, write_result
+    from tests.reports.conftest import write_imu_log
+
+    bag = write_imu_log(tmp_path / "imu_db3", 25, "db3")
+    write_result(RunResult(kind="info", log_path=str(bag), log_id="imu", config_hash=config_hash(Config())),
+                 tmp_path / "info", dump_config(Config()))
+    out = tmp_path / "db3_export.mcap"
+    assert main(["export", str(tmp_path / "info"), "--mcap", str(out), "--with-log"]) == 0
+    summary, messages = read_mcap(out)
+    (imu,) = [c for c in summary.channels.values() if c.topic == "/imu"]
+    schema = summary.schemas[imu.schema_id]
+    assert (imu.message_encoding, schema.encoding, schema.name) == ("cdr", "ros2msg", "sensor_msgs/msg/Imu")
+    assert b"geometry_msgs/Vector3 angular_velocity" in schema.data
+    assert sum(t == "/imu" for t, *_ in messages) == 25
