@@ -77,7 +77,9 @@ def downsample(xyz: np.ndarray, max_points: int = MAP_POINTS_MAX) -> np.ndarray:
     voxel = max(extent / 1000.0, 1e-3)  # m
     while True:
         keys = np.floor((xyz - xyz.min(axis=0)) / voxel).astype(np.int64)
-        _, first = np.unique(keys, axis=0, return_index=True)
+        dims = keys.max(axis=0) + 1  # at most ~1001 per axis: the linear voxel index fits in int64
+        linear = (keys[:, 0] * dims[1] + keys[:, 1]) * dims[2] + keys[:, 2]
+        _, first = np.unique(linear, return_index=True)
         if first.size <= max_points:
             return xyz[np.sort(first)]
         voxel *= 1.5
