@@ -3,6 +3,7 @@
 from __future__ import annotations
 
 import datetime as dt
+import itertools
 import json
 import logging
 import shutil
@@ -18,7 +19,7 @@ from scipy.spatial.transform import Rotation
 
 from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, config_hash, dump_config, replace_path
-from mrnc_eval.data import GnssSeries, ImuSeries, Trajectory
+from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.io.prefetch import Prefetched
@@ -26,7 +27,10 @@ from mrnc_eval.results import Event, Metric, RunResult, json_safe, log_id_for, w
 from mrnc_eval.slam.output import STAGES, SlamOutput
 
 log = logging.getLogger(__name__)
+TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
 METHODS = ("lio", "kiss-icp")
+THROTTLED_GAP_PERIODS = 1.5  # kiss-icp's deskew is off when sweeps are further apart than this many periods
+IMU_OFFSET_FINDING_S = 0.002  # an estimated IMU-LiDAR offset above this is reported as a health finding
 
 
 @dataclass(frozen=True)
@@ -42,6 +46,7 @@ class LogInputs:
     antenna: np.ndarray  # GNSS antenna in base_link, m
     antenna_in_sensor: np.ndarray  # ... in the LiDAR frame, m
     n_sweeps: int  # LiDAR messages in the log
+    max_sweep_gap_s: float  # largest gap between consecutive LiDAR header stamps
 
 
 def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = None, progress: bool = False,
@@ -64,17 +69,22 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     if out.stamps.size < 2:
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s)")
     est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, method)
+    online = _to_base(out.stamps, out.online_poses if out.online_poses is not None else out.poses,
+                      inputs.base_to_sensor, f"{method} online")
     keyframes = _to_base(out.kf_stamps, out.kf_poses, inputs.base_to_sensor, f"{method} keyframes")
     _add_events(result, out, inputs)
-    _add_run_metrics(result, out, inputs, method, time.perf_counter() - wall_start)
-    _add_trajectory_series(result, est, keyframes, float(out.stamps[0]))
+    _add_run_metrics(result, out, inputs, method, time.perf_counter() - wall_start, cfg.slam.mapping_interval_s)
+    _add_trajectory_series(result, est, online, keyframes, float(out.stamps[0]))
     if inputs.ground_truth is not None:
-        _add_ape(result, inputs.ground_truth, est, method, cfg, float(out.stamps[0]))
+        _add_ape(result, inputs.ground_truth, est, online, method, cfg, float(out.stamps[0]))
     else:
         result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method)
-    _write_files(result, out_dir, cfg, est, keyframes, out.map_points)
+    _add_time_offset(result, out, cfg)
+    _add_map_quality(result, out, cfg)
+    _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
+                                        "keyframes.tum": keyframes}, out.map_points)
     return result
 
 
@@ -103,9 +113,9 @@ def _read_inputs(lg: Any, log_path: Path, cfg: Config) -> LogInputs:
     has_antenna = "gnss" in frames and "base_link" in frames
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
     antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
-    total = next(t.count for t in lg.topics if t.topic == lg.roles["lidar"])
+    lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
     return LogInputs(duration, base_to_sensor, imu, sensor_to_imu, gnss, _ground_truth(lg, log_path), antenna,
-                     antenna_in_sensor, total)
+                     antenna_in_sensor, lidar.count, lidar.max_gap_s)
 
 
 def _ground_truth(lg: Any, log_path: Path) -> Trajectory | None:
@@ -132,11 +142,26 @@ def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutp
             if lio:
                 return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
                                 antenna_in_sensor=inputs.antenna_in_sensor, progress=tick)
-            return _kiss_icp(sweeps, cfg)
+            return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
 
 
-def _kiss_icp(sweeps: Any, cfg: Config) -> SlamOutput:
-    """The peer on the same Sweep arrays: KISS-ICP's own deskew and adaptive threshold."""
+def _kiss_icp_deskew(first: Sweep | None, max_gap_s: float) -> tuple[bool, str | None]:
+    """kiss-icp deskews a sweep with the motion since the previous one spread over one sweep
+    period: right only when sweeps follow each other. Off (and said) when the log has no
+    per-point time or two consecutive sweeps are more than 1.5 sweep periods apart (a throttled
+    recording: the motion of several periods would be squeezed into one)."""
+    if first is None or first.point_time is None or first.point_time.size == 0:
+        return False, "kiss-icp ran without deskew: the sweeps have no per-point time"
+    period = float(first.point_time.max() - first.point_time.min())
+    if max_gap_s > THROTTLED_GAP_PERIODS * period:
+        return False, (f"kiss-icp ran with deskew off: consecutive sweeps up to {max_gap_s:.3f} s apart, more than "
+                       f"{THROTTLED_GAP_PERIODS:g} sweep periods ({period:.3f} s) - a throttled recording, where its "
+                       "deskew would spread several periods of motion over one sweep")
+    return True, None
+
+
+def _kiss_icp(sweeps: Any, cfg: Config, max_gap_s: float) -> SlamOutput:
+    """The peer on the same Sweep arrays: KISS-ICP's own deskew (when it applies) and adaptive threshold."""
     try:
         from kiss_icp.config import load_config
         from kiss_icp.kiss_icp import KissICP
@@ -144,11 +169,16 @@ def _kiss_icp(sweeps: Any, cfg: Config) -> SlamOutput:
         raise UsageError("--method kiss-icp needs the kiss-icp extra: pip install 'mrnc-eval[kiss-icp]'") from err
     from mrnc_eval.slam.range_image import outside_box
 
+    sweeps = iter(sweeps)
+    first = next(sweeps, None)
+    deskew, why = _kiss_icp_deskew(first, max_gap_s)
     kcfg = load_config(None)
     kcfg.data.max_range = 100.0
     kcfg.data.min_range = cfg.slam.features.min_range_m
-    kcfg.data.deskew = True
+    kcfg.data.deskew = deskew
     icp = KissICP(kcfg)
+    if first is not None:
+        sweeps = itertools.chain([first], sweeps)
     stamps, poses = [], []
     t_match, t_read = [], []
     wall0 = t_prev = time.perf_counter()
@@ -157,8 +187,8 @@ def _kiss_icp(sweeps: Any, cfg: Config) -> SlamOutput:
         n += 1
         t0 = time.perf_counter()
         t_read.append((t0 - t_prev) * 1e3)
-        if s.point_time is None:
-            ts = np.zeros(len(s))
+        if not deskew or s.point_time is None:
+            ts = np.zeros(len(s))  # not read with deskew off (constant stamps would make kiss-icp's deskew NaN)
         else:  # kiss-icp deskews with per-point time normalised to [0, 1]
             ts = s.point_time.astype(np.float64) / max(float(s.point_time.max()), 1e-9)
         keep = outside_box(s.points, cfg.slam.features.body_crop_box_m)  # the same body crop as lio
@@ -169,8 +199,9 @@ def _kiss_icp(sweeps: Any, cfg: Config) -> SlamOutput:
         t_prev = time.perf_counter()
     timing = {st: [0.0] * len(t_match) for st in STAGES}
     timing["matching"], timing["read"] = t_match, t_read
+    warnings = [why] if why else []
     return SlamOutput(np.asarray(stamps), np.asarray(poses), np.asarray(stamps), np.asarray(poses), np.zeros((0, 3)),
-                      timing, [], [], n, time.perf_counter() - wall0)
+                      timing, [], warnings, n, time.perf_counter() - wall0, deskew=deskew)
 
 
 def _to_base(stamps: np.ndarray, sensor_poses: np.ndarray, base_to_sensor: np.ndarray, name: str) -> Trajectory:
@@ -189,7 +220,8 @@ def _add_events(result: RunResult, out: SlamOutput, inputs: LogInputs) -> None:
         result.events.append(Event(e.t - t_start, e.kind, e.message, e.data))
 
 
-def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, total_s: float) -> None:
+def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, total_s: float,
+                     mapping_interval_s: float) -> None:
     """Real-time factors, counts, per-stage timing and run details."""
     duration = inputs.duration_s
     rtf = duration / out.wall_s if out.wall_s > 0 else float("inf")
@@ -201,14 +233,24 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
                        Metric("keyframes", int(out.kf_stamps.size), "", "slam"),
                        Metric("loop_closures", sum(e.kind == "loop_closure" for e in out.events), "", "slam"),
                        Metric("degeneracy_events", sum(e.kind == "degeneracy" for e in out.events), "", "slam")]
+    rate_hz = out.stamps.size / duration if duration > 0 else float("nan")
+    result.metrics.append(Metric("mapping_rate_hz", rate_hz, "Hz", "slam",
+                                 note="sweeps mapped per second of log: the work the RTF was measured at"))
     timing = _stage_timing(out)
     for stage in STAGES:
         result.metrics.append(Metric(f"ms_per_sweep_{stage}", timing[stage]["mean"], "ms", "slam/timing"))
+    interval = f", slam.mapping_interval_s = {mapping_interval_s:g} s" if method == "lio" else ""
+    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {out.n_sweeps} sweeps, {rate_hz:.1f} Hz"
+                                    f"{interval}")
+    result.extra["deskew"] = out.deskew
     result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
                          "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
                          "first_sweep_ms": float(sum(v[0] for v in out.timing_ms.values() if v)),
                          "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
-                         "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static)",
+                         "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static), "
+                                                      "smoothed: each sweep re-anchored to its final keyframe",
+                                    "trajectory_online.tum": "the same frames, each sweep's pose as estimated "
+                                                             "when it was processed",
                                     "stamps": "sweep header stamps (sweep start)"}})
     if method == "lio" and inputs.imu is not None and inputs.imu.orientation_xyzw is None:
         result.extra["notes"] = ["6-axis IMU (no orientation): the 9-axis roll/pitch blend "
@@ -225,9 +267,11 @@ def _stage_timing(out: SlamOutput) -> dict[str, dict[str, float]]:
     return timing
 
 
-def _add_trajectory_series(result: RunResult, est: Trajectory, keyframes: Trajectory, t_start: float) -> None:
+def _add_trajectory_series(result: RunResult, est: Trajectory, online: Trajectory, keyframes: Trajectory,
+                           t_start: float) -> None:
     result.series["est_t"] = est.stamps - t_start
     result.series["est_xyz"] = est.positions
+    result.series["est_online_xyz"] = online.positions
     result.series["kf_xyz"] = keyframes.positions
 
 
@@ -238,8 +282,38 @@ def _end_drift(gt: Trajectory, est: Trajectory) -> float:
     return float(ape(gt, est, align="origin", max_diff=0.02).errors[-1])
 
 
-def _add_ape(result: RunResult, gt: Trajectory, est: Trajectory, method: str, cfg: Config, t_start: float) -> None:
-    """APE (SE(3) aligned) and end drift against ground truth, and the one-cell Table I."""
+def _add_ape(result: RunResult, gt: Trajectory, est: Trajectory, online: Trajectory, method: str, cfg: Config,
+             t_start: float) -> None:
+    """APE (SE(3) aligned) and end drift against ground truth of the smoothed trajectory (each
+    sweep re-anchored to its final, loop-corrected keyframe) and of the online one (each sweep's
+    pose when it was processed); the one-cell Table I of the one slam.table_trajectory names."""
+    smoothed = _ape_smoothed(result, gt, est, cfg, t_start)
+    on = _ape_online(result, gt, online, cfg, t_start)
+    cell = on if cfg.slam.table_trajectory == "online" else smoothed
+    result.tables.append(table_one({(result.log_id, method): cell}, [result.log_id], [method],
+                                   title=f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"))
+
+
+def _ape_online(result: RunResult, gt: Trajectory, online: Trajectory, cfg: Config, t_start: float) -> Cell:
+    from mrnc_eval.evaluation.ape import ape
+
+    try:
+        r = ape(gt, online, align="se3", max_diff=0.02)
+    except EvaluationError as err:
+        result.warnings.append(f"APE of the online trajectory failed: {err}")
+        return Cell(None, str(err))
+    result.metrics += [Metric("ape_online_rmse_m", r.stats["rmse"], "m", "slam/ape",
+                              note="online trajectory: each sweep's pose as estimated when it was processed"),
+                       Metric("end_drift_online_m", _end_drift(gt, online), "m", "slam/ape",
+                              note="end drift of the online trajectory")]
+    result.series["ape_online_err_m"] = r.errors
+    result.series["est_online_aligned_xyz"] = r.est_poses[:, :3, 3]
+    result.series["ape_online_t"] = r.stamps - t_start
+    return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
+                 min_span_fraction=cfg.evaluation.failed_min_span_fraction)
+
+
+def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Config, t_start: float) -> Cell:
     from mrnc_eval.evaluation.ape import ape
 
     try:
@@ -255,13 +329,11 @@ def _add_ape(result: RunResult, gt: Trajectory, est: Trajectory, method: str, cf
         result.series["ape_err_m"] = r.errors
         result.series["ref_xyz"] = r.ref_poses[:, :3, 3]
         result.series["est_aligned_xyz"] = r.est_poses[:, :3, 3]
-        cell = judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
+        return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
                      min_span_fraction=cfg.evaluation.failed_min_span_fraction)
     except EvaluationError as err:
         result.warnings.append(f"APE against ground truth failed: {err}")
-        cell = Cell(None, str(err))
-    result.tables.append(table_one({(result.log_id, method): cell}, [result.log_id], [method],
-                                   title="APE RMSE (SE(3) aligned)"))
+        return Cell(None, str(err))
 
 
 def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str) -> None:
@@ -279,16 +351,48 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
         result.warnings.append(f"APE against GNSS failed: {err}")
 
 
-def _write_files(result: RunResult, out_dir: Path, cfg: Config, est: Trajectory, keyframes: Trajectory,
+def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
+    """The IMU-LiDAR offset left after slam.imu.time_offset_s; a health finding above 2 ms."""
+    if out.imu_time_offset_s is None:
+        return
+    offset = out.imu_time_offset_s
+    result.metrics.append(Metric("imu_time_offset_s", offset, "s", "slam/health",
+                                 note="IMU clock lag behind the LiDAR's, estimated by correlating the LiDAR "
+                                      "odometry's rotation rate with the gyro (positive: IMU stamps late), after "
+                                      "applying slam.imu.time_offset_s"))
+    if abs(offset) > IMU_OFFSET_FINDING_S:
+        text = (f"IMU-LiDAR time offset {offset * 1e3:.1f} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
+                f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
+                f"{cfg.slam.imu.time_offset_s + offset:.4f}")
+        result.warnings.append(text)
+        result.events.append(Event(0.0, "health", text, {"imu_time_offset_s": offset}))
+
+
+def _add_map_quality(result: RunResult, out: SlamOutput, cfg: Config) -> None:
+    q = out.map_quality
+    if q is None:
+        return
+    r = cfg.slam.map_quality.radius_m
+    result.metrics += [Metric("map_entropy", q.mean_map_entropy, "nats", "slam/map",
+                              note=f"mean map entropy: mean of 0.5 ln det(2 pi e Sigma) over map points, Sigma = "
+                                   f"covariance of the points within {r:g} m (lower = sharper map)"),
+                       Metric("map_plane_variance_m2", q.mean_plane_variance_m2, "m^2", "slam/map",
+                              note=f"mean plane variance: mean smallest eigenvalue of Sigma within {r:g} m")]
+    result.extra["map_quality"] = {"radius_m": r, "points_evaluated": q.points_evaluated,
+                                   "cloud": "union of the keyframe feature clouds in their final poses"}
+
+
+def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: dict[str, Trajectory],
                  map_points: np.ndarray) -> None:
     """Trajectories (TUM), the map (PLY, PCD), metrics.json and the result, written atomically."""
     from mrnc_eval.io.trajectory_files import write_tum
 
     tmp = Path(tempfile.mkdtemp(prefix=".slam-files-"))
     try:
-        write_tum(tmp / "trajectory.tum", est)
-        write_tum(tmp / "keyframes.tum", keyframes)
-        files = {"trajectory.tum": tmp / "trajectory.tum", "keyframes.tum": tmp / "keyframes.tum"}
+        files = {}
+        for name, trajectory in trajectories.items():
+            write_tum(tmp / name, trajectory)
+            files[name] = tmp / name
         if map_points.size:
             import open3d as o3d
 
@@ -328,15 +432,15 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
             cells[(log_id_for(path), cfg.slam.method)] = Cell(None, str(err))
             continue
         results.append((run_dir, r))
-        m = r.metric("ape_rmse_m")
+        m = r.metric(TABLE_METRIC[cfg.slam.table_trajectory])
         cells[(r.log_id, cfg.slam.method)] = Cell(m.value if m else None, "" if m else "no ground truth")
-    _print_summary(results, cells, logs, cfg.slam.method, json_out)
+    _print_summary(results, cells, logs, cfg, json_out)
     if failed:
         raise SomeInputsFailed("; ".join(f"{p}: {e}" for p, e in failed))
 
 
 def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str, str], Cell], logs: list[Path],
-                   method: str, json_out: bool) -> None:
+                   cfg: Config, json_out: bool) -> None:
     from mrnc_eval.reports.tables import render_table
 
     if json_out:
@@ -347,8 +451,17 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
         return
     for d, r in results:
         vals = {m.name: m.value for m in r.metrics}
-        ape = f"{vals['ape_rmse_m']:.4f} m" if "ape_rmse_m" in vals else "n/a (no ground truth)"
-        sys.stdout.write(f"{r.log_id}: APE RMSE {ape}, RTF {vals['rtf']:.2f}, "
+        apes = [f"{label} {vals[name]:.4f} m" for label, name in (("online", "ape_online_rmse_m"),
+                                                                    ("smoothed", "ape_rmse_m")) if name in vals]
+        ape = ", ".join(apes) if apes else "n/a (no ground truth)"
+        sys.stdout.write(f"{r.log_id}: APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
                          f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
     if len(logs) > 1:
-        sys.stdout.write(render_table(table_one(cells, [log_id_for(p) for p in logs], [method]), "markdown"))
+        title = f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"
+        sys.stdout.write(render_table(table_one(cells, [log_id_for(p) for p in logs], [cfg.slam.method], title=title),
+                                      "markdown"))
+
+
+def mapping_rate(r: RunResult) -> str:
+    """What the RTF measured: how many sweeps were mapped (a RTF means nothing without it)."""
+    return str(r.extra.get("mapping_rate", "mapping rate unknown"))

@@ -72,22 +72,30 @@ def slam_figures(r: RunResult) -> list[tuple[str, str]]:
         ax = ax[0, 0]
         ref, est, err = decimate(s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"])
         ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=1.0, ls="--", label="ground truth")
-        sc = ax.scatter(est[:, 0], est[:, 1], c=err, s=6, cmap="viridis", label="estimate (SE(3) aligned)")
+        if "est_online_aligned_xyz" in s:
+            online, = decimate(s["est_online_aligned_xyz"])
+            ax.plot(online[:, 0], online[:, 1], color="tab:red", lw=0.8, label="online (as processed, SE(3) aligned)")
+        sc = ax.scatter(est[:, 0], est[:, 1], c=err, s=6, cmap="viridis", label="smoothed (SE(3) aligned)")
         ax.plot(est[:1, 0], est[:1, 1], "k^", ms=7, label="start")
         fig.colorbar(sc, ax=ax, label="APE (m)")
         ax.set_aspect("equal", adjustable="datalim")
         ax.set(xlabel="x (m)", ylabel="y (m)", title="Trajectory in the plane, coloured by APE")
         ax.legend(loc="best", fontsize="small")
-        out.append(("Trajectory in the plane (estimate coloured by its APE, ground truth dashed)", svg(fig)))
+        out.append(("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
+                    "truth dashed)", svg(fig)))
         fig, ax = new_figure(7.0, 3.0)
         ax = ax[0, 0]
         t, e = decimate(s["ape_t"], s["ape_err_m"])
-        ax.plot(t, e, lw=1.0, color="tab:blue")
+        ax.plot(t, e, lw=1.0, color="tab:blue", label="smoothed (re-anchored to the final keyframes)")
+        if "ape_online_t" in s and "ape_online_err_m" in s:
+            t, e = decimate(s["ape_online_t"], s["ape_online_err_m"])
+            ax.plot(t, e, lw=1.0, color="tab:red", label="online (as processed)")
+            ax.legend(fontsize="small", loc="upper left")
         marks = _mark_events(ax, r, ("loop_closure", "degeneracy"))
         ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
                title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
         ax.grid(alpha=0.3)
-        out.append(("APE (translation) over time", svg(fig)))
+        out.append(("APE (translation) over time, online and smoothed", svg(fig)))
     elif "est_xyz" in s and len(s["est_xyz"]):
         fig, ax = new_figure(6.5, 5.0)
         xyz, = decimate(s["est_xyz"])

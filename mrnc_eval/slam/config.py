@@ -49,6 +49,13 @@ class ImuConfig:
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "
                                         "restart in a degenerate stretch costs more than it gains)", "m")
+    sample_hold: Literal["centred", "forward"] = param(
+        "centred", "how an IMU sample covers time in deskew and preintegration: centred = over the half periods "
+        "around its stamp (a point measurement); forward = from its stamp to the next (lags by half a period)")
+    time_offset_s: float = param(0.0, "known IMU clock lag: subtracted from every IMU stamp before anything "
+                                 "else (positive when the IMU stamps are late)", "s")
+    estimate_time_offset: bool = param(True, "estimate the remaining IMU-LiDAR offset after the run "
+                                       "(imu_time_offset_s in metrics.json)")
     max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
     max_bias: float = param(1.0, "... or above this bias norm")
 
@@ -89,6 +96,9 @@ class MatchingConfig:
     max_nn_sq_dist_m2: float = param(1.0, "neighbours farther than this (squared) are not used", "m^2")
     keyframe_density_m: float = param(2.0, "keyframe positions voxelised at this before choosing the local map "
                                       "(surroundingKeyframeDensity)", "m")
+    local_map_selection: Literal["nearest", "oldest"] = param(
+        "nearest", "one keyframe per keyframe_density voxel of the surrounding key poses: nearest = the keyframe "
+        "nearest to the voxel centroid (LIO-SAM); oldest = the first keyframe in the voxel (earlier rule)")
     min_correspondences: int = param(50, "stop iterating with fewer residuals than this")
     plane_max_offset_m: float = param(0.2, "a plane is rejected when a neighbour is farther from it", "m")
     requery_motion_m: float = param(0.01, "re-query nearest neighbours only after the pose moved more than this "
@@ -142,9 +152,23 @@ class GpsConfig:
 
 
 @dataclass(frozen=True)
+class MapQualityConfig:
+    """Map quality without ground truth: mean map entropy and mean plane variance (Razlaw et al. 2015)."""
+
+    enabled: bool = param(True, "compute mean map entropy and mean plane variance of the final map")
+    radius_m: float = param(0.3, "neighbourhood radius around each evaluated map point", "m")
+    min_neighbours: int = param(5, "skip points with fewer neighbours within the radius")
+    max_neighbours: int = param(30, "use at most this many nearest neighbours within the radius")
+    max_points: int = param(10000, "evaluate at most this many (evenly spread) map points")
+
+
+@dataclass(frozen=True)
 class SlamConfig:
     method: Literal["lio", "kiss-icp"] = param("lio", "SLAM method: lio (this project's LIO-SAM replay) or "
                                                "kiss-icp (peer); the CLI's --method sets it")
+    table_trajectory: Literal["online", "smoothed"] = param(
+        "online", "trajectory in Table I and the CLI summary: online (each sweep's pose when it was processed, what "
+        "the paper's real-time system had) or smoothed (re-anchored to the final loop-corrected keyframes)")
     mapping_interval_s: float = param(0.15, "process a sweep only if this much later than the last "
                                       "(mappingProcessInterval)", "s")
     deskew_translation: bool = param(True, "also remove the translation during the sweep (constant velocity); "
@@ -157,3 +181,4 @@ class SlamConfig:
     graph: GraphConfig = section(GraphConfig, "keyframes and the factor graph")
     loop: LoopConfig = section(LoopConfig, "loop closure")
     gps: GpsConfig = section(GpsConfig, "GNSS factors")
+    map_quality: MapQualityConfig = section(MapQualityConfig, "map quality without ground truth")

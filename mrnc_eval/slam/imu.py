@@ -92,12 +92,21 @@ class ImuTrack:
         return self.stamps.size > 1 and self.stamps[0] <= t0 and self.stamps[-1] >= t1
 
 
-def imu_track(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, gyro_bias: np.ndarray | None = None) -> ImuTrack:
+def imu_track(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, gyro_bias: np.ndarray | None = None,
+              hold: str = "centred") -> ImuTrack:
+    """The track holds each sample constant from its track stamp to the next. `hold`: "centred"
+    starts a sample's hold half way back to the previous sample (a point measurement at its
+    stamp, as the simulator's and most MEMS IMUs' data-ready samples); "forward" starts it at its
+    own stamp, which lags the motion by half an IMU period (5 ms at 100 Hz)."""
     r = lidar_to_imu_rot  # rotates IMU-frame vectors into the LiDAR frame
     acc = imu.acc @ r.T
     gyro = (imu.gyro - (0 if gyro_bias is None else gyro_bias)) @ r.T
-    q = _integrate_gyro(np.ascontiguousarray(gyro), np.r_[np.diff(imu.stamps), 0.0])
-    return ImuTrack(imu.stamps, acc, gyro, q)
+    stamps = imu.stamps
+    if hold == "centred" and stamps.size > 1:
+        dt = np.diff(stamps)
+        stamps = stamps - 0.5 * np.r_[dt[0], dt]
+    q = _integrate_gyro(np.ascontiguousarray(gyro), np.r_[np.diff(stamps), 0.0])
+    return ImuTrack(stamps, acc, gyro, q)
 
 
 def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig, t0: float | None = None) -> Rotation:

@@ -8,6 +8,8 @@ from typing import Any
 
 import numpy as np
 
+from mrnc_eval.slam.map_quality import MapQuality
+
 STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: waiting for the sweep iterator (decode)
 
 
@@ -33,3 +35,7 @@ class SlamOutput:
     wall_s: float
     imu_bias: np.ndarray | None = None  # final [acc (3), gyro (3)] bias estimate of graph #2, LiDAR axes
     degenerate: np.ndarray | None = None  # (N,) bool per processed sweep
+    online_poses: np.ndarray | None = None  # (N, 4, 4) each sweep's pose as estimated when it was processed
+    imu_time_offset_s: float | None = None  # estimated IMU clock lag after slam.imu.time_offset_s, s
+    map_quality: MapQuality | None = None
+    deskew: bool = True  # False when the method ran without deskew (kiss-icp on throttled logs)

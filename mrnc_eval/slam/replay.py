@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import time
 from collections.abc import Callable, Iterable
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -20,9 +20,12 @@ from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
 from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.graph import KeyframeGraph, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
+from mrnc_eval.slam.map_quality import MapQuality, map_quality
+from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage, project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
+from mrnc_eval.slam.time_offset import estimate_imu_time_offset
 
 __all__ = ["STAGES", "SlamEvent", "SlamOutput", "run_slam"]
 
@@ -71,6 +74,7 @@ class _Trace:
     ref_kf: list[int] = field(default_factory=list)
     rel_to_kf: list[np.ndarray] = field(default_factory=list)
     degenerate: list[bool] = field(default_factory=list)
+    online: list[np.ndarray] = field(default_factory=list)  # the pose as estimated when the sweep was processed
 
 
 @dataclass
@@ -98,6 +102,8 @@ class _Replay:
               gnss: GnssSeries | None, antenna_in_sensor: np.ndarray | None) -> _Replay:
         warnings: list[str] = []
         extr = lidar_to_imu(cfg.imu, sensor_to_imu)
+        if imu is not None and cfg.imu.time_offset_s != 0.0:  # a known IMU clock lag, before anything else
+            imu = replace(imu, stamps=imu.stamps - cfg.imu.time_offset_s)
         track, odom, imu = _imu_setup(imu, extr, cfg, warnings)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
@@ -201,6 +207,7 @@ class _Replay:
         tr.ref_kf.append(k_ref)
         tr.rel_to_kf.append(se3.inv(self.graph.poses[k_ref]) @ pose)
         tr.degenerate.append(degenerate)
+        tr.online.append(pose)
         if self.odom is not None:
             st.velocity = self.odom.velocity.copy()
         elif st.pose is not None and stamp > st.t:
@@ -222,15 +229,29 @@ class _Replay:
         poses = np.zeros((0, 4, 4))
         if tr.stamps:
             poses = np.array([kf_poses[k] @ r for k, r in zip(tr.ref_kf, tr.rel_to_kf, strict=True)])
-        map_points = np.zeros((0, 3))
+        map_points, quality = np.zeros((0, 3)), None
         if self.kf_features:
-            map_points = voxel_downsample(np.vstack([se3.apply(kf_poses[i], np.r_[f.edges, f.surfs])
-                                                     for i, f in enumerate(self.kf_features)]),
-                                          self.cfg.matching.surf_leaf_m)
-        return SlamOutput(np.asarray(tr.stamps), poses, np.asarray(self.graph.stamps), kf_poses, map_points,
+            dense = np.vstack([se3.apply(kf_poses[i], np.r_[f.edges, f.surfs])
+                               for i, f in enumerate(self.kf_features)])
+            map_points = voxel_downsample(dense, self.cfg.matching.surf_leaf_m)
+            quality = self.map_quality(dense)
+        stamps = np.asarray(tr.stamps)
+        online = np.array(tr.online) if tr.online else np.zeros((0, 4, 4))
+        offset = None
+        if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
+            offset = estimate_imu_time_offset(stamps, online[:, :3, :3], self.track)
+        return SlamOutput(stamps, poses, np.asarray(self.graph.stamps), kf_poses, map_points,
                           self.timing, self.events, self.warnings, n_sweeps, time.perf_counter() - wall0,
                           self.odom.bias_vector if self.odom is not None else None,
-                          np.asarray(tr.degenerate, bool))
+                          np.asarray(tr.degenerate, bool), online, offset, quality)
+
+    def map_quality(self, dense: np.ndarray) -> MapQuality | None:
+        """Entropy and plane variance of the union of keyframe clouds in their final poses."""
+        mq = self.cfg.map_quality
+        if not mq.enabled:
+            return None
+        return map_quality(dense, mq.radius_m, min_neighbours=mq.min_neighbours, max_neighbours=mq.max_neighbours,
+                           max_points=mq.max_points)
 
 
 class _Clock:
@@ -254,7 +275,7 @@ def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig,
     bias = None
     if cfg.gyro_bias_init_s > 0:
         bias = imu.gyro[imu.stamps <= imu.stamps[0] + cfg.gyro_bias_init_s].mean(axis=0)
-    track = imu_track(imu, extr[:3, :3], bias)
+    track = imu_track(imu, extr[:3, :3], bias, cfg.imu.sample_hold)
     odom = ImuOdometry(track, cfg.imu, extr) if cfg.imu.use_preintegration_graph else None
     return track, odom, imu
 
@@ -300,17 +321,9 @@ def _is_keyframe(graph: KeyframeGraph, pose: np.ndarray, cfg: SlamConfig) -> boo
 
 def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict[int, tuple[np.ndarray, np.ndarray]],
                cfg: SlamConfig) -> LocalMap:
-    """Keyframes within map_radius of the last one, thinned to one per keyframe_density voxel
-    (the first keyframe in each voxel), plus every keyframe of the last map_recent_s."""
+    """The keyframes of `_local_keyframes` in the map frame (cached), voxelised into edge and plane maps."""
     m = cfg.matching
-    pos = np.array([p[:3, 3] for p in graph.poses])
-    t = np.asarray(graph.stamps)
-    near = np.flatnonzero(np.linalg.norm(pos - pos[-1], axis=1) <= m.map_radius_m)
-    if m.keyframe_density_m > 0 and near.size > 1:
-        key = np.floor(pos[near] / m.keyframe_density_m).astype(np.int64)
-        _, first = np.unique(key, axis=0, return_index=True)
-        near = near[first]
-    chosen = np.union1d(near, np.flatnonzero(t >= t[-1] - m.map_recent_s))
+    chosen = _local_keyframes(np.array([p[:3, 3] for p in graph.poses]), np.asarray(graph.stamps), cfg)
     if len(cache) > m.map_cache_size:
         cache.clear()
     edges, surfs = [], []
@@ -321,6 +334,25 @@ def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict[int, tup
         surfs.append(cache[i][1])
     return LocalMap.build(voxel_downsample(np.vstack(edges), m.corner_leaf_m),
                           voxel_downsample(np.vstack(surfs), m.surf_leaf_m))
+
+
+def _local_keyframes(pos: np.ndarray, t: np.ndarray, cfg: SlamConfig) -> np.ndarray:
+    """Keyframes within map_radius of the last one, thinned per keyframe_density voxel, plus every
+    keyframe of the last map_recent_s. Thinning "nearest" (LIO-SAM): voxelise the positions
+    (centroids) and take the keyframe nearest to each centroid; "oldest": the first keyframe in
+    each voxel (this replay's earlier rule: on small loops it re-localises against the first lap)."""
+    m = cfg.matching
+    near = np.flatnonzero(np.linalg.norm(pos - pos[-1], axis=1) <= m.map_radius_m)
+    if m.keyframe_density_m > 0 and near.size > 1:
+        if m.local_map_selection == "nearest":
+            centroids = voxel_downsample(pos[near], m.keyframe_density_m)
+            _, nearest = KdTree(pos[near]).query(centroids, k=1)
+            near = near[np.unique(nearest)]
+        else:
+            key = np.floor(pos[near] / m.keyframe_density_m).astype(np.int64)
+            _, first = np.unique(key, axis=0, return_index=True)
+            near = near[first]
+    return np.union1d(near, np.flatnonzero(t >= t[-1] - m.map_recent_s))
 
 
 def _keyframe_cloud(graph: KeyframeGraph, feats: list[Features], i: int) -> np.ndarray:

@@ -258,3 +258,18 @@ def test_paper_smoothness_is_the_normalised_sum_of_differences() -> None:
     expected = np.linalg.norm(10 * kinked[10] - kinked[5:10].sum(0) - kinked[11:16].sum(0)) / (10 * rng[10])
     assert c[10] == pytest.approx(expected, rel=1e-12)
     assert c[10] == c.max()
+
+
+def test_local_map_takes_the_keyframe_nearest_to_each_voxel_centroid() -> None:
+    """LIO-SAM's selection: three old keyframes in one 2 m voxel (x = 0.1, 1.0, 1.9 m) have their
+    centroid at 1.0 m, so the middle one is taken; the earlier rule took the first (oldest). The
+    last map_recent_s of keyframes is always in."""
+    from mrnc_eval.config import Config, replace_path
+    from mrnc_eval.slam.replay import _local_keyframes
+
+    pos = np.array([[0.1, 0.5, 0.0], [1.0, 0.5, 0.0], [1.9, 0.5, 0.0], [30.0, 0.5, 0.0], [31.0, 0.5, 0.0]])
+    t = np.array([0.0, 10.0, 20.0, 100.0, 105.0])
+    cfg = Config().slam
+    assert list(_local_keyframes(pos, t, cfg)) == [1, 3, 4]
+    oldest = replace_path(Config(), "slam.matching.local_map_selection", "oldest").slam
+    assert list(_local_keyframes(pos, t, oldest)) == [0, 3, 4]

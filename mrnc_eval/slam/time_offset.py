@@ -1,0 +1,69 @@
+"""LiDAR-IMU time offset from the run itself: the rotation the LiDAR odometry saw between
+consecutive mapped sweeps against the gyro integrated over the same interval shifted by a
+candidate offset. The offset is positive when the IMU stamps are late (an IMU sample stamped
+t was measured at t - offset)."""
+
+from __future__ import annotations
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mrnc_eval.slam.imu import ImuTrack
+
+SEARCH_S = 0.1  # offsets searched in [-SEARCH_S, SEARCH_S], s
+MAX_INTERVAL_S = 0.3  # median spacing of the mapped sweeps above which rates are too smoothed to time
+STEP_S = 5e-4  # grid step before the parabolic refinement, s
+
+
+def lidar_angular_rates(stamps: np.ndarray, rotations: np.ndarray) -> np.ndarray:
+    """(N-1, 3) mean body angular velocity (rad/s, LiDAR axes) between consecutive poses."""
+    r = Rotation.from_matrix(rotations)
+    step = (r[:-1].inv() * r[1:]).as_rotvec()
+    return np.asarray(step / np.diff(stamps)[:, None], np.float64)
+
+
+def _gyro_integral(track: ImuTrack) -> tuple[np.ndarray, np.ndarray]:
+    """Cumulative integral of the gyro at the track stamps, rad, with the track's own hold (each
+    sample constant to the next track stamp; see imu.imu_track for how samples are centred)."""
+    dt = np.diff(track.stamps)
+    return track.stamps, np.vstack([np.zeros(3), np.cumsum(track.gyro[:-1] * dt[:, None], axis=0)])
+
+
+def _imu_rates(t_imu: np.ndarray, integral: np.ndarray, t0: np.ndarray, t1: np.ndarray) -> np.ndarray:
+    """Mean gyro (rad/s) over each [t0, t1] from the integral (linear between samples)."""
+    def at(t: np.ndarray) -> np.ndarray:
+        return np.column_stack([np.interp(t, t_imu, integral[:, a]) for a in range(3)])
+
+    return np.asarray((at(t1) - at(t0)) / (t1 - t0)[:, None], np.float64)
+
+
+def _cost(offset: float, stamps: np.ndarray, lidar: np.ndarray, t_imu: np.ndarray, integral: np.ndarray) -> float:
+    """Mean squared rate difference after removing the mean difference (a constant gyro bias)."""
+    diff = _imu_rates(t_imu, integral, stamps[:-1] + offset, stamps[1:] + offset) - lidar
+    diff -= diff.mean(axis=0)
+    return float(np.mean(np.sum(diff * diff, axis=1)))
+
+
+def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack) -> float | None:
+    """Offset (s) minimising the rate mismatch on a 0.5 ms grid within +/-0.1 s, refined by a
+    parabola through the best grid point and its neighbours. None when fewer than 10 sweep
+    intervals lie inside the IMU span, the mapped sweeps are more than MAX_INTERVAL_S apart (a
+    throttled log: 1 s rotation increments do not time a few ms), or the motion has no rotation
+    to correlate."""
+    inside = (stamps - SEARCH_S >= track.stamps[0]) & (stamps + SEARCH_S <= track.stamps[-1])
+    stamps, rotations = stamps[inside], rotations[inside]
+    if stamps.size < 11 or float(np.median(np.diff(stamps))) > MAX_INTERVAL_S:
+        return None
+    lidar = lidar_angular_rates(stamps, rotations)
+    if float(np.std(lidar, axis=0).max()) < 1e-3:  # rad/s: nothing to correlate
+        return None
+    t_imu, integral = _gyro_integral(track)
+    grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
+    cost = np.array([_cost(o, stamps, lidar, t_imu, integral) for o in grid])
+    k = int(np.argmin(cost))
+    if k == 0 or k == grid.size - 1:
+        return float(grid[k])
+    c0, c1, c2 = cost[k - 1], cost[k], cost[k + 1]
+    curvature = c0 - 2 * c1 + c2
+    shift = 0.5 * (c0 - c2) / curvature if curvature > 0 else 0.0
+    return float(grid[k] + shift * STEP_S)

@@ -1,0 +1,29 @@
+"""Short simulated logs shared by the SLAM tests (ideal sensor profile, OS0-32 x 512 at 10 Hz)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from mrnc_eval.config import Config
+from mrnc_eval.sim.recorder import SimRequest, simulate_log
+
+
+def _line_log(tmp_path_factory: pytest.TempPathFactory, scene: str) -> Path:
+    d = tmp_path_factory.mktemp(scene)
+    return simulate_log(d / f"{scene}.mcap", Config(), SimRequest(scene=scene, path="line", duration_s=6.0,
+                                                                  lidar="os0-32", columns=512, seed=3))
+
+
+@pytest.fixture(scope="session")
+def corridor_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return _line_log(tmp_path_factory, "corridor")
+
+
+@pytest.fixture(scope="session")
+def yard_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    """The same drive among buildings: the negative control of the corridor."""
+    return _line_log(tmp_path_factory, "yard")
+
+

@@ -1,0 +1,138 @@
+"""What the SLAM result says it measured: online vs smoothed trajectories, the Table I choice,
+kiss-icp's deskew on throttled logs, map quality, the IMU time offset."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+
+from mrnc_eval.config import Config, replace_path
+from mrnc_eval.io.trajectory_files import read_tum
+from mrnc_eval.results import read_result
+
+REPO = Path(__file__).resolve().parents[2]
+THROTTLED = REPO / "sample_logs" / "loop_forest_ros1.bag"  # 1 Hz sweeps of a 10 Hz OS0
+
+
+def _value(result, name: str) -> float:
+    metric = result.metric(name)
+    assert metric is not None, f"{name} missing from the result"
+    return float(metric.value)
+
+
+def test_without_corrections_online_and_smoothed_coincide_and_table_follows_the_option(yard_log: Path,
+                                                                                       tmp_path: Path) -> None:
+    """Negative control of the online/smoothed split: with no loop closure and no GNSS nothing
+    corrects a keyframe after the fact, so both trajectories are the same; Table I takes the one
+    slam.table_trajectory names."""
+    from mrnc_eval.commands.slam import run_log
+
+    cfg = replace_path(replace_path(Config(), "slam.loop.enabled", False), "slam.gps.enabled", False)
+    online_run = run_log(yard_log, cfg, tmp_path / "online")
+    smoothed_run = run_log(yard_log, replace_path(cfg, "slam.table_trajectory", "smoothed"), tmp_path / "smoothed")
+    online = read_tum(tmp_path / "online" / "trajectory_online.tum")
+    smoothed = read_tum(tmp_path / "online" / "trajectory.tum")
+    np.testing.assert_array_equal(online.stamps, smoothed.stamps)
+    np.testing.assert_allclose(online.positions, smoothed.positions, atol=1e-6)
+    assert _value(online_run, "ape_online_rmse_m") == pytest.approx(_value(online_run, "ape_rmse_m"), abs=1e-6)
+    (table,) = online_run.tables
+    assert "online" in table.title
+    assert table.cells[0][0] == _value(online_run, "ape_online_rmse_m")
+    (table,) = smoothed_run.tables
+    assert "smoothed" in table.title
+    assert table.cells[0][0] == _value(smoothed_run, "ape_rmse_m")
+
+
+def test_kiss_icp_deskew_is_off_on_a_throttled_log_and_on_at_full_rate(yard_log: Path, tmp_path: Path) -> None:
+    """1 Hz sweeps of a 10 Hz sensor: kiss-icp's deskew would spread 1 s of motion over 0.1 s, so
+    it runs without deskew and the result says so. The 10 Hz log (negative control) keeps it."""
+    pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
+    from mrnc_eval.commands.slam import run_log
+
+    throttled = run_log(THROTTLED, Config(), tmp_path / "throttled", method="kiss-icp")
+    assert throttled.extra["deskew"] is False
+    assert any("deskew off" in w and "1.5 sweep periods" in w for w in throttled.warnings)
+    assert read_result(tmp_path / "throttled").extra["deskew"] is False
+    full_rate = run_log(yard_log, Config(), tmp_path / "full", method="kiss-icp")
+    assert full_rate.extra["deskew"] is True
+    assert not any("deskew" in w for w in full_rate.warnings)
+
+
+def _rocking(t: np.ndarray) -> np.ndarray:
+    """Roll, pitch, yaw (rad) of a machine rocking on rough ground while turning slowly."""
+    return np.c_[0.05 * np.sin(2 * np.pi * 0.7 * t), 0.04 * np.sin(2 * np.pi * 1.1 * t + 1.0), 0.1 * t]
+
+
+@pytest.mark.parametrize("lag_s", [0.0, 0.008, -0.005])
+def test_time_offset_estimator_recovers_a_known_lag(lag_s: float) -> None:
+    """Gyro of the rocking motion at 100 Hz stamped `lag_s` late, LiDAR rotations at 6.7 Hz with
+    0.05 deg noise: the estimate is within 1 ms of the lag (lag 0 is the negative control)."""
+    from scipy.spatial.transform import Rotation
+
+    from mrnc_eval.data import ImuSeries
+    from mrnc_eval.slam.imu import imu_track
+    from mrnc_eval.slam.time_offset import estimate_imu_time_offset
+
+    rng = np.random.default_rng(1)
+    t_imu = np.arange(0.0, 60.0, 0.01)
+    h = 1e-4
+    rate = (Rotation.from_euler("xyz", _rocking(t_imu - h)).inv()
+            * Rotation.from_euler("xyz", _rocking(t_imu + h))).as_rotvec() / (2 * h)
+    imu = ImuSeries(t_imu + lag_s, np.tile([0.0, 0.0, 9.81], (t_imu.size, 1)), rate + [0.002, -0.001, 0.0005])
+    track = imu_track(imu, np.eye(3))
+    t_lidar = np.arange(1.0, 59.0, 0.15)
+    noise = Rotation.from_rotvec(rng.normal(0.0, np.radians(0.05), (t_lidar.size, 3)))
+    rotations = (Rotation.from_euler("xyz", _rocking(t_lidar)) * noise).as_matrix()
+    estimate = estimate_imu_time_offset(t_lidar, rotations, track)
+    assert estimate is not None
+    assert abs(estimate - lag_s) < 1e-3
+
+
+def test_time_offset_needs_rotation() -> None:
+    from mrnc_eval.data import ImuSeries
+    from mrnc_eval.slam.imu import imu_track
+    from mrnc_eval.slam.time_offset import estimate_imu_time_offset
+
+    t = np.arange(0.0, 20.0, 0.01)
+    track = imu_track(ImuSeries(t, np.tile([0.0, 0.0, 9.81], (t.size, 1)), np.zeros((t.size, 3))), np.eye(3))
+    stamps = np.arange(1.0, 19.0, 0.15)
+    assert estimate_imu_time_offset(stamps, np.tile(np.eye(3), (stamps.size, 1, 1)), track) is None
+
+
+def test_map_quality_rises_with_blur() -> None:
+    """A plane sampled on a 5 cm grid: plane variance ~ 0 and entropy low; the same plane with
+    2 cm of noise across it (a blurred map) has plane variance ~ (2 cm)^2 and higher entropy."""
+    from mrnc_eval.slam.map_quality import map_quality
+
+    g = np.arange(-3.0, 3.0, 0.05)
+    x, y = np.meshgrid(g, g)
+    sharp = np.c_[x.ravel(), y.ravel(), np.zeros(x.size)]
+    blurred = sharp + np.c_[np.zeros((x.size, 2)), np.random.default_rng(0).normal(0.0, 0.02, x.size)]
+    a = map_quality(sharp, 0.3)
+    b = map_quality(blurred, 0.3)
+    assert a is not None
+    assert b is not None
+    assert a.mean_plane_variance_m2 < 1e-12
+    assert b.mean_plane_variance_m2 == pytest.approx(0.02 ** 2, rel=0.3)
+    assert b.mean_map_entropy > a.mean_map_entropy + 1.0 or not np.isfinite(a.mean_map_entropy)
+
+
+def test_time_offset_is_not_estimated_from_throttled_sweeps() -> None:
+    """1 s between mapped sweeps (a throttled log): the rotation increments average a whole second
+    and cannot time milliseconds; no estimate rather than a misleading one."""
+    from scipy.spatial.transform import Rotation
+
+    from mrnc_eval.data import ImuSeries
+    from mrnc_eval.slam.imu import imu_track
+    from mrnc_eval.slam.time_offset import estimate_imu_time_offset
+
+    t = np.arange(0.0, 60.0, 0.01)
+    h = 1e-4
+    rate = (Rotation.from_euler("xyz", _rocking(t - h)).inv()
+            * Rotation.from_euler("xyz", _rocking(t + h))).as_rotvec() / (2 * h)
+    track = imu_track(ImuSeries(t, np.tile([0.0, 0.0, 9.81], (t.size, 1)), rate), np.eye(3))
+    stamps = np.arange(1.0, 59.0, 1.0)
+    rotations = Rotation.from_euler("xyz", _rocking(stamps)).as_matrix()
+    assert estimate_imu_time_offset(stamps, rotations, track) is None
