@@ -16,6 +16,8 @@ from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
 
+import numpy as np
+
 from mrnc_eval.config import CONFIG_FILE_NAME, Config, load_config
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
@@ -87,10 +89,9 @@ def _slam_files(run_dir: Path) -> topics.SlamFiles:
     return topics.SlamFiles(trajectory, tum("trajectory_online.tum"), tum("keyframes.tum"), _read_map(run_dir))
 
 
-def _read_map(run_dir: Path):
+def _read_map(run_dir: Path) -> np.ndarray | None:
     for name in ("map.ply", "map.pcd"):
         if (run_dir / name).is_file():
-            import numpy as np
             import open3d as o3d
 
             return np.asarray(o3d.io.read_point_cloud(run_dir / name).points)

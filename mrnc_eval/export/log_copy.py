@@ -9,12 +9,16 @@ from __future__ import annotations
 
 from collections import Counter
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mcap.writer import Writer
 
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.containers import describe_error, detect_container
 
 
-def copy_log(writer, log_path: Path, reserved_prefix: str) -> Counter[str]:
+def copy_log(writer: Writer, log_path: Path, reserved_prefix: str) -> Counter[str]:
     """Every topic of `log_path` into the mcap `writer`; returns the messages copied per topic.
     A topic under `reserved_prefix` (ours) would be ambiguous: refused."""
     container = detect_container([log_path])
@@ -33,7 +37,7 @@ def _check_topic(log_path: Path, topic: str, reserved_prefix: str) -> None:
         raise InputError(log_path, f"the log uses our export namespace {reserved_prefix}/", topic=topic)
 
 
-def _copy_mcap(writer, log_path: Path, reserved_prefix: str) -> Counter[str]:
+def _copy_mcap(writer: Writer, log_path: Path, reserved_prefix: str) -> Counter[str]:
     from mcap.reader import make_reader
 
     counts: Counter[str] = Counter()
@@ -56,7 +60,7 @@ def _copy_mcap(writer, log_path: Path, reserved_prefix: str) -> Counter[str]:
     return counts
 
 
-def _copy_rosbags(writer, log_path: Path, ros1: bool, reserved_prefix: str) -> Counter[str]:
+def _copy_rosbags(writer: Writer, log_path: Path, ros1: bool, reserved_prefix: str) -> Counter[str]:
     from rosbags.highlevel import AnyReader
 
     from mrnc_eval.io.typestore import typestore_for
