@@ -23,7 +23,7 @@ from mrnc_eval.control.controllers import (
 )
 from mrnc_eval.control.jit_cache import FloatArray, kernel
 from mrnc_eval.control.kinematics import inverse_kinematics, slew
-from mrnc_eval.control.plant import body_step, drive_step, patches_array, slip_at
+from mrnc_eval.control.plant import body_step_trig, drive_step, patches_array, slip_at
 from mrnc_eval.control.pure_pursuit import pp_step, pure_pursuit_params
 from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.scenario import Scenario, waypoint_scenario
@@ -153,6 +153,7 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
     a_l = math.exp(-dt / plant[PL_TAU_L])
     a_r = math.exp(-dt / plant[PL_TAU_R])
     x, y, yaw = run[RUN_X0], run[RUN_Y0], run[RUN_YAW0]
+    cy, sy = math.cos(yaw), math.sin(yaw)
     v_body, w_body = 0.0, 0.0
     vw_l, vw_r = 0.0, 0.0
     ref_l, ref_r = 0.0, 0.0
@@ -200,13 +201,12 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
         slot_l, slot_r = k % (delay_l + 1), k % (delay_r + 1)
         ul_del, ur_del = buf_l[slot_l], buf_r[slot_r]
         buf_l[slot_l], buf_r[slot_r] = u_l, u_r
-        cy, sy = math.cos(yaw), math.sin(yaw)
         s_l = slip_at(x - half * sy, y + half * cy, patches)
         s_r = slip_at(x + half * sy, y - half * cy, patches)
         vw_l = drive_step(vw_l, ul_del, s_l, plant[PL_GAIN_L], a_l, plant[PL_DZ_L])
         vw_r = drive_step(vw_r, ur_del, s_r, plant[PL_GAIN_R], a_r, plant[PL_DZ_R])
-        x, y, yaw, v_body, w_body = body_step(x, y, yaw, (1.0 - s_l) * vw_l, (1.0 - s_r) * vw_r,
-                                              track * plant[PL_CHI], dt)
+        x, y, yaw, v_body, w_body, cy, sy = body_step_trig(x, y, yaw, cy, sy, (1.0 - s_l) * vw_l,
+                                                           (1.0 - s_r) * vw_r, track * plant[PL_CHI], dt)
         if k % record_every == 0:
             # applied feedback: what the command holds beyond the feed-forward (0 after a safety stop)
             fb_l = u_l - u_ff_per_mps * ref_l if not stopped_l else 0.0

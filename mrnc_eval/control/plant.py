@@ -57,14 +57,26 @@ def drive_step(v_wheel: float, u_delayed: float, slip: float, gain: float, a: fl
 def body_step(x: float, y: float, yaw: float, vg_left: float, vg_right: float, track_eff: float,
               dt: float) -> tuple[float, float, float, float, float]:
     """Pose (x m, y m, yaw rad) after dt s on the ground speeds of both sides (m/s), and (v m/s, omega rad/s)."""
+    x, y, yaw, v, w, _, _ = body_step_trig(x, y, yaw, math.cos(yaw), math.sin(yaw), vg_left, vg_right, track_eff, dt)
+    return x, y, yaw, v, w
+
+
+@kernel
+def body_step_trig(x: float, y: float, yaw: float, cos_yaw: float, sin_yaw: float, vg_left: float, vg_right: float,
+                   track_eff: float, dt: float) -> tuple[float, float, float, float, float, float, float]:
+    """body_step given cos and sin of yaw, also returning those of the new yaw: the closed loop carries
+    them from step to step (bit-identical: the new yaw is the same float as yaw + w dt), which saves
+    four of six trigonometric calls per control period."""
     v = 0.5 * (vg_left + vg_right)
     w = (vg_right - vg_left) / track_eff
     # exact integration of a constant-twist arc over dt
     if abs(w) < 1e-9:
-        x += v * dt * math.cos(yaw)
-        y += v * dt * math.sin(yaw)
-    else:
-        x += v / w * (math.sin(yaw + w * dt) - math.sin(yaw))
-        y -= v / w * (math.cos(yaw + w * dt) - math.cos(yaw))
-    yaw += w * dt
-    return x, y, yaw, v, w
+        x += v * dt * cos_yaw
+        y += v * dt * sin_yaw
+        yaw += w * dt
+        return x, y, yaw, v, w, math.cos(yaw), math.sin(yaw)
+    yaw_new = yaw + w * dt
+    sin_new, cos_new = math.sin(yaw_new), math.cos(yaw_new)
+    x += v / w * (sin_new - sin_yaw)
+    y -= v / w * (cos_new - cos_yaw)
+    return x, y, yaw_new, v, w, cos_new, sin_new
