@@ -19,6 +19,9 @@ from typer.exceptions import TyperException
 from mrnc_eval import __version__
 from mrnc_eval.errors import MrncError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
+from mrnc_eval.text import printable
+
+__all__ = ["app", "main", "printable"]
 
 log = logging.getLogger("mrnc_eval")
 
@@ -392,6 +395,8 @@ def simulate(
                                                      "(biases, vibration, clock offsets, miscalibrated tf, noisy "
                                                      "returns, body in the cloud, stones, a moving object, GNSS "
                                                      "multipath; sim.field.*). Default: sim.profile.")] = None,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing log at OUT, only if this tool "
+                                        "wrote it (a <name>.gt.tum is beside it).")] = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
@@ -401,20 +406,19 @@ def simulate(
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import simulate as simulate_command
     simulate_command.main(out, cfg, scene=scene, path=path, duration=duration, lidar=lidar, columns=columns,
-                               rate=rate, fmt=fmt, seed=seed, profile=profile)
+                               rate=rate, fmt=fmt, seed=seed, profile=profile, force=force)
 
 
 # ------------------------------------------------------------------ entry point
 
 
-def printable(text: str) -> str:
-    """One terminal line: control characters from log content (newlines, ANSI escapes in a topic
-    or frame name) are shown escaped, so a log cannot forge or hide lines of our output."""
-    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+INTERNAL_ERROR = 5  # a bug, not a verdict on the input: never 1 ("a gate failed")
 
 
 def main(argv: list[str] | None = None) -> int:
-    """Run the CLI; the single place where errors become exit codes."""
+    """Run the CLI; the single place where errors become exit codes. Every error is one line on
+    stderr (--debug adds the traceback): typed errors with their code, file-system errors
+    (exists, permission, no space) with 4, anything else as an internal error with 5."""
     try:
         result = app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
     except typer.Exit as exc:
@@ -437,6 +441,19 @@ def main(argv: list[str] | None = None) -> int:
     except KeyboardInterrupt:
         sys.stderr.write("interrupted\n")
         return 130
+    except OSError as exc:  # a file-system error no layer below turned into a typed one
+        from mrnc_eval.results import describe_os_error
+
+        if _state["debug"]:
+            log.exception("%s", exc)
+        sys.stderr.write(f"mrnc-eval: error: {printable(describe_os_error(exc))}\n")
+        return 4
+    except Exception as exc:
+        if _state["debug"]:
+            log.exception("%s", exc)
+        sys.stderr.write(f"mrnc-eval: internal error: {type(exc).__name__}: {printable(str(exc))[:300]} "
+                         "(a bug; --debug shows the traceback)\n")
+        return INTERNAL_ERROR
     return result if isinstance(result, int) else 0
 
 

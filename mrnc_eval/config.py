@@ -2,8 +2,11 @@
 
 Each domain owns its section (`slam/config.py`, `control/config.py`, `sim/config.py`,
 `evaluation/config.py`); this module composes them and provides strict YAML loading
-(safe loader, unknown keys rejected), per-run overrides (`--set a.b=value`), a
-commented YAML dump and a stable hash for provenance.
+(safe loader, unknown and duplicate keys rejected, size and alias expansion bounded, UTF-8
+only), range validation of every parameter (declared with `param(..., gt=0)` or by the name
+rules below), per-run overrides (`--set a.b=value`), a commented YAML dump and a stable
+hash for provenance. Every problem is a one-line ConfigError naming the key; values are
+shown shortened (`text.shorten`), never expanded.
 """
 
 from __future__ import annotations
@@ -12,9 +15,11 @@ import contextlib
 import dataclasses
 import hashlib
 import json
+import math
+import re
 import types
 import typing
-from dataclasses import dataclass, fields, is_dataclass
+from dataclasses import Field, dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Literal, TypeVar, get_args, get_origin
 
@@ -27,6 +32,7 @@ from mrnc_eval.io.config import IoConfig
 from mrnc_eval.params import param, section
 from mrnc_eval.sim.config import SimConfig
 from mrnc_eval.slam.config import SlamConfig
+from mrnc_eval.text import shorten
 
 T = TypeVar("T")
 
@@ -36,17 +42,18 @@ class RobotConfig:
     """The machine of the paper ("MPD", skid-steer, hydraulic in-wheel drives)."""
 
     name: str = param("MPD", "robot name shown in reports")
-    mass_kg: float = param(4836.0, "vehicle mass", "kg")
-    length_m: float = param(4.0, "body length", "m")
-    width_m: float = param(2.0, "body width", "m")
-    height_m: float = param(1.5, "body height", "m")
-    max_speed_mps: float = param(0.97, "maximum forward speed of the machine", "m/s")
-    wheel_radius_m: float = param(0.35, "wheel radius (assumed; not in the paper)", "m")
+    mass_kg: float = param(4836.0, "vehicle mass", "kg", gt=0)
+    length_m: float = param(4.0, "body length", "m", gt=0)
+    width_m: float = param(2.0, "body width", "m", gt=0)
+    height_m: float = param(1.5, "body height", "m", gt=0)
+    max_speed_mps: float = param(0.97, "maximum forward speed of the machine", "m/s", gt=0)
+    wheel_radius_m: float = param(0.35, "wheel radius (assumed; not in the paper)", "m", gt=0)
     track_width_m: float = param(
         1.6,
         "effective track width Lr used by inverse kinematics; NOT given in the paper, "
         "an assumption (geometric track times ICR expansion factor)",
         "m",
+        gt=0,
     )
 
 
@@ -76,7 +83,7 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
         return build(tp, value, where)
     if origin is Literal:
         if value not in get_args(tp):
-            raise ConfigError(f"{where}: {value!r} is not one of {list(get_args(tp))}")
+            raise ConfigError(f"{where}: {shorten(value)} is not one of {list(get_args(tp))}")
         return value
     if origin in (typing.Union, types.UnionType):
         args = get_args(tp)
@@ -90,10 +97,10 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
                 return _coerce(value, arg, where)
             except ConfigError as err:
                 errors.append(str(err))
-        raise ConfigError(errors[0] if errors else f"{where}: invalid value {value!r}")
+        raise ConfigError(errors[0] if errors else f"{where}: invalid value {shorten(value)}")
     if origin in (tuple, list):
         if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{where}: expected a list, got {value!r}")
+            raise ConfigError(f"{where}: expected a list, got {shorten(value)}")
         args = get_args(tp)
         if origin is tuple and args and args[-1] is not Ellipsis:
             if len(args) != len(value):
@@ -105,44 +112,183 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
         return tuple(items) if origin is tuple else items
     if origin is dict:
         if not isinstance(value, dict):
-            raise ConfigError(f"{where}: expected a mapping, got {value!r}")
+            raise ConfigError(f"{where}: expected a mapping, got {shorten(value)}")
         key_tp, val_tp = get_args(tp) or (Any, Any)
-        return {_coerce(k, key_tp, where): _coerce(v, val_tp, f"{where}.{k}") for k, v in value.items()}
+        return {_coerce(k, key_tp, where): _coerce(v, val_tp, f"{where}.{shorten(k, 60)}") for k, v in value.items()}
     if tp is bool:
         if not isinstance(value, bool):
-            raise ConfigError(f"{where}: expected true/false, got {value!r}")
+            raise ConfigError(f"{where}: expected true/false, got {shorten(value)}")
         return value
     if tp is float:
         if isinstance(value, str):  # YAML 1.1 reads exponents without a dot ("1e-4") as strings
             with contextlib.suppress(ValueError):
                 value = float(value)
         if isinstance(value, bool) or not isinstance(value, (int, float)):
-            raise ConfigError(f"{where}: expected a number, got {value!r}")
+            raise ConfigError(f"{where}: expected a number, got {shorten(value)}")
         return float(value)
     if tp is int:
         if isinstance(value, bool) or not isinstance(value, int):
-            raise ConfigError(f"{where}: expected an integer, got {value!r}")
+            raise ConfigError(f"{where}: expected an integer, got {shorten(value)}")
         return value
     if tp is str:
         if not isinstance(value, str):
-            raise ConfigError(f"{where}: expected a string, got {value!r}")
+            raise ConfigError(f"{where}: expected a string, got {shorten(value)}")
         return value
     raise ConfigError(f"{where}: unsupported config type {tp!r}")
 
 
 def build(cls: type[T], data: dict[str, Any], where: str = "") -> T:
-    """Build dataclass `cls` from a mapping; missing keys keep defaults, unknown keys fail."""
+    """Build dataclass `cls` from a mapping; missing keys keep defaults, unknown keys fail,
+    every given value is checked against its parameter's range."""
     hints = typing.get_type_hints(cls)
-    known = {f.name for f in fields(cls)}  # type: ignore[arg-type]
-    unknown = sorted(set(data) - known)
+    by_name = {f.name: f for f in fields(cls)}  # type: ignore[arg-type]
+    unknown = sorted(str(k) for k in set(data) - set(by_name))
     if unknown:
         prefix = f"{where}." if where else ""
-        raise ConfigError(f"unknown config key(s): {', '.join(prefix + k for k in unknown)}")
-    kwargs = {
-        key: _coerce(value, hints[key], f"{where}.{key}" if where else key)
-        for key, value in data.items()
-    }
-    return cls(**kwargs)
+        raise ConfigError(f"unknown config key(s): {shorten(', '.join(prefix + k for k in unknown))}")
+    kwargs = {}
+    for key, value in data.items():
+        dotted = f"{where}.{key}" if where else key
+        kwargs[key] = _coerce(value, hints[key], dotted)
+        _check_range(kwargs[key], by_name[key], dotted)
+    try:
+        return cls(**kwargs)
+    except (TypeError, ValueError) as err:  # a section's own __post_init__ check
+        raise ConfigError(f"{where or 'config'}: {shorten(str(err))}") from err
+
+
+# ---------------------------------------------------------------- ranges
+
+# Rules for parameters that declare no range, by name (the units say what is physical):
+# rates, masses, sizes of leaves and radii are positive; noises, variances, thresholds and
+# durations are not negative; ratios, fractions and probabilities lie in [0, 1].
+RANGE_RULES: tuple[tuple[re.Pattern[str], dict[str, float]], ...] = (
+    (re.compile(r"(^|_)(fraction|probability)$|_ratio(_max)?$|^parallel_ratio$"), {"ge": 0.0, "le": 1.0}),
+    (re.compile(r"^(rate_hz|gravity|scene_scale|tau_s|tau_hat_s|lookahead_m)$|_leaf_m$|voxel|radius"), {"gt": 0.0}),
+    (re.compile(r"_hz$|_kg$|_mb$|noise|_walk$|sigma|variance|_m2$|threshold|_range_m$|^max_|^min_|_max$"
+                r"|(delay|gap|window|horizon|hold|interval|time)_s$"), {"ge": 0.0}),
+)
+_BOUND_TEXT = {"gt": ">", "ge": ">=", "lt": "<", "le": "<="}
+
+
+def _bounds_for(f: Field[Any]) -> dict[str, float]:
+    declared = f.metadata.get("bounds")
+    if declared:
+        return dict(declared)
+    if "offset" in f.name:
+        return {}
+    return next((dict(b) for pattern, b in RANGE_RULES if pattern.search(f.name)), {})
+
+
+def _numbers(value: Any) -> list[float]:
+    if isinstance(value, bool):
+        return []
+    if isinstance(value, (int, float)):
+        return [float(value)]
+    if isinstance(value, (list, tuple)):
+        return [x for v in value for x in _numbers(v)]
+    return []
+
+
+def _check_range(value: Any, f: Field[Any], where: str) -> None:
+    """One parameter against its declared (or name-rule) range, finiteness and check."""
+    if is_dataclass(value):
+        return  # a section: its fields were checked as they were built
+    for x in _numbers(value):
+        if f.metadata.get("finite", True) and not math.isfinite(x):
+            raise ConfigError(f"{where}: {shorten(value)} is not a finite number")
+        for kind, bound in _bounds_for(f).items():
+            ok = {"gt": x > bound, "ge": x >= bound, "lt": x < bound, "le": x <= bound}[kind]
+            if not ok:
+                raise ConfigError(f"{where}: {shorten(value)} is out of range (must be {_BOUND_TEXT[kind]} {bound:g})")
+    check = f.metadata.get("check")
+    problem = check(value) if check is not None else None
+    if problem:
+        raise ConfigError(f"{where}: {shorten(value)}: {problem}")
+
+
+def validate_tree(cfg: Any, where: str = "") -> None:
+    """Check every parameter of a built config (defaults included) against its range."""
+    for f in fields(cfg):
+        value = getattr(cfg, f.name)
+        dotted = f"{where}.{f.name}" if where else f.name
+        if is_dataclass(value):
+            validate_tree(value, dotted)
+        else:
+            _check_range(value, f, dotted)
+
+
+# ---------------------------------------------------------------- bounded YAML
+
+MAX_YAML_BYTES = 1_000_000  # a configuration is a few kB; anything this big is a mistake or an attack
+MAX_YAML_NODES = 100_000  # nodes after alias expansion (a "billion laughs" file is rejected, not expanded)
+
+
+class _StrictLoader(yaml.SafeLoader):
+    """Safe loader that rejects duplicate keys (the second would silently win)."""
+
+    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+        seen: set[tuple[str, str]] = set()
+        for key_node, _ in node.value:
+            if isinstance(key_node, yaml.ScalarNode):
+                key = (key_node.tag, key_node.value)
+                if key in seen:
+                    raise yaml.constructor.ConstructorError(
+                        None, None, f"duplicate key {shorten(key_node.value, 80)}", key_node.start_mark)
+                seen.add(key)
+        return super().construct_mapping(node, deep=deep)
+
+
+def _expanded_size(node: yaml.Node, memo: dict[int, int], active: set[int]) -> int:
+    """Number of nodes the document has once every alias is expanded (memoised: O(distinct nodes))."""
+    if id(node) in memo:
+        return memo[id(node)]
+    if id(node) in active:
+        raise ConfigError("recursive YAML alias")
+    active.add(id(node))
+    if isinstance(node, yaml.SequenceNode):
+        size = 1 + sum(_expanded_size(child, memo, active) for child in node.value)
+    elif isinstance(node, yaml.MappingNode):
+        size = 1 + sum(_expanded_size(k, memo, active) + _expanded_size(v, memo, active) for k, v in node.value)
+    else:
+        size = 1
+    active.discard(id(node))
+    memo[id(node)] = min(size, MAX_YAML_NODES + 1)
+    return memo[id(node)]
+
+
+def load_yaml(text: str, where: str) -> Any:
+    """Parse YAML text with the strict, bounded loader; every problem is a one-line ConfigError."""
+    if len(text) > MAX_YAML_BYTES:
+        raise ConfigError(f"{where}: YAML larger than {MAX_YAML_BYTES // 1000} kB")
+    loader = _StrictLoader(text)
+    try:
+        node = loader.get_single_node()
+        if node is None:
+            return None
+        if _expanded_size(node, {}, set()) > MAX_YAML_NODES:
+            raise ConfigError(f"{where}: YAML expands to more than {MAX_YAML_NODES} nodes (aliases); refused")
+        return loader.construct_document(node)
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{where}: invalid YAML: {shorten(str(err), 300)}") from err
+    except RecursionError as err:
+        raise ConfigError(f"{where}: YAML nested too deeply") from err
+    finally:
+        loader.dispose()
+
+
+def load_yaml_file(path: str | Path, what: str = "config") -> Any:
+    """A YAML file: size-limited, UTF-8, strict and bounded (see load_yaml)."""
+    p = Path(path)
+    try:
+        if p.stat().st_size > MAX_YAML_BYTES:
+            raise ConfigError(f"{p}: {what} file larger than {MAX_YAML_BYTES // 1000} kB")
+        text = p.read_bytes().decode("utf-8")
+    except UnicodeDecodeError as err:
+        raise ConfigError(f"{p}: {what} file is not UTF-8 text (byte {err.start})") from err
+    except OSError as err:
+        raise ConfigError(f"{p}: cannot read {what}: {err.strerror or err}") from err
+    return load_yaml(text, str(p))
 
 
 def as_dict(cfg: Any) -> dict[str, Any]:
@@ -172,17 +318,14 @@ def _deep_merge(base: dict[str, Any], extra: dict[str, Any]) -> dict[str, Any]:
 def parse_override(text: str) -> dict[str, Any]:
     """`control.raid.beta=1.5` -> {"control": {"raid": {"beta": 1.5}}}; value parsed as YAML."""
     if "=" not in text:
-        raise ConfigError(f"override {text!r}: expected KEY=VALUE, e.g. control.raid.beta=1.5")
+        raise ConfigError(f"override {shorten(text)}: expected KEY=VALUE, e.g. control.raid.beta=1.5")
     key, raw = text.split("=", 1)
-    try:
-        value = yaml.safe_load(raw) if raw.strip() else ""
-    except yaml.YAMLError as err:
-        raise ConfigError(f"override {text!r}: value is not valid YAML: {err}") from err
+    value = load_yaml(raw, f"override {shorten(key, 80)}") if raw.strip() else ""
     node: dict[str, Any] = {}
     cursor = node
     parts = [p for p in key.strip().split(".") if p]
     if not parts:
-        raise ConfigError(f"override {text!r}: empty key")
+        raise ConfigError(f"override {shorten(text)}: empty key")
     for part in parts[:-1]:
         cursor[part] = {}
         cursor = cursor[part]
@@ -195,14 +338,7 @@ def load_config(path: str | Path | None = None, overrides: typing.Sequence[str] 
     data: dict[str, Any] = {}
     if path is not None:
         p = Path(path)
-        try:
-            text = p.read_text(encoding="utf-8")
-        except OSError as err:
-            raise ConfigError(f"{p}: cannot read config: {err.strerror or err}") from err
-        try:
-            loaded = yaml.safe_load(text)
-        except yaml.YAMLError as err:
-            raise ConfigError(f"{p}: invalid YAML: {err}") from err
+        loaded = load_yaml_file(p)
         if loaded is None:
             loaded = {}
         if not isinstance(loaded, dict):

@@ -1,7 +1,8 @@
 """Typed errors. Library code raises these; only `cli.main` turns them into exit codes.
 
 Exit codes (one place, `exit_code` attribute):
-  0 ok, 1 a metric gate failed, 2 usage, 3 some inputs failed, 4 unreadable/invalid input.
+  0 ok, 1 a metric gate failed, 2 usage, 3 some inputs failed, 4 unreadable/invalid input or
+  an output that cannot be written, 5 an internal error (a bug: the message says so).
 """
 
 from __future__ import annotations
@@ -39,6 +40,23 @@ class InputError(MrncError):
         self.problem = problem
         where = f"{self.path}" + (f" [{topic}]" if topic else "")
         super().__init__(f"{where}: {problem}")
+
+
+class NoGnssFix(InputError):
+    """A GNSS topic holds no valid fix at all (indoors, no antenna): a property of the log, so
+    commands that can do without GNSS note it and go on."""
+
+
+class OutputError(MrncError):
+    """An output cannot be written: it exists where a folder is needed, is not writable, the
+    disk is full, or writing it would replace something the tool did not write."""
+
+    exit_code = 4
+
+    def __init__(self, path: str | Path, problem: str) -> None:
+        self.path = str(path)
+        self.problem = problem
+        super().__init__(f"{self.path}: {problem}")
 
 
 class EvaluationError(MrncError):

@@ -7,11 +7,14 @@ rows only (idempotent); earlier nights are never touched."""
 
 from __future__ import annotations
 
+import contextlib
 import sqlite3
 import statistics
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
+
+from mrnc_eval.errors import OutputError
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -55,7 +58,14 @@ class History:
         return db
 
     def record(self, rec: LogRecord) -> None:
-        """Replace this night's rows of this log, all in one transaction."""
+        """Replace this night's rows of this log, all in one transaction; a failed write (disk
+        full, read-only) is an OutputError naming the history file, earlier rows untouched."""
+        try:
+            self._record(rec)
+        except sqlite3.Error as err:
+            raise OutputError(self.path, f"cannot write the history: {err}") from err
+
+    def _record(self, rec: LogRecord) -> None:
         with closing(self._connect()) as db:
             db.execute("BEGIN IMMEDIATE")
             try:
@@ -68,7 +78,8 @@ class History:
                                  unit, rec.status) for name, value, unit in rec.metrics])
                 db.execute("COMMIT")
             except BaseException:
-                db.execute("ROLLBACK")
+                with contextlib.suppress(sqlite3.Error):  # SQLite may have rolled back already (disk full):
+                    db.execute("ROLLBACK")  # the error to surface is the first one, not "cannot rollback"
                 raise
 
     def finished(self, night: str) -> set[str]:

@@ -6,17 +6,26 @@ A result directory `OUT/<run>/` holds:
   config.yaml   the effective configuration
 plus whatever files the pipeline adds (TUM trajectories, the map). Directories are
 written under a temporary name and renamed into place, so a reader never sees half a result.
+
+Outputs never destroy anything: every run gets a new folder (`new_run_dir`: log id, verb, UTC
+second and a random suffix), an existing folder is replaced only when it holds a result this
+tool wrote, output roots are checked before long work starts (`check_output_root`), and every
+file and folder gets the permissions the umask gives (temporary files are created 0600/0700).
 """
 
 from __future__ import annotations
 
 import datetime as _dt
+import errno
+import hashlib
 import json
 import math
 import os
 import re
+import secrets
 import shutil
 import tempfile
+import unicodedata
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -24,7 +33,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mrnc_eval import __version__
-from mrnc_eval.errors import InputError
+from mrnc_eval.errors import InputError, OutputError
 from mrnc_eval.tables import Table
 
 if TYPE_CHECKING:
@@ -95,24 +104,88 @@ def safe_name(text: str, max_len: int = 80) -> str:
     return (name or "unnamed")[:max_len]
 
 
-def log_id_for(path: str | Path) -> str:
-    """Stable id of a log: its sanitised name without the container suffix."""
-    p = Path(path)
-    stem = p.name
+def _strip_log_suffix(name: str) -> str:
     for suffix in (".mcap", ".db3", ".bag"):
-        if stem.endswith(suffix):
-            stem = stem[: -len(suffix)]
-            break
-    return safe_name(stem)
+        if name.endswith(suffix):
+            return name[: -len(suffix)]
+    return name
+
+
+def stable_id(relative: str | Path) -> str:
+    """A file-name-safe id that depends only on `relative` (a path relative to a search root):
+    the path itself joined with "_" when it is plain ASCII ("nested/b.bag" -> "nested_b"),
+    otherwise a readable ASCII slug plus a short hash of the relative path
+    ("München/ß.mcap" -> "Munchen-" + 8 hex digits). Adding or removing other files never changes it."""
+    parts = [str(p) for p in Path(relative).parts]
+    if not parts:
+        return "unnamed"
+    parts[-1] = _strip_log_suffix(parts[-1])
+    joined = "_".join(parts)
+    slug = safe_name(unicodedata.normalize("NFKD", joined).encode("ascii", "ignore").decode("ascii"), max_len=60)
+    if slug == joined and slug != "unnamed":
+        return slug
+    return f"{slug}-{path_hash(relative)}"
+
+
+def path_hash(relative: str | Path) -> str:
+    """8 hex digits of a relative path (its POSIX form, bytes as stored)."""
+    return hashlib.sha256(Path(relative).as_posix().encode("utf-8", "surrogateescape")).hexdigest()[:8]
+
+
+def log_id_for(path: str | Path) -> str:
+    """Stable id of a log from its file name (see `stable_id`), without the container suffix."""
+    return stable_id(Path(path).name)
+
+
+def _umask() -> int:
+    mask = os.umask(0o022)  # read it back: there is no getter
+    os.umask(mask)
+    return mask
+
+
+def follow_umask(path: Path) -> None:
+    """Give a file or folder made by mkstemp/mkdtemp (0600/0700) the mode an ordinary
+    open()/mkdir() would have given it, so teammates and web servers can read reports."""
+    base = 0o777 if path.is_dir() else 0o666
+    os.chmod(path, base & ~_umask())
+
+
+def check_output_root(root: Path, need_bytes: int = 0) -> Path:
+    """Before long work: `root` is (or can be made) a writable folder with `need_bytes` free.
+    Raises OutputError naming the folder and the problem."""
+    root = Path(root)
+    if root.exists() and not root.is_dir():
+        raise OutputError(root, "exists and is not a folder (choose another --out)")
+    try:
+        root.mkdir(parents=True, exist_ok=True)
+        probe = tempfile.NamedTemporaryFile(prefix=".mrnc-write-probe.", dir=root)  # noqa: SIM115
+        probe.close()
+    except OSError as err:
+        raise OutputError(root, f"cannot write here: {err.strerror or err}") from err
+    free = shutil.disk_usage(root).free
+    if free < need_bytes:
+        raise OutputError(root, f"only {free / 1e6:.0f} MB free, about {need_bytes / 1e6:.0f} MB needed")
+    return root
+
+
+def new_run_dir(root: Path, log_id: str, verb: str) -> Path:
+    """A fresh, unused result folder name under `root`: `<log id>-<verb>-<UTC second>-<random>`,
+    so two runs never share a folder (same log name in two places, same second)."""
+    stamp = _dt.datetime.now(_dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    while True:
+        candidate = Path(root) / safe_name(f"{log_id}-{verb}-{stamp}-{secrets.token_hex(3)}", max_len=120)
+        if not candidate.exists():
+            return candidate
 
 
 def atomic_write_text(path: Path, text: str) -> None:
-    """Write a file under a temporary name and rename it into place."""
+    """Write a file under a temporary name and rename it into place (mode from the umask)."""
     path.parent.mkdir(parents=True, exist_ok=True)
     fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
+        follow_umask(Path(tmp))
         os.replace(tmp, path)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -141,11 +214,14 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
 
     `files` maps names inside the run directory to already-written temporary files that
     are moved in (trajectories, maps). An existing `run_dir` is replaced only once the new
-    one is complete.
+    one is complete, and only when it is empty or a result this tool wrote; anything else is
+    an OutputError and left untouched.
     """
     run_dir = Path(run_dir)
+    _check_replaceable(run_dir)
     run_dir.parent.mkdir(parents=True, exist_ok=True)
     tmp = Path(tempfile.mkdtemp(prefix=f".{run_dir.name}.", suffix=".partial", dir=run_dir.parent))
+    follow_umask(tmp)
     try:
         body = asdict(result)
         body.pop("series")
@@ -172,6 +248,24 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
         shutil.rmtree(tmp, ignore_errors=True)
         raise
     return run_dir
+
+
+def _check_replaceable(run_dir: Path) -> None:
+    if not run_dir.exists() and not run_dir.is_symlink():
+        return
+    if run_dir.is_symlink() or not run_dir.is_dir():
+        raise OutputError(run_dir, "exists and is not a result folder; not replaced")
+    if any(run_dir.iterdir()) and not (run_dir / RESULT_FILE).is_file():
+        raise OutputError(run_dir, "folder exists and holds files this tool did not write; not replaced")
+
+
+def describe_os_error(err: OSError) -> str:
+    """One line for a file-system error: the file and the system's reason (no traceback)."""
+    reason = err.strerror or type(err).__name__
+    if err.errno == errno.ENOSPC:
+        reason = "no space left on device"
+    where = err.filename if err.filename is not None else ""
+    return f"{where}: {reason}" if where else reason
 
 
 def _restore_float(value: Any) -> Any:

@@ -20,7 +20,7 @@ from mrnc_eval.data import SidePair
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import feedback_share, paper_metrics, path_metrics, tracking_metrics
 from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
-from mrnc_eval.results import Event, Metric, RunResult, log_id_for, write_result
+from mrnc_eval.results import Event, Metric, RunResult, check_output_root, log_id_for, new_run_dir, write_result
 from mrnc_eval.tables import Cell, Table
 
 log = logging.getLogger(__name__)
@@ -265,6 +265,7 @@ def _read_recording(log_path: Path, cfg: Config) -> _Recording:
         pt, pxs, pys, pyaws, source = recorded_pose(lg, log_path)
         speeds = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m)
         cmds = lg.commands() if "commands" in roles else None
+        warnings += lg.health_notes()  # samples dropped, stamps sorted: said in the result
     if wp.shape[0] < 2:
         raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles["path"])
     if speeds.stamps.size < 3:
@@ -416,15 +417,16 @@ def _decimate(t: np.ndarray, max_points: int = 20000) -> int:
     return max(1, t.size // max_points)
 
 
+CONTROL_OUTPUT_BYTES = 50_000_000  # free space asked for before a run: result.json, series.npz
+
+
 def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out: Path, json_out: bool,
          runs: int | None = None, seed: int | None = None) -> None:
-    import datetime as dt
-
     names = parse_controllers(controllers)
     if log_path is not None and not log_path.exists():
         raise InputError(log_path, "no such file or directory")
-    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
-    run_dir = out / f"{log_id_for(log_path) if log_path else 'paper-circle'}-control-{mode}-{stamp}"
+    check_output_root(out, need_bytes=CONTROL_OUTPUT_BYTES)  # before the long work, not after it
+    run_dir = new_run_dir(out, log_id_for(log_path) if log_path else "paper-circle", f"control-{mode}")
     if mode == "sweep":
         if log_path is not None:
             raise UsageError("control --mode sweep runs the paper circle; it takes no LOG")

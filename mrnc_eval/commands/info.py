@@ -11,6 +11,7 @@ import numpy as np
 
 from mrnc_eval.config import Config
 from mrnc_eval.io import open_log
+from mrnc_eval.text import printable
 
 log = logging.getLogger(__name__)
 
@@ -54,7 +55,40 @@ def run(path: Path, cfg: Config) -> InfoSummary:
         summary.findings.extend(_stream_findings(topics))
         _lidar_findings(lg, summary)
         _gnss_findings(lg, summary)
+        _validation_findings(lg, summary)
     return summary
+
+
+_VALIDATED_ROLES = ("imu", "chassis_imu", "gnss", "wheel_speeds", "commands", "ground_truth", "wheel_odom", "path")
+
+
+def _validation_findings(lg, summary: InfoSummary) -> None:
+    """Read each typed stream once through the reader's validation: a refused stream is an
+    error finding, dropped samples a warning (the same policy SLAM and control replay see)."""
+    from mrnc_eval.errors import InputError, NoGnssFix
+
+    readers = {"imu": lg.imu, "chassis_imu": lg.imu, "gnss": lg.gnss, "wheel_speeds": lg.wheel_speeds,
+               "commands": lg.commands, "ground_truth": lg.trajectory, "wheel_odom": lg.trajectory,
+               "path": lg.waypoints}
+    for role in _VALIDATED_ROLES:
+        topic = summary.roles.get(role)
+        if topic is None:
+            continue
+        try:
+            readers[role](topic)
+        except NoGnssFix as err:  # already counted by the fix-ratio finding
+            summary.findings.append(Finding("warning", topic, err.problem))
+            continue
+        except InputError as err:
+            summary.findings.append(Finding("error", topic, err.problem))
+            continue
+        for note in lg.health(topic).notes:
+            summary.findings.append(Finding("warning", topic, note))
+    if "tf_static" in summary.roles:
+        try:
+            lg.static_transforms()
+        except InputError as err:
+            summary.findings.append(Finding("error", summary.roles["tf_static"], err.problem))
 
 
 def _stream_findings(topics) -> list[Finding]:
@@ -107,6 +141,8 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
     except CloudFormatError as err:
         summary.findings.append(Finding("error", topic, f"first cloud cannot be decoded: {err}"))
         return
+    if len(first_sweep) == 0:
+        summary.findings.append(Finding("error", topic, "first cloud has no valid point (all zero or non-finite)"))
     # a sweep lasts until its last point (not until the next recorded sweep: clouds may be throttled)
     period = float(first_sweep.point_time.max()) if first_sweep.point_time is not None and len(first_sweep) else 0.1
     lo = np.searchsorted(imu_t, sweep_t, side="right") > 0  # an IMU sample at or before the sweep start
@@ -136,13 +172,16 @@ def print_summary(summary: InfoSummary) -> None:
     console = Console()
     if not console.is_terminal:  # piped or captured: rich would assume 80 columns and cut type names
         console = Console(width=160)
-    console.print(f"[bold]{escape(summary.path)}[/bold]  container {summary.container}, "
+    def shown(text: str) -> str:  # log content: one line, no control characters, no rich markup
+        return escape(printable(text))
+
+    console.print(f"[bold]{shown(summary.path)}[/bold]  container {summary.container}, "
                   f"duration {summary.duration_s:.3f} s ({summary.start_s:.3f} .. {summary.end_s:.3f})")
     table = Table("topic", "type", "count", "rate Hz", "max gap s", "role")
     for t in summary.topics:
-        table.add_row(escape(t["topic"]), escape(t["msgtype"]), str(t["count"]), f"{t['rate_hz']:.2f}",
+        table.add_row(shown(t["topic"]), shown(t["msgtype"]), str(t["count"]), f"{t['rate_hz']:.2f}",
                       f"{t['max_gap_s']:.3f}", t["role"] or "")
     console.print(table)
     colours = {"ok": "green", "warning": "yellow", "error": "red"}
     for f in summary.findings:
-        console.print(f"[{colours[f.level]}]{f.level:7}[/] {escape(f.topic)} {escape(f.message)}")
+        console.print(f"[{colours[f.level]}]{f.level:7}[/] {shown(f.topic)} {shown(f.message)}")

@@ -18,11 +18,12 @@ import yaml
 
 from mrnc_eval.commands.log_job import DEFAULT_ANALYSIS, LogJob, LogSummary
 from mrnc_eval.commands.progress import progress_bar
-from mrnc_eval.config import Config, build, dump_config
+from mrnc_eval.config import Config, build, dump_config, load_yaml_file
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
 from mrnc_eval.history import History, LogRecord, Regression, find_regressions
 from mrnc_eval.reports.night import IndexRow
-from mrnc_eval.results import atomic_write_text, log_id_for
+from mrnc_eval.results import atomic_write_text, check_output_root, path_hash, stable_id
+from mrnc_eval.text import shorten
 
 if TYPE_CHECKING:
     from mrnc_eval.commands.executors import Executor
@@ -35,6 +36,7 @@ TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/ape/end_drift_m", "slam/rtf", "con
 HIGHER_IS_BETTER = ("slam/rtf",)
 REGRESSION_WINDOW = 5  # previous nights compared against
 REGRESSION_TOLERANCE = 0.2  # flagged when 20 % worse than their median
+NIGHTLY_OUTPUT_BYTES = 200_000_000  # free space asked for per log before the night starts (maps, reports)
 
 
 def discover_logs(root: Path, since: dt.date | None = None) -> list[Path]:
@@ -63,24 +65,24 @@ def discover_logs(root: Path, since: dt.date | None = None) -> list[Path]:
 
 
 def _unique_ids(logs: list[Path], root: Path) -> dict[Path, str]:
-    """Safe log ids from the path relative to LOG_DIR (nested/run.mcap -> nested_run), so a log
-    keeps its id across nights whatever else is discovered; a number is added on collision."""
-    ids: dict[Path, str] = {}
-    for p in logs:
-        base = log_id_for("_".join(p.relative_to(root).parts))
-        candidate, k = base, 2
-        while candidate in ids.values():
-            candidate, k = f"{base}_{k}", k + 1
-        ids[p] = candidate
-    return ids
+    """Stable log ids from the path relative to LOG_DIR (nested/run.mcap -> nested_run; a slug
+    plus a hash of the path for names that are not plain ASCII), so a log keeps its id across
+    nights whatever else is discovered. Two plain names that read alike (a/b.mcap, a_b.mcap)
+    both take the hash of their path."""
+    ids = {p: stable_id(p.relative_to(root)) for p in logs}
+    clashes = {i for i in ids.values() if list(ids.values()).count(i) > 1}
+    return {p: f"{i}-{path_hash(p.relative_to(root))}" if i in clashes else i for p, i in ids.items()}
 
 
 def _night(date: str | None) -> str:
     if date is None:
         return dt.date.today().isoformat()
-    if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
-        raise UsageError(f"--date {date!r}: expected YYYY-MM-DD")
-    return date
+    try:
+        if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
+            raise ValueError
+        return dt.date.fromisoformat(date).isoformat()  # a real calendar date: 2026-13-45 is not one
+    except ValueError:
+        raise UsageError(f"--date {shorten(date)}: expected a calendar date YYYY-MM-DD") from None
 
 
 def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | None, since: str | None,
@@ -95,7 +97,9 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     executor = make_executor(jobs, scheduler)
     since_date = _since(since)
     logs = discover_logs(log_dir, since_date)
-    out.mkdir(parents=True, exist_ok=True)
+    if not logs and since_date is None:  # a wrong folder, not a quiet night
+        raise InputError(log_dir, "no logs found (.mcap, .db3 or .bag files, ROS 2 bag folders)")
+    check_output_root(out, need_bytes=NIGHTLY_OUTPUT_BYTES * max(1, len(logs)))
     with _exclusive(out / ".nightly.lock"):
         _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis, junit)
 
@@ -151,7 +155,7 @@ def _with_gates(cfg: Config, gates: Path | None) -> Config:
     if gates is None:
         return cfg
     try:
-        data = yaml.safe_load(gates.read_text(encoding="utf-8")) or {}
+        data = load_yaml_file(gates, "gates") or {}
         if not isinstance(data, dict):
             raise TypeError("expected a mapping of gate names to limits")
         return build(Config, {**_plain(cfg), "gates": {**_plain(cfg.gates), **data}})

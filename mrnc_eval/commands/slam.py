@@ -2,7 +2,6 @@
 
 from __future__ import annotations
 
-import datetime as dt
 import itertools
 import json
 import logging
@@ -20,10 +19,20 @@ from scipy.spatial.transform import Rotation
 from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
-from mrnc_eval.errors import EvaluationError, InputError, UsageError
+from mrnc_eval.errors import EvaluationError, InputError, NoGnssFix, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.io.prefetch import Prefetched
-from mrnc_eval.results import Event, Metric, RunResult, json_safe, log_id_for, write_result
+from mrnc_eval.results import (
+    Event,
+    Metric,
+    RunResult,
+    check_output_root,
+    json_safe,
+    log_id_for,
+    new_run_dir,
+    stable_id,
+    write_result,
+)
 from mrnc_eval.slam.output import STAGES, SlamOutput
 
 log = logging.getLogger(__name__)
@@ -47,6 +56,7 @@ class LogInputs:
     antenna_in_sensor: np.ndarray  # ... in the LiDAR frame, m
     n_sweeps: int  # LiDAR messages in the log
     max_sweep_gap_s: float  # largest gap between consecutive LiDAR header stamps
+    notes: tuple[str, ...] = ()  # why an input was not used (GNSS without a fix)
 
 
 def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = None, progress: bool = False,
@@ -66,8 +76,11 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         inputs = _read_inputs(lg, log_path, cfg)
         out = _replay(lg, inputs, cfg, progress)
+        read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
     if out.stamps.size < 2:
-        raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s)")
+        why = "; ".join(read_notes) or "no sweep could be registered"
+        raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s) ({why})")
+    result.warnings += read_notes
     est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, method)
     online = _to_base(out.stamps, out.online_poses if out.online_poses is not None else out.poses,
                       inputs.base_to_sensor, f"{method} online")
@@ -104,18 +117,37 @@ def _read_inputs(lg: Any, log_path: Path, cfg: Config) -> LogInputs:
     lidar_frame = cfg.slam.sensor.lidar_frame
     statics = lg.static_transforms()
     frames = {c for _, c in statics} | {p for p, _ in statics}
+    if "base_link" in frames and lidar_frame not in frames:  # never fall back to identity silently
+        raise InputError(log_path, f"slam.sensor.lidar_frame {lidar_frame!r} is not in the static transforms "
+                         f"(frames: {', '.join(sorted(frames))}); set it to the clouds' frame", topic="/tf_static")
     base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
     imu = lg.imu() if lg.has_role("imu") else None
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
         sensor_to_imu = lg.transform(lidar_frame, imu.frame_id)
-    gnss = lg.gnss() if lg.has_role("gnss") else None
+    gnss, gnss_note = _gnss_or_none(lg, cfg)
     has_antenna = "gnss" in frames and "base_link" in frames
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
     antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
     lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
     return LogInputs(duration, base_to_sensor, imu, sensor_to_imu, gnss, _ground_truth(lg, log_path), antenna,
-                     antenna_in_sensor, lidar.count, lidar.max_gap_s)
+                     antenna_in_sensor, lidar.count, lidar.max_gap_s,
+                     (gnss_note,) if gnss_note else ())
+
+
+def _gnss_or_none(lg: Any, cfg: Config) -> tuple[GnssSeries | None, str]:
+    """GNSS when usable, else why not. A log without any fix is a legitimate recording (GNSS
+    skipped, noted); invalid fixes are an error unless GNSS is off (--no-gps), where they are noted."""
+    if not lg.has_role("gnss"):
+        return None, ""
+    try:
+        return lg.gnss(), ""
+    except NoGnssFix as err:
+        return None, f"GNSS not used: {err.problem}"
+    except InputError as err:
+        if cfg.slam.gps.enabled:
+            raise
+        return None, f"GNSS not used: {err.problem}"
 
 
 def _ground_truth(lg: Any, log_path: Path) -> Trajectory | None:
@@ -408,6 +440,17 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
         shutil.rmtree(tmp, ignore_errors=True)
 
 
+SLAM_OUTPUT_BYTES = 200_000_000  # free space asked for per log before a run: map (PLY + PCD), trajectories
+
+
+def _row_ids(logs: list[Path]) -> dict[Path, str]:
+    """Table I row labels: the log id, or the id of its folder and name when two logs share a
+    name (a/run.mcap and b/run.mcap are two rows, not one row shown twice)."""
+    names = [log_id_for(p) for p in logs]
+    return {p: stable_id(Path(p.parent.name) / p.name) if names.count(n) > 1 else n
+            for p, n in zip(logs, names, strict=True)}
+
+
 def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loop: bool, no_gps: bool,
          json_out: bool) -> None:
     """The `slam` verb: the CLI flags set config values (slam.method, slam.loop.enabled,
@@ -419,27 +462,28 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
         cfg = replace_path(cfg, "slam.loop.enabled", False)
     if no_gps:
         cfg = replace_path(cfg, "slam.gps.enabled", False)
-    stamp = dt.datetime.now(dt.UTC).strftime("%Y%m%dT%H%M%SZ")
+    check_output_root(out, need_bytes=SLAM_OUTPUT_BYTES * len(logs))  # before the long work, not after it
     results, failed, cells = [], [], {}
+    row_ids = _row_ids(logs)
     for path in logs:
-        run_dir = out / f"{log_id_for(path)}-slam-{cfg.slam.method}-{stamp}"
+        run_dir = new_run_dir(out, log_id_for(path), f"slam-{cfg.slam.method}")
         try:
             r = run_log(path, cfg, run_dir, progress=True)
         except InputError as err:
             if len(logs) == 1:
                 raise
             failed.append((path, str(err)))
-            cells[(log_id_for(path), cfg.slam.method)] = Cell(None, str(err))
+            cells[(row_ids[path], cfg.slam.method)] = Cell(None, str(err))
             continue
         results.append((run_dir, r))
         m = r.metric(TABLE_METRIC[cfg.slam.table_trajectory])
-        cells[(r.log_id, cfg.slam.method)] = Cell(m.value if m else None, "" if m else "no ground truth")
-    _print_summary(results, cells, logs, cfg, json_out)
+        cells[(row_ids[path], cfg.slam.method)] = Cell(m.value if m else None, "" if m else "no ground truth")
+    _print_summary(results, cells, [row_ids[p] for p in logs], cfg, json_out)
     if failed:
         raise SomeInputsFailed("; ".join(f"{p}: {e}" for p, e in failed))
 
 
-def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str, str], Cell], logs: list[Path],
+def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str, str], Cell], rows: list[str],
                    cfg: Config, json_out: bool) -> None:
     from mrnc_eval.reports.tables import render_table
 
@@ -456,9 +500,9 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
         ape = ", ".join(apes) if apes else "n/a (no ground truth)"
         sys.stdout.write(f"{r.log_id}: APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
                          f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
-    if len(logs) > 1:
+    if len(rows) > 1:
         title = f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"
-        sys.stdout.write(render_table(table_one(cells, [log_id_for(p) for p in logs], [cfg.slam.method], title=title),
+        sys.stdout.write(render_table(table_one(cells, rows, [cfg.slam.method], title=title),
                                       "markdown"))
 
 

@@ -22,6 +22,7 @@ from mrnc_eval.io.trajectory_files import read_trajectory
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
 from mrnc_eval.results import atomic_write_text
 from mrnc_eval.tables import Table
+from mrnc_eval.text import printable
 
 log = logging.getLogger(__name__)
 STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
@@ -38,7 +39,8 @@ def _is_kitti(spec: str) -> bool:
 
 
 def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
-    return Table(title=title, row_labels=[r.name for r in results], column_labels=[*STAT_ORDER, "n", "span_s"],
+    return Table(title=title, row_labels=[printable(r.name) for r in results],  # file names: one line each
+                 column_labels=[*STAT_ORDER, "n", "span_s"],
                  cells=[[r.stats[k] for k in STAT_ORDER] + [r.n, round(r.span_s, 3)] for r in results],
                  unit=results[0].unit, best=None, precision=6)
 

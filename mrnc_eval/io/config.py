@@ -4,7 +4,8 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
-from mrnc_eval.params import param
+from mrnc_eval.io.validate import ValidationConfig
+from mrnc_eval.params import param, section
 
 
 @dataclass(frozen=True)
@@ -33,3 +34,4 @@ class IoConfig:
         "(a compressed log is decompressed once for them instead of once per series); 0 = off",
         "MB",
     )
+    validation: ValidationConfig = section(ValidationConfig, "stream validation at the reader boundary")

@@ -2,7 +2,9 @@
 
 Every library exception is turned into an InputError naming file, topic and problem at
 this boundary. Streams are sorted by header stamp; duplicate and out-of-order stamps are
-counted (StreamHealth), never silently passed on. Sweeps are streamed one at a time.
+counted (StreamHealth), never silently passed on. Every typed series is validated once here
+(io/validate.py: finite values, unit quaternions, plausible ranges): a few bad samples are
+dropped and noted, a stream with too many is refused. Sweeps are streamed one at a time.
 """
 
 from __future__ import annotations
@@ -20,13 +22,14 @@ import numpy as np
 
 from mrnc_eval import geodesy
 from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, StreamHealth, Sweep, Trajectory, Twists, Waypoints
-from mrnc_eval.errors import InputError
+from mrnc_eval.errors import InputError, NoGnssFix
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.containers import describe_error, detect_container
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import detect_roles
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
+from mrnc_eval.io.validate import bad_lat_lon, bad_quaternions, beyond, non_finite, normalised, screen
 
 _BULK_TYPES = {  # never kept in memory by the overview pass
     "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage",
@@ -326,13 +329,19 @@ class LogReader:
         # REP-145: orientation_covariance[0] = -1 (or an all-zero quaternion): no orientation
         has_orientation = bool(np.all(np.concatenate([b.orientation_cov0 for b in batches]) >= 0)
                                and not np.any(np.all(quat == 0.0, axis=1)))
-        keep, health = _sort_dedup(t, topic)
+        acc = np.concatenate([b.acc for b in batches])
+        gyro = np.concatenate([b.gyro for b in batches])
+        v = self.cfg.validation
+        checks = {"non-finite": non_finite(acc, gyro),
+                  "acceleration out of range": beyond(acc, v.max_abs_acceleration_mps2),
+                  "angular rate out of range": beyond(gyro, v.max_abs_angular_rate_rad_s)}
+        if has_orientation:
+            checks["orientation not a unit quaternion"] = bad_quaternions(quat, v.quat_norm_tolerance)
+        valid = self._screen(topic, checks)
+        keep, health = _sort_dedup(t[valid], topic)
         self._set_health(health)
-        acc = np.concatenate([b.acc for b in batches])[keep]
-        gyro = np.concatenate([b.gyro for b in batches])[keep]
-        if not (np.isfinite(acc).all() and np.isfinite(gyro).all()):
-            raise InputError(self.path, "IMU has non-finite values", topic=topic)
-        return ImuSeries(t[keep], acc, gyro, quat[keep] if has_orientation else None, batches[-1].frame_id)
+        quat_kept = normalised(quat[valid][keep]) if has_orientation else None
+        return ImuSeries(t[valid][keep], acc[valid][keep], gyro[valid][keep], quat_kept, batches[-1].frame_id)
 
     def _imu_batch_slow(self, raws: list[bytes], topic: str) -> ImuBatch:
         t, acc, gyro, quat, cov0, frame = [], [], [], [], [], ""
@@ -381,6 +390,26 @@ class LogReader:
             if skipped:
                 self._note(topic, f"{skipped} sweep(s) skipped: header stamp not after the previous sweep")
 
+    def _screen(self, topic: str, checks: dict[str, np.ndarray]) -> np.ndarray:
+        """The validation policy (io/validate.py): mask of valid samples; a note when some
+        were dropped; InputError when too many are bad."""
+        valid, note = screen(str(self.path), topic, checks, self.cfg.validation)
+        if note:
+            self._note(topic, note)
+        return valid
+
+    def health_notes(self) -> list[str]:
+        """One line per problem found in the streams read so far (dropped samples, sorted or
+        duplicate stamps, skipped sweeps), for a result's warnings."""
+        out = []
+        for topic, h in sorted(self._health.items()):
+            if h.out_of_order:
+                out.append(f"{topic}: {h.out_of_order} out-of-order stamp(s) in the log (sorted when read)")
+            if h.duplicates:
+                out.append(f"{topic}: {h.duplicates} duplicate stamp(s) dropped")
+            out += [f"{topic}: {n}" for n in h.notes]
+        return out
+
     def _set_health(self, health: StreamHealth) -> None:
         """Store a stream's counts, keeping notes made while reading it earlier."""
         from dataclasses import replace
@@ -421,7 +450,10 @@ class LogReader:
             cov.append(c)
             frame = m.header.frame_id
         if not t:
-            raise InputError(self.path, f"no valid GNSS fix ({no_fix} without fix)", topic=topic)
+            raise NoGnssFix(self.path, f"no valid GNSS fix ({no_fix} without fix)", topic=topic)
+        valid = self._screen(topic, {"impossible latitude/longitude/altitude":
+                                     bad_lat_lon(np.asarray(lla), self.cfg.validation.max_abs_altitude_m)})
+        t, lla, cov = list(np.asarray(t)[valid]), list(np.asarray(lla)[valid]), list(np.asarray(cov)[valid])
         keep, health = _sort_dedup(np.asarray(t), topic)
         self._set_health(health)
         if unknown_cov:
@@ -449,9 +481,15 @@ class LogReader:
             right.append(m.velocity[idx_r])
         if not t:
             raise InputError(self.path, "topic has no messages", topic=topic)
-        keep, health = _sort_dedup(np.asarray(t), topic)
+        lr = np.c_[np.asarray(left, float), np.asarray(right, float)] * scale
+        checks = {"non-finite": non_finite(lr)}
+        if unit == "m/s":
+            checks["speed out of range"] = beyond(lr, self.cfg.validation.max_abs_speed_mps)
+        valid = self._screen(topic, checks)
+        t_a, lr = np.asarray(t)[valid], lr[valid]
+        keep, health = _sort_dedup(t_a, topic)
         self._set_health(health)
-        return SidePair(np.asarray(t)[keep], np.asarray(left)[keep] * scale, np.asarray(right)[keep] * scale, unit)
+        return SidePair(t_a[keep], lr[keep, 0], lr[keep, 1], unit)
 
     def wheel_speeds(self, topic: str | None = None, wheel_radius_m: float = 0.35) -> SidePair:
         """Wheel surface speeds (m/s) from JointState angular velocities (rad/s)."""
@@ -469,8 +507,14 @@ class LogReader:
             t.append(_stamp(m) if hasattr(m, "header") else t_rec)  # plain Twist: record time
             v.append(tw.linear.x)
             w.append(tw.angular.z)
-        keep, _ = _sort_dedup(np.asarray(t), topic)
-        return Twists(np.asarray(t)[keep], np.asarray(v)[keep], np.asarray(w)[keep])
+        if not t:
+            raise InputError(self.path, "topic has no messages", topic=topic)
+        vw = np.c_[np.asarray(v, float), np.asarray(w, float)]
+        valid = self._screen(topic, {"non-finite": non_finite(vw),
+                                     "speed out of range": beyond(vw[:, :1], self.cfg.validation.max_abs_speed_mps)})
+        t_a, vw = np.asarray(t)[valid], vw[valid]
+        keep, _ = _sort_dedup(t_a, topic)
+        return Twists(t_a[keep], vw[keep, 0], vw[keep, 1])
 
     def waypoints(self, topic: str | None = None) -> Waypoints:
         topic = self._topic_for("path", topic)
@@ -480,6 +524,7 @@ class LogReader:
         if last is None or not len(last.poses):
             raise InputError(self.path, "path topic has no poses", topic=topic)
         xy = np.asarray([(p.pose.position.x, p.pose.position.y) for p in last.poses], float)
+        xy = xy[self._screen(topic, {"non-finite waypoint": non_finite(xy)})]
         return Waypoints(xy, _stamp(last), last.header.frame_id)
 
     def trajectory(self, topic: str) -> Trajectory:
@@ -509,10 +554,19 @@ class LogReader:
             frame = m.header.frame_id
         if not t:
             raise InputError(self.path, "pose topic has no messages", topic=topic)
-        keep, health = _sort_dedup(np.asarray(t), topic)
+        t_a, p_a, q_a = self._valid_poses(topic, t, p, q)
+        keep, health = _sort_dedup(t_a, topic)
         self._set_health(health)
-        return Trajectory(np.asarray(t)[keep], np.asarray(p, float)[keep], np.asarray(q, float)[keep],
-                          name=topic, frame_id=frame, child_frame_id=child)
+        return Trajectory(t_a[keep], p_a[keep], q_a[keep], name=topic, frame_id=frame, child_frame_id=child)
+
+    def _valid_poses(self, topic: str, t: list, p: list, q: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Poses with finite, plausible positions and unit quaternions (normalised)."""
+        p_a, q_a = np.asarray(p, float).reshape(-1, 3), np.asarray(q, float).reshape(-1, 4)
+        v = self.cfg.validation
+        valid = self._screen(topic, {"non-finite position": non_finite(p_a),
+                                     "position out of range": beyond(p_a, v.max_abs_position_m),
+                                     "orientation not a unit quaternion": bad_quaternions(q_a, v.quat_norm_tolerance)})
+        return np.asarray(t, float)[valid], p_a[valid], normalised(q_a[valid])
 
     def _tf_trajectory(self, spec: str) -> Trajectory:
         tf_topic, _, frames = spec.partition(":")
@@ -529,9 +583,9 @@ class LogReader:
                     q.append((r.x, r.y, r.z, r.w))
         if not t:
             raise InputError(self.path, f"no transform {parent} -> {child}", topic=tf_topic)
-        keep, _ = _sort_dedup(np.asarray(t), tf_topic)
-        return Trajectory(np.asarray(t)[keep], np.asarray(p)[keep], np.asarray(q)[keep], name=spec,
-                          frame_id=parent, child_frame_id=child)
+        t_a, p_a, q_a = self._valid_poses(tf_topic, t, p, q)
+        keep, _ = _sort_dedup(t_a, tf_topic)
+        return Trajectory(t_a[keep], p_a[keep], q_a[keep], name=spec, frame_id=parent, child_frame_id=child)
 
     def ground_truth(self, topic: str | None = None) -> Trajectory:
         return self.trajectory(self._topic_for("ground_truth", topic))
@@ -547,8 +601,13 @@ class LogReader:
         for m in self._messages(topic, ("tf2_msgs/msg/TFMessage",)):
             for tr in m.transforms:
                 v, r = tr.transform.translation, tr.transform.rotation
+                q = np.array([r.x, r.y, r.z, r.w], float)
+                if bad_quaternions(q, self.cfg.validation.quat_norm_tolerance)[0] or non_finite([[v.x, v.y, v.z]])[0]:
+                    raise InputError(self.path, f"static transform {tr.header.frame_id} -> {tr.child_frame_id}: "
+                                     f"translation {v.x, v.y, v.z} / rotation {tuple(q)} is not finite or not a "
+                                     "unit quaternion", topic=topic)
                 mat = np.eye(4)
-                mat[:3, :3] = _quat_to_matrix(np.array([r.x, r.y, r.z, r.w]))
+                mat[:3, :3] = _quat_to_matrix(q)
                 mat[:3, 3] = (v.x, v.y, v.z)
                 out[(tr.header.frame_id.lstrip("/"), tr.child_frame_id.lstrip("/"))] = mat
         return out

@@ -20,7 +20,7 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mrnc_eval.data import ImuSeries, Trajectory, Twists, Waypoints
-from mrnc_eval.errors import InputError
+from mrnc_eval.errors import InputError, OutputError
 from mrnc_eval.io import messages as M
 from mrnc_eval.io.typestore import typestore_for
 
@@ -183,7 +183,7 @@ class LogWriter:
         self._closed = True
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.path.exists():
-            shutil.rmtree(self.path) if self.path.is_dir() else self.path.unlink()
+            self._remove_previous_log()
         if self.ros1:
             src = self._inner_path
         elif self.path.suffix in (".mcap", ".db3"):
@@ -196,6 +196,19 @@ class LogWriter:
         shutil.move(str(src), self.path)
         shutil.rmtree(self._tmpdir, ignore_errors=True)
         return self.path
+
+    def _remove_previous_log(self) -> None:
+        """Replace only a log: a file, an empty folder, or a ROS 2 bag folder (metadata.yaml and
+        .mcap/.db3 files); a folder holding anything else is never deleted."""
+        if self.path.is_dir() and not self.path.is_symlink():
+            inside = list(self.path.iterdir())
+            if any(not p.is_file() or p.suffix not in (".mcap", ".db3", ".yaml") for p in inside):
+                raise OutputError(self.path, "folder holds files that are not a bag; not replaced")
+            for p in inside:
+                p.unlink()
+            self.path.rmdir()
+        else:
+            self.path.unlink()
 
     def abort(self) -> None:
         if not self._closed:

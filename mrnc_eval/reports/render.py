@@ -195,6 +195,8 @@ def write_pdf(html: str, path: Path) -> str:
             weasyprint.HTML(string=html).write_pdf(tmp)
             engine = "weasyprint"
         except (ImportError, OSError) as err:
+            if isinstance(err, OSError) and err.errno is not None:
+                raise  # a real file-system error (no space, permission), not a missing Pango library
             fallback_pdf(tmp, f"{type(err).__name__}: {err}")
             engine = "fallback"
         tmp.replace(path)

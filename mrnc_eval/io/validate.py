@@ -1,0 +1,99 @@
+"""Validation at the reader boundary: every stream is checked once, as it is read.
+
+Each check gives a boolean "bad" mask per sample (non-finite values, quaternions that are not
+unit norm, impossible latitudes, speeds or accelerations). The policy is the same for every
+stream: a few bad samples are dropped and counted (a health note, shown by `info` and in the
+result's warnings); when more than `max_bad_fraction` of a stream is bad, the stream is
+refused with an InputError naming the topic and the first problem. So a NaN never reaches a
+metric, and an all-NaN or all-zero-quaternion stream is an error, not a number.
+"""
+
+from __future__ import annotations
+
+from dataclasses import dataclass
+
+import numpy as np
+
+from mrnc_eval.errors import InputError
+from mrnc_eval.params import param
+
+
+@dataclass(frozen=True)
+class ValidationConfig:
+    max_bad_fraction: float = param(
+        0.05, "a stream with more bad samples than this fraction is refused; fewer are dropped and counted",
+        ge=0.0, le=1.0)
+    quat_norm_tolerance: float = param(
+        0.01, "a quaternion whose norm differs from 1 by more than this is invalid (kept ones are normalised)",
+        gt=0.0, le=0.5)
+    max_abs_acceleration_mps2: float = param(
+        400.0, "IMU linear acceleration beyond this (40 g, above any MEMS IMU range) is invalid", "m/s^2", gt=0.0)
+    max_abs_angular_rate_rad_s: float = param(
+        35.0, "IMU angular rate beyond this (2000 deg/s) is invalid", "rad/s", gt=0.0)
+    max_abs_speed_mps: float = param(
+        30.0, "wheel surface speeds, commanded speeds and odometry speeds beyond this are invalid", "m/s", gt=0.0)
+    max_abs_altitude_m: float = param(
+        20000.0, "GNSS altitudes beyond this are invalid", "m", gt=0.0)
+    max_abs_position_m: float = param(
+        1.0e7, "pose positions beyond this (further than the Earth's radius) are invalid", "m", gt=0.0)
+
+
+def non_finite(*arrays: np.ndarray) -> np.ndarray:
+    """Per-sample mask: any value of the sample's row is NaN or infinite."""
+    bad = np.zeros(len(arrays[0]), dtype=bool)
+    for a in arrays:
+        a = np.asarray(a, dtype=float)
+        bad |= ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
+    return bad
+
+
+def beyond(values: np.ndarray, limit: float) -> np.ndarray:
+    """Per-sample mask: some component's magnitude exceeds `limit` (NaN compares as not beyond)."""
+    a = np.abs(np.asarray(values, dtype=float))
+    with np.errstate(invalid="ignore"):
+        return (a.reshape(a.shape[0], -1) > limit).any(axis=1)
+
+
+def bad_quaternions(quat_xyzw: np.ndarray, tolerance: float) -> np.ndarray:
+    """Per-sample mask: non-finite, or a norm further than `tolerance` from 1 (all-zero ones)."""
+    q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
+    with np.errstate(invalid="ignore"):
+        norm = np.linalg.norm(q, axis=1)
+        return ~np.isfinite(q).all(axis=1) | ~(np.abs(norm - 1.0) <= tolerance)
+
+
+def normalised(quat_xyzw: np.ndarray) -> np.ndarray:
+    q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
+    return q / np.linalg.norm(q, axis=1, keepdims=True)
+
+
+def bad_lat_lon(lla: np.ndarray, max_abs_altitude_m: float) -> np.ndarray:
+    """Per-sample mask: latitude outside [-90, 90] deg, longitude outside [-180, 180] deg,
+    altitude beyond the limit, or any of them non-finite."""
+    a = np.asarray(lla, dtype=float).reshape(-1, 3)
+    with np.errstate(invalid="ignore"):
+        ok = (np.abs(a[:, 0]) <= 90.0) & (np.abs(a[:, 1]) <= 180.0) & (np.abs(a[:, 2]) <= max_abs_altitude_m)
+    return ~ok
+
+
+def screen(path: str, topic: str, checks: dict[str, np.ndarray], cfg: ValidationConfig) -> tuple[np.ndarray, str]:
+    """Apply the policy to named bad-sample masks. Returns (keep mask, health note or "").
+
+    Raises InputError when the stream is empty after screening or more than
+    `cfg.max_bad_fraction` of its samples are bad."""
+    n = len(next(iter(checks.values()))) if checks else 0
+    bad = np.zeros(n, dtype=bool)
+    counts: list[str] = []
+    for reason, mask in checks.items():
+        k = int(np.count_nonzero(mask & ~bad))
+        if k:
+            counts.append(f"{k} {reason}")
+        bad |= mask
+    n_bad = int(np.count_nonzero(bad))
+    if n_bad == 0:
+        return ~bad, ""
+    detail = ", ".join(counts)
+    if n_bad == n or n_bad > cfg.max_bad_fraction * n:
+        raise InputError(path, f"stream refused: {n_bad} of {n} samples invalid ({detail}); more than "
+                         f"io.validation.max_bad_fraction = {cfg.max_bad_fraction:g}", topic=topic)
+    return ~bad, f"{n_bad} of {n} samples dropped as invalid ({detail})"

@@ -1,0 +1,30 @@
+"""The one sanitiser for text that comes from log content or user input and is printed.
+
+`printable` makes one terminal line of any text (newlines, ANSI escapes and other control
+characters are shown escaped, so a topic name cannot forge or colour our output);
+`shorten` bounds how much of a value an error message shows (a hostile value may be huge).
+"""
+
+from __future__ import annotations
+
+import reprlib
+from typing import Any
+
+MAX_SHOWN = 200  # characters of a value shown in a message
+
+_repr = reprlib.Repr()
+_repr.maxlevel = 3  # bounded work, whatever the nesting (a YAML alias bomb)
+_repr.maxlist = _repr.maxtuple = _repr.maxdict = _repr.maxset = 6
+_repr.maxstring = _repr.maxother = MAX_SHOWN
+_repr.maxlong = 40
+
+
+def printable(text: str) -> str:
+    """One terminal line: control characters are shown escaped (\\n, \\x1b)."""
+    return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def shorten(value: Any, limit: int = MAX_SHOWN) -> str:
+    """A bounded, printable repr of `value` for error messages (at most ~`limit` characters)."""
+    text = printable(_repr.repr(value))
+    return text if len(text) <= limit else text[: limit - 3] + "..."
