@@ -292,8 +292,8 @@ def case_11_nightly_disk_full(ws: Workspace) -> Outcome:
 
 
 def case_11b_history_rollback(ws: Workspace) -> Outcome:
-    from mrnc_eval.history import History, LogRecord
     from mrnc_eval.errors import OutputError
+    from mrnc_eval.history import History, LogRecord
 
     history = History(ws.path("h", "history.sqlite"))
     real = history._connect

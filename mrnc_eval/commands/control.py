@@ -251,6 +251,7 @@ class _Recording:
     pose_source: str
     speeds: SidePair  # wheel surface speeds, m/s
     commands: SidePair | None  # pump commands, RPM
+    health_notes: tuple[str, ...] = ()  # samples dropped, stamps sorted while reading
 
 
 def _read_recording(log_path: Path, cfg: Config) -> _Recording:
@@ -265,12 +266,12 @@ def _read_recording(log_path: Path, cfg: Config) -> _Recording:
         pt, pxs, pys, pyaws, source = recorded_pose(lg, log_path)
         speeds = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m)
         cmds = lg.commands() if "commands" in roles else None
-        warnings += lg.health_notes()  # samples dropped, stamps sorted: said in the result
+        notes = tuple(lg.health_notes())  # samples dropped, stamps sorted: said in the result
     if wp.shape[0] < 2:
         raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles["path"])
     if speeds.stamps.size < 3:
         raise InputError(log_path, "too few wheel-speed messages to evaluate tracking", topic=roles["wheel_speeds"])
-    return _Recording(wp, (pt, pxs, pys, pyaws), source, speeds, cmds)
+    return _Recording(wp, (pt, pxs, pys, pyaws), source, speeds, cmds, notes)
 
 
 def _replay_references(t: np.ndarray, px: np.ndarray, py: np.ndarray, pyaw: np.ndarray, speeds: SidePair,
@@ -317,7 +318,7 @@ def replay(log_path: Path, cfg: Config) -> tuple[dict[str, ClosedLoopTrace], dic
     rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
     pump commands against them."""
     rec = _read_recording(log_path, cfg)
-    warnings: list[str] = []
+    warnings: list[str] = list(rec.health_notes)
     if rec.pose_source != "ground_truth":
         warnings.append(f"recorded pose from {rec.pose_source} (no ground truth): it must be in the frame of the path")
     if rec.commands is None:
