@@ -88,8 +88,8 @@ def rewrite_log(src: Path, dst: Path, edits: dict[str, Callable[[Any, int], Any]
     """Copy a log message by message, passing the messages of the edited topics (with their
     index) through `edits`: a log with one defect written in. The ground truth TUM follows."""
     from mrnc_eval.io import open_log
+    from mrnc_eval.io.ground_truth import gt_tum_path
     from mrnc_eval.io.writers import LogWriter
-    from mrnc_eval.sim.recorder import gt_tum_path
 
     counts: dict[str, int] = {}
     with open_log(src) as lg, LogWriter(dst, "mcap") as w:

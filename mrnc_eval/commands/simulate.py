@@ -17,8 +17,8 @@ def check_target(out: Path, *, force: bool) -> None:
     """Before any work: never replace what the user did not ask to replace. An existing target
     is refused unless --force, and --force replaces only a log this tool wrote (the simulator
     writes `<name>.gt.tum` beside every log; a recording, or a folder of anything else, has none)."""
+    from mrnc_eval.io.ground_truth import gt_tum_path
     from mrnc_eval.results import check_output_root
-    from mrnc_eval.sim.recorder import gt_tum_path
 
     if out.name in ("", ".", ".."):
         raise UsageError(f"{out}: give the log a file or folder name, e.g. {out / 'sim.mcap'}")
