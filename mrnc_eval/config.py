@@ -261,7 +261,10 @@ def load_yaml(text: str, where: str) -> Any:
     """Parse YAML text with the strict, bounded loader; every problem is a one-line ConfigError."""
     if len(text) > MAX_YAML_BYTES:
         raise ConfigError(f"{where}: YAML larger than {MAX_YAML_BYTES // 1000} kB")
-    loader = _StrictLoader(text)
+    try:
+        loader = _StrictLoader(text)  # the reader already rejects control characters
+    except yaml.YAMLError as err:
+        raise ConfigError(f"{where}: invalid YAML: {shorten(str(err), 300)}") from err
     try:
         node = loader.get_single_node()
         if node is None:

@@ -57,7 +57,7 @@ def beyond(values: np.ndarray, limit: float) -> np.ndarray:
 def bad_quaternions(quat_xyzw: np.ndarray, tolerance: float) -> np.ndarray:
     """Per-sample mask: non-finite, or a norm further than `tolerance` from 1 (all-zero ones)."""
     q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
-    with np.errstate(invalid="ignore"):
+    with np.errstate(invalid="ignore", over="ignore"):  # inf/NaN/huge components are what we look for
         norm = np.linalg.norm(q, axis=1)
         return ~np.isfinite(q).all(axis=1) | ~(np.abs(norm - 1.0) <= tolerance)
 
