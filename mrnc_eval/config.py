@@ -26,7 +26,7 @@ from typing import Any, Literal, TypeVar, get_args, get_origin
 import yaml
 
 from mrnc_eval.control.config import ControlConfig
-from mrnc_eval.errors import ConfigError
+from mrnc_eval.errors import ConfigError, InputError
 from mrnc_eval.evaluation.config import EvaluationConfig, GatesConfig
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.params import param, section
@@ -289,8 +289,8 @@ def load_yaml_file(path: str | Path, what: str = "config") -> Any:
         text = p.read_bytes().decode("utf-8")
     except UnicodeDecodeError as err:
         raise ConfigError(f"{p}: {what} file is not UTF-8 text (byte {err.start})") from err
-    except OSError as err:
-        raise ConfigError(f"{p}: cannot read {what}: {err.strerror or err}") from err
+    except OSError as err:  # a file that cannot be read is exit 4, like every unreadable input
+        raise InputError(p, f"cannot read {what} file: {err.strerror or err}") from err
     return load_yaml(text, str(p))
 
 

@@ -2,6 +2,7 @@
 
 `printable` makes one terminal line of any text (newlines, ANSI escapes and other control
 characters are shown escaped, so a topic name cannot forge or colour our output);
+`html_text` does the same for HTML reports (Jinja's autoescaping handles <, >, &);
 `shorten` bounds how much of a value an error message shows (a hostile value may be huge).
 """
 
@@ -22,6 +23,14 @@ _repr.maxlong = 40
 def printable(text: str) -> str:
     """One terminal line: control characters are shown escaped (\\n, \\x1b)."""
     return "".join(c if c.isprintable() else repr(c)[1:-1] for c in text)
+
+
+def html_text(value: Any) -> Any:
+    """For HTML (a Jinja `finalize`): control characters other than newline and tab shown
+    escaped, as on the terminal; markup we produced ourselves (Markup) and non-text untouched."""
+    if not isinstance(value, str) or hasattr(value, "__html__"):
+        return value
+    return "".join(c if c.isprintable() or c in "\n\t" else repr(c)[1:-1] for c in value)
 
 
 def shorten(value: Any, limit: int = MAX_SHOWN) -> str:

@@ -64,8 +64,11 @@ class Gate:
 def environment():
     from jinja2 import Environment, FileSystemLoader, StrictUndefined, select_autoescape
 
+    from mrnc_eval.text import html_text
+
+    # finalize: every value printed from log content loses its control characters (one sanitiser)
     return Environment(loader=FileSystemLoader(TEMPLATES), autoescape=select_autoescape(["html", "j2"]),
-                       undefined=StrictUndefined)
+                       undefined=StrictUndefined, finalize=html_text)
 
 
 def css() -> Markup:
