@@ -90,6 +90,9 @@ class MatchingConfig:
     max_iterations: int = param(30, "Gauss-Newton iterations")
     min_edges: int = param(10, "optimise only with at least this many edge features (edgeFeatureMinValidNum)")
     min_surfs: int = param(100, "... and planar features (surfFeatureMinValidNum)")
+    match_without_edges: bool = param(False, "with too few edges, still match the planes (LIO-SAM keeps the IMU guess "
+                                      "instead): on open ground the ground plane fixes z, roll and pitch, and the "
+                                      "degeneracy remapping holds x, y and yaw at the IMU guess")
     degeneracy_eigen_threshold: float = param(100.0, "eigenvalues of J^T J below this are degenerate directions")
     converge_rot_deg: float = param(0.05, "convergence: rotation update", "deg")
     converge_trans_cm: float = param(0.05, "convergence: translation update", "cm")

@@ -75,6 +75,7 @@ class _Trace:
     rel_to_kf: list[np.ndarray] = field(default_factory=list)
     degenerate: list[bool] = field(default_factory=list)
     online: list[np.ndarray] = field(default_factory=list)  # the pose as estimated when the sweep was processed
+    measured: list[bool] = field(default_factory=list)  # scan-to-map ran and was not degenerate
 
 
 @dataclass
@@ -153,6 +154,7 @@ class _Replay:
             pose = _imu_attitude_blend(res.pose, self.imu, self.extr, stamp, self.cfg)
             self.events += _match_events(res, stamp, self.cfg)
         degenerate = bool(res is not None and res.degenerate)
+        self.trace.measured.append(bool(res is not None and res.optimised and not res.degenerate))
         if self.odom is not None:
             why = self.odom.add_lidar_pose(pose, stamp, degenerate)
             if why:
@@ -239,7 +241,7 @@ class _Replay:
         online = np.array(tr.online) if tr.online else np.zeros((0, 4, 4))
         offset = None
         if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
-            offset = estimate_imu_time_offset(stamps, online[:, :3, :3], self.track)
+            offset = estimate_imu_time_offset(stamps, online[:, :3, :3], self.track, np.asarray(tr.measured, bool))
         return SlamOutput(stamps, poses, np.asarray(self.graph.stamps), kf_poses, map_points,
                           self.timing, self.events, self.warnings, n_sweeps, time.perf_counter() - wall0,
                           self.odom.bias_vector if self.odom is not None else None,

@@ -178,17 +178,21 @@ def _terms(q: np.ndarray, origin: np.ndarray, corr: _Correspondences, T: np.ndar
 def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray,
           cfg: MatchingConfig) -> MatchResult:
     """Refine `guess` (4x4) so the sweep's features lie on the map's lines and planes."""
-    if (len(edges) < cfg.min_edges or len(surfs) < cfg.min_surfs or local_map.surf_tree is None
-            or local_map.edge_tree is None):
+    use_edges = len(edges) >= cfg.min_edges and local_map.edge_tree is not None
+    if (len(surfs) < cfg.min_surfs or local_map.surf_tree is None
+            or (not use_edges and not cfg.match_without_edges)):
         return MatchResult(guess, 0, False, False, float("nan"), len(edges), len(surfs), False)
     T = guess.copy()
     P = np.eye(6)
     degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
     weakest: tuple[float, ...] = ()
-    edge_corr = _Correspondences(local_map.edge_tree, local_map.edges, cfg.max_nn_sq_dist_m2, cfg.requery_motion_m)
+    edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, cfg.max_nn_sq_dist_m2, cfg.requery_motion_m)
+                 if use_edges and local_map.edge_tree is not None else None)
     surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, cfg.max_nn_sq_dist_m2, cfg.requery_motion_m)
     for it in range(1, cfg.max_iterations + 1):
-        Je, re = _terms(se3.apply(T, edges), T[:3, 3], edge_corr, T, "edge", 0.0)
+        Je, re = np.zeros((0, 6)), np.zeros(0)
+        if edge_corr is not None:
+            Je, re = _terms(se3.apply(T, edges), T[:3, 3], edge_corr, T, "edge", 0.0)
         Js, rs = _terms(se3.apply(T, surfs), T[:3, 3], surf_corr, T, "plane", cfg.plane_max_offset_m)
         J, r = np.r_[Je, Js], np.r_[re, rs]
         if r.size < cfg.min_correspondences:

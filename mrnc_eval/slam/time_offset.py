@@ -37,29 +37,37 @@ def _imu_rates(t_imu: np.ndarray, integral: np.ndarray, t0: np.ndarray, t1: np.n
     return np.asarray((at(t1) - at(t0)) / (t1 - t0)[:, None], np.float64)
 
 
-def _cost(offset: float, stamps: np.ndarray, lidar: np.ndarray, t_imu: np.ndarray, integral: np.ndarray) -> float:
+def _cost(offset: float, t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t_imu: np.ndarray,
+          integral: np.ndarray) -> float:
     """Mean squared rate difference after removing the mean difference (a constant gyro bias)."""
-    diff = _imu_rates(t_imu, integral, stamps[:-1] + offset, stamps[1:] + offset) - lidar
+    diff = _imu_rates(t_imu, integral, t0 + offset, t1 + offset) - lidar
     diff -= diff.mean(axis=0)
     return float(np.mean(np.sum(diff * diff, axis=1)))
 
 
-def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack) -> float | None:
+def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
+                             measured: np.ndarray | None = None) -> float | None:
     """Offset (s) minimising the rate mismatch on a 0.5 ms grid within +/-0.1 s, refined by a
     parabola through the best grid point and its neighbours. None when fewer than 10 sweep
     intervals lie inside the IMU span, the mapped sweeps are more than MAX_INTERVAL_S apart (a
     throttled log: 1 s rotation increments do not time a few ms), or the motion has no rotation
-    to correlate."""
+    to correlate. `measured` (per sweep) marks poses the LiDAR determined (scan-to-map ran and was
+    not degenerate): an interval counts only when both ends are, since a kept IMU guess would
+    compare the gyro with itself."""
     inside = (stamps - SEARCH_S >= track.stamps[0]) & (stamps + SEARCH_S <= track.stamps[-1])
-    stamps, rotations = stamps[inside], rotations[inside]
-    if stamps.size < 11 or float(np.median(np.diff(stamps))) > MAX_INTERVAL_S:
+    ok = inside if measured is None else inside & np.asarray(measured, bool)
+    if stamps.size < 2 or float(np.median(np.diff(stamps[inside] if inside.any() else stamps))) > MAX_INTERVAL_S:
         return None
-    lidar = lidar_angular_rates(stamps, rotations)
+    pair = ok[:-1] & ok[1:]
+    if pair.sum() < 10:
+        return None
+    lidar = lidar_angular_rates(stamps, rotations)[pair]
+    t0, t1 = stamps[:-1][pair], stamps[1:][pair]
     if float(np.std(lidar, axis=0).max()) < 1e-3:  # rad/s: nothing to correlate
         return None
     t_imu, integral = _gyro_integral(track)
     grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
-    cost = np.array([_cost(o, stamps, lidar, t_imu, integral) for o in grid])
+    cost = np.array([_cost(o, t0, t1, lidar, t_imu, integral) for o in grid])
     k = int(np.argmin(cost))
     if k == 0 or k == grid.size - 1:
         return float(grid[k])

@@ -136,3 +136,32 @@ def test_time_offset_is_not_estimated_from_throttled_sweeps() -> None:
     stamps = np.arange(1.0, 59.0, 1.0)
     rotations = Rotation.from_euler("xyz", _rocking(stamps)).as_matrix()
     assert estimate_imu_time_offset(stamps, rotations, track) is None
+
+
+def test_time_offset_ignores_poses_that_were_only_the_imu_guess() -> None:
+    """Sweeps where scan-to-map did not run (or was degenerate) carry the IMU's own prediction:
+    compared with the gyro they would say "no offset". Marked as not measured, they are left out
+    and the 8 ms lag is still found; counted in, they drag the estimate towards 0 (negative control)."""
+    from scipy.spatial.transform import Rotation
+
+    from mrnc_eval.data import ImuSeries
+    from mrnc_eval.slam.imu import imu_track
+    from mrnc_eval.slam.time_offset import estimate_imu_time_offset
+
+    lag = 0.008
+    t = np.arange(0.0, 60.0, 0.01)
+    h = 1e-4
+    rate = (Rotation.from_euler("xyz", _rocking(t - h)).inv()
+            * Rotation.from_euler("xyz", _rocking(t + h))).as_rotvec() / (2 * h)
+    track = imu_track(ImuSeries(t + lag, np.tile([0.0, 0.0, 9.81], (t.size, 1)), rate), np.eye(3))
+    stamps = np.arange(1.0, 59.0, 0.15)
+    measured = (np.arange(stamps.size) // 20) % 2 == 0  # alternating stretches of 20 sweeps
+    truth = Rotation.from_euler("xyz", _rocking(stamps))
+    guess = Rotation.from_euler("xyz", _rocking(stamps - lag))  # what the lagged IMU would predict
+    rotations = np.where(measured[:, None, None], truth.as_matrix(), guess.as_matrix())
+    with_mask = estimate_imu_time_offset(stamps, rotations, track, measured)
+    without_mask = estimate_imu_time_offset(stamps, rotations, track)
+    assert with_mask is not None
+    assert without_mask is not None
+    assert abs(with_mask - lag) < 1e-3
+    assert abs(without_mask - lag) > 2e-3
