@@ -103,12 +103,14 @@ def write_slam(out: JsonMcap, result: RunResult, files: SlamFiles) -> int:
         write_trajectory(out, f"{topic}/online", files.online, "map")
     t0_s = float(files.trajectory.stamps[0])
     t0 = stamp_ns(t0_s)
-    if "ape_t" in result.series and "ape_err_m" in result.series:
-        schema = S.scalars("mrnc_eval.ApeError", {"ape_m": "position error after SE(3) alignment to the ground "
-                                                  "truth, m"})
-        for t, e in zip(result.series["ape_t"], result.series["ape_err_m"], strict=True):
+    schema = S.scalars("mrnc_eval.ApeError", {"ape_m": "position error after SE(3) alignment to the ground "
+                                              "truth, m"})
+    for sub, prefix in (("", "ape"), ("/online", "ape_online")):  # smoothed and online estimates
+        if f"{prefix}_t" not in result.series or f"{prefix}_err_m" not in result.series:
+            continue
+        for t, e in zip(result.series[f"{prefix}_t"], result.series[f"{prefix}_err_m"], strict=True):
             t_ns = stamp_ns(t0_s + float(t))
-            out.write(f"{topic}/ape", schema, t_ns, clean({"timestamp": time_of(t_ns), "ape_m": float(e)}))
+            out.write(f"{topic}{sub}/ape", schema, t_ns, clean({"timestamp": time_of(t_ns), "ape_m": float(e)}))
     written = 0
     if files.map_xyz is not None and files.map_xyz.size:
         cloud = downsample(files.map_xyz)

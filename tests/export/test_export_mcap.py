@@ -52,6 +52,9 @@ def test_schema_names_counts_and_encodings(exported: Path, sim_runs: Runs) -> No
     assert counts["/eval/slam/lio/pose"] == len(traj)
     assert counts["/eval/slam/lio/path"] == 1
     assert counts["/eval/slam/lio/ape"] == slam.series["ape_err_m"].size
+    if (sim_runs.slam / "trajectory_online.tum").exists():  # written since issue 16
+        assert counts["/eval/slam/lio/online/pose"] == len(read_tum(sim_runs.slam / "trajectory_online.tum"))
+        assert counts["/eval/slam/lio/online/ape"] == slam.series["ape_online_err_m"].size
     assert counts["/eval/ground_truth/pose"] == n_gt
     assert counts["/eval/slam/lio/map"] == 1
     assert counts["/eval/slam/lio/keyframes"] == len(read_tum(sim_runs.slam / "keyframes.tum"))
