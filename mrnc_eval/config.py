@@ -224,7 +224,7 @@ MAX_YAML_BYTES = 1_000_000  # a configuration is a few kB; anything this big is 
 MAX_YAML_NODES = 100_000  # nodes after alias expansion (a "billion laughs" file is rejected, not expanded)
 
 
-class _StrictLoader(yaml.SafeLoader):
+class _StrictLoader(yaml.SafeLoader):  # type: ignore[misc]  # PyYAML ships no types here
     """Safe loader that rejects duplicate keys (the second would silently win)."""
 
     def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:

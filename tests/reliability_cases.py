@@ -23,7 +23,7 @@ import subprocess
 import sys
 import tempfile
 from collections.abc import Callable, Iterator
-from dataclasses import dataclass, replace
+from dataclasses import dataclass, field, replace
 from pathlib import Path
 from typing import Any
 from unittest import mock
@@ -41,6 +41,7 @@ class Outcome:
     expected: int
     harm_avoided: bool  # the data, the number or the line the issue was about is right
     detail: str = ""
+    parts: list[tuple[str, int, bool]] = field(default_factory=list)  # (sub-case, exit, right) for item 18
 
     @property
     def ok(self) -> bool:
@@ -552,6 +553,11 @@ def _late_stamp(msg: Any, k: int) -> Any:
     return msg
 
 
+def _with(context: Any, run: Callable[[], Run]) -> Run:
+    with context:
+        return run()
+
+
 def case_18_weak_spots(ws: Workspace) -> Outcome:
     """info on NaN IMU samples and on all-zero clouds; reversed stamps noted in the result;
     an empty log folder; duplicate YAML keys and negative voxel sizes; a newline in a file name."""
@@ -562,6 +568,15 @@ def case_18_weak_spots(ws: Workspace) -> Outcome:
     dup.write_text("robot:\n  mass_kg: 1000\n  mass_kg: 2000\n")
     empty = ws.path("empty")
     empty.mkdir()
+    locked_logs = ws.path("locked_logs")
+    (locked_logs / "locked").mkdir(parents=True)
+    shutil.copy(ws.sim_log, locked_logs / "s.mcap")
+    real_scandir = os.scandir
+
+    def scandir(path: Any = ".") -> Any:  # as if `locked` were mode 000 (root reads anything)
+        if Path(path).name == "locked":
+            raise PermissionError(errno.EACCES, "Permission denied", str(path))
+        return real_scandir(path)
     newline_tum = ws.path("est\nfake row.tum")
     gt_tum = ws.sim_log.with_name("s.gt.tum")
     shutil.copy(gt_tum, newline_tum)
@@ -570,6 +585,8 @@ def case_18_weak_spots(ws: Workspace) -> Outcome:
         "info zero cloud": cli("info", zero_cloud, "--json"),
         "replay swapped stamps": cli("control", swapped, "--mode", "replay", "--out", ws.path("R"), "--json"),
         "empty log folder": cli("nightly", empty, "--out", ws.path("N")),
+        "unreadable folder": _with(mock.patch("os.scandir", scandir), lambda: cli(
+            "nightly", locked_logs, "--out", ws.path("N2"), "--jobs", 1, "--no-pdf", "--since", "2100-01-01")),
         "duplicate key": cli("config", "--config", dup),
         "negative voxel": cli("config", "--set", "slam.matching.surf_leaf_m=-0.4"),
         "newline file name": cli("ape", gt_tum, newline_tum),
@@ -583,6 +600,7 @@ def case_18_weak_spots(ws: Workspace) -> Outcome:
                                for f in info_cloud["findings"]),
         "replay swapped stamps": any("out-of-order" in w for w in replay["warnings"]),
         "empty log folder": checks["empty log folder"].code == 4,
+        "unreadable folder": checks["unreadable folder"].code == 3 and "locked" in checks["unreadable folder"].err,
         "duplicate key": checks["duplicate key"].code == 2 and "duplicate key" in checks["duplicate key"].err,
         "negative voxel": checks["negative voxel"].code == 2,
         "newline file name": checks["newline file name"].code == 0
@@ -591,7 +609,8 @@ def case_18_weak_spots(ws: Workspace) -> Outcome:
     codes = {k: r.code for k, r in checks.items()}
     return Outcome("18", _cmd("info / control / nightly EMPTY / config DUP / ape 'est\\nfake row.tum'"),
                    max(codes.values()), 4, all(good.values()),
-                   ", ".join(f"{k}: exit {codes[k]}{'' if good[k] else ' (WRONG)'}" for k in checks))
+                   ", ".join(f"{k}: exit {codes[k]}{'' if good[k] else ' (WRONG)'}" for k in checks),
+                   [(k, codes[k], good[k]) for k in checks])
 
 
 CASES: list[Callable[[Workspace], Outcome]] = [
@@ -614,16 +633,19 @@ def run_all() -> list[Outcome]:
         for k, case in enumerate(CASES):
             root = base / f"case{k:02d}"
             root.mkdir()
-            outcomes.append(case(Workspace(root, sim_log)))
+            o = case(Workspace(root, sim_log))
+            outcomes.append(replace(o, detail=o.detail.replace(str(root), "TMP").replace(str(base), "TMP")))
         return outcomes
 
 
 def markdown(outcomes: list[Outcome]) -> str:
     rows = ["| # | command | exit | expected | harm avoided | detail |", "|---|---|---|---|---|---|"]
     for o in outcomes:
-        detail = o.detail.replace("|", "/").replace("\n", " ")[:160]
-        rows.append(f"| {o.case} | `{o.command}` | {o.code} | {o.expected} | {'yes' if o.harm_avoided else 'NO'} "
-                    f"| {detail} |")
+        detail = o.detail.replace("|", "/").replace("\n", " ")[:170]
+        rows.append(f"| {o.case} | `{o.command.replace('|', '/')}` | {o.code} | {o.expected} | "
+                    f"{'yes' if o.harm_avoided else 'NO'} | {detail} |")
+        rows += [f"| {o.case}.{k + 1} | {name} | {code} | | {'yes' if right else 'NO'} | |"
+                 for k, (name, code, right) in enumerate(o.parts)]
     return "\n".join(rows) + "\n"
 
 

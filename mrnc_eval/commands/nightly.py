@@ -100,8 +100,25 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     if not logs and since_date is None:  # a wrong folder, not a quiet night
         raise InputError(log_dir, "no logs found (.mcap, .db3 or .bag files, ROS 2 bag folders)")
     check_output_root(out, need_bytes=NIGHTLY_OUTPUT_BYTES * max(1, len(logs)))
+    skipped = unreadable_folders(log_dir)
+    for folder in skipped:
+        log.error("%s: cannot read this folder; any log in it was skipped", folder)
     with _exclusive(out / ".nightly.lock"):
         _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis, junit)
+    if skipped:  # reported, never silently left out of the night
+        raise SomeInputsFailed(f"{len(skipped)} folder(s) of {log_dir} could not be read: "
+                               + ", ".join(shorten(str(f), 120) for f in skipped[:5]))
+
+
+def unreadable_folders(root: Path) -> list[str]:
+    """Folders under `root` (hidden ones aside) that cannot be listed: discovery skips them
+    silently (Path.rglob ignores permission errors), so the night must say so."""
+    import os
+
+    problems: list[str] = []
+    for _dirpath, dirnames, _files in os.walk(root, onerror=lambda err: problems.append(str(err.filename))):
+        dirnames[:] = [d for d in dirnames if not d.startswith(".")]
+    return problems
 
 
 @contextmanager

@@ -29,7 +29,7 @@ from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import detect_roles
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
-from mrnc_eval.io.validate import bad_lat_lon, bad_quaternions, beyond, non_finite, normalised, screen
+from mrnc_eval.io.validate import Mask, bad_lat_lon, bad_quaternions, beyond, non_finite, normalised, screen
 
 _BULK_TYPES = {  # never kept in memory by the overview pass
     "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage",
@@ -390,7 +390,7 @@ class LogReader:
             if skipped:
                 self._note(topic, f"{skipped} sweep(s) skipped: header stamp not after the previous sweep")
 
-    def _screen(self, topic: str, checks: dict[str, np.ndarray]) -> np.ndarray:
+    def _screen(self, topic: str, checks: dict[str, Mask]) -> Mask:
         """The validation policy (io/validate.py): mask of valid samples; a note when some
         were dropped; InputError when too many are bad."""
         valid, note = screen(str(self.path), topic, checks, self.cfg.validation)
@@ -559,7 +559,8 @@ class LogReader:
         self._set_health(health)
         return Trajectory(t_a[keep], p_a[keep], q_a[keep], name=topic, frame_id=frame, child_frame_id=child)
 
-    def _valid_poses(self, topic: str, t: list, p: list, q: list) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _valid_poses(self, topic: str, t: list[float], p: list[tuple[float, float, float]],
+                     q: list[tuple[float, float, float, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Poses with finite, plausible positions and unit quaternions (normalised)."""
         p_a, q_a = np.asarray(p, float).reshape(-1, 3), np.asarray(q, float).reshape(-1, 4)
         v = self.cfg.validation
@@ -602,7 +603,8 @@ class LogReader:
             for tr in m.transforms:
                 v, r = tr.transform.translation, tr.transform.rotation
                 q = np.array([r.x, r.y, r.z, r.w], float)
-                if bad_quaternions(q, self.cfg.validation.quat_norm_tolerance)[0] or non_finite([[v.x, v.y, v.z]])[0]:
+                xyz = np.array([[v.x, v.y, v.z]], float)
+                if bad_quaternions(q, self.cfg.validation.quat_norm_tolerance)[0] or non_finite(xyz)[0]:
                     raise InputError(self.path, f"static transform {tr.header.frame_id} -> {tr.child_frame_id}: "
                                      f"translation {v.x, v.y, v.z} / rotation {tuple(q)} is not finite or not a "
                                      "unit quaternion", topic=topic)

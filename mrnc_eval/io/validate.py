@@ -13,6 +13,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+import numpy.typing as npt
 
 from mrnc_eval.errors import InputError
 from mrnc_eval.params import param
@@ -38,45 +39,49 @@ class ValidationConfig:
         1.0e7, "pose positions beyond this (further than the Earth's radius) are invalid", "m", gt=0.0)
 
 
-def non_finite(*arrays: np.ndarray) -> np.ndarray:
+Mask = npt.NDArray[np.bool_]  # one flag per sample
+Floats = npt.NDArray[np.float64]
+
+
+def non_finite(*arrays: npt.ArrayLike) -> Mask:
     """Per-sample mask: any value of the sample's row is NaN or infinite."""
-    bad = np.zeros(len(arrays[0]), dtype=bool)
-    for a in arrays:
-        a = np.asarray(a, dtype=float)
+    rows = [np.asarray(a, dtype=float) for a in arrays]
+    bad = np.zeros(rows[0].shape[0], dtype=bool)
+    for a in rows:
         bad |= ~np.isfinite(a.reshape(a.shape[0], -1)).all(axis=1)
     return bad
 
 
-def beyond(values: np.ndarray, limit: float) -> np.ndarray:
+def beyond(values: npt.ArrayLike, limit: float) -> Mask:
     """Per-sample mask: some component's magnitude exceeds `limit` (NaN compares as not beyond)."""
     a = np.abs(np.asarray(values, dtype=float))
     with np.errstate(invalid="ignore"):
-        return (a.reshape(a.shape[0], -1) > limit).any(axis=1)
+        return np.asarray((a.reshape(a.shape[0], -1) > limit).any(axis=1), dtype=bool)
 
 
-def bad_quaternions(quat_xyzw: np.ndarray, tolerance: float) -> np.ndarray:
+def bad_quaternions(quat_xyzw: npt.ArrayLike, tolerance: float) -> Mask:
     """Per-sample mask: non-finite, or a norm further than `tolerance` from 1 (all-zero ones)."""
     q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
     with np.errstate(invalid="ignore", over="ignore"):  # inf/NaN/huge components are what we look for
         norm = np.linalg.norm(q, axis=1)
-        return ~np.isfinite(q).all(axis=1) | ~(np.abs(norm - 1.0) <= tolerance)
+        return np.asarray(~np.isfinite(q).all(axis=1) | ~(np.abs(norm - 1.0) <= tolerance), dtype=bool)
 
 
-def normalised(quat_xyzw: np.ndarray) -> np.ndarray:
+def normalised(quat_xyzw: npt.ArrayLike) -> Floats:
     q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
-    return q / np.linalg.norm(q, axis=1, keepdims=True)
+    return np.asarray(q / np.linalg.norm(q, axis=1, keepdims=True), dtype=float)
 
 
-def bad_lat_lon(lla: np.ndarray, max_abs_altitude_m: float) -> np.ndarray:
+def bad_lat_lon(lla: npt.ArrayLike, max_abs_altitude_m: float) -> Mask:
     """Per-sample mask: latitude outside [-90, 90] deg, longitude outside [-180, 180] deg,
     altitude beyond the limit, or any of them non-finite."""
     a = np.asarray(lla, dtype=float).reshape(-1, 3)
     with np.errstate(invalid="ignore"):
         ok = (np.abs(a[:, 0]) <= 90.0) & (np.abs(a[:, 1]) <= 180.0) & (np.abs(a[:, 2]) <= max_abs_altitude_m)
-    return ~ok
+    return np.asarray(~ok, dtype=bool)
 
 
-def screen(path: str, topic: str, checks: dict[str, np.ndarray], cfg: ValidationConfig) -> tuple[np.ndarray, str]:
+def screen(path: str, topic: str, checks: dict[str, Mask], cfg: ValidationConfig) -> tuple[Mask, str]:
     """Apply the policy to named bad-sample masks. Returns (keep mask, health note or "").
 
     Raises InputError when the stream is empty after screening or more than
