@@ -22,7 +22,7 @@ from __future__ import annotations
 import math
 
 from mrnc_eval.control.config import ControlConfig
-from mrnc_eval.control.jit_cache import FloatArray, kernel
+from mrnc_eval.control.jit_cache import FloatArray, kernel, pack_slots
 
 # law state slots
 _PHI, _U_PREV, _Y_PREV, _DU_PREV, _INIT, _PHI_1, _PHI_2, _TH0, _TH1, _TH2, _FB = range(11)
@@ -78,7 +78,13 @@ def mfapc_step(state: FloatArray, phi1: float, eta: float, mu: float, rho: float
     return fb * unit
 
 
+# slots of the MFAPC parameters after the common head of the controller vector (controllers.P_LAW)
+(APC_PHI1, APC_ETA, APC_MU, APC_RHO, APC_LAM, APC_EPS, APC_UNIT, APC_N_PRED, APC_AR_DELTA, APC_AR_THETA_MAX,
+ APC_PERIOD) = range(11)
+
+
 def apc_params(cfg: ControlConfig) -> list[float]:
     c = cfg.apc
-    return [c.phi1, c.eta, c.mu, c.rho, c.lam, c.eps, c.rpm_per_unit, float(c.n_pred), c.ar_delta, c.ar_theta_max,
-            1.0 / c.rate_hz]
+    return pack_slots({APC_PHI1: c.phi1, APC_ETA: c.eta, APC_MU: c.mu, APC_RHO: c.rho, APC_LAM: c.lam,
+                       APC_EPS: c.eps, APC_UNIT: c.rpm_per_unit, APC_N_PRED: c.n_pred, APC_AR_DELTA: c.ar_delta,
+                       APC_AR_THETA_MAX: c.ar_theta_max, APC_PERIOD: 1.0 / c.rate_hz})

@@ -23,7 +23,7 @@ from mrnc_eval.control.controllers import (
 )
 from mrnc_eval.control.jit_cache import FloatArray, kernel
 from mrnc_eval.control.kinematics import inverse_kinematics, slew
-from mrnc_eval.control.plant import body_step_trig, drive_step, patches_array, slip_at
+from mrnc_eval.control.plant import body_step_trig, drive_step, leaky_gain, patches_array, slip_at
 from mrnc_eval.control.pure_pursuit import pp_step, pure_pursuit_params
 from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.scenario import Scenario, waypoint_scenario
@@ -42,8 +42,8 @@ CONTROLLER_ID_RAID = CONTROLLER_ID["raid"]
 
 # Plant parameter vector (per side where the drive may differ), see `plant_params`.
 (PL_GAIN_L, PL_GAIN_R, PL_TAU_L, PL_TAU_R, PL_DELAY_L, PL_DELAY_R, PL_DZ_L, PL_DZ_R, PL_CHI, PL_NOISE,
- PL_TRACK) = range(11)
-PL_SIZE = 11
+ PL_TRACK, PL_LEAK_L, PL_LEAK_R, PL_U_MAX) = range(14)
+PL_SIZE = 14
 
 # Run settings of the compiled loop (counts stored as floats), see `run_closed_loop`.
 (RUN_DT, RUN_STEPS, RUN_PP_EVERY, RUN_RECORD_EVERY, RUN_LINGER, RUN_X0, RUN_Y0, RUN_YAW0, RUN_ACCEL_LIMIT,
@@ -95,6 +95,8 @@ def plant_params(cfg: ControlConfig, robot: RobotGeometry, dt: float) -> FloatAr
     p[PL_TAU_L], p[PL_TAU_R] = pl.left.tau_s, pl.right.tau_s
     p[PL_DELAY_L], p[PL_DELAY_R] = int(round(pl.left.delay_s / dt)), int(round(pl.right.delay_s / dt))
     p[PL_DZ_L], p[PL_DZ_R] = pl.left.dead_band_rpm, pl.right.dead_band_rpm
+    p[PL_LEAK_L], p[PL_LEAK_R] = pl.left.leakage_at_limit, pl.right.leakage_at_limit
+    p[PL_U_MAX] = cfg.actuator.u_max_rpm
     p[PL_CHI] = pl.icr_expansion
     p[PL_NOISE] = pl.speed_noise_mps
     p[PL_TRACK] = robot.track_width_m
@@ -203,8 +205,10 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
         buf_l[slot_l], buf_r[slot_r] = u_l, u_r
         s_l = slip_at(x - half * sy, y + half * cy, patches)
         s_r = slip_at(x + half * sy, y - half * cy, patches)
-        vw_l = drive_step(vw_l, ul_del, s_l, plant[PL_GAIN_L], a_l, plant[PL_DZ_L])
-        vw_r = drive_step(vw_r, ur_del, s_r, plant[PL_GAIN_R], a_r, plant[PL_DZ_R])
+        vw_l = drive_step(vw_l, ul_del, s_l, leaky_gain(plant[PL_GAIN_L], plant[PL_LEAK_L], ul_del, plant[PL_U_MAX]),
+                          a_l, plant[PL_DZ_L])
+        vw_r = drive_step(vw_r, ur_del, s_r, leaky_gain(plant[PL_GAIN_R], plant[PL_LEAK_R], ur_del, plant[PL_U_MAX]),
+                          a_r, plant[PL_DZ_R])
         x, y, yaw, v_body, w_body, cy, sy = body_step_trig(x, y, yaw, cy, sy, (1.0 - s_l) * vw_l,
                                                            (1.0 - s_r) * vw_r, track * plant[PL_CHI], dt)
         if k % record_every == 0:

@@ -151,6 +151,10 @@ class DriveConfig:
     tau_s: float = param(0.4, "first-order lag of the hydraulic drive (estimate)", "s")
     delay_s: float = param(0.04, "transport delay", "s")
     dead_band_rpm: float = param(60.0, "pump dead band (unknown to the feed-forward)", "RPM")
+    leakage_at_limit: float = param(
+        0.0, "pressure-dependent leakage: the gain falls linearly with the delayed command, K_eff = K (1 - "
+        "leakage_at_limit min(|u| / u_max, 1)); 0 = off (the default plant), 0.05 = 5 % less speed per RPM at "
+        "the 1250 RPM limit")
 
 
 @dataclass(frozen=True)

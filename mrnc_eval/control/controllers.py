@@ -13,12 +13,47 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrnc_eval.control.apc import apc_params, mfapc_step
+from mrnc_eval.control.apc import (
+    APC_AR_DELTA,
+    APC_AR_THETA_MAX,
+    APC_EPS,
+    APC_ETA,
+    APC_LAM,
+    APC_MU,
+    APC_N_PRED,
+    APC_PERIOD,
+    APC_PHI1,
+    APC_RHO,
+    APC_UNIT,
+    apc_params,
+    mfapc_step,
+)
 from mrnc_eval.control.config import ControlConfig
-from mrnc_eval.control.foptc import foptc_params, foptc_step
-from mrnc_eval.control.jit_cache import FloatArray, kernel
-from mrnc_eval.control.pid import pid_params, pid_step
-from mrnc_eval.control.raid import funnel, raid_params, raid_step, rbf_centres
+from mrnc_eval.control.foptc import (
+    FOPTC_ANTI_WINDUP,
+    FOPTC_C_H,
+    FOPTC_FREEZE,
+    FOPTC_HORIZON,
+    FOPTC_K0,
+    FOPTC_K_HAT,
+    FOPTC_KI,
+    FOPTC_TAU_HAT,
+    foptc_params,
+    foptc_step,
+)
+from mrnc_eval.control.jit_cache import FloatArray, kernel, pack_slots
+from mrnc_eval.control.pid import PID_KD, PID_KI, PID_KP, PID_MODE, PID_TT, pid_params, pid_step
+from mrnc_eval.control.raid import (
+    RAID_BETA,
+    RAID_GAMMA,
+    RAID_KAPPA,
+    RAID_PHI0,
+    RAID_SCALE,
+    funnel,
+    raid_params,
+    raid_step,
+    rbf_centres,
+)
 
 CONTROLLERS = ("raid", "pid", "apc", "foptc", "ff")
 PAPER_ORDER = ("raid", "apc", "pid", "foptc")  # column order of the paper's Table II
@@ -55,9 +90,11 @@ def controller_params(name: str, cfg: ControlConfig) -> FloatArray:
     if name not in _PARAMS:
         raise ValueError(f"unknown controller {name!r}; choose from {', '.join(CONTROLLERS)}")
     a, f = cfg.actuator, cfg.funnel
-    common = [cfg.model.feedforward_rpm_per_mps, a.u_max_rpm, 1.0 if a.saturation_applies_to == "feedback" else 0.0,
-              cfg.metrics.step_threshold_mps, 1.0 if f.anchor == "reference_change" else 0.0,
-              f.o_ov_mps, f.o_b_mps, f.o_star_per_s]
+    common = pack_slots({P_FF: cfg.model.feedforward_rpm_per_mps, P_UMAX: a.u_max_rpm,
+                         P_SATFB: 1.0 if a.saturation_applies_to == "feedback" else 0.0,
+                         P_STEP: cfg.metrics.step_threshold_mps,
+                         P_ANCHOR: 1.0 if f.anchor == "reference_change" else 0.0,
+                         P_OOV: f.o_ov_mps, P_OB: f.o_b_mps, P_OSTAR: f.o_star_per_s})
     return np.asarray(common + _PARAMS[name](cfg), dtype=np.float64)
 
 
@@ -79,29 +116,33 @@ def controller_step(cid: int, state: FloatArray, p: FloatArray, centres: FloatAr
         state[S_SEG_START] = t  # a reference step starts a segment
     if state[S_INIT] == 0.0:
         if cid == 0:
-            state[0] = p[P_LAW + 4]  # phi(0)
+            state[0] = p[P_LAW + RAID_PHI0]  # phi(0)
         state[S_INIT] = 1.0
     state[S_LAST_REF] = v_ref
     q = P_LAW
     if cid == 0:
         o, odot = funnel_at(state, p, t)
-        u_fb, ok = raid_step(state, centres, p[q], p[q + 1], p[q + 2], p[q + 3], v_meas - v_ref, o, odot,
+        u_fb, ok = raid_step(state, centres, p[q + RAID_GAMMA], p[q + RAID_BETA], p[q + RAID_KAPPA],
+                             p[q + RAID_SCALE], v_meas - v_ref, o, odot,
                              vdot_ref, v_meas, dt)
         if not ok:
             return 0.0, False
     elif cid == 1:
-        u_fb = pid_step(state, p[q], p[q + 1], p[q + 2], int(p[q + 3]), p[q + 4], v_ref - v_meas, u_ff,
+        u_fb = pid_step(state, p[q + PID_KP], p[q + PID_KI], p[q + PID_KD], int(p[q + PID_MODE]), p[q + PID_TT],
+                        v_ref - v_meas, u_ff,
                         -u_max, u_max, dt)
     elif cid == FF_ID:  # negative control: the shared feed-forward alone
         u_fb = 0.0
     elif cid == 2:
         if t >= state[S_NEXT_UPDATE] - 1e-12:  # slow rate, held in between
-            state[S_HELD] = mfapc_step(state, p[q], p[q + 1], p[q + 2], p[q + 3], p[q + 4], p[q + 5], p[q + 6],
-                                       p[q + 7], p[q + 8], p[q + 9], v_ref, v_meas, u_ff, -u_max, u_max)
-            state[S_NEXT_UPDATE] = t + p[q + 10]
+            state[S_HELD] = mfapc_step(state, p[q + APC_PHI1], p[q + APC_ETA], p[q + APC_MU], p[q + APC_RHO],
+                                       p[q + APC_LAM], p[q + APC_EPS], p[q + APC_UNIT], p[q + APC_N_PRED],
+                                       p[q + APC_AR_DELTA], p[q + APC_AR_THETA_MAX], v_ref, v_meas, u_ff, -u_max, u_max)
+            state[S_NEXT_UPDATE] = t + p[q + APC_PERIOD]
         u_fb = state[S_HELD]
     else:
-        u_fb = foptc_step(state, p[q], p[q + 1], p[q + 2], p[q + 3], p[q + 4], p[q + 5], p[q + 6], p[q + 7] > 0.5,
+        u_fb = foptc_step(state, p[q + FOPTC_K0], p[q + FOPTC_C_H], p[q + FOPTC_HORIZON], p[q + FOPTC_FREEZE],
+                          p[q + FOPTC_KI], p[q + FOPTC_TAU_HAT], p[q + FOPTC_K_HAT], p[q + FOPTC_ANTI_WINDUP] > 0.5,
                           t - state[S_SEG_START], v_ref - v_meas, u_ff, -u_max, u_max, dt)
     if p[P_SATFB] > 0.5:
         return u_ff + min(max(u_fb, -u_max), u_max), True

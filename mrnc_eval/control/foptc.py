@@ -12,7 +12,7 @@ the clamp; without it the integral winds up against the 1250 RPM limit.
 from __future__ import annotations
 
 from mrnc_eval.control.config import ControlConfig
-from mrnc_eval.control.jit_cache import FloatArray, kernel
+from mrnc_eval.control.jit_cache import FloatArray, kernel, pack_slots
 
 
 @kernel
@@ -33,6 +33,13 @@ def foptc_step(state: FloatArray, k0: float, c_h: float, horizon: float, freeze:
     return u_fb
 
 
+# slots of the FOPTC parameters after the common head of the controller vector (controllers.P_LAW)
+(FOPTC_K0, FOPTC_C_H, FOPTC_HORIZON, FOPTC_FREEZE, FOPTC_KI, FOPTC_TAU_HAT, FOPTC_K_HAT,
+ FOPTC_ANTI_WINDUP) = range(8)
+
+
 def foptc_params(cfg: ControlConfig) -> list[float]:
     c = cfg.foptc
-    return [c.k0, c.c_h, c.horizon_s, c.freeze_before_s, c.ki, c.tau_hat_s, c.k_hat, 1.0 if c.anti_windup else 0.0]
+    return pack_slots({FOPTC_K0: c.k0, FOPTC_C_H: c.c_h, FOPTC_HORIZON: c.horizon_s, FOPTC_FREEZE: c.freeze_before_s,
+                       FOPTC_KI: c.ki, FOPTC_TAU_HAT: c.tau_hat_s, FOPTC_K_HAT: c.k_hat,
+                       FOPTC_ANTI_WINDUP: 1.0 if c.anti_windup else 0.0})

@@ -22,6 +22,13 @@ FloatArray = NDArray[np.float64]
 F = TypeVar("F", bound=Callable[..., Any])
 
 
+def pack_slots(values: dict[int, float]) -> list[float]:
+    """A parameter vector from {slot: value} (slots 0..n-1, each once): kernels read it by slot name."""
+    if sorted(values) != list(range(len(values))):
+        raise ValueError(f"slots must be 0..{len(values) - 1}, each once: {sorted(values)}")
+    return [float(values[k]) for k in range(len(values))]
+
+
 def kernel(fn: F) -> F:
     """numba.njit(cache=True) that keeps the function's signature for the type checker (numba
     ships no type information, so a bare @njit would make every kernel untyped)."""

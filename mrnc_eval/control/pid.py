@@ -9,7 +9,7 @@ back-calculation I += dt (ki err + (u_sat - u) / T_t), conditional integration
 from __future__ import annotations
 
 from mrnc_eval.control.config import ControlConfig
-from mrnc_eval.control.jit_cache import FloatArray, kernel
+from mrnc_eval.control.jit_cache import FloatArray, kernel, pack_slots
 
 ANTI_WINDUP = {"back_calculation": 0, "conditional": 1, "none": 2}
 
@@ -36,6 +36,11 @@ def pid_step(state: FloatArray, kp: float, ki: float, kd: float, mode: int, tt: 
     return u_unsat
 
 
+# slots of the PID parameters after the common head of the controller vector (controllers.P_LAW)
+PID_KP, PID_KI, PID_KD, PID_MODE, PID_TT = range(5)
+
+
 def pid_params(cfg: ControlConfig) -> list[float]:
     p = cfg.pid
-    return [p.kp, p.ki, p.kd, float(ANTI_WINDUP[p.anti_windup]), p.tracking_time_s]
+    return pack_slots({PID_KP: p.kp, PID_KI: p.ki, PID_KD: p.kd, PID_MODE: ANTI_WINDUP[p.anti_windup],
+                       PID_TT: p.tracking_time_s})

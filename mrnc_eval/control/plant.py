@@ -48,6 +48,15 @@ def dead_band(u: float, width: float) -> float:
 
 
 @kernel
+def leaky_gain(gain: float, leakage_at_limit: float, u: float, u_max: float) -> float:
+    """Drive gain under pressure-dependent leakage: K (1 - leakage_at_limit min(|u| / u_max, 1)),
+    (m/s)/RPM. With no leakage this is `gain` exactly (the default plant)."""
+    if leakage_at_limit == 0.0:
+        return gain
+    return gain * (1.0 - leakage_at_limit * min(abs(u) / u_max, 1.0))
+
+
+@kernel
 def drive_step(v_wheel: float, u_delayed: float, slip: float, gain: float, a: float, dz: float) -> float:
     """Wheel surface speed (m/s) after one period."""
     return a * v_wheel + (1.0 - a) * gain * (1.0 - slip) * dead_band(u_delayed, dz)

@@ -20,7 +20,7 @@ import math
 import numpy as np
 
 from mrnc_eval.control.config import ControlConfig
-from mrnc_eval.control.jit_cache import FloatArray, kernel
+from mrnc_eval.control.jit_cache import FloatArray, kernel, pack_slots
 
 
 @kernel
@@ -61,9 +61,14 @@ def raid_step(state: FloatArray, centres: FloatArray, gamma: float, beta: float,
     return u, True
 
 
+# slots of RAID's parameters after the common head of the controller vector (controllers.P_LAW)
+RAID_GAMMA, RAID_BETA, RAID_KAPPA, RAID_SCALE, RAID_PHI0 = range(5)
+
+
 def raid_params(cfg: ControlConfig) -> list[float]:
     r = cfg.raid
-    return [r.gamma, r.beta, r.kappa, r.feedback_scale_rpm, r.phi0]
+    return pack_slots({RAID_GAMMA: r.gamma, RAID_BETA: r.beta, RAID_KAPPA: r.kappa, RAID_SCALE: r.feedback_scale_rpm,
+                       RAID_PHI0: r.phi0})
 
 
 def rbf_centres(cfg: ControlConfig) -> FloatArray:

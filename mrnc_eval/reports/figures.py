@@ -215,9 +215,11 @@ def _sweep_violations(s, r: RunResult) -> str:
     fig, ax = new_figure(7.0, 3.2)
     ax = ax[0, 0]
     mid = 100.0 * s["sweep_gain_mismatch_mid"]
+    styles = itertools.cycle([("-", "o"), ("--", "s"), (":", "^"), ("-.", "D"), ((0, (5, 1, 1, 1)), "v")])
     for ctrl in r.extra.get("controllers", []):
-        if f"sweep_{ctrl}_violation_rate" in s:
-            ax.plot(mid, s[f"sweep_{ctrl}_violation_rate"], marker="o", lw=1.0,
+        if f"sweep_{ctrl}_violation_rate" in s:  # styles differ: equal rates would hide a line
+            ls, marker = next(styles)
+            ax.plot(mid, s[f"sweep_{ctrl}_violation_rate"], ls=ls, marker=marker, lw=1.0, ms=4,
                     label=r.extra.get("labels", {}).get(ctrl, ctrl))
     ax.set(xlabel="drive gain mismatch (%, plant vs the controllers' model)",
            ylabel="runs with a funnel violation", ylim=(-0.03, 1.03),

@@ -213,3 +213,24 @@ def test_ff_is_a_feedback_free_law() -> None:
         assert ok
         assert u == pytest.approx(c.model.feedforward_rpm_per_mps * 0.3)
     assert "ff" not in FEEDBACK_LAWS
+
+
+def test_pressure_dependent_leakage_lowers_the_steady_speed_by_its_closed_form() -> None:
+    from mrnc_eval.control.plant import drive_step, leaky_gain
+
+    gain, leak, u, u_max, dz, dt, tau = 1.1 / 3000, 0.05, 1000.0, 1250.0, 60.0, 1e-3, 0.4
+    assert leaky_gain(gain, 0.0, u, u_max) == gain  # off: the default plant is unchanged
+    a = math.exp(-dt / tau)
+    v = 0.0
+    for _ in range(20000):
+        v = drive_step(v, u, 0.0, leaky_gain(gain, leak, u, u_max), a, dz)
+    assert v == pytest.approx(gain * (1 - leak * u / u_max) * (u - dz), rel=1e-9)
+    cfg = Config()
+    leaky = replace(cfg.control, plant=replace(cfg.control.plant, left=replace(cfg.control.plant.left,
+                                                                                leakage_at_limit=0.3)))
+    tr = run_closed_loop(paper_circle_scenario(cfg.control), leaky, cfg.robot, "ff", duration_s=8.0, record_every=10)
+    late = tr.t > 6.0  # steady on the first chord; only the left side leaks
+    ul = tr.u_left[late].mean()
+    want = cfg.control.plant.left.gain_mps_per_rpm * (1 - 0.3 * ul / 1250.0) * (ul - 60.0)
+    assert tr.v_wheel_left[late].mean() == pytest.approx(want, abs=3e-4)  # measured 1e-4 (seeded noise)
+    assert abs(tr.v_wheel_left[late].mean() - _ff_steady_speed(cfg.control.plant.left, CRUISE)) > 0.05
