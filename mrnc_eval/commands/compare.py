@@ -84,7 +84,7 @@ def print_rich(tables: list[Table]) -> None:
     console = Console(highlight=False)
     for table in tables:
         rt = RichTable(title=escape(table.title), title_justify="left")
-        rt.add_column("")
+        rt.add_column("", no_wrap=True)  # metric keys stay whole; the numbers' columns give way
         for c in table.column_labels:
             rt.add_column(escape(c), justify="right")
         for label, row in zip(table.row_labels, table.cells, strict=True):

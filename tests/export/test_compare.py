@@ -26,8 +26,10 @@ def two_runs(sim_runs: Runs, tmp_path_factory) -> tuple[Path, Path]:
     return dirs[0], dirs[1]
 
 
-def test_compare_shows_metrics_side_by_side_and_the_one_config_key(two_runs, tmp_path: Path, capsys) -> None:
+def test_compare_shows_metrics_side_by_side_and_the_one_config_key(two_runs, tmp_path: Path, capsys,
+                                                                   monkeypatch) -> None:
     a, b = two_runs
+    monkeypatch.setenv("COLUMNS", "200")  # a terminal wide enough for the whole table
     capsys.readouterr()
     assert main(["compare", str(a), str(b), "--format", "markdown"]) == 0
     text = capsys.readouterr().out
@@ -47,6 +49,10 @@ def test_compare_shows_metrics_side_by_side_and_the_one_config_key(two_runs, tmp
     assert [c.split("|")[1].strip() for c in config_rows] == [FLOOR]
     assert "0.11" in config_rows[0]
     assert "0.05" in config_rows[0]
+    assert main(["compare", str(a), str(b)]) == 0  # the terminal table (rich)
+    terminal = capsys.readouterr().out
+    assert key in terminal
+    assert FLOOR in terminal
     html = tmp_path / "cmp.html"
     assert main(["compare", str(a), str(b), "--out", str(html)]) == 0
     page = html.read_text(encoding="utf-8")
