@@ -39,6 +39,9 @@ class LidarSimConfig:
                                  "need a body crop")
     body_clearance_m: float = param(0.3, "ground clearance of the body box (self_occlusion)", "m")
     record_every: int = param(1, "record every n-th sweep (a throttled recording, like topic_tools throttle)")
+    full_rate_window_s: tuple[float, float] | None = param(None, "record every sweep that starts in [start, end) "
+                                                           "of log time, every record_every-th outside it (a "
+                                                           "full-rate stretch for peer comparisons)", "s")
 
 
 @dataclass(frozen=True)
@@ -163,6 +166,8 @@ class FieldWorldConfig:
     stones_per_m: float = param(0.5, "stones and ruts a wheel rolls over, per metre driven (assumed, rough "
                                 "site ground)", "1/m")
     stone_height_m: tuple[float, float] = param((0.02, 0.06), "height range of a stone under one wheel", "m")
+    stone_length_m: float = param(0.3, "travel over which a wheel climbs and leaves a stone (tyre contact "
+                                  "patch of a large tyre; assumed)", "m")
     wheelbase_m: float = param(2.0, "distance between the front and rear axles, for the pitch a stone causes "
                                "(assumed: half the 4 m body length)", "m")
     shake_hz: float = param(2.5, "body bounce/pitch natural frequency on its tyres (heavy wheeled machines "

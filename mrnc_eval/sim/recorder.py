@@ -20,6 +20,7 @@ from mrnc_eval.errors import ConfigError
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
+from mrnc_eval.sim.config import LidarSimConfig
 from mrnc_eval.sim.gnss import simulate_field_gnss, simulate_gnss
 from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
 from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, ouster_metadata
@@ -133,8 +134,8 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     if field is not None:
         w = field.world
         shake = stone_shake(np.asarray(trace.t, float), np.c_[trace.x, trace.y], stones_per_m=w.stones_per_m,
-                            height_m=w.stone_height_m, track_m=cfg.robot.track_width_m, wheelbase_m=w.wheelbase_m,
-                            natural_hz=w.shake_hz, damping=w.shake_damping, rng=frng)
+                            height_m=w.stone_height_m, length_m=w.stone_length_m, track_m=cfg.robot.track_width_m,
+                            wheelbase_m=w.wheelbase_m, natural_hz=w.shake_hz, damping=w.shake_damping, rng=frng)
     traj = BodyTrajectory.from_trace(trace, scene.terrain, shake)
     t_end = float(trace.t[-1]) if req.duration_s is None else float(req.duration_s)
 
@@ -188,8 +189,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         body = _body_box(cfg) if lcfg.self_occlusion or (field is not None and field.lidar.body_in_cloud) else None
         lidar = LidarSimulator(scene, lcfg, true_base_to_sensor, rng, body,
                                None if field is None else _field_lidar(cfg, scene, trace, centre, frng))
-        sweep_starts = np.arange(0.0, t_end - 1.0 / lcfg.rate_hz, 1.0 / lcfg.rate_hz)
-        kept = sweep_starts[::max(1, lcfg.record_every)]  # a throttled recording keeps every n-th sweep
+        kept = recorded_sweep_starts(t_end, lcfg)
         for n, start in enumerate(kept):
             s = lidar.sweep(traj, float(start))
             stamp = s.stamp if field is None else s.stamp + frng.normal(0.0, field.clock.lidar_jitter_s)
@@ -203,6 +203,17 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         raise
     write_tum(gt_tum_path(path), gt)
     return path
+
+
+def recorded_sweep_starts(t_end: float, lcfg: LidarSimConfig) -> np.ndarray:
+    """Start times (s) of the sweeps written: every n-th (a throttled recording), plus every sweep
+    inside the full-rate window."""
+    starts = np.arange(0.0, t_end - 1.0 / lcfg.rate_hz, 1.0 / lcfg.rate_hz)
+    keep = np.arange(starts.size) % max(1, lcfg.record_every) == 0
+    if lcfg.full_rate_window_s is not None:
+        a, b = lcfg.full_rate_window_s
+        keep |= (starts >= a) & (starts < b)
+    return starts[keep]
 
 
 def _field_imu_series(traj: BodyTrajectory, times: np.ndarray, base_to_imu: np.ndarray, cfg: Config,

@@ -21,52 +21,54 @@ FD_STEP_S = 1e-3  # central-difference step on the splines, s
 
 @dataclass(frozen=True)
 class Shake:
-    """Body oscillations excited by stones under single wheels: event k at time t_k (s) lifts one
-    corner by h_k, which moves the rigid body by (h/4 up, +-h/(2 track) roll, +-h/(2 wheelbase)
-    pitch) quasi-statically; the body answers as a damped oscillator on its tyres (natural
-    frequency f, damping ratio zeta). The response shape rises smoothly (C2) over ~0.05 s."""
+    """Body bounce (m), roll and pitch (rad) from stones under single wheels, as smooth functions
+    of time (cubic splines through the simulated response; zero outside it)."""
 
-    times: np.ndarray  # (K,) s
-    amplitudes: np.ndarray  # (K, 3) [z m, roll rad, pitch rad]
-    natural_hz: float
-    damping: float
-
-    RISE_S = 0.03  # time constant of the smooth onset, s
-    SETTLE_S = 4.0  # responses are cut after this (e^-4 at the default damping), s
+    t: np.ndarray  # (N,) s
+    splines: tuple  # three CubicSplines: z, roll, pitch
 
     def offsets(self, times: np.ndarray) -> np.ndarray:
         """(M, 3) [z m, roll rad, pitch rad] at `times` (s)."""
-        t = np.asarray(times, float)
-        out = np.zeros((t.size, 3))
-        w = 2 * np.pi * self.natural_hz
-        wd = w * np.sqrt(max(1.0 - self.damping ** 2, 1e-6))
-        for tk, amp in zip(self.times, self.amplitudes, strict=True):
-            lo, hi = np.searchsorted(t, (tk, tk + self.SETTLE_S)) if _is_sorted(t) else (0, t.size)
-            tau = t[lo:hi] - tk
-            tau = np.maximum(tau, 0.0)
-            g = np.exp(-self.damping * w * tau) * np.sin(wd * tau) * (1.0 - np.exp(-tau / self.RISE_S)) ** 2
-            out[lo:hi] += g[:, None] * amp
+        tt = np.asarray(times, float)
+        inside = (tt >= self.t[0]) & (tt <= self.t[-1])
+        out = np.zeros((tt.size, 3))
+        for k, sp in enumerate(self.splines):
+            out[inside, k] = sp(tt[inside])
         return out
 
 
-def _is_sorted(t: np.ndarray) -> bool:
-    return t.size < 2 or bool(np.all(np.diff(t) >= 0))
-
-
 def stone_shake(trace_t: np.ndarray, trace_xy: np.ndarray, *, stones_per_m: float, height_m: tuple[float, float],
-                track_m: float, wheelbase_m: float, natural_hz: float, damping: float,
+                length_m: float, track_m: float, wheelbase_m: float, natural_hz: float, damping: float,
                 rng: np.random.Generator) -> Shake:
     """Stones at Poisson-distributed distances along the driven path (rate `stones_per_m`, 1/m),
-    each under a random corner, with heights uniform in `height_m` (m)."""
+    each under a random corner, heights uniform in `height_m` (m). A corner rolling over a stone
+    rises by h (1 - cos) / 2 over `length_m` of travel, which moves the rigid body by h/4 up,
+    +-h/(2 track) roll and +-h/(2 wheelbase) pitch when followed quasi-statically; the body follows
+    that base motion as a damped oscillator on its tyres (natural frequency, damping ratio). So a
+    machine creeping over a stone tilts slowly, and one driving fast bounces."""
+    from scipy.signal import lsim
+
+    t = np.asarray(trace_t, float)
     s = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(trace_xy, axis=0), axis=1))]
     n = rng.poisson(stones_per_m * s[-1])
     at = np.sort(rng.uniform(0.0, s[-1], n))
-    times = np.interp(at, s, trace_t)
     h = rng.uniform(*height_m, n)
     side, end = rng.choice([-1.0, 1.0], n), rng.choice([-1.0, 1.0], n)
-    # lifting the left (+y) corner rolls the body right-side down: roll about +x is positive
-    amps = np.c_[h / 4, side * h / (2 * track_m), -end * h / (2 * wheelbase_m)]
-    return Shake(times, amps, natural_hz, damping)
+    # lifting the left (+y) corner rolls the body right-side down (roll about +x positive); a front corner
+    # pitches the nose up (pitch about +y negative)
+    gains = np.c_[h / 4, side * h / (2 * track_m), -end * h / (2 * wheelbase_m)]
+    base = np.zeros((t.size, 3))
+    for sk, g in zip(at, gains, strict=True):
+        u = (s - sk) / length_m
+        on = (u > 0) & (u < 1)
+        base[on] += 0.5 * (1.0 - np.cos(2 * np.pi * u[on]))[:, None] * g
+    w = 2 * np.pi * natural_hz
+    system = ([2 * damping * w, w * w], [1.0, 2 * damping * w, w * w])  # body / base transfer function
+    grid = np.arange(t[0], t[-1], 5e-3)  # 200 Hz resolves the 2-3 Hz body mode
+    base_grid = np.stack([np.interp(grid, t, base[:, k]) for k in range(3)], axis=1)
+    response = np.stack([lsim(system, base_grid[:, k], grid - grid[0])[1] for k in range(3)], axis=1) \
+        if n else np.zeros_like(base_grid)
+    return Shake(grid, tuple(CubicSpline(grid, response[:, k]) for k in range(3)))
 
 
 @dataclass(frozen=True)

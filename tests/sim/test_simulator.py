@@ -16,7 +16,7 @@ from mrnc_eval.io import open_log
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import read_tum
 from mrnc_eval.sim.imu import ImuNoise, ideal_imu, simulate_imu
-from mrnc_eval.sim.recorder import SimRequest, simulate_log
+from mrnc_eval.sim.recorder import LOG_EPOCH_S, SimRequest, simulate_log
 from mrnc_eval.sim.scene import SCENES, Terrain, build_scene
 from mrnc_eval.sim.trajectory import GRAVITY_MPS2, BodyTrajectory
 
@@ -414,3 +414,15 @@ def test_self_occlusion_returns_the_body_at_fixed_pixels(tmp_path: Path) -> None
         pixels.append(set(zip(s.ring[on_body].tolist(), s.column[on_body].tolist(), strict=True)))
     # the body moves with the sensor: the same pixels in every sweep while the robot drives
     assert len(pixels[0] & pixels[1] & pixels[2]) == len(pixels[0]) == len(pixels[2])
+
+
+def test_full_rate_window_keeps_every_sweep_inside_it(tmp_path: Path) -> None:
+    cfg = Config()
+    lidar = replace(cfg.sim.lidar, record_every=10, full_rate_window_s=(1.0, 2.0))
+    cfg = replace(cfg, sim=replace(cfg.sim, lidar=lidar))
+    log = simulate_log(tmp_path / "w.mcap", cfg, SimRequest(scene="field", path="line", duration_s=4.0, seed=2,
+                                                            **SMALL))
+    with open_log(log) as lg:
+        stamps = np.asarray([s.stamp for s in lg.sweeps()]) - LOG_EPOCH_S
+    # 1 Hz everywhere (0, 1, 2, 3 s) plus 10 Hz inside [1, 2)
+    np.testing.assert_allclose(stamps, np.r_[0.0, np.arange(1.0, 2.0, 0.1), 2.0, 3.0], atol=1e-6)

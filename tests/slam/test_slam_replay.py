@@ -28,13 +28,13 @@ def test_circle_sample_log_ape(tmp_path: Path) -> None:
 
     result = run_log(CIRCLE, Config(), tmp_path / "run")
     ape = result.metric("ape_rmse_m").value
-    assert ape < 0.017  # measured 0.0082 m (ideal sensor profile)
-    assert result.metric("ape_online_rmse_m").value < 0.017  # measured 0.0083 m
+    assert ape < 0.05  # measured 0.0251 m (field sensor profile, 1 Hz clouds; the ideal log gave 0.0082 m)
+    assert result.metric("ape_online_rmse_m").value < 0.05  # measured 0.0252 m (field; ideal 0.0083 m)
     online = read_tum(tmp_path / "run" / "trajectory_online.tum")
     smoothed = read_tum(tmp_path / "run" / "trajectory.tum")
     np.testing.assert_array_equal(online.stamps, smoothed.stamps)
     assert result.metric("loop_closures").value > 0
-    # 25 loop closures moved keyframes after their sweeps were processed: the two trajectories differ
+    # loop closures (23 measured) moved keyframes after their sweeps were processed: the two trajectories differ
     assert np.abs(online.positions - smoothed.positions).max() > 1e-4
     assert result.metric("map_entropy") is not None
     assert result.metric("map_plane_variance_m2").value > 0
