@@ -17,6 +17,7 @@ import typer
 from typer.exceptions import TyperException
 
 from mrnc_eval import __version__
+from mrnc_eval.cli_help import PlainGroup
 from mrnc_eval.errors import MrncError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
 from mrnc_eval.text import printable
@@ -27,12 +28,14 @@ log = logging.getLogger("mrnc_eval")
 
 app = typer.Typer(
     name="mrnc-eval",
-    help="Offline log processing and evaluation for skid-steer field robots "
-    "(LIO-SAM-style SLAM replay, pure pursuit + RAID control replay, APE/RPE, HTML/PDF reports).",
+    help="Offline log processing and evaluation for skid-steer wheeled mobile robots (SSWMR) "
+    "(LIO-SAM-style SLAM replay, pure pursuit + RAID control replay, APE/RPE, HTML/PDF reports). "
+    "Global options (--debug, -v, -q) may also follow the verb.",
+    cls=PlainGroup,
     no_args_is_help=True,
     add_completion=False,
     pretty_exceptions_enable=False,
-    rich_markup_mode="markdown",
+    rich_markup_mode="rich",  # markdown would eat <run>, <date>, <seq>/<method> as HTML tags
     context_settings={"help_option_names": ["-h", "--help"]},
 )
 
@@ -42,11 +45,12 @@ _state: dict[str, Any] = {"debug": False}
 
 ConfigOpt = Annotated[
     Path | None,
-    typer.Option("--config", "-c", help="YAML configuration (safe-loaded); defaults: `mrnc-eval config`."),
+    typer.Option("--config", "-c", help="YAML configuration (safe-loaded); defaults: mrnc-eval config."),
 ]
 SetOpt = Annotated[
     list[str] | None,
-    typer.Option("--set", help="Override one parameter, KEY=VALUE, e.g. --set control.raid.beta=1.5 (repeatable)."),
+    typer.Option("--set", metavar="KEY=VALUE",
+                 help="Override one parameter, e.g. --set control.raid.beta=1.5 (repeatable)."),
 ]
 DumpOpt = Annotated[
     bool, typer.Option("--dump-config", help="Print the effective configuration as YAML and exit.")
@@ -54,6 +58,11 @@ DumpOpt = Annotated[
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON to stdout.")]
 JunitOpt = Annotated[Path | None, typer.Option(
     help="Also write the metric gates as JUnit XML (one test case per gate per log) for CI.")]
+
+
+def _plain(choice: StrEnum | None) -> str | None:
+    """A choice as the plain str the commands expect (YAML's safe dumper refuses str subclasses)."""
+    return None if choice is None else choice.value
 
 
 def _config(path: Path | None, overrides: list[str] | None, dump: bool = False):  # -> Config
@@ -99,11 +108,14 @@ def _main(
 
 @app.command()
 def config(
+    key: Annotated[str | None, typer.Argument(metavar="KEY", help="Only this subtree or value: slam.loop.")] = None,
     config: ConfigOpt = None,
     set_: SetOpt = None,
 ) -> None:
     """Print the effective configuration (defaults, then --config, then --set) as commented YAML."""
-    _config(config, set_, dump=True)
+    from mrnc_eval.commands.config_dump import subtree_yaml
+
+    sys.stdout.write(subtree_yaml(_config(config, set_), key))
 
 
 @app.command()
@@ -130,6 +142,11 @@ def info(
         info_command.print_summary(summary)
 
 
+class SlamMethod(StrEnum):  # a str: passed on as is
+    lio = "lio"
+    kiss_icp = "kiss-icp"
+
+
 @app.command()
 def slam(
     logs: Annotated[
@@ -137,7 +154,7 @@ def slam(
         typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout."),
     ],
     method: Annotated[
-        str | None,
+        SlamMethod | None,
         typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra); "
                      "sets slam.method (default lio)."),
     ] = None,
@@ -153,7 +170,7 @@ def slam(
     map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth."""
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import slam as slam_command
-    slam_command.main(logs, cfg, method=method, out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
+    slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
 
 
 class ControlMode(StrEnum):
@@ -204,7 +221,13 @@ RelationOpt = Annotated[
 ]
 MaxDiffOpt = Annotated[float, typer.Option("--max-diff", help="Association: maximum stamp difference, s.")]
 OffsetOpt = Annotated[float, typer.Option(help="Association: added to the estimate's stamps, s.")]
-PlaneOpt = Annotated[str | None, typer.Option(help="Project to a plane before the metric: xy, xz or yz.")]
+class Plane(StrEnum):
+    xy = "xy"
+    xz = "xz"
+    yz = "yz"
+
+
+PlaneOpt = Annotated[Plane | None, typer.Option(help="Project to a plane before the metric.")]
 TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
 PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
 
@@ -227,7 +250,7 @@ def ape(
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
         ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
-        offset=offset, plane=plane, json_out=json_out, table=table, plot=plot,
+        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot,
     )
 
 
@@ -258,7 +281,7 @@ def rpe(
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.rpe_main(
         ref, est, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
-        n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=plane,
+        n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=_plain(plane),
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
     )
@@ -376,19 +399,46 @@ def compare(
                          only_changed=changed_only)
 
 
+# choices of `simulate` (a test checks they match sim.scene.SCENES, sim.recorder.PATHS and LIDAR_MODELS)
+class Scene(StrEnum):
+    yard = "yard"
+    forest = "forest"
+    corridor = "corridor"
+    field = "field"
+
+
+class SimPath(StrEnum):
+    circle = "circle"
+    figure8 = "figure8"
+    loop = "loop"
+    line = "line"
+
+
+class LidarModel(StrEnum):
+    os0_128 = "os0-128"
+    os0_64 = "os0-64"
+    os0_32 = "os0-32"
+
+
+class LogFormat(StrEnum):
+    mcap = "mcap"
+    db3 = "db3"
+    bag = "bag"
+
+
 @app.command()
 def simulate(
     out: Annotated[Path, typer.Argument(metavar="OUT", help="Output log path (.mcap, .db3 directory or .bag).")],
-    scene: Annotated[str, typer.Option(help="Scene: yard, forest, corridor, field.")] = "yard",
-    path: Annotated[str, typer.Option(help="Path: circle (paper mission), figure8, loop, line.")] = "circle",
+    scene: Annotated[Scene, typer.Option(help="Scene.")] = Scene.yard,
+    path: Annotated[SimPath, typer.Option(help="Path: circle is the paper's mission.")] = SimPath.circle,
     duration: Annotated[float | None, typer.Option(help="Duration, s (default: until the path is done).")] = None,
-    lidar: Annotated[str, typer.Option(help="LiDAR model: os0-128, os0-64, os0-32.")] = "os0-128",
+    lidar: Annotated[LidarModel, typer.Option(help="LiDAR model.")] = LidarModel.os0_128,
     columns: Annotated[int, typer.Option(help="Columns per sweep: 512, 1024 or 2048.")] = 1024,
     rate: Annotated[float, typer.Option(help="Sweep rate, Hz (10 or 20).")] = 10.0,
     fmt: Annotated[
-        str,
+        LogFormat,
         typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1)."),
-    ] = "mcap",
+    ] = LogFormat.mcap,
     seed: Annotated[int | None, typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
                                                   "byte-identical logs.")] = None,
     profile: Annotated[str | None, typer.Option(help="Sensor profile: ideal (exact sensors, one clock) or field "
@@ -401,12 +451,12 @@ def simulate(
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
 ) -> None:
-    """Generate a synthetic SSWMR recording with exact ground truth (LiDAR, IMU, GNSS, wheel
-    odometry, commands, path) driven in closed loop through the control chain."""
+    """Generate a synthetic skid-steer wheeled mobile robot (SSWMR) recording with exact ground
+    truth (LiDAR, IMU, GNSS, wheel odometry, commands, path) driven in closed loop through the control chain."""
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import simulate as simulate_command
-    simulate_command.main(out, cfg, scene=scene, path=path, duration=duration, lidar=lidar, columns=columns,
-                               rate=rate, fmt=fmt, seed=seed, profile=profile, force=force)
+    simulate_command.main(out, cfg, scene=scene.value, path=path.value, duration=duration, lidar=lidar.value,
+                          columns=columns, rate=rate, fmt=fmt.value, seed=seed, profile=profile, force=force)
 
 
 # ------------------------------------------------------------------ entry point

@@ -32,6 +32,7 @@ from mrnc_eval.io.config import IoConfig
 from mrnc_eval.params import param, section
 from mrnc_eval.sim.config import SimConfig
 from mrnc_eval.slam.config import SlamConfig
+from mrnc_eval.spelling import did_you_mean
 from mrnc_eval.text import shorten
 
 T = TypeVar("T")
@@ -145,7 +146,8 @@ def build(cls: type[T], data: dict[str, Any], where: str = "") -> T:
     unknown = sorted(str(k) for k in set(data) - set(by_name))
     if unknown:
         prefix = f"{where}." if where else ""
-        raise ConfigError(f"unknown config key(s): {shorten(', '.join(prefix + k for k in unknown))}")
+        named = (prefix + k + did_you_mean(k, by_name, prefix) for k in unknown)
+        raise ConfigError(f"unknown config key(s): {shorten(', '.join(named))}")
     kwargs = {}
     for key, value in data.items():
         dotted = f"{where}.{key}" if where else key
@@ -264,7 +266,7 @@ def load_yaml(text: str, where: str) -> Any:
     try:
         loader = _StrictLoader(text)  # the reader already rejects control characters
     except yaml.YAMLError as err:
-        raise ConfigError(f"{where}: invalid YAML: {shorten(str(err), 300)}") from err
+        raise ConfigError(f"{where}: invalid YAML: {shorten(' '.join(str(err).split()), 300)}") from err
     try:
         node = loader.get_single_node()
         if node is None:
@@ -273,7 +275,7 @@ def load_yaml(text: str, where: str) -> Any:
             raise ConfigError(f"{where}: YAML expands to more than {MAX_YAML_NODES} nodes (aliases); refused")
         return loader.construct_document(node)
     except yaml.YAMLError as err:
-        raise ConfigError(f"{where}: invalid YAML: {shorten(str(err), 300)}") from err
+        raise ConfigError(f"{where}: invalid YAML: {shorten(' '.join(str(err).split()), 300)}") from err
     except RecursionError as err:
         raise ConfigError(f"{where}: YAML nested too deeply") from err
     finally:

@@ -4,8 +4,11 @@ from __future__ import annotations
 
 from dataclasses import dataclass
 
+from mrnc_eval.errors import ConfigError
+from mrnc_eval.io.roles import ROLES
 from mrnc_eval.io.validate import ValidationConfig
 from mrnc_eval.params import param, section
+from mrnc_eval.spelling import did_you_mean
 
 
 @dataclass(frozen=True)
@@ -35,3 +38,9 @@ class IoConfig:
         "MB",
     )
     validation: ValidationConfig = section(ValidationConfig, "stream validation at the reader boundary")
+
+    def __post_init__(self) -> None:
+        for role in self.roles:  # a mistyped role would otherwise be ignored and detection used silently
+            if role not in ROLES:
+                hint = did_you_mean(role, ROLES)
+                raise ConfigError(f"io.roles.{role}: unknown role{hint}; roles: {', '.join(ROLES)}")
