@@ -339,6 +339,8 @@ def nightly(
     date: Annotated[str | None, typer.Option(help="Night label YYYY-MM-DD (default: today).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf/--no-pdf", help="Also write PDF reports.")] = True,
     junit: JunitOpt = None,
+    force: Annotated[bool, typer.Option("--force", help="Re-run every log, also those already processed with "
+                                        "this configuration (unchanged logs are skipped otherwise).")] = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
@@ -348,7 +350,7 @@ def nightly(
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import nightly as nightly_command
     nightly_command.main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
-                              gates=gates, date=date, pdf=pdf, junit=junit)
+                              gates=gates, date=date, pdf=pdf, junit=junit, force=force)
 
 
 @app.command()

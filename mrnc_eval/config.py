@@ -59,6 +59,13 @@ class RobotConfig:
 
 
 @dataclass(frozen=True)
+class NightlyConfig:
+    """The unattended job (`mrnc-eval nightly`)."""
+
+    scheduler_timeout_s: float = param(5.0, "how long to wait for the Dask scheduler of --scheduler to answer", "s")
+
+
+@dataclass(frozen=True)
 class Config:
     """Every parameter of the paper, the SLAM, the controllers, the simulator and the gates."""
 
@@ -69,6 +76,7 @@ class Config:
     evaluation: EvaluationConfig = section(EvaluationConfig, "trajectory evaluation defaults")
     gates: GatesConfig = section(GatesConfig, "pass/fail gates of reports and the nightly job")
     sim: SimConfig = section(SimConfig, "synthetic log generator")
+    nightly: NightlyConfig = section(NightlyConfig, "the nightly job")
 
 
 # ---------------------------------------------------------------- building from data

@@ -20,7 +20,7 @@ SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
   night TEXT NOT NULL, log_id TEXT NOT NULL, run_id TEXT NOT NULL, log_path TEXT NOT NULL,
   tool_version TEXT NOT NULL, config_hash TEXT NOT NULL, status TEXT NOT NULL, error TEXT NOT NULL,
-  finished_utc TEXT NOT NULL, PRIMARY KEY (night, log_id));
+  finished_utc TEXT NOT NULL, log_stamp TEXT NOT NULL DEFAULT '', PRIMARY KEY (night, log_id));
 CREATE TABLE IF NOT EXISTS metrics (
   night TEXT NOT NULL, log_id TEXT NOT NULL, run_id TEXT NOT NULL, tool_version TEXT NOT NULL,
   config_hash TEXT NOT NULL, metric TEXT NOT NULL, value REAL, unit TEXT NOT NULL, status TEXT NOT NULL,
@@ -42,6 +42,15 @@ class LogRecord:
     error: str
     finished_utc: str
     metrics: tuple[tuple[str, float | None, str], ...]  # (name, value, unit)
+    log_stamp: str = ""  # size and modification time of the log: a changed log is processed again
+
+
+@dataclass(frozen=True)
+class LastRun:
+    night: str
+    status: str
+    config_hash: str
+    log_stamp: str
 
 
 class History:
@@ -50,6 +59,9 @@ class History:
         path.parent.mkdir(parents=True, exist_ok=True)
         with closing(self._connect()) as db:
             db.executescript(SCHEMA)
+            columns = {row[1] for row in db.execute("PRAGMA table_info(runs)")}
+            if "log_stamp" not in columns:  # a history written before log stamps were kept
+                db.execute("ALTER TABLE runs ADD COLUMN log_stamp TEXT NOT NULL DEFAULT ''")
 
     def _connect(self) -> sqlite3.Connection:
         db = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
@@ -70,9 +82,9 @@ class History:
             db.execute("BEGIN IMMEDIATE")
             try:
                 db.execute("DELETE FROM metrics WHERE night = ? AND log_id = ?", (rec.night, rec.log_id))
-                db.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?)",
+                db.execute("INSERT OR REPLACE INTO runs VALUES (?,?,?,?,?,?,?,?,?,?)",
                            (rec.night, rec.log_id, rec.run_id, rec.log_path, rec.tool_version, rec.config_hash,
-                            rec.status, rec.error, rec.finished_utc))
+                            rec.status, rec.error, rec.finished_utc, rec.log_stamp))
                 db.executemany("INSERT INTO metrics VALUES (?,?,?,?,?,?,?,?,?)",
                                [(rec.night, rec.log_id, rec.run_id, rec.tool_version, rec.config_hash, name, value,
                                  unit, rec.status) for name, value, unit in rec.metrics])
@@ -82,9 +94,12 @@ class History:
                     db.execute("ROLLBACK")  # the error to surface is the first one, not "cannot rollback"
                 raise
 
-    def finished(self, night: str) -> set[str]:
+    def last_runs(self) -> dict[str, LastRun]:
+        """log_id -> its most recently finished run, any night, any status."""
         with closing(self._connect()) as db:
-            return {r[0] for r in db.execute("SELECT log_id FROM runs WHERE night = ? AND status = 'ok'", (night,))}
+            rows = db.execute("SELECT log_id, night, status, config_hash, log_stamp FROM runs "
+                              "ORDER BY finished_utc, night")
+            return {log_id: LastRun(night, status, cfg, stamp) for log_id, night, status, cfg, stamp in rows}
 
     def runs(self, night: str) -> list[tuple[str, str, str, str]]:  # (log_id, status, error, log_path)
         with closing(self._connect()) as db:

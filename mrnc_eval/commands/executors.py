@@ -88,8 +88,9 @@ class LocalPool:
 
 
 class Dask:
-    def __init__(self, address: str) -> None:
+    def __init__(self, address: str, timeout_s: float = 5.0) -> None:
         self.address = address
+        self.timeout_s = timeout_s
 
     def run(self, jobs: Iterable[LogJob]) -> Iterator[LogSummary]:
         try:
@@ -98,7 +99,13 @@ class Dask:
         except ImportError as err:
             raise UsageError("--scheduler needs the dask extra: pip install 'mrnc-eval[dask]'") from err
         jobs = list(jobs)
-        with Client(self.address, timeout="30s") as client:
+        check_scheduler(self.address, self.timeout_s)
+        try:
+            client = Client(self.address, timeout=f"{self.timeout_s}s")
+        except (OSError, TimeoutError) as err:
+            raise UsageError(f"--scheduler {self.address}: no Dask scheduler answered within "
+                             f"{self.timeout_s:g} s (nightly.scheduler_timeout_s): {err}") from err
+        with client:
             futures = {client.submit(process_log, job, pure=False, key=f"mrnc-{k}-{job.log_id}"): job
                        for k, job in enumerate(jobs)}
             for fut in dask_completed(futures):
@@ -108,9 +115,24 @@ class Dask:
                     yield failed_summary(futures[fut], f"{CRASHED}: {type(err).__name__}: {err}")
 
 
-def make_executor(jobs: int, scheduler: str | None) -> Executor:
+def check_scheduler(address: str, timeout_s: float) -> None:
+    """One line naming the address when nothing listens there (Dask itself would wait, retry and
+    end in a long traceback)."""
+    import socket
+
+    host, _, port = address.split("://", 1)[-1].rpartition(":")
+    if not host or not port.isdigit():
+        raise UsageError(f"--scheduler {address!r}: expected tcp://HOST:PORT")
+    try:
+        socket.create_connection((host, int(port)), timeout=timeout_s).close()
+    except OSError as err:
+        raise UsageError(f"--scheduler {address}: nothing answers at {host}:{port} within {timeout_s:g} s "
+                         f"({err.strerror or err}); is the Dask scheduler running?") from err
+
+
+def make_executor(jobs: int, scheduler: str | None, timeout_s: float = 5.0) -> Executor:
     if jobs < 1:
         raise UsageError("--jobs must be >= 1")
     if scheduler:
-        return Dask(scheduler)
+        return Dask(scheduler, timeout_s)
     return InProcess() if jobs == 1 else LocalPool(jobs)

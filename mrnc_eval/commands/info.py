@@ -52,6 +52,7 @@ def run(path: Path, cfg: Config) -> InfoSummary:
                     for t in topics],
             roles=lg.roles,
         )
+        summary.findings.extend(Finding("warning", d.chosen, d.message()) for d in lg.role_doubts)
         summary.findings.extend(_stream_findings(topics))
         _lidar_findings(lg, summary)
         _gnss_findings(lg, summary)

@@ -18,9 +18,9 @@ import yaml
 
 from mrnc_eval.commands.log_job import DEFAULT_ANALYSIS, LogJob, LogSummary
 from mrnc_eval.commands.progress import progress_bar
-from mrnc_eval.config import Config, build, dump_config, load_yaml_file
+from mrnc_eval.config import Config, build, config_hash, dump_config, load_yaml_file
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
-from mrnc_eval.history import History, LogRecord, Regression, find_regressions
+from mrnc_eval.history import History, LastRun, LogRecord, Regression, find_regressions
 from mrnc_eval.reports.night import IndexRow
 from mrnc_eval.results import atomic_write_text, check_output_root, path_hash, stable_id
 from mrnc_eval.text import shorten
@@ -87,14 +87,15 @@ def _night(date: str | None) -> str:
 
 def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | None, since: str | None,
          gates: Path | None, date: str | None, pdf: bool, analysis: str = DEFAULT_ANALYSIS,
-         junit: Path | None = None) -> None:
+         junit: Path | None = None, force: bool = False) -> None:
     """`analysis` names the per-log function ("module:function", see log_job); tests inject fakes.
-    `junit`: also write the night's gates as JUnit XML there (one test case per gate per log)."""
+    `junit`: also write the night's gates as JUnit XML there (one test case per gate per log).
+    A log already processed with this configuration (any night) is skipped unless it changed or `force`."""
     from mrnc_eval.commands.executors import make_executor
 
     night = _night(date)
     cfg = _with_gates(cfg, gates)
-    executor = make_executor(jobs, scheduler)
+    executor = make_executor(jobs, scheduler, cfg.nightly.scheduler_timeout_s)
     since_date = _since(since)
     logs = discover_logs(log_dir, since_date)
     if not logs and since_date is None:  # a wrong folder, not a quiet night
@@ -104,7 +105,7 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     for folder in skipped:
         log.error("%s: cannot read this folder; any log in it was skipped", folder)
     with _exclusive(out / ".nightly.lock"):
-        _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis, junit)
+        _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis, junit, force)
     if skipped:  # reported, never silently left out of the night
         raise SomeInputsFailed(f"{len(skipped)} folder(s) of {log_dir} could not be read: "
                                + ", ".join(shorten(str(f), 120) for f in skipped[:5]))
@@ -135,20 +136,45 @@ def _exclusive(lock_path: Path) -> Iterator[None]:
         yield
 
 
+def log_stamp(path: Path) -> str:
+    """Size and modification time (ns) of a log file, or of every file of a bag directory: a log
+    that is rewritten or appended to gets a new stamp (cheaper than hashing gigabytes)."""
+    files = sorted(p for p in path.rglob("*") if p.is_file()) if path.is_dir() else [path]
+    return ";".join(f"{f.relative_to(path) if path.is_dir() else f.name}:{f.stat().st_size}:{f.stat().st_mtime_ns}"
+                    for f in files)
+
+
+def plan_night(logs: dict[str, str], cfg_hash: str, last: dict[str, LastRun], night: str, night_dir: Path,
+               force: bool) -> dict[str, str]:
+    """log_id -> "new" | "unchanged" | "re-run". `logs`: log_id -> stamp. Unchanged: its last run
+    succeeded with this configuration on this very log (and, on this night, its folder is there)."""
+    plan = {}
+    for log_id, stamp in logs.items():
+        prev = last.get(log_id)
+        same = (prev is not None and prev.status == "ok" and prev.config_hash == cfg_hash and prev.log_stamp == stamp
+                and (prev.night != night or (night_dir / "logs" / log_id).is_dir()))
+        plan[log_id] = "new" if prev is None else "unchanged" if same and not force else "re-run"
+    return plan
+
+
 def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: str, executor: Executor, pdf: bool,
-               analysis: str, junit: Path | None = None) -> None:
+               analysis: str, junit: Path | None = None,
+               force: bool = False) -> None:
     night_dir = out / night
     history = History(out / "history.sqlite")
-    done = history.finished(night)
     ids = _unique_ids(logs, log_dir)
+    stamps = {p: log_stamp(p) for p in logs}
+    plan = plan_night({ids[p]: stamps[p] for p in logs}, config_hash(cfg), history.last_runs(), night, night_dir,
+                      force)
     config_yaml = dump_config(cfg)
     todo = [LogJob(str(p), ids[p], config_yaml, str(night_dir / "logs" / ids[p]), pdf, analysis) for p in logs
-            if not (ids[p] in done and (night_dir / "logs" / ids[p]).is_dir())]
+            if plan[ids[p]] != "unchanged"]
     log.info("night %s: %d logs, %d to process", night, len(logs), len(todo))
+    by_path = {str(p): stamps[p] for p in logs}
     with progress_bar(len(todo)) as bar:
         task = bar.add_task(f"night {night}", total=len(todo)) if bar else None
         for summary in executor.run(todo):
-            _record(history, night, summary)
+            _record(history, night, summary, by_path.get(summary.log_path, ""))
             if bar:
                 bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
     rows = _write_index(history, night, night_dir)
@@ -159,7 +185,10 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
         write_junit(junit, night_suites(rows, night_dir, cfg.gates), f"mrnc-eval nightly {night}")
     failed = [r for r in rows if r.status != "ok"]
     gate_fail = [r for r in rows if r.gates_failed]
-    sys.stdout.write(f"night {night}: {len(rows)} logs, {len(failed)} failed, {len(gate_fail)} with failed gates, "
+    counts = {kind: sum(v == kind for v in plan.values()) for kind in ("new", "unchanged", "re-run")}
+    sys.stdout.write(f"night {night}: {counts['new']} new, {counts['unchanged']} unchanged, {counts['re-run']} re-run"
+                     f" (--force re-runs all); {len(rows)} logs, {len(failed)} failed, {len(gate_fail)} with failed"
+                     " gates, "
                      f"{len(regressions)} trend regressions -> {night_dir / 'index.html'}\n")
     if failed:
         raise SomeInputsFailed("; ".join(f"{r.log_id}: {r.error}" for r in failed))
@@ -193,13 +222,14 @@ def _plain(obj: object) -> dict[str, Any]:
     return as_dict(obj)
 
 
-def _record(history: History, night: str, s: LogSummary) -> None:
+def _record(history: History, night: str, s: LogSummary, stamp: str) -> None:
     """One (night, log) row set, written in one transaction once the log is complete."""
     metrics = (*s.metrics, ("gates_failed", float(len(s.gates_failed)), ""),
                *((f"gate_failed/{label}", 1.0, "") for label in s.gates_failed))
     history.record(LogRecord(night=night, log_id=s.log_id, run_id=s.run_id, log_path=s.log_path,
                              tool_version=s.tool_version, config_hash=s.config_hash, status=s.status, error=s.error,
-                             finished_utc=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), metrics=metrics))
+                             finished_utc=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), metrics=metrics,
+                             log_stamp=stamp))
 
 
 INDEX_COLUMNS = (  # (label, metric, format): the worst value over the log's groups

@@ -11,10 +11,11 @@ from __future__ import annotations
 
 import contextlib
 import glob
+import logging
 import struct
 from array import array
 from collections.abc import Iterator
-from dataclasses import dataclass
+from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
 
@@ -27,9 +28,11 @@ from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.containers import describe_error, detect_container
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
-from mrnc_eval.io.roles import detect_roles
+from mrnc_eval.io.roles import Ambiguity, Candidate, candidates_by_role, choose_roles
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
 from mrnc_eval.io.validate import Mask, bad_lat_lon, bad_quaternions, beyond, non_finite, normalised, screen
+
+log = logging.getLogger(__name__)
 
 _BULK_TYPES = {  # never kept in memory by the overview pass
     "sensor_msgs/msg/PointCloud2", "sensor_msgs/msg/Image", "sensor_msgs/msg/CompressedImage",
@@ -113,6 +116,7 @@ class LogReader:
         self._stats: dict[str, TopicInfo] | None = None
         self._health: dict[str, StreamHealth] = {}
         self._roles: dict[str, str] | None = None
+        self.role_doubts: list[Ambiguity] = []  # roles chosen among several candidates (io/roles.py's rule)
         self._stamps: dict[str, np.ndarray] = {}
         self._cache: dict[str, list[tuple[int, bytes]]] = {}  # small topics' raw messages from the overview pass
 
@@ -242,6 +246,10 @@ class LogReader:
             by_topic.setdefault(topic, role)
         self._stats = {t: TopicInfo(**{**s.__dict__, "role": by_topic.get(t)}) for t, s in stats.items()}
 
+    def topic_types(self) -> dict[str, str]:
+        """topic -> message type, from the container's index (no scan)."""
+        return {t: ch.msgtype for t, ch in self._channels.items()}
+
     @property
     def roles(self) -> dict[str, str]:
         """role -> topic, from message types and the container's index (no scan of the log:
@@ -257,12 +265,30 @@ class LogReader:
                 for _t, raw in self._raw(topic):
                     joint_names[topic] = [str(n) for n in self._decode(raw, topic).name]
                     break
-        candidates = [(t, ch.msgtype, ch.count) for t, ch in self._channels.items()]
-        roles = detect_roles(candidates, joint_names, self.cfg.roles)
+        found = candidates_by_role([Candidate(t, ch.msgtype, ch.count) for t, ch in self._channels.items()],
+                                   joint_names)
+        for role in ("lidar", "wheel_odom"):  # several candidates: their first message's fields and frames count
+            if len(found.get(role, ())) > 1 and role not in self.cfg.roles:
+                found[role] = [self._with_evidence(c) for c in found[role]]
+        roles, self.role_doubts = choose_roles(found, self.cfg.roles)
+        for doubt in self.role_doubts:
+            log.warning("%s: %s", self.path, doubt.message())
         for role, topic in roles.items():
             if topic not in self._channels:
                 raise InputError(self.path, f"topic given for role {role!r} is not in the log", topic=topic)
         return roles
+
+    def _with_evidence(self, c: Candidate) -> Candidate:
+        """`c` with the field names and frames of its first message (unchanged if it cannot be read)."""
+        try:
+            msg = next((self._decode(raw, c.topic) for _t, raw in self._raw(c.topic)), None)
+        except InputError:
+            return c
+        if msg is None:
+            return c
+        fields = tuple(str(f.name) for f in getattr(msg, "fields", ()))
+        return replace(c, fields=fields, frame_id=str(msg.header.frame_id),
+                       child_frame_id=str(getattr(msg, "child_frame_id", "")))
 
     def _topic_for(self, role: str, topic: str | None) -> str:
         if topic is not None:

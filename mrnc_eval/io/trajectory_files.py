@@ -14,6 +14,7 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.trajectory_inputs import trajectory_file_in
 
 _LOG_SUFFIXES = (".bag", ".mcap", ".db3")
 
@@ -142,9 +143,7 @@ def read_trajectory(spec: str | Path, *, fmt: str | None = None) -> Trajectory:
     if ":/" in text and not Path(text).exists():  # ROS 2 bag directory:/topic
         log_path, topic = text.split(":/", 1)
         return _from_log(Path(log_path), "/" + topic)
-    path = Path(text)
-    if not path.exists():
-        raise InputError(path, "no such file")
+    path = trajectory_file_in(Path(text))  # a result folder gives its trajectory; a bare log says how to name a topic
     kind = fmt or _guess_format(path)
     readers = {"tum": read_tum, "kitti": read_kitti, "euroc": read_euroc}
     if kind not in readers:

@@ -1,0 +1,43 @@
+"""Issue 19, mistakes that ended in tracebacks: a result folder or a bare log given to `ape`."""
+
+from __future__ import annotations
+
+import json
+import shutil
+from pathlib import Path
+
+import pytest
+
+from mrnc_eval.cli import main
+
+SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
+GT = SAMPLES / "loop_forest_ros1.gt.tum"
+LOG = SAMPLES / "loop_forest_ros1.bag"
+
+
+def test_a_result_folder_stands_for_its_trajectory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    run = tmp_path / "results" / "run-1"
+    run.mkdir(parents=True)
+    shutil.copy(GT, run / "trajectory.tum")
+    assert main(["ape", str(GT), str(run) + "/", "--json"]) == 0
+    by_folder = json.loads(capsys.readouterr().out)
+    assert main(["ape", str(GT), str(run / "trajectory.tum"), "--json"]) == 0
+    assert json.loads(capsys.readouterr().out) == by_folder
+
+
+def test_another_folder_says_which_file_to_pass(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["ape", str(GT), str(tmp_path)]) == 4
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "is a folder, not a trajectory file" in err
+    assert "trajectory.tum" in err
+
+
+def test_a_log_without_topic_lists_its_pose_topics(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["ape", str(LOG), str(GT)]) == 4
+    err = capsys.readouterr().err
+    assert err.count("\n") == 1
+    assert "is a log" in err
+    assert f"{LOG}:/TOPIC" in err
+    assert "/ground_truth" in err
+    assert "/wheel_odom" in err
