@@ -308,3 +308,17 @@ def read_result(run_dir: str | Path) -> RunResult:
         )
     except (KeyError, TypeError) as err:
         raise InputError(path, f"invalid result: {err}") from err
+
+
+LATEST_LINK = "latest"
+
+
+def link_latest(target: Path) -> Path:
+    """Point `target.parent/latest` at `target` (relative symlink, replaced atomically), so the
+    newest run or night is always at OUT/latest."""
+    link = target.parent / LATEST_LINK
+    tmp = target.parent / f".{LATEST_LINK}.{os.getpid()}.tmp"
+    tmp.unlink(missing_ok=True)
+    tmp.symlink_to(target.name, target_is_directory=True)
+    os.replace(tmp, link)
+    return link

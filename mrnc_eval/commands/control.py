@@ -20,7 +20,16 @@ from mrnc_eval.data import SidePair
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import feedback_share, paper_metrics, path_metrics, tracking_metrics
 from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
-from mrnc_eval.results import Event, Metric, RunResult, check_output_root, log_id_for, new_run_dir, write_result
+from mrnc_eval.results import (
+    Event,
+    Metric,
+    RunResult,
+    check_output_root,
+    link_latest,
+    log_id_for,
+    new_run_dir,
+    write_result,
+)
 from mrnc_eval.tables import Cell, Table
 
 log = logging.getLogger(__name__)
@@ -242,6 +251,18 @@ def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarra
                                "(none found; set io.roles.ground_truth, io.roles.wheel_odom or io.roles.gnss)")
 
 
+def topics_used(log_path: Path, cfg: Config, mode: str) -> dict[str, str]:
+    """role -> topic of what a replay (or a simulation along the log's path) reads, for summaries
+    and reports; the pose source follows recorded_pose's order."""
+    from mrnc_eval.io import open_log
+
+    with open_log(log_path, cfg.io) as lg:
+        roles = lg.roles
+    pose = next((r for r in ("ground_truth", "wheel_odom", "gnss") if r in roles), "")
+    wanted = ("path", "ground_truth") if mode == "simulate" else ("path", pose, "wheel_speeds", "commands")
+    return {r: roles[r] for r in wanted if r in roles}
+
+
 @dataclass(frozen=True)
 class _Recording:
     """What a control replay reads from a log."""
@@ -383,7 +404,8 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
                     "seed": cfg.control.seed, "definitions": table_notes(cfg),
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
-                    "curvature": cfg.control.pure_pursuit.curvature}
+                    "curvature": cfg.control.pure_pursuit.curvature,
+                    "roles": {} if log_path is None else topics_used(log_path, cfg, mode)}
     write_result(result, out_dir, dump_config(cfg))
     return result
 
@@ -434,6 +456,7 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
         result = run_sweep_result(cfg, names, run_dir, runs=runs, seed=seed)
     else:
         result = run_log(log_path, cfg, run_dir, mode=mode, controllers=names)
+    link_latest(run_dir)
     if json_out:
         from mrnc_eval.commands.output import emit_json
 
@@ -520,6 +543,9 @@ def print_summary(result: RunResult, run_dir: Path) -> None:
         console.print(f"warning: {escape(w)}", style="yellow")
     for e in result.events:
         console.print(f"event {e.t_s:.2f} s: {escape(e.message)}", style="red")
+    used = ", ".join(f"{role} {topic}" for role, topic in result.extra.get("roles", {}).items())
+    if used:
+        console.print(f"topics: {escape(used)}")
     console.print(f"results: {escape(str(run_dir))}")
 
 

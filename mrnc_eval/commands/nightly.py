@@ -22,7 +22,7 @@ from mrnc_eval.config import Config, build, config_hash, dump_config, load_yaml_
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
 from mrnc_eval.history import History, LastRun, LogRecord, Regression, find_regressions
 from mrnc_eval.reports.night import IndexRow
-from mrnc_eval.results import atomic_write_text, check_output_root, path_hash, stable_id
+from mrnc_eval.results import atomic_write_text, check_output_root, link_latest, path_hash, stable_id
 from mrnc_eval.text import shorten
 
 if TYPE_CHECKING:
@@ -178,6 +178,7 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
             if bar:
                 bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
     rows = _write_index(history, night, night_dir)
+    link_latest(night_dir)
     regressions = _write_trends(history, out)
     if junit is not None:
         from mrnc_eval.commands.junit import night_suites, write_junit

@@ -8,6 +8,7 @@ from __future__ import annotations
 import sys
 from pathlib import Path
 
+from mrnc_eval.commands.gates import raise_on_failed_gates
 from mrnc_eval.config import CONFIG_FILE_NAME, load_config
 from mrnc_eval.errors import InputError
 from mrnc_eval.results import RESULT_FILE, RunResult, read_result
@@ -21,7 +22,8 @@ def result_dirs_of(paths: list[Path]) -> list[Path]:
     for p in paths:
         if (p / RESULT_FILE).is_file():
             found.append(p)
-        elif p.is_dir() and (subs := sorted(d for d in p.iterdir() if (d / RESULT_FILE).is_file())):
+        elif p.is_dir() and (subs := sorted(d for d in p.iterdir() if (d / RESULT_FILE).is_file()
+                                            and not d.is_symlink())):  # OUT/latest repeats a run
             found += subs
         else:
             raise InputError(p, f"not a result directory (no {RESULT_FILE} in it or in its sub-folders)")
@@ -50,3 +52,4 @@ def main(result_dirs: list[Path], *, out: Path | None, pdf: bool, junit: Path | 
         written["junit"] = junit
     for kind, path in written.items():
         sys.stdout.write(f"{kind}: {path}\n")
+    raise_on_failed_gates(results, cfg.gates)

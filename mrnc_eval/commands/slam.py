@@ -16,6 +16,7 @@ from typing import Any
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mrnc_eval.commands.gates import raise_on_failed_gates
 from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
@@ -28,6 +29,7 @@ from mrnc_eval.results import (
     RunResult,
     check_output_root,
     json_safe,
+    link_latest,
     log_id_for,
     new_run_dir,
     stable_id,
@@ -75,6 +77,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         inputs = _read_inputs(lg, log_path, cfg)
+        result.extra["roles"] = {r: t for r, t in lg.roles.items() if r in ("lidar", "imu", "gnss", "ground_truth")}
         out = _replay(lg, inputs, cfg, progress)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
     if out.stamps.size < 2:
@@ -416,8 +419,8 @@ def _add_map_quality(result: RunResult, out: SlamOutput, cfg: Config) -> None:
 
 def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: dict[str, Trajectory],
                  map_points: np.ndarray) -> None:
-    """Trajectories (TUM), the map (PLY, PCD), metrics.json and the result, written atomically."""
-    from mrnc_eval.io.trajectory_files import write_tum
+    """Trajectories (TUM; KITTI too), the map (PLY, PCD), metrics.json and the result, written atomically."""
+    from mrnc_eval.io.trajectory_files import write_kitti, write_tum
 
     tmp = Path(tempfile.mkdtemp(prefix=".slam-files-"))
     try:
@@ -425,6 +428,9 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
         for name, trajectory in trajectories.items():
             write_tum(tmp / name, trajectory)
             files[name] = tmp / name
+        if "trajectory.tum" in trajectories:  # the same poses as KITTI rows (line k = line k of the TUM file)
+            write_kitti(tmp / "trajectory.kitti", trajectories["trajectory.tum"])
+            files["trajectory.kitti"] = tmp / "trajectory.kitti"
         if map_points.size:
             import open3d as o3d
 
@@ -476,11 +482,13 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
             cells[(row_ids[path], cfg.slam.method)] = Cell(None, str(err))
             continue
         results.append((run_dir, r))
+        link_latest(run_dir)
         m = r.metric(TABLE_METRIC[cfg.slam.table_trajectory])
         cells[(row_ids[path], cfg.slam.method)] = Cell(m.value if m else None, "" if m else "no ground truth")
     _print_summary(results, cells, [row_ids[p] for p in logs], cfg, json_out)
     if failed:
         raise SomeInputsFailed("; ".join(f"{p}: {e}" for p, e in failed))
+    raise_on_failed_gates([r for _, r in results], cfg.gates)
 
 
 def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str, str], Cell], rows: list[str],
@@ -498,7 +506,8 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
         apes = [f"{label} {vals[name]:.4f} m" for label, name in (("online", "ape_online_rmse_m"),
                                                                     ("smoothed", "ape_rmse_m")) if name in vals]
         ape = ", ".join(apes) if apes else "n/a (no ground truth)"
-        sys.stdout.write(f"{r.log_id}: APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
+        used = ", ".join(f"{role} {topic}" for role, topic in r.extra.get("roles", {}).items())
+        sys.stdout.write(f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
                          f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
     if len(rows) > 1:
         title = f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"

@@ -132,6 +132,15 @@ def write_tum(path: str | Path, traj: Trajectory) -> None:
     np.savetxt(path, data, fmt=["%.9f"] + ["%.9f"] * 3 + ["%.12f"] * 4, delimiter=" ")
 
 
+def write_kitti(path: str | Path, traj: Trajectory) -> None:
+    """KITTI poses: the 3x4 [R | t] of each pose, row-major, one line per pose (no stamps: pair
+    them with the TUM file's lines)."""
+    from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix
+
+    rt = np.concatenate([quat_xyzw_to_matrix(traj.quat_xyzw), traj.positions[:, :, None]], axis=2)
+    np.savetxt(path, rt.reshape(-1, 12), fmt="%.9f", delimiter=" ")
+
+
 def read_trajectory(spec: str | Path, *, fmt: str | None = None) -> Trajectory:
     """A trajectory from a file or a `log:/topic` spec; the format by suffix unless given."""
     text = str(spec)

@@ -10,6 +10,7 @@ from __future__ import annotations
 import datetime as dt
 import logging
 import math
+import re
 from dataclasses import dataclass
 from pathlib import Path
 from typing import Any
@@ -90,7 +91,17 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
         worst = max(vals)
         return Gate(label, fmt.format(worst) + unit, f"{limit:g}{unit}", "pass" if worst <= limit else "fail")
 
-    return [card("APE RMSE", values("slam", "ape_rmse_m"), gates.ape_rmse_max_m, "{:.3f}", " m"),
+    def ape_cards() -> list[Gate]:  # one per SLAM method, named when the result says which
+        methods = list(dict.fromkeys(str(r.extra["method"]) for r in results if r.kind == "slam"
+                                     and r.extra.get("method")))
+        if len(methods) == 0:
+            return [card("APE RMSE", values("slam", "ape_rmse_m"), gates.ape_rmse_max_m, "{:.3f}", " m")]
+        return [card(f"APE RMSE ({method})", [m.value for r in results if r.kind == "slam"
+                                              and r.extra.get("method") == method for m in r.metrics
+                                              if m.name == "ape_rmse_m" and is_number(m.value)],
+                     gates.ape_rmse_max_m, "{:.3f}", " m") for method in methods]
+
+    return [*ape_cards(),
             card("Funnel violations", values("control", "funnel_violations"), gates.funnel_violations_max, "{:.0f}"),
             card("Saturation ratio", values("control", "saturation_ratio"), gates.saturation_ratio_max, "{:.3f}"),
             card("Safety stops", values("control", "safety_stops"), gates.safety_stops_max, "{:.0f}")]
@@ -123,7 +134,8 @@ def _slam_section(r: RunResult) -> dict[str, Any]:
                f"{r.extra.get('first_sweep_ms', float('nan')):.0f} ms, numba's one-off compilation included "
                f"on a fresh install); {r.extra.get('mapping_rate', '')}. " + " ".join(SLAM_DEFINITIONS))
     tables = [_key_table("SLAM key numbers", keys)] + ([timing_table] if timing else []) + r.tables
-    return {"title": "SLAM", "summary": summary, "tables": tables,
+    return {"title": f"SLAM ({r.extra['method']})" if r.extra.get("method") else "SLAM", "summary": summary,
+            "tables": tables,
             "figures": slam_figures(r)}
 
 
@@ -178,10 +190,11 @@ def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: st
     config_hash = next((r.config_hash for r in results if r.config_hash), "")
     info = info_of(results)
     findings = [w for r in results if r.kind == "info" for w in r.warnings]
+    used = {role: topic for r in results for role, topic in (r.extra.get("roles") or {}).items()}
     return environment().get_template("report.html.j2").render(
         css=css(), log_id=first.log_id, log_path=first.log_path, tool_version=first.tool_version or __version__,
         config_hash=config_hash, created=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        gates=evaluate_gates(results, gates), info=info, notes=findings,
+        gates=evaluate_gates(results, gates), info=info, notes=findings, used_roles=used,
         sections=[_section(r) for r in results if r.kind in ("slam", "control")], config_text=config_text)
 
 
@@ -222,6 +235,45 @@ def fallback_pdf(path: Path, reason: str) -> None:
         pdf.savefig(fig)
 
 
+_ROMAN = {"I": 1, "II": 2, "III": 3, "IV": 4, "V": 5}
+
+
+def table_files(results: list[RunResult]) -> dict[str, Table]:
+    """File stem -> table, each named after the paper table it lays out: slam_table1 (Table I,
+    sequences x methods: one file with every method of the report), control_table2 (Table II)."""
+    named: dict[str, list[Table]] = {}
+    for r in results:
+        for k, table in enumerate(report_tables(r)):
+            numeral = re.match(r"Table (I{1,3}|IV|V)\b", table.title)
+            number = _ROMAN[numeral.group(1)] if numeral else 1 if r.kind == "slam" and k == 0 else k + 1
+            named.setdefault(safe_name(f"{r.kind}_table{number}"), []).append(table)
+    out: dict[str, Table] = {}
+    for stem, tables in named.items():
+        if stem.startswith("slam_table1") and len(tables) > 1:
+            out[stem] = merge_columns(tables)
+        else:
+            out.update({stem if k == 0 else f"{stem}_{k + 1}": t for k, t in enumerate(tables)})
+    return out
+
+
+def merge_columns(tables: list[Table]) -> Table:
+    """Tables of the same rows (sequences) side by side: the columns (methods) of all, a "Mean"
+    row kept last."""
+    rows = list(dict.fromkeys(label for t in tables for label in t.row_labels))
+    rows.sort(key=lambda label: label.lower().startswith("mean"))
+    columns: list[str] = []
+    cells: list[list[Cell]] = [[] for _ in rows]
+    for t in tables:
+        by_row = dict(zip(t.row_labels, t.cells, strict=False))
+        for c, label in enumerate(t.column_labels):
+            columns.append(label)
+            for i, row in enumerate(rows):
+                cells[i].append(by_row[row][c] if row in by_row and c < len(by_row[row]) else None)
+    first = tables[0]
+    return Table(first.title, rows, columns, cells, unit=first.unit, best=first.best, best_per=first.best_per,
+                 precision=first.precision, notes=list(dict.fromkeys(n for t in tables for n in t.notes)))
+
+
 def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig, config_text: str,
                  pdf: bool = False) -> dict[str, Path]:
     """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically."""
@@ -231,12 +283,10 @@ def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig,
     html = render_html(results, gates=gates, config_text=config_text)
     written = {"html": out_dir / "report.html"}
     atomic_write_text(written["html"], html)
-    for r in results:
-        for k, table in enumerate(report_tables(r)):
-            stem = safe_name(f"{r.kind}_table{k + 1}")
-            for fmt, suffix in (("csv", ".csv"), ("latex", ".tex")):
-                written[f"{stem}{suffix}"] = out_dir / f"{stem}{suffix}"
-                atomic_write_text(written[f"{stem}{suffix}"], render_table(table, fmt))
+    for stem, table in table_files(results).items():
+        for fmt, suffix in (("csv", ".csv"), ("latex", ".tex")):
+            written[f"{stem}{suffix}"] = out_dir / f"{stem}{suffix}"
+            atomic_write_text(written[f"{stem}{suffix}"], render_table(table, fmt))
     if pdf:
         written["pdf"] = out_dir / "report.pdf"
         if write_pdf(html, written["pdf"]) == "fallback":

@@ -10,6 +10,7 @@ import csv
 import html
 import io
 import math
+import re
 from typing import TypeGuard
 
 from mrnc_eval.tables import Cell, Table
@@ -112,12 +113,30 @@ def _latex(table: Table) -> str:
     return "\n".join(out) + "\n"
 
 
+# decimals by unit (the one in a row label's parentheses, else the table's): a resolution finer
+# than the data, coarser than float32 noise (9.900000095367432 -> 9.9); JSON keeps full precision
+UNIT_DECIMALS = {"m": 4, "mm": 1, "s": 3, "ms": 1, "m/s": 4, "rad/s": 4, "rpm": 2, "%": 2, "deg": 3, "rad": 5,
+                 "m/m": 5, "deg/m": 5, "hz": 2}
+
+
+def decimals_for(label: str, table: Table) -> int:
+    """Decimals for the numbers of a row: by the unit in its label ("Settling time (s)"), else
+    by the table's unit, else the table's precision."""
+    match = re.search(r"\(([^()]*)\)\s*$", label)
+    for unit in (match.group(1) if match else "", table.unit):
+        if unit.strip().lower() in UNIT_DECIMALS:
+            return UNIT_DECIMALS[unit.strip().lower()]
+    return table.precision
+
+
 def _csv(table: Table) -> str:
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow([_title(table)] + table.column_labels)
     for label, row in zip(table.row_labels, table.cells, strict=False):
-        w.writerow([label] + [("" if c is None else (repr(c) if isinstance(c, float) else c)) for c in row])
+        places = decimals_for(label, table)
+        w.writerow([label] + [("" if c is None else (repr(round(c, places)) if isinstance(c, float) else c))
+                              for c in row])
     return buf.getvalue()
 
 

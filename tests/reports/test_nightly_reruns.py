@@ -49,6 +49,7 @@ def test_reruns_follow_the_log_and_the_configuration(tmp_path: Path, monkeypatch
     line, calls = run("2026-11-01")
     assert calls == 2
     assert "2 new, 0 unchanged, 0 re-run" in line
+    assert (out / "latest").resolve() == (out / "2026-11-01").resolve()
     # the same night again, and a new night: nothing changed, nothing is processed
     line, calls = run("2026-11-01")
     assert calls == 0

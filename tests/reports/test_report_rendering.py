@@ -125,9 +125,10 @@ def test_tables_exported_and_report_verb_rerenders_without_recomputing(night: Pa
     log_dir = night / "logs" / "a"
     slam = read_result(log_dir / "slam")
     csv = (log_dir / "slam_table1.csv").read_text(encoding="utf-8").splitlines()
-    # the result's number, unrounded; Table I takes the online trajectory by default (slam.table_trajectory)
-    assert csv[1].split(",")[1] == repr(slam.metric("ape_online_rmse_m").value)
-    assert "\\begin{tabular}" in (log_dir / "control_table1.tex").read_text(encoding="utf-8")
+    # the result's number to 0.1 mm (a metre column; float32 noise stays out, result.json keeps it all);
+    # Table I takes the online trajectory by default (slam.table_trajectory)
+    assert csv[1].split(",")[1] == repr(round(slam.metric("ape_online_rmse_m").value, 4))
+    assert "\\begin{tabular}" in (log_dir / "control_table2.tex").read_text(encoding="utf-8")
     out = tmp_path / "again"
     assert main(["report", str(log_dir), "--out", str(out)]) == 0
     again = (out / "report.html").read_text(encoding="utf-8")
@@ -167,7 +168,7 @@ def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_p
     assert [c for c in captions if "funnel" in c] == ["RAID: wheel-speed reference vs measured, funnel band "
                                                       "reference ± o(t)"]
     assert "Table II" in html
-    assert (tmp_path / "rep" / "control_table1.tex").exists()
+    assert (tmp_path / "rep" / "control_table2.tex").exists()
     counts, console = open_in_chromium(tmp_path / "rep" / "report.html", tmp_path)
     assert counts["figures"] == counts["sized"] == counts["drawn"] == 8
     assert not console
