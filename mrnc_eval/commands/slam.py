@@ -77,7 +77,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         inputs = _read_inputs(lg, log_path, cfg)
-        result.extra["roles"] = {r: t for r, t in lg.roles.items() if r in ("lidar", "imu", "gnss", "ground_truth")}
+        result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
         out = _replay(lg, inputs, cfg, progress)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
     if out.stamps.size < 2:
