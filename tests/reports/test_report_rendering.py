@@ -78,9 +78,9 @@ def test_report_opens_in_chromium_with_every_figure_drawn(night: Path, tmp_path:
     assert not console, console
     html = report.read_text(encoding="utf-8")
     assert not re.search(r'<img|<link|<script|src=|href="(?!#|data:)[a-z]+:|url\((?!#)', html)  # self-contained
-    for heading in ("Log health", "SLAM", "Control", "Effective configuration"):
+    for heading in ("Log health", "SLAM (lio)", "Control", "Effective configuration"):
         assert f"<h2>{heading}</h2>" in html
-    for card in ("APE RMSE", "Funnel violations", "Saturation ratio", "Safety stops"):
+    for card in ("APE RMSE (lio)", "Funnel violations", "Saturation ratio", "Safety stops"):
         assert f'<div class="l">{card}</div>' in html
 
 
