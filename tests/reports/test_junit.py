@@ -125,7 +125,7 @@ def test_report_junit_from_result_directories(tmp_path: Path) -> None:
     log = write_imu_log(tmp_path / "drifty.mcap", 30)
     gate_analysis(log, Config(), tmp_path / "runs", "drifty", False)
     junit = tmp_path / "report.xml"
-    assert main(["report", str(tmp_path / "runs"), "--junit", str(junit)]) == 0
+    assert main(["report", str(tmp_path / "runs"), "--junit", str(junit)]) == 1  # the APE gate fails: exit 1
     root = ET.parse(junit).getroot()
     (suite,) = root.findall("testsuite")
     assert suite.get("failures") == "1"
