@@ -21,7 +21,7 @@ def two_runs(sim_runs: Runs, tmp_path_factory) -> tuple[Path, Path]:
     for name, value in (("a", 0.11), ("b", 0.05)):
         assert main(["control", str(sim_runs.log), "--mode", "replay", "--out", str(root / name),
                      "--set", f"{FLOOR}={value}", "--json"]) == 0
-        (run,) = (root / name).iterdir()
+        (run,) = [p for p in (root / name).iterdir() if not p.is_symlink()]  # and OUT/latest -> it
         dirs.append(run)
     return dirs[0], dirs[1]
 
