@@ -182,7 +182,7 @@ def case_02a_slam_same_log_name(ws: Workspace) -> Outcome:
     rewrite_log(ws.sim_log, b, {})  # same content, another file
     out = ws.path("X")
     r = cli("slam", a, b, "--out", out, "--no-loop")
-    runs = sorted(p for p in out.iterdir() if p.is_dir())
+    runs = sorted(p for p in out.iterdir() if p.is_dir() and not p.is_symlink())  # OUT/latest repeats one
     logs = {json.loads((p / "result.json").read_text())["log_path"] for p in runs}
     table_rows = [ln for ln in r.out.splitlines() if ln.startswith("| ") and "run" in ln]
     return Outcome("2a", _cmd("slam a/run.mcap b/run.mcap --out X"), r.code, 0,
@@ -194,7 +194,7 @@ def case_02b_control_same_second(ws: Workspace) -> Outcome:
     out = ws.path("X")
     r1 = cli("control", "--mode", "simulate", "--controllers", "pid", "--out", out, "--set", "control.pid.kp=4000")
     r2 = cli("control", "--mode", "simulate", "--controllers", "pid", "--out", out, "--set", "control.pid.kp=5000")
-    runs = sorted(p for p in out.iterdir() if p.is_dir())
+    runs = sorted(p for p in out.iterdir() if p.is_dir() and not p.is_symlink())  # OUT/latest repeats one
     kps = {json.loads((p / "result.json").read_text())["config_hash"] for p in runs}
     return Outcome("2b", _cmd("control --mode simulate --set control.pid.kp=4000 / =5000 (same second)"),
                    max(r1.code, r2.code), 0, len(runs) == 2 and len(kps) == 2, f"{len(runs)} run folders")
