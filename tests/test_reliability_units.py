@@ -65,3 +65,24 @@ def test_one_sanitiser_for_terminal_and_html() -> None:
     assert "&lt;script&gt;" in html
     assert "<b>ours</b>" in html
     assert len(shorten(list(range(10**6)))) <= 200
+
+
+def test_force_replaces_only_a_log_this_tool_wrote(tmp_path: Path) -> None:
+    from mrnc_eval.commands.simulate import check_target
+
+    ours = tmp_path / "sim.mcap"
+    ours.write_bytes(b"log")
+    (tmp_path / "sim.gt.tum").write_text("1 0 0 0 0 0 0 1\n")
+    with pytest.raises(OutputError, match="already exists"):
+        check_target(ours, force=False)
+    check_target(ours, force=True)  # a log with its ground truth beside it: ours, replaceable
+    bag_dir = tmp_path / "bag"
+    bag_dir.mkdir()
+    (bag_dir / "metadata.yaml").write_text("x")
+    (bag_dir / "bag_0.mcap").write_bytes(b"x")
+    (tmp_path / "bag.gt.tum").write_text("1 0 0 0 0 0 0 1\n")
+    check_target(bag_dir, force=True)
+    (bag_dir / "notes.txt").write_text("mine")  # anything else inside: never replaced
+    with pytest.raises(OutputError, match="not a log this tool wrote"):
+        check_target(bag_dir, force=True)
+    check_target(tmp_path / "new.mcap", force=False)  # a new name is fine

@@ -362,7 +362,13 @@ class LogReader:
                   "acceleration out of range": beyond(acc, v.max_abs_acceleration_mps2),
                   "angular rate out of range": beyond(gyro, v.max_abs_angular_rate_rad_s)}
         if has_orientation:
-            checks["orientation not a unit quaternion"] = bad_quaternions(quat, v.quat_norm_tolerance)
+            bad_q = bad_quaternions(quat, v.quat_norm_tolerance)
+            if np.count_nonzero(bad_q) > v.max_bad_fraction * bad_q.size:  # a broken orientation filter:
+                has_orientation = False  # the rates are still good, use the IMU as a 6-axis one
+                self._note(topic, f"orientation ignored: {np.count_nonzero(bad_q)} of {bad_q.size} quaternions "
+                           "not finite or not unit norm (used as an IMU without orientation)")
+            else:
+                checks["orientation not a unit quaternion"] = bad_q
         valid = self._screen(topic, checks)
         keep, health = _sort_dedup(t[valid], topic)
         self._set_health(health)
