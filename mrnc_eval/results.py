@@ -19,6 +19,7 @@ import datetime as _dt
 import errno
 import hashlib
 import json
+import logging
 import math
 import os
 import re
@@ -317,6 +318,9 @@ def link_latest(target: Path) -> Path:
     """Point `target.parent/latest` at `target` (relative symlink, replaced atomically), so the
     newest run or night is always at OUT/latest."""
     link = target.parent / LATEST_LINK
+    if link.exists() and not link.is_symlink():  # a file or folder of the user's: never replaced
+        logging.getLogger(__name__).warning("%s exists and is not our link; not updated", link)
+        return link
     tmp = target.parent / f".{LATEST_LINK}.{os.getpid()}.tmp"
     tmp.unlink(missing_ok=True)
     tmp.symlink_to(target.name, target_is_directory=True)

@@ -86,3 +86,13 @@ def test_force_replaces_only_a_log_this_tool_wrote(tmp_path: Path) -> None:
     with pytest.raises(OutputError, match="not a log this tool wrote"):
         check_target(bag_dir, force=True)
     check_target(tmp_path / "new.mcap", force=False)  # a new name is fine
+
+
+def test_the_latest_link_never_replaces_a_users_file(tmp_path: Path) -> None:
+    from mrnc_eval.results import link_latest
+
+    (tmp_path / "latest").write_text("my notes")
+    run = tmp_path / "run-1"
+    run.mkdir()
+    link_latest(run)
+    assert (tmp_path / "latest").read_text() == "my notes"
