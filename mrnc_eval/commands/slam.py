@@ -158,7 +158,7 @@ def _ground_truth(lg: Any, log_path: Path) -> Trajectory | None:
     from mrnc_eval.io.trajectory_files import read_tum
 
     if lg.has_role("ground_truth"):
-        return lg.ground_truth()  # type: ignore[no-any-return]
+        return lg.ground_truth()
     beside = gt_tum_path(log_path)
     return read_tum(beside) if beside.exists() else None
 
@@ -469,7 +469,9 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     if no_gps:
         cfg = replace_path(cfg, "slam.gps.enabled", False)
     check_output_root(out, need_bytes=SLAM_OUTPUT_BYTES * len(logs))  # before the long work, not after it
-    results, failed, cells = [], [], {}
+    results: list[tuple[Path, RunResult]] = []
+    failed: list[tuple[Path, str]] = []
+    cells: dict[tuple[str, str], Cell] = {}  # (log row, method) -> APE cell of Table I
     row_ids = _row_ids(logs)
     for path in logs:
         run_dir = new_run_dir(out, log_id_for(path), f"slam-{cfg.slam.method}")
