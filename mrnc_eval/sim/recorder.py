@@ -8,6 +8,7 @@ import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
+from typing import Literal, cast
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -19,7 +20,7 @@ from mrnc_eval.data import ImuSeries, Trajectory, Waypoints
 from mrnc_eval.errors import ConfigError
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
-from mrnc_eval.io.writers import LogWriter
+from mrnc_eval.io.writers import Format, LogWriter
 from mrnc_eval.sim.config import LidarSimConfig
 from mrnc_eval.sim.gnss import simulate_field_gnss, simulate_gnss
 from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
@@ -32,7 +33,8 @@ from mrnc_eval.sim.wheels import drive_signals
 LOG_EPOCH_S = 1_763_800_000.0  # sensor-clock time of every simulated log's t = 0, s
 LIDAR_MODELS = {"os0-128": 128, "os0-64": 64, "os0-32": 32}
 PATHS = ("circle", "figure8", "loop", "line")
-PROFILES = ("ideal", "field")
+Profile = Literal["ideal", "field"]
+PROFILES: tuple[Profile, ...] = ("ideal", "field")
 FIELD_STREAM = 13  # the field profile draws from default_rng([seed, FIELD_STREAM]): ideal draws stay as they were
 TOPICS = {"lidar": "/ouster/points", "metadata": "/ouster/metadata", "imu": "/ouster/imu",
           "chassis_imu": "/chassis/imu", "gnss": "/gnss/fix", "wheels": "/wheel_speeds", "pumps": "/pump_cmd",
@@ -113,7 +115,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     if not cfg.sim.scene_scale > 0:
         raise ConfigError(f"sim.scene_scale must be > 0, got {cfg.sim.scene_scale:g}")
     if req.profile is not None:
-        cfg = replace(cfg, sim=replace(cfg.sim, profile=req.profile))
+        cfg = replace(cfg, sim=replace(cfg.sim, profile=cast(Profile, req.profile)))  # validate() checked it
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
     scfg = cfg.sim
@@ -155,12 +157,12 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
 
     t0 = LOG_EPOCH_S
     compression = None if scfg.bag_compression == "none" else scfg.bag_compression
-    writer = LogWriter(out, req.fmt, ros1_compression=compression)
+    writer = LogWriter(out, cast(Format, req.fmt), ros1_compression=compression)  # validate() checked it
     try:
         writer.write_tf_static([("base_link", "os_sensor", base_to_sensor), ("os_sensor", "os_lidar", sensor_to_lidar),
                                 ("os_sensor", "os_imu", sensor_to_imu), ("base_link", "chassis_imu", base_to_chassis),
                                 ("base_link", "gnss", base_to_gnss)], t0)
-        writer.write_strings(TOPICS["metadata"], [t0], [ouster_metadata(lcfg, sensor_to_imu, req.lidar)])
+        writer.write_strings(TOPICS["metadata"], np.array([t0]), [ouster_metadata(lcfg, sensor_to_imu, req.lidar)])
         writer.write_path(TOPICS["plan"], Waypoints(scenario.waypoints_xy, frame_id="map"), t0)
         if field is None:
             noise = ImuNoise.from_config(scfg.imu)

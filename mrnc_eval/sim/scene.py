@@ -68,7 +68,10 @@ class Scene:
         return rs
 
 
-def box_mesh(cx, cy, z0, sx, sy, sz, yaw=0.0):
+Mesh = tuple[np.ndarray, np.ndarray]  # (vertices (V, 3) m, triangles (T, 3) vertex indices)
+
+
+def box_mesh(cx, cy, z0, sx, sy, sz, yaw=0.0) -> Mesh:
     c, s = math.cos(yaw), math.sin(yaw)
     corners = np.array([[dx, dy, dz] for dz in (0, sz) for dy in (-sy / 2, sy / 2) for dx in (-sx / 2, sx / 2)])
     xy = corners[:, :2] @ np.array([[c, s], [-s, c]])
@@ -78,7 +81,7 @@ def box_mesh(cx, cy, z0, sx, sy, sz, yaw=0.0):
     return v, t
 
 
-def _cylinder(cx, cy, z0, radius, height, n=12):
+def _cylinder(cx, cy, z0, radius, height, n=12) -> Mesh:
     a = 2 * np.pi * np.arange(n) / n
     ring = np.c_[cx + radius * np.cos(a), cy + radius * np.sin(a)]
     v = np.r_[np.c_[ring, np.full(n, z0)], np.c_[ring, np.full(n, z0 + height)]]
@@ -89,14 +92,14 @@ def _cylinder(cx, cy, z0, radius, height, n=12):
     return v, np.asarray(t)
 
 
-def _sphere(cx, cy, cz, r, n=8):
+def _sphere(cx, cy, cz, r, n=8) -> Mesh:
     import open3d as o3d
 
     m = o3d.geometry.TriangleMesh.create_sphere(radius=r, resolution=n)
     return np.asarray(m.vertices) + [cx, cy, cz], np.asarray(m.triangles)
 
 
-def _ground(terrain: Terrain, half: float, step: float):
+def _ground(terrain: Terrain, half: float, step: float) -> Mesh:
     g = np.arange(-half, half + step, step)
     X, Y = np.meshgrid(g, g)
     Z = terrain.height(X, Y)

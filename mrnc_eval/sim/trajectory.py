@@ -7,6 +7,7 @@ time, so IMU derivatives and LiDAR per-column poses agree with the ground truth.
 from __future__ import annotations
 
 from dataclasses import dataclass, field
+from typing import Any
 
 import numpy as np
 from scipy.interpolate import CubicSpline
@@ -25,7 +26,7 @@ class Shake:
     of time (cubic splines through the simulated response; zero outside it)."""
 
     t: np.ndarray  # (N,) s
-    splines: tuple  # three CubicSplines: z, roll, pitch
+    splines: tuple[Any, Any, Any]  # three CubicSplines: z, roll, pitch
 
     def offsets(self, times: np.ndarray) -> np.ndarray:
         """(M, 3) [z m, roll rad, pitch rad] at `times` (s)."""
@@ -79,7 +80,7 @@ class BodyTrajectory:
     yaw: np.ndarray  # (N,) rad, unwrapped
     terrain: Terrain
     shake: Shake | None = None
-    _splines: tuple = field(init=False, repr=False, compare=False)
+    _splines: tuple[Any, ...] = field(init=False, repr=False, compare=False)
 
     def __post_init__(self) -> None:
         t = np.asarray(self.t, float)
