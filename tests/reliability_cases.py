@@ -134,6 +134,11 @@ def umask(mask: int) -> Iterator[None]:
         os.umask(old)
 
 
+def run_folders(out: Path) -> list[Path]:
+    """The result folders under an output root (not the OUT/latest link, which repeats one)."""
+    return sorted(p for p in out.iterdir() if p.is_dir() and not p.is_symlink()) if out.exists() else []
+
+
 def tree_snapshot(folder: Path) -> dict[str, bytes]:
     return {str(p.relative_to(folder)): p.read_bytes() for p in sorted(folder.rglob("*")) if p.is_file()}
 
@@ -406,8 +411,7 @@ def case_08_no_gnss_fix(ws: Workspace) -> Outcome:
     log = rewrite_log(ws.sim_log, ws.path("nofix.mcap"), {"/gnss/fix": _no_fix})
     out = ws.path("R")
     r = cli("slam", log, "--out", out, "--no-gps", "--no-loop")
-    warnings = [w for p in out.iterdir() for w in json.loads((p / "result.json").read_text())["warnings"]] \
-        if out.exists() else []
+    warnings = [w for p in run_folders(out) for w in json.loads((p / "result.json").read_text())["warnings"]]
     return Outcome("8", _cmd("slam NO_FIX_LOG --no-gps"), r.code, 0,
                    any("no valid GNSS fix" in w for w in warnings), "; ".join(warnings)[:120])
 
@@ -430,8 +434,7 @@ def case_09_nan_rotations(ws: Workspace) -> Outcome:
     tf_log = rewrite_log(ws.sim_log, ws.path("nan_tf.mcap"), {"/tf_static": _nan_static_rotation})
     out = ws.path("R")
     runs = [cli("slam", imu_log, "--out", out, "--no-loop"), cli("slam", tf_log, "--out", out)]
-    warnings = [w for p in out.iterdir() for w in json.loads((p / "result.json").read_text())["warnings"]] \
-        if out.exists() else []
+    warnings = [w for p in run_folders(out) for w in json.loads((p / "result.json").read_text())["warnings"]]
     noted = any("orientation ignored" in w for w in warnings)
     return Outcome("9", _cmd("slam NAN_IMU_ORIENTATION_LOG; slam NAN_TF_STATIC_LOG"), max(r.code for r in runs), 4,
                    [r.code for r in runs] == [0, 4] and noted and one_line(runs[1]) and "quaternion" in runs[1].err,
@@ -488,7 +491,7 @@ def case_14_umask_permissions(ws: Workspace) -> Outcome:
     out = ws.path("R")
     with umask(0o022):
         r = cli("control", "--mode", "simulate", "--controllers", "pid", "--out", out)
-        run = next(p for p in out.iterdir() if p.is_dir())
+        run = run_folders(out)[0]
         rep = cli("report", run)
     modes = {str(p.relative_to(out)): p.stat().st_mode & 0o777 for p in out.rglob("*")}
     wrong = {k: oct(m) for k, m in modes.items() if m != (0o755 if (out / k).is_dir() else 0o644)}
