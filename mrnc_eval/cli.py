@@ -19,7 +19,7 @@ from typer.exceptions import TyperException
 from mrnc_eval import __version__
 from mrnc_eval.cli_help import PlainGroup
 from mrnc_eval.errors import MrncError
-from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
+from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.text import printable
 
 __all__ = ["app", "main", "printable"]
@@ -220,7 +220,16 @@ RelationOpt = Annotated[
     Relation, typer.Option(help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m).")
 ]
 MaxDiffOpt = Annotated[float, typer.Option("--max-diff", help="Association: maximum stamp difference, s.")]
-OffsetOpt = Annotated[float, typer.Option(help="Association: added to the estimate's stamps, s.")]
+OffsetOpt = Annotated[str, typer.Option(
+    help="Added to the estimate's stamps, s; 'auto' estimates it (speed correlation, then least aligned APE).")]
+StrictOpt = Annotated[bool, typer.Option(
+    "--strict", help="Refuse repeated or out-of-order stamps (default: pair them as evo does, with a warning).")]
+SyncOpt = Annotated[SyncMethod, typer.Option(
+    help="nearest: closest stamp within --max-diff (evo); interpolate: the reference at each estimate stamp.")]
+MaxGapOpt = Annotated[float, typer.Option(
+    "--max-gap", help="--sync interpolate: longest reference gap interpolated across, s.")]
+
+
 class Plane(StrEnum):
     xy = "xy"
     xz = "xz"
@@ -230,6 +239,8 @@ class Plane(StrEnum):
 PlaneOpt = Annotated[Plane | None, typer.Option(help="Project to a plane before the metric.")]
 TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
 PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
+ApePlotOpt = Annotated[Path | None, typer.Option(
+    "--plot", help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
 
 
 @app.command()
@@ -240,17 +251,23 @@ def ape(
     n_to_align: NAlignOpt = None,
     relation: RelationOpt = Relation.trans,
     max_diff: MaxDiffOpt = 0.01,
-    offset: OffsetOpt = 0.0,
+    offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
-    plot: PlotOpt = None,
+    plot: ApePlotOpt = None,
+    strict: StrictOpt = False,
+    sync: SyncOpt = SyncMethod.nearest,
+    max_gap: MaxGapOpt = 0.2,
+    decompose: Annotated[bool, typer.Option(
+        "--decompose", help="Also along-track, cross-track, vertical (m) and yaw (deg) error statistics.")] = False,
 ) -> None:
     """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
         ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
-        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot,
+        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict, sync=sync,
+        max_gap=max_gap, decompose=decompose,
     )
 
 
@@ -265,11 +282,14 @@ def rpe(
     n_to_align: NAlignOpt = None,
     relation: RelationOpt = Relation.trans,
     max_diff: MaxDiffOpt = 0.01,
-    offset: OffsetOpt = 0.0,
+    offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: PlotOpt = None,
+    strict: StrictOpt = False,
+    sync: SyncOpt = SyncMethod.nearest,
+    max_gap: MaxGapOpt = 0.2,
     pairs_from_reference: Annotated[bool, typer.Option(
         "--pairs-from-reference", help="Choose pairs on the reference path (default: on the estimate, as evo); "
         "a noisy estimate travels farther than the reference, so metre pairs from it are denser.")] = False,
@@ -284,6 +304,7 @@ def rpe(
         n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=_plain(plane),
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
+        strict=strict, sync=sync, max_gap=max_gap,
     )
 
 

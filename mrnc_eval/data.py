@@ -38,14 +38,19 @@ class Trajectory:
     name: str = ""
     frame_id: str = ""
     child_frame_id: str = ""
+    # (N, 3, 3) rotation matrices exactly as read, when the source stores matrices (KITTI):
+    # evaluation uses them unchanged, as evo does, instead of the orthonormal quat_xyzw.
+    rotations: F64 | None = None
 
     def __post_init__(self) -> None:
         if self.positions.ndim != 2 or self.positions.shape[1] != 3:
             raise ValueError(f"Trajectory {self.name!r}: positions must be (N, 3)")
         if self.quat_xyzw.ndim != 2 or self.quat_xyzw.shape[1] != 4:
             raise ValueError(f"Trajectory {self.name!r}: quat_xyzw must be (N, 4)")
+        if self.rotations is not None and self.rotations.shape[1:] != (3, 3):
+            raise ValueError(f"Trajectory {self.name!r}: rotations must be (N, 3, 3)")
         _check_rows(f"Trajectory {self.name!r}", self.stamps.shape[0],
-                    positions=self.positions, quat_xyzw=self.quat_xyzw)
+                    positions=self.positions, quat_xyzw=self.quat_xyzw, rotations=self.rotations)
 
     def __len__(self) -> int:
         return int(self.stamps.shape[0])

@@ -5,6 +5,7 @@ from __future__ import annotations
 import logging
 import os
 import sys
+from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
@@ -15,7 +16,7 @@ from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.ape import ApeResult, ape
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.evaluation.config import EvaluationConfig
-from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
+from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.evaluation.relations import TITLES
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
 from mrnc_eval.io.trajectory_files import read_trajectory
@@ -45,7 +46,8 @@ def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
                  unit=results[0].unit, best=None, precision=6)
 
 
-def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None) -> None:
+def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None,
+          decompositions=None) -> None:
     """Print (JSON or Markdown), then write the table and plot files; all computed before."""
     from mrnc_eval.commands.output import emit_json
 
@@ -53,20 +55,44 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
         raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
     if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
         raise UsageError(f"--plot {plot}: use a {', '.join(PLOT_SUFFIXES)} file")
-    summaries = [r.summary() for r in results]
-    if drifts is not None:
-        for s, d in zip(summaries, drifts, strict=True):
-            s["drift"] = d.summary()
     if json_out:
-        emit_json(summaries)
+        emit_json(_summaries(results, drifts, decompositions))
     else:
         sys.stdout.write(render_table(_results_table(results, title), "markdown"))
         if drifts is not None:
             sys.stdout.write("\n" + render_table(_drift_table([r.name for r in results], drifts), "markdown"))
+        if decompositions is not None:
+            sys.stdout.write("\n" + render_table(_decomposition_table([r.name for r in results], decompositions),
+                                                 "markdown"))
     if table is not None:
         atomic_write_text(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]))
-    if plot is not None:
-        _plot_errors(results, title, plot)
+    if plot is not None and isinstance(results[0], ApeResult):
+        _save_figure(_path_figure(results, title), plot)
+    elif plot is not None:
+        _save_figure(_error_figure(results, title), plot)
+
+
+def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
+    summaries = [r.summary() for r in results]
+    for key, extra in (("drift", drifts), ("decomposition", decompositions)):
+        if extra is not None:
+            for s, x in zip(summaries, extra, strict=True):
+                s[key] = x.summary()
+    return summaries
+
+
+def _decomposition_table(names: list[str], decs: list) -> Table:
+    parts = (("along_m", "along-track (m)"), ("cross_m", "cross-track (m, + left)"), ("vertical_m", "vertical (m)"),
+             ("yaw_deg", "yaw (deg)"))
+    rows, cells = [], []
+    for name, dec in zip(names, decs, strict=True):
+        summary = dec.summary()
+        for key, label in parts:
+            rows.append(f"{name} {label}")
+            cells.append([summary[key][k] for k in STAT_ORDER[:-1]])
+    return Table(title="APE decomposed: signed errors of the aligned estimate along and across the reference's "
+                       "direction of travel, vertical, and in yaw", row_labels=rows,
+                 column_labels=list(STAT_ORDER[:-1]), cells=cells, best=None, precision=4)
 
 
 def _decimated_max(t, e, buckets: int = 10000):
@@ -80,7 +106,20 @@ def _decimated_max(t, e, buckets: int = 10000):
     return t[starts], np.maximum.reduceat(e, starts)
 
 
-def _plot_errors(results, title: str, path: Path) -> None:
+def _path_figure(results: list[ApeResult], title: str):
+    """Each estimate's aligned path coloured by its APE, the reference dashed beside it (the
+    SLAM report's figure); statistics use every pose, the drawing is decimated."""
+    from mrnc_eval.reports.figures import draw_error_path, new_figure
+
+    fig, axes = new_figure(6.0 * len(results), 5.0, 1, len(results))
+    for ax, r in zip(axes[0], results, strict=True):
+        draw_error_path(fig, ax, r.ref_xyz, r.est_xyz, r.errors, unit=r.unit,
+                        est_label=f"{r.name} ({r.alignment.mode} aligned)", ref_label="reference", title=r.name)
+    fig.suptitle(title)
+    return fig
+
+
+def _error_figure(results, title: str):
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8, 3.5), layout="constrained")
@@ -92,6 +131,10 @@ def _plot_errors(results, title: str, path: Path) -> None:
     ax.set_ylabel(f"error ({results[0].unit})" if results[0].unit else "error")
     ax.set_title(title)
     ax.legend(loc="upper left", fontsize="small")
+    return fig
+
+
+def _save_figure(fig, path: Path) -> None:
     path.parent.mkdir(parents=True, exist_ok=True)
     tmp = path.with_name(f".{path.name}.tmp{path.suffix}")  # atomic: no half-written plot
     try:
@@ -118,33 +161,89 @@ def _load(ref: str, est: list[str]) -> tuple[Any, list[tuple[Any, bool]]]:
     names = [t.name for t, _ in estimates]
     for k, ((t, by_index), spec) in enumerate(zip(estimates, est, strict=True)):
         if names.count(t.name) > 1:  # same file stem in different folders: use the path
-            estimates[k] = (Trajectory(t.stamps, t.positions, t.quat_xyzw, str(spec), t.frame_id,
-                                       t.child_frame_id), by_index)
+            estimates[k] = (replace(t, name=str(spec)), by_index)
     return reference, estimates
 
 
+def parse_offset(text: str | float) -> float | None:
+    """--offset: seconds added to the estimate's stamps, or "auto" (None) to estimate them."""
+    if isinstance(text, (int, float)):
+        return float(text)
+    if text.strip().lower() == "auto":
+        return None
+    try:
+        return float(text)
+    except ValueError:
+        raise UsageError(f"--offset must be a number of seconds or 'auto', got {text!r}") from None
+
+
+def _offsets(reference: Trajectory, estimates: list[tuple[Trajectory, bool]], offset: str | float,
+             align: AlignMode) -> list[float]:
+    """The offset for each estimate; with 'auto', estimated and printed (stderr)."""
+    fixed = parse_offset(offset)
+    if fixed is not None:
+        return [fixed] * len(estimates)
+    from mrnc_eval.evaluation.offset import estimate_offset
+
+    out = []
+    for e, by_index in estimates:
+        if by_index:
+            raise UsageError("--offset auto needs time stamps; KITTI files are paired line by line")
+        o = estimate_offset(reference, e, align=align)
+        sys.stderr.write(f"{e.name}: estimated clock offset {o.offset_s:+.4f} s (added to its stamps; "
+                         f"speed correlation {o.correlation:.2f}, aligned APE {o.rmse_m:.4f} m)\n")
+        out.append(o.offset_s)
+    return out
+
+
+def _warn_stamps(ref: str, est: list[str], results: list[ApeResult] | list[RpeResult]) -> None:
+    """One warning line per file with repeated or unsorted stamps (the reference once)."""
+    seen = set()
+    sides = [(ref, r.matching.ref_counts) for r in results[:1]] + [
+        (spec, r.matching.est_counts) for spec, r in zip(est, results, strict=True)]
+    for spec, counts in sides:
+        if spec in seen or not (counts.repeated or counts.unsorted):
+            continue
+        seen.add(spec)
+        what = [f"{counts.repeated} repeated" if counts.repeated else "",
+                f"{counts.unsorted} out-of-order" if counts.unsorted else ""]
+        log.warning("%s: %s time stamp(s), paired as evo does (--strict refuses such files)",
+                    spec, " and ".join(w for w in what if w))
+
+
 def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | None, relation: Relation, max_diff: float,
-             offset: float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None) -> None:
+             offset: str | float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None,
+             strict: bool = False, sync: SyncMethod = SyncMethod.nearest, max_gap: float = 0.2,
+             decompose: bool = False) -> None:
     reference, estimates = _load(ref, est)
+    offsets = _offsets(reference, estimates, offset, align)
     results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
-                   offset=offset, plane=plane, by_index=by_index) for e, by_index in estimates]
-    _emit(results, f"APE w.r.t. {TITLES[relation]} ({align} alignment)", json_out, table, plot)
+                   offset=o, plane=plane, by_index=by_index, strict=strict, sync=sync, max_gap=max_gap)
+               for (e, by_index), o in zip(estimates, offsets, strict=True)]
+    _warn_stamps(ref, est, results)
+    decompositions = [r.decompose() for r in results] if decompose else None
+    _emit(results, f"APE w.r.t. {TITLES[relation]} ({align} alignment)", json_out, table, plot,
+          decompositions=decompositions)
 
 
 def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: DeltaUnit, all_pairs: bool, align: AlignMode,
-             n_to_align: int | None, relation: Relation, max_diff: float, offset: float, plane: str | None,
+             n_to_align: int | None, relation: Relation, max_diff: float, offset: str | float, plane: str | None,
              json_out: bool, table: Path | None, plot: Path | None, pairs_from: PairsFrom = PairsFrom.estimate,
-             drift: bool = False) -> None:
+             drift: bool = False, strict: bool = False, sync: SyncMethod = SyncMethod.nearest,
+             max_gap: float = 0.2) -> None:
     reference, estimates = _load(ref, est)
+    offsets = _offsets(reference, estimates, offset, align)
     results = [rpe(reference, e, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
-                   n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=plane,
-                   pairs_from=pairs_from, by_index=by_index) for e, by_index in estimates]
+                   n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=o, plane=plane,
+                   pairs_from=pairs_from, by_index=by_index, strict=strict, sync=sync, max_gap=max_gap)
+               for (e, by_index), o in zip(estimates, offsets, strict=True)]
+    _warn_stamps(ref, est, results)
     drifts = None
     if drift:
         from mrnc_eval.evaluation.drift import drift as kitti_drift
 
-        drifts = [kitti_drift(reference, e, align=align, max_diff=max_diff, offset=offset, by_index=by_index)
-                  for e, by_index in estimates]
+        drifts = [kitti_drift(reference, e, align=align, max_diff=max_diff, offset=o, by_index=by_index)
+                  for (e, by_index), o in zip(estimates, offsets, strict=True)]
     title = (f"RPE w.r.t. {TITLES[relation]}, delta {delta:g} {delta_unit}"
              f"{', all pairs' if all_pairs else ''} (pairs from the {pairs_from})")
     _emit(results, title, json_out, table, plot, drifts=drifts)

@@ -24,10 +24,11 @@ from mrnc_eval.evaluation.align import (
     project_positions,
     project_rotations,
 )
-from mrnc_eval.evaluation.modes import AlignMode, Relation
+from mrnc_eval.evaluation.decompose import Decomposition, decompose
+from mrnc_eval.evaluation.modes import AlignMode, Relation, SyncMethod
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
-from mrnc_eval.evaluation.sync import associate, associate_by_index, check_trajectory, take
+from mrnc_eval.evaluation.sync import Matched, SyncOptions, match
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -43,6 +44,11 @@ class AlignedPair:
     plane: str | None
     ref_xyz: NDArray[np.float64]  # (N, 3)
     est_xyz: NDArray[np.float64]  # (N, 3) aligned
+
+    @property
+    def orthonormal(self) -> bool:
+        """Rotations come from quaternions (orthonormal to rounding), not matrices as read."""
+        return self.ref.rotations is None and self.est.rotations is None
 
     @cached_property
     def ref_rot(self) -> NDArray[np.float64]:
@@ -76,6 +82,7 @@ class ApeResult:
     stamps: NDArray[np.float64]  # the estimate's stamps of the matched poses
     alignment: Alignment
     pair: AlignedPair = field(repr=False)
+    matching: Matched = field(repr=False)
 
     @property
     def transform(self) -> NDArray[np.float64]:
@@ -114,8 +121,12 @@ class ApeResult:
     def ref_matched(self) -> Trajectory:
         return lie.from_poses(self.ref_poses, self.pair.ref)
 
-    def summary(self) -> dict[str, float | int | str]:
-        return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s}
+    def summary(self) -> dict[str, object]:
+        return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s, **self.matching.summary()}
+
+    def decompose(self) -> Decomposition:
+        """Signed along-track, cross-track, vertical and yaw errors of the aligned estimate."""
+        return decompose(self.pair.ref_xyz, self.pair.est_xyz, self.pair.ref_rot, self.pair.est_rot)
 
     def to_dataframe(self) -> pd.DataFrame:
         """One row per matched pose: t_s (the estimate's stamp), the error (column "error_<unit>"),
@@ -133,10 +144,9 @@ class ApeResult:
 
 def matched_pair(ref: Trajectory, est: Trajectory, *, max_diff: float, offset: float,
                  by_index: bool = False) -> tuple[Trajectory, Trajectory]:
-    ref = check_trajectory(ref, "reference")
-    est = check_trajectory(est, "estimate")
-    m = associate_by_index(ref, est) if by_index else associate(ref, est, max_diff=max_diff, offset=offset)
-    return take(ref, m.ref_idx), take(est, m.est_idx)
+    """The matched reference and estimate (evo's nearest-stamp association)."""
+    m = match(ref, est, SyncOptions(max_diff=max_diff, offset=offset, by_index=by_index))
+    return m.ref, m.est
 
 
 def aligned_pair(ref_m: Trajectory, est_m: Trajectory, align: AlignMode | str, n_to_align: int | None,
@@ -152,9 +162,13 @@ def aligned_pair(ref_m: Trajectory, est_m: Trajectory, align: AlignMode | str, n
 
 def ape(ref: Trajectory, est: Trajectory, *, align: AlignMode | str = AlignMode.se3, n_to_align: int | None = None,
         relation: Relation | str = Relation.trans, max_diff: float = 0.01, offset: float = 0.0,
-        plane: str | None = None, by_index: bool = False) -> ApeResult:
+        plane: str | None = None, by_index: bool = False, strict: bool = False,
+        sync: SyncMethod | str = SyncMethod.nearest, max_gap: float = 0.2) -> ApeResult:
+    """APE of `est` against `ref`; `sync`, `max_gap`, `strict`: see evaluation.sync.SyncOptions."""
     relation = check_relation(relation)
-    ref_m, est_m = matched_pair(ref, est, max_diff=max_diff, offset=offset, by_index=by_index)
+    m = match(ref, est, SyncOptions(max_diff=max_diff, offset=offset, by_index=by_index, strict=strict,
+                                    method=SyncMethod(sync), max_gap=max_gap))
+    ref_m, est_m = m.ref, m.est
     pair = aligned_pair(ref_m, est_m, align, n_to_align, plane)
     if relation in (Relation.trans, Relation.point):
         errors = np.linalg.norm(pair.est_xyz - pair.ref_xyz, axis=1)
@@ -163,6 +177,6 @@ def ape(ref: Trajectory, est: Trajectory, *, align: AlignMode | str = AlignMode.
         errors = error_values(rot, trans, relation)
     return ApeResult(
         name=est.name, relation=relation, unit=UNITS[relation], stats=error_stats(errors), n=int(errors.size),
-        span_s=float(est_m.stamps[-1] - est_m.stamps[0]), ref_span_s=float(ref.stamps.max() - ref.stamps.min()),
-        errors=errors, stamps=est_m.stamps, alignment=pair.alignment, pair=pair,
+        span_s=float(np.ptp(est_m.stamps)), ref_span_s=float(np.ptp(ref.stamps)),
+        errors=errors, stamps=est_m.stamps, alignment=pair.alignment, pair=pair, matching=m,
     )

@@ -60,8 +60,28 @@ def matrix_to_quat_xyzw(r: NDArray[np.float64]) -> NDArray[np.float64]:
 
 
 def rotations(traj: Trajectory) -> NDArray[np.float64]:
-    """(N, 3, 3) rotation matrices of a trajectory."""
+    """(N, 3, 3) rotation matrices of a trajectory: as read when the file stored matrices
+    (KITTI; possibly not quite orthonormal, used unchanged as evo does), else from the
+    quaternions (normalised)."""
+    if traj.rotations is not None:
+        return traj.rotations
     return quat_xyzw_to_matrix(traj.quat_xyzw)
+
+
+def nearest_orthonormal(r: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Each matrix whose R R^T differs from I by more than scipy's tolerance (1e-12 absolute
+    off the diagonal, 1e-5 relative on it) replaced by its polar factor U V^T, the nearest
+    rotation; orthonormal ones pass unchanged. This is what scipy's Rotation.from_matrix
+    (and so evo's angle) does with matrices printed to limited precision."""
+    gram = np.matmul(r, transpose(r))
+    tol = 1e-12 + 1e-5 * np.eye(3)
+    off = np.any(np.abs(gram - np.eye(3)) > tol, axis=(1, 2))
+    if not off.any():
+        return r
+    out = r.copy()
+    u, _, vt = np.linalg.svd(r[off])
+    out[off] = np.matmul(u, vt)
+    return out
 
 
 def transpose(r: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -87,7 +107,7 @@ def homogeneous(r: NDArray[np.float64], t: NDArray[np.float64]) -> NDArray[np.fl
 
 def poses(traj: Trajectory) -> NDArray[np.float64]:
     """(N, 4, 4) homogeneous poses of a trajectory."""
-    return homogeneous(quat_xyzw_to_matrix(traj.quat_xyzw), traj.positions)
+    return homogeneous(rotations(traj), traj.positions)
 
 
 def inverse(t: NDArray[np.float64]) -> NDArray[np.float64]:
@@ -110,8 +130,9 @@ def rotation_angle(r: NDArray[np.float64]) -> NDArray[np.float64]:
     """|angle| (rad) of each rotation, through the quaternion: 2 atan2(|q_xyz|, |q_w|).
 
     More accurate than arccos((tr R - 1) / 2) for small angles (error ~eps/theta there).
+    A matrix that is not orthonormal is first replaced by the nearest rotation, as evo does.
     """
-    q = matrix_to_quat_xyzw(r)
+    q = matrix_to_quat_xyzw(nearest_orthonormal(np.asarray(r, dtype=float).reshape(-1, 3, 3)))
     angle: NDArray[np.float64] = 2.0 * np.arctan2(np.linalg.norm(q[:, :3], axis=1), np.abs(q[:, 3]))
     return angle
 

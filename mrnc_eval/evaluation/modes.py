@@ -40,6 +40,13 @@ class DeltaUnit(StrEnum):
     m = "m"
 
 
+class SyncMethod(StrEnum):
+    """How estimate poses are paired with reference poses."""
+
+    nearest = "nearest"  # closest stamp within max_diff (evo's default)
+    interpolate = "interpolate"  # the reference resampled at the estimate's stamps
+
+
 class PairsFrom(StrEnum):
     """Which path RPE pairs are chosen on."""
 

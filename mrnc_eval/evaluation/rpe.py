@@ -2,7 +2,7 @@
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 from typing import TYPE_CHECKING
 
 import numpy as np
@@ -11,11 +11,12 @@ from numpy.typing import NDArray
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
 from mrnc_eval.evaluation import lie
-from mrnc_eval.evaluation.ape import aligned_pair, matched_pair
-from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, parse_choice
+from mrnc_eval.evaluation.ape import aligned_pair
+from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod, parse_choice
 from mrnc_eval.evaluation.pairs import pairs_by_distance, pairs_by_frames
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
+from mrnc_eval.evaluation.sync import Matched, SyncOptions, match
 
 if TYPE_CHECKING:
     import pandas as pd
@@ -34,9 +35,10 @@ class RpeResult:
     span_s: float
     errors: NDArray[np.float64]
     stamps: NDArray[np.float64]  # estimate stamps at the pair ends j
+    matching: Matched = field(repr=False)
 
-    def summary(self) -> dict[str, float | int | str]:
-        return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s}
+    def summary(self) -> dict[str, object]:
+        return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s, **self.matching.summary()}
 
     def to_dataframe(self) -> pd.DataFrame:
         """One row per pair: t_s (the estimate's stamp at the pair's end), the error (column
@@ -53,11 +55,14 @@ def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: Del
         all_pairs: bool = False, align: AlignMode | str = AlignMode.none, n_to_align: int | None = None,
         relation: Relation | str = Relation.trans, max_diff: float = 0.01, offset: float = 0.0,
         plane: str | None = None, pairs_from: PairsFrom | str = PairsFrom.estimate, tol: float = 0.1,
-        by_index: bool = False) -> RpeResult:
+        by_index: bool = False, strict: bool = False, sync: SyncMethod | str = SyncMethod.nearest,
+        max_gap: float = 0.2) -> RpeResult:
     relation = check_relation(relation)
     pairs_from = parse_choice(PairsFrom, pairs_from, "pairs_from")
     delta_unit = parse_choice(DeltaUnit, delta_unit, "delta unit")
-    ref_m, est_m = matched_pair(ref, est, max_diff=max_diff, offset=offset, by_index=by_index)
+    m = match(ref, est, SyncOptions(max_diff=max_diff, offset=offset, by_index=by_index, strict=strict,
+                                    method=SyncMethod(sync), max_gap=max_gap))
+    ref_m, est_m = m.ref, m.est
     pair = aligned_pair(ref_m, est_m, align, n_to_align, plane)
     q, p = pair.ref_xyz, pair.est_xyz
     if delta_unit is DeltaUnit.frames:
@@ -70,11 +75,11 @@ def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: Del
         raise EvaluationError(f"no pose pairs for delta {delta} {delta_unit} (trajectory too short)")
     if relation is Relation.point:  # | |q_j - q_i| - |p_j - p_i| |, no rotations
         errors = np.abs(np.linalg.norm(q[j] - q[i], axis=1) - np.linalg.norm(p[j] - p[i], axis=1))
-    elif relation is Relation.trans:  # | R_Pi^T (p_j - p_i) - R_Qi^T (q_j - q_i) |
+    elif relation is Relation.trans and pair.orthonormal:  # | R_Pi^T (p_j - p_i) - R_Qi^T (q_j - q_i) |
         rel_p = np.einsum("nji,nj->ni", pair.est_rot[i], p[j] - p[i])
         rel_q = np.einsum("nji,nj->ni", pair.ref_rot[i], q[j] - q[i])
         errors = np.linalg.norm(rel_p - rel_q, axis=1)
-    else:  # E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j)
+    else:  # E_ij = (Q_i^-1 Q_j)^-1 (P_i^-1 P_j); also trans for matrices as read (not quite orthonormal)
         rq, tq = lie.relative(pair.ref_rot[i], q[i], pair.ref_rot[j], q[j])
         rp, tp = lie.relative(pair.est_rot[i], p[i], pair.est_rot[j], p[j])
         rot, trans = lie.relative(rq, tq, rp, tp)
@@ -82,5 +87,5 @@ def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: Del
     return RpeResult(
         name=est.name, relation=relation, unit=UNITS[relation], delta=float(delta), delta_unit=delta_unit,
         pairs_from=pairs_from, stats=error_stats(errors), n=int(errors.size),
-        span_s=float(est_m.stamps[-1] - est_m.stamps[0]), errors=errors, stamps=est_m.stamps[j],
+        span_s=float(np.ptp(est_m.stamps)), errors=errors, stamps=est_m.stamps[j], matching=m,
     )

@@ -602,23 +602,21 @@ class LogReader:
         return np.asarray(t, float)[valid], p_a[valid], normalised(q_a[valid])
 
     def _tf_trajectory(self, spec: str) -> Trajectory:
+        """`child` in `parent` through the TF tree (/tf and /tf_static), as tf2 looks it up."""
+        from mrnc_eval.io.tf_chain import chain_trajectory, edges_from_messages
+
         tf_topic, _, frames = spec.partition(":")
         parent, _, child = frames.partition(".")
         if not parent or not child:
             raise InputError(self.path, f"TF spec {spec!r} must be /tf:parent.child")
-        t, p, q = [], [], []
-        for m in self._messages(tf_topic, ("tf2_msgs/msg/TFMessage",)):
-            for tr in m.transforms:
-                if tr.header.frame_id.lstrip("/") == parent and tr.child_frame_id.lstrip("/") == child:
-                    t.append(_stamp(tr))
-                    v, r = tr.transform.translation, tr.transform.rotation
-                    p.append((v.x, v.y, v.z))
-                    q.append((r.x, r.y, r.z, r.w))
-        if not t:
-            raise InputError(self.path, f"no transform {parent} -> {child}", topic=tf_topic)
-        t_a, p_a, q_a = self._valid_poses(tf_topic, t, p, q)
-        keep, _ = _sort_dedup(t_a, tf_topic)
-        return Trajectory(t_a[keep], p_a[keep], q_a[keep], name=spec, frame_id=parent, child_frame_id=child)
+        tf_types = ("tf2_msgs/msg/TFMessage",)
+        static_topic = self.roles.get("tf_static")
+        static = self._messages(static_topic, tf_types) if static_topic and static_topic != tf_topic else ()
+        edges = edges_from_messages(self._messages(tf_topic, tf_types), static)
+        traj = chain_trajectory(edges, parent, child, where=self.path, name=spec)
+        t_a, p_a, q_a = self._valid_poses(tf_topic, list(traj.stamps), list(map(tuple, traj.positions)),
+                                          list(map(tuple, traj.quat_xyzw)))
+        return Trajectory(t_a, p_a, q_a, name=spec, frame_id=parent, child_frame_id=child)
 
     def ground_truth(self, topic: str | None = None) -> Trajectory:
         return self.trajectory(self._topic_for("ground_truth", topic))

@@ -53,6 +53,26 @@ def decimate(*arrays: np.ndarray) -> list[np.ndarray]:
     return [np.asarray(a[:n])[::step] for a in arrays]
 
 
+def draw_error_path(fig, ax, ref_xyz: np.ndarray, est_xyz: np.ndarray, err: np.ndarray, *, unit: str = "m",
+                    est_label: str = "estimate (SE(3) aligned)", ref_label: str = "ground truth",
+                    title: str = "Trajectory in the plane, coloured by APE",
+                    overlays: list[tuple[np.ndarray, str, str]] | None = None) -> None:
+    """The estimate's path in the x-y plane coloured by its error, the reference dashed beside
+    it, `overlays` as plain lines (decimated for drawing). One implementation for SLAM reports
+    and `ape --plot`."""
+    ref, est, e = decimate(ref_xyz, est_xyz, err)
+    ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=1.0, ls="--", label=ref_label)
+    for xyz, label, colour in overlays or ():  # further paths as lines (e.g. the online estimate)
+        line, = decimate(xyz)
+        ax.plot(line[:, 0], line[:, 1], color=colour, lw=0.8, label=label)
+    sc = ax.scatter(est[:, 0], est[:, 1], c=e, s=6, cmap="viridis", label=est_label)
+    ax.plot(est[:1, 0], est[:1, 1], "k^", ms=7, label="start")
+    fig.colorbar(sc, ax=ax, label=f"APE ({unit})" if unit else "APE")
+    ax.set_aspect("equal", adjustable="datalim")
+    ax.set(xlabel="x (m)", ylabel="y (m)", title=title)
+    ax.legend(loc="best", fontsize="small")
+
+
 def _mark_events(ax, r: RunResult, kinds: tuple[str, ...]) -> list[str]:
     drawn = []
     for kind in kinds:
@@ -69,18 +89,11 @@ def slam_figures(r: RunResult) -> list[tuple[str, str]]:
     out = []
     if "est_aligned_xyz" in s and "ape_err_m" in s and "ref_xyz" in s:
         fig, ax = new_figure(6.5, 5.0)
-        ax = ax[0, 0]
-        ref, est, err = decimate(s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"])
-        ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=1.0, ls="--", label="ground truth")
+        overlays = []
         if "est_online_aligned_xyz" in s:
-            online, = decimate(s["est_online_aligned_xyz"])
-            ax.plot(online[:, 0], online[:, 1], color="tab:red", lw=0.8, label="online (as processed, SE(3) aligned)")
-        sc = ax.scatter(est[:, 0], est[:, 1], c=err, s=6, cmap="viridis", label="smoothed (SE(3) aligned)")
-        ax.plot(est[:1, 0], est[:1, 1], "k^", ms=7, label="start")
-        fig.colorbar(sc, ax=ax, label="APE (m)")
-        ax.set_aspect("equal", adjustable="datalim")
-        ax.set(xlabel="x (m)", ylabel="y (m)", title="Trajectory in the plane, coloured by APE")
-        ax.legend(loc="best", fontsize="small")
+            overlays.append((s["est_online_aligned_xyz"], "online (as processed, SE(3) aligned)", "tab:red"))
+        draw_error_path(fig, ax[0, 0], s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"],
+                        est_label="smoothed (SE(3) aligned)", overlays=overlays)
         out.append(("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
                     "truth dashed)", svg(fig)))
         fig, ax = new_figure(7.0, 3.0)

@@ -32,9 +32,14 @@ def test_no_overlap_is_a_clear_error() -> None:
         associate(_traj([0, 1, 2]), _traj([10, 11, 12]), max_diff=0.01)
 
 
-def test_duplicate_stamps_rejected() -> None:
-    with pytest.raises(EvaluationError, match="duplicate time stamp"):
-        ape(_traj([0, 1, 1, 2]), _traj([0, 1, 2]))
+def test_duplicate_and_unsorted_stamps_rejected_when_strict() -> None:
+    with pytest.raises(EvaluationError, match="1 duplicate time stamp"):
+        ape(_traj([0, 1, 1, 2]), _traj([0, 1, 2]), strict=True)
+    with pytest.raises(EvaluationError, match=r"1 time stamp.*earlier"):
+        ape(_traj([0, 1, 2, 3]), _traj([0, 2, 1, 3]), strict=True, align="none")
+    counts = ape(_traj([0, 1, 1, 2]), _traj([0, 2, 1, 3]), align="none").summary()
+    assert counts["repeated_stamps"] == {"reference": 1, "estimate": 0}
+    assert counts["unsorted_stamps"] == {"reference": 0, "estimate": 1}
 
 
 def test_single_pose_rejected() -> None:
