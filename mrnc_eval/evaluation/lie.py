@@ -73,9 +73,12 @@ def nearest_orthonormal(r: NDArray[np.float64]) -> NDArray[np.float64]:
     off the diagonal, 1e-5 relative on it) replaced by its polar factor U V^T, the nearest
     rotation; orthonormal ones pass unchanged. This is what scipy's Rotation.from_matrix
     (and so evo's angle) does with matrices printed to limited precision."""
-    gram = np.matmul(r, transpose(r))
-    tol = 1e-12 + 1e-5 * np.eye(3)
-    off = np.any(np.abs(gram - np.eye(3)) > tol, axis=(1, 2))
+    rows = [np.ascontiguousarray(r[:, i, :]) for i in range(3)]
+    off = np.zeros(r.shape[0], dtype=bool)
+    for i in range(3):  # the six distinct entries of R R^T, row by row (a batched matmul is ~20x slower)
+        for j in range(i, 3):
+            g = np.einsum("ij,ij->i", rows[i], rows[j])
+            off |= np.abs(g - 1.0) > 1e-12 + 1e-5 if i == j else np.abs(g) > 1e-12
     if not off.any():
         return r
     out = r.copy()

@@ -42,8 +42,19 @@ class StampCounts:
 
 
 def stamp_counts(stamps: NDArray[np.float64]) -> StampCounts:
-    repeated = int(stamps.size - np.unique(stamps).size)
-    return StampCounts(repeated, int(np.count_nonzero(np.diff(stamps) < 0)))
+    step = np.diff(stamps)
+    unsorted = int(np.count_nonzero(step < 0))
+    if unsorted == 0:  # the common case: no sort needed
+        return StampCounts(int(np.count_nonzero(step == 0)), 0)
+    return StampCounts(int(np.count_nonzero(np.diff(np.sort(stamps)) == 0)), unsorted)
+
+
+def distinct_count(idx: NDArray[np.int64]) -> int:
+    """How many different indices (sorted ones need no sort)."""
+    step = np.diff(idx)
+    if np.all(step >= 0):
+        return int(idx.size - np.count_nonzero(step == 0))
+    return int(np.count_nonzero(np.diff(np.sort(idx)) != 0) + (idx.size > 0))
 
 
 def label_of(traj: Trajectory, role: str) -> str:
@@ -202,5 +213,5 @@ def match(ref: Trajectory, est: Trajectory, opts: SyncOptions = SyncOptions()) -
         m = associate_by_index(ref, est) if opts.by_index else associate(ref, est, max_diff=opts.max_diff,
                                                                          offset=opts.offset)
         ref_m, est_idx = take(ref, m.ref_idx), m.est_idx
-    unmatched = len(est) - int(np.unique(est_idx).size)
+    unmatched = len(est) - distinct_count(est_idx)
     return Matched(ref_m, take(est, est_idx), ref_counts, est_counts, unmatched, float(opts.offset))

@@ -299,16 +299,17 @@ def test_pose_stamped_and_tf_trajectories(tmp_path: Path) -> None:
         other = np.eye(4)
         tf = M.tf_message(w.ts, t, [("odom", "base_link", mat), ("map", "odom", other)], True)
         w._queue("/tf", "tf2_msgs/msg/TFMessage", t, tf)
-    w.write_tf_static([("base_link", "os_sensor", np.eye(4))], 5.0)
+    w.write_tf_static([("base_link", "os_sensor", np.eye(4)), ("os_sensor_mount", "os_lidar", np.eye(4))], 5.0)
     w.close()
     with open_log(tmp_path / "p.bag") as log:
         assert log.roles["tf"] == "/tf"
         assert log.roles["tf_static"] == "/tf_static"
         pose = log.trajectory("/slam/pose")
         tf = log.trajectory("/tf:odom.base_link")
-        with pytest.raises(InputError, match=r"\[/tf\]: no transform map -> base_link"):
-            log.trajectory("/tf:map.base_link")
-    for traj in (pose, tf):
+        chained = log.trajectory("/tf:map.base_link")  # through odom (map -> odom is the identity), as tf2
+        with pytest.raises(InputError, match=r"\[/tf\]: no TF chain from 'map' to 'os_lidar'"):
+            log.trajectory("/tf:map.os_lidar")
+    for traj in (pose, tf, chained):
         np.testing.assert_allclose(traj.stamps, [5.0, 5.5, 6.0])
         np.testing.assert_allclose(traj.positions, xyz, atol=1e-12)
         np.testing.assert_allclose(np.abs(np.sum(traj.quat_xyzw * q, axis=1)), 1.0, atol=1e-12)
