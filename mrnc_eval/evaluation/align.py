@@ -33,24 +33,47 @@ class Alignment:
         return t
 
 
-def _sequential_outer_sum(yc: NDArray[np.float64], xc: NDArray[np.float64]) -> NDArray[np.float64]:
-    """sum_i yc_i xc_i^T added one point after the other, as evo's loop does (cumsum is
-    sequential, sum is pairwise). A BLAS product rounds differently, and for nearly
+CHUNK = 1 << 16  # rows per block of the sequential sums: ~1.5 MB of temporaries
+
+
+def _sequential_sum(rows: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Column sums of (n, k) added one row after the other (what mean(axis=0) does on a
+    C-ordered array), in blocks: the same bits for any memory layout, no full-size copy."""
+    acc = np.zeros(rows.shape[1])
+    for k in range(0, rows.shape[0], CHUNK):
+        block = np.array(rows[k:k + CHUNK], order="C")
+        block[0] += acc  # carry the running sum in: still strictly sequential
+        acc = np.cumsum(block, axis=0)[-1]
+    return acc
+
+
+def _sequential_outer_sum(y: NDArray[np.float64], my: NDArray[np.float64], xc: NDArray[np.float64]) -> F64:
+    """sum_i (y_i - my) xc_i^T added one point after the other, as evo's loop does (cumsum
+    is sequential, sum is pairwise). A BLAS product rounds differently, and for nearly
     collinear paths the SVD turns that 1e-16 into 1e-12 in R; this order gives evo's bits."""
-    ycc = [np.ascontiguousarray(yc[:, a]) for a in range(3)]
-    xcc = [np.ascontiguousarray(xc[:, b]) for b in range(3)]
-    return np.array([[np.cumsum(ycc[a] * xcc[b])[-1] for b in range(3)] for a in range(3)])
+    products = np.empty((min(CHUNK, y.shape[0]), 9))
+    acc = np.zeros(9)
+    for k in range(0, y.shape[0], CHUNK):
+        yc = np.array(y[k:k + CHUNK], order="C") - my
+        xk = xc[k:k + CHUNK]
+        p = products[:yc.shape[0]]
+        for a in range(3):
+            for b in range(3):
+                np.multiply(yc[:, a], xk[:, b], out=p[:, 3 * a + b])
+        p[0] += acc
+        acc = np.cumsum(p, axis=0)[-1]
+    return acc.reshape(3, 3)
 
 
 def umeyama(x: F64, y: F64, with_scale: bool) -> tuple[F64, F64, float]:
     """R, t, c minimising sum |y - (c R x + t)|^2; x, y are (n, 3) matched positions
-    (Umeyama 1991, eqs. 34-43; same operation order as evo, so the same bits)."""
-    x, y = np.ascontiguousarray(x), np.ascontiguousarray(y)  # the reduction order depends on layout
+    (Umeyama 1991, eqs. 34-43; same operation order as evo, so the same bits). Memory: one
+    (n, 3) array (the centred x, whose norm BLAS takes in one piece) plus small blocks."""
     n = x.shape[0]
-    mx, my = x.mean(axis=0), y.mean(axis=0)
-    xc, yc = x - mx, y - my
+    mx, my = _sequential_sum(x) / n, _sequential_sum(y) / n
+    xc = np.subtract(x, mx, order="C")
     sigma_x = 1.0 / n * np.linalg.norm(xc) ** 2
-    cov = np.multiply(1.0 / n, _sequential_outer_sum(yc, xc))
+    cov = np.multiply(1.0 / n, _sequential_outer_sum(y, my, xc))
     u, d, vt = np.linalg.svd(cov)
     if np.count_nonzero(d > np.finfo(float).eps) < 2:
         raise EvaluationError("degenerate covariance rank: Umeyama alignment is not possible "
@@ -107,7 +130,9 @@ def align_positions(xyz: NDArray[np.float64], a: Alignment) -> NDArray[np.float6
     """p' = c R p + t (scale first, then the rigid part, as evo)."""
     if a.mode is AlignMode.none:
         return xyz
-    return a.scale * xyz @ a.rotation.T + a.translation
+    out: NDArray[np.float64] = (a.scale * xyz) @ a.rotation.T
+    out += a.translation  # in place: one (n, 3) temporary less
+    return out
 
 
 def align_rotations(rot: NDArray[np.float64], a: Alignment) -> NDArray[np.float64]:

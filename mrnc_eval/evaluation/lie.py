@@ -59,6 +59,24 @@ def matrix_to_quat_xyzw(r: NDArray[np.float64]) -> NDArray[np.float64]:
     return unit
 
 
+def quat_multiply(a: NDArray[np.float64], b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Hamilton products a b of (N, 4) or (4,) xyzw quaternions (the rotation R_a R_b)."""
+    ax, ay, az, aw = (a[..., k] for k in range(4))
+    bx, by, bz, bw = (b[..., k] for k in range(4))
+    return np.stack([aw * bx + ax * bw + ay * bz - az * by,
+                     aw * by - ax * bz + ay * bw + az * bx,
+                     aw * bz + ax * by - ay * bx + az * bw,
+                     aw * bw - ax * bx - ay * by - az * bz], axis=-1)
+
+
+def quat_relative_angle(q_a: NDArray[np.float64], q_b: NDArray[np.float64]) -> NDArray[np.float64]:
+    """|angle| (rad) of R_a^T R_b from (N, 4) xyzw quaternions of any length: the matrix
+    route's number (evo's, to rounding ~eps/angle) at a fraction of its time and memory."""
+    q = quat_multiply(q_a * np.array([-1.0, -1.0, -1.0, 1.0]), q_b)  # conj(a) b: |q| = |a| |b|
+    angle: NDArray[np.float64] = 2.0 * np.arctan2(np.linalg.norm(q[:, :3], axis=1), np.abs(q[:, 3]))
+    return angle
+
+
 def rotations(traj: Trajectory) -> NDArray[np.float64]:
     """(N, 3, 3) rotation matrices of a trajectory: as read when the file stored matrices
     (KITTI; possibly not quite orthonormal, used unchanged as evo does), else from the

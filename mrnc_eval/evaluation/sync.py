@@ -79,9 +79,17 @@ def check_trajectory(traj: Trajectory, role: str, *, strict: bool = False) -> St
     return counts
 
 
+BLOCK = 1 << 17  # short stamps per block: each is matched on its own, blocks bound the temporaries
+
+
 def _nearest_within(long_t: NDArray[np.float64], short_t: NDArray[np.float64],
                     max_diff: float) -> tuple[NDArray[np.int64], NDArray[np.int64]]:
     """(short indices, long indices) of accepted matches; long_t non-decreasing."""
+    if short_t.size > BLOCK:
+        parts = [_nearest_within(long_t, short_t[k:k + BLOCK], max_diff) for k in range(0, short_t.size, BLOCK)]
+        starts = range(0, short_t.size, BLOCK)
+        return (np.concatenate([s + k for (s, _), k in zip(parts, starts, strict=True)]),
+                np.concatenate([idx for _, idx in parts]))
     n = long_t.size
     inside = (short_t >= long_t[0] - max_diff) & (short_t <= long_t[-1] + max_diff)
     k = np.minimum(np.searchsorted(long_t, short_t, side="right"), n - 1)
