@@ -20,6 +20,7 @@ from mrnc_eval.data import SidePair
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import feedback_share, paper_metrics, path_metrics, tracking_metrics
 from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
+from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.results import (
     Event,
     Metric,
@@ -446,7 +447,7 @@ CONTROL_OUTPUT_BYTES = 50_000_000  # free space asked for before a run: result.j
 def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out: Path, json_out: bool,
          runs: int | None = None, seed: int | None = None) -> None:
     names = parse_controllers(controllers)
-    if log_path is not None and not log_path.exists():
+    if log_path is not None and split_log_paths(log_path) is None and not log_path.exists():  # split: open_log checks
         raise InputError(log_path, "no such file or directory")
     check_output_root(out, need_bytes=CONTROL_OUTPUT_BYTES)  # before the long work, not after it
     run_dir = new_run_dir(out, log_id_for(log_path) if log_path else "paper-circle", f"control-{mode}")

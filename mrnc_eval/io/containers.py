@@ -40,8 +40,12 @@ def detect_container(paths: list[Path]) -> str:
         if any(p.suffix.lower() != ".bag" for p in paths):
             raise InputError(first, "split logs must all be ROS 1 .bag files")
         return "ros1"
-    if len(paths) > 1:
-        raise InputError(first, "only ROS 1 bags can be given as several split files")
+    if len(paths) > 1:  # a split recording: every file of the same kind
+        kinds = {p: detect_container([p]) for p in paths}
+        if len(set(kinds.values())) > 1:
+            listed = ", ".join(f"{p.name} ({k})" for p, k in kinds.items())
+            raise InputError(first, f"the files of a split log must be of one kind: {listed}")
+        return kinds[first]
     if suffix == ".db3":
         return "ros2-sqlite3"
     if suffix == ".mcap":

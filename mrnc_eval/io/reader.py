@@ -30,6 +30,7 @@ from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import Ambiguity, Candidate, candidates_by_role, choose_roles
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
+from mrnc_eval.io.split_logs import SplitSource, split_log_paths
 from mrnc_eval.io.validate import Mask, bad_lat_lon, bad_quaternions, beyond, non_finite, normalised, screen
 
 log = logging.getLogger(__name__)
@@ -101,8 +102,12 @@ class LogReader:
         self.cfg = io_cfg or IoConfig()
         self.container = detect_container(paths)
         try:
-            if self.container == "mcap":
-                self._src: McapSource | RosbagsSource = McapSource(self.path)
+            if self.container != "ros1" and len(paths) > 1:  # split ROS 2 / MCAP: one source per file
+                self._src: McapSource | RosbagsSource | SplitSource = SplitSource(
+                    [McapSource(p) if self.container == "mcap" else RosbagsSource([p], ros1=False) for p in paths],
+                    paths)
+            elif self.container == "mcap":
+                self._src = McapSource(self.path)
             else:
                 self._src = RosbagsSource(paths, ros1=self.container == "ros1")
         except InputError:
@@ -668,6 +673,9 @@ class LogReader:
 def _expand(path: str | Path) -> list[Path]:
     """A path, or a glob pattern for split ROS 1 bags (sorted, so split order is kept)."""
     text = str(path)
+    split = split_log_paths(text)  # "run_0.mcap,run_1.mcap": one recording in several files
+    if split is not None:
+        return [p for part in split for p in _expand(part)]
     if Path(text).name == "metadata.yaml":  # a ROS 2 bag given by its metadata file
         return [Path(text).parent]
     if not Path(text).exists() and any(ch in text for ch in "*?["):
@@ -679,8 +687,9 @@ def _expand(path: str | Path) -> list[Path]:
 
 
 def open_log(path: str | Path | list[str | Path], io_cfg: IoConfig | None = None) -> LogReader:
-    """Open a log: a file, a ROS 2 bag directory, several split ROS 1 bags (a list or a glob
-    pattern such as "run_*.bag"); raises InputError on anything unreadable."""
+    """Open a log: a file, a ROS 2 bag directory, or a recording split into several files of
+    one kind (a list, "a.bag,b.bag", or a glob pattern such as "run_*.bag"); raises
+    InputError on anything unreadable."""
     items = list(path) if isinstance(path, (list, tuple)) else [path]
     paths = [p for item in items for p in _expand(item)]
     if not paths:
