@@ -87,6 +87,6 @@ def test_ape_1m_poses_vs_evo(tmp_path_factory: pytest.TempPathFactory, relation:
     print(f"\nAPE {relation} 1e6 poses, files -> statistics, SE(3): ours {before[0]:.2f} / {after[0]:.2f} s "
           f"(mean {wall:.2f} s), {rss:.0f} MB peak; evo {theirs[0]:.2f} s, {theirs[1]:.0f} MB peak; "
           f"speed-up {speedup:.1f}x, memory {memory:.2f} of evo's; rmse ours {before[2]:.9g} evo {theirs[2]:.9g}")
-    assert before[2] == pytest.approx(theirs[2], rel=1e-6)  # evo prints 6 significant digits
+    assert before[2] == pytest.approx(theirs[2], abs=5e-7)  # evo prints 6 decimals
     assert speedup >= TARGET_SPEEDUP[relation]
     assert memory <= 0.25

@@ -155,9 +155,14 @@ def _index_pairing(ref: str, est: str) -> bool:
 
 
 def _load(ref: str, est: list[str]) -> tuple[Any, list[tuple[Any, bool]]]:
-    """The reference and each estimate (with its pairing mode), named uniquely."""
-    reference = read_trajectory(ref)
-    estimates = [(read_trajectory(e), _index_pairing(ref, e)) for e in est]
+    """The reference and each estimate (with its pairing mode), named uniquely. Files are read
+    in parallel threads (the parser releases the GIL); the first error is raised as is."""
+    from concurrent.futures import ThreadPoolExecutor
+
+    pairing = [_index_pairing(ref, e) for e in est]
+    with ThreadPoolExecutor(max_workers=min(4, 1 + len(est))) as pool:
+        reference, *trajs = list(pool.map(read_trajectory, [ref, *est]))
+    estimates = list(zip(trajs, pairing, strict=True))
     names = [t.name for t, _ in estimates]
     for k, ((t, by_index), spec) in enumerate(zip(estimates, est, strict=True)):
         if names.count(t.name) > 1:  # same file stem in different folders: use the path
