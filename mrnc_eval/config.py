@@ -83,6 +83,7 @@ class Config:
 
 
 def _coerce(value: Any, tp: Any, where: str) -> Any:
+    """`value` as type `tp`, or a ConfigError naming `where` (the dotted key)."""
     origin = get_origin(tp)
     if tp is Any:
         return value
@@ -95,35 +96,52 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
             raise ConfigError(f"{where}: {shorten(value)} is not one of {list(get_args(tp))}")
         return value
     if origin in (typing.Union, types.UnionType):
-        args = get_args(tp)
-        if value is None and type(None) in args:
-            return None
-        errors = []
-        for arg in args:
-            if arg is type(None):
-                continue
-            try:
-                return _coerce(value, arg, where)
-            except ConfigError as err:
-                errors.append(str(err))
-        raise ConfigError(errors[0] if errors else f"{where}: invalid value {shorten(value)}")
+        return _coerce_union(value, get_args(tp), where)
     if origin in (tuple, list):
-        if not isinstance(value, (list, tuple)):
-            raise ConfigError(f"{where}: expected a list, got {shorten(value)}")
-        args = get_args(tp)
-        if origin is tuple and args and args[-1] is not Ellipsis:
-            if len(args) != len(value):
-                raise ConfigError(f"{where}: expected {len(args)} items, got {len(value)}")
-            items = [_coerce(v, a, f"{where}[{i}]") for i, (v, a) in enumerate(zip(value, args, strict=True))]
-        else:
-            item_tp = args[0] if args else Any
-            items = [_coerce(v, item_tp, f"{where}[{i}]") for i, v in enumerate(value)]
-        return tuple(items) if origin is tuple else items
+        return _coerce_sequence(value, origin, get_args(tp), where)
     if origin is dict:
-        if not isinstance(value, dict):
-            raise ConfigError(f"{where}: expected a mapping, got {shorten(value)}")
-        key_tp, val_tp = get_args(tp) or (Any, Any)
-        return {_coerce(k, key_tp, where): _coerce(v, val_tp, f"{where}.{shorten(k, 60)}") for k, v in value.items()}
+        return _coerce_mapping(value, get_args(tp), where)
+    return _coerce_scalar(value, tp, where)
+
+
+def _coerce_union(value: Any, args: tuple[Any, ...], where: str) -> Any:
+    """The first member type that accepts `value`; the first member's error otherwise."""
+    if value is None and type(None) in args:
+        return None
+    errors = []
+    for arg in args:
+        if arg is type(None):
+            continue
+        try:
+            return _coerce(value, arg, where)
+        except ConfigError as err:
+            errors.append(str(err))
+    raise ConfigError(errors[0] if errors else f"{where}: invalid value {shorten(value)}")
+
+
+def _coerce_sequence(value: Any, origin: type, args: tuple[Any, ...], where: str) -> Any:
+    """A list, a fixed-length tuple or a variable-length tuple, item by item."""
+    if not isinstance(value, (list, tuple)):
+        raise ConfigError(f"{where}: expected a list, got {shorten(value)}")
+    if origin is tuple and args and args[-1] is not Ellipsis:
+        if len(args) != len(value):
+            raise ConfigError(f"{where}: expected {len(args)} items, got {len(value)}")
+        items = [_coerce(v, a, f"{where}[{i}]") for i, (v, a) in enumerate(zip(value, args, strict=True))]
+    else:
+        item_tp = args[0] if args else Any
+        items = [_coerce(v, item_tp, f"{where}[{i}]") for i, v in enumerate(value)]
+    return tuple(items) if origin is tuple else items
+
+
+def _coerce_mapping(value: Any, args: tuple[Any, ...], where: str) -> dict[Any, Any]:
+    if not isinstance(value, dict):
+        raise ConfigError(f"{where}: expected a mapping, got {shorten(value)}")
+    key_tp, val_tp = args or (Any, Any)
+    return {_coerce(k, key_tp, where): _coerce(v, val_tp, f"{where}.{shorten(k, 60)}") for k, v in value.items()}
+
+
+def _coerce_scalar(value: Any, tp: Any, where: str) -> Any:
+    """bool, float, int or str; bools are never numbers, and YAML's "1e-4" strings are floats."""
     if tp is bool:
         if not isinstance(value, bool):
             raise ConfigError(f"{where}: expected true/false, got {shorten(value)}")
