@@ -8,6 +8,7 @@ from __future__ import annotations
 
 import math
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -131,56 +132,80 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
         raise ValueError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
     terrain = Terrain(0.0 if name == "corridor" else amplitude_m, roughness_m, seed)
     scene = Scene(name, terrain)
-    rng = np.random.default_rng(seed + 1000)
     cx0, cy0 = centre
     scene.add(*_ground(terrain, half_size_m * scale + max(abs(cx0), abs(cy0)), 0.5), MATERIALS["soil"])
+    placer = _Placer(np.random.default_rng(seed + 1000), centre, scale, keep_clear_xy, clearance_m)
+    furnish = {"yard": _furnish_yard, "forest": _furnish_forest, "corridor": _furnish_corridor}.get(name)
+    if furnish is not None:  # "field": open ground only (degenerate: no structure)
+        furnish(scene, placer)
+    return scene
 
-    def z(x: float, y: float) -> float:
-        return float(terrain.height(np.array(x), np.array(y)))
 
-    clear = None
-    if keep_clear_xy is not None and len(keep_clear_xy):
-        from scipy.spatial import cKDTree
+class _Placer:
+    """Draws object positions around the scene centre, clear of the driven path. All of a scene's
+    random numbers come from its one generator, in a fixed order, so a layout is a pure function of
+    the seed."""
 
-        clear = cKDTree(np.asarray(keep_clear_xy, float)[:, :2])
+    def __init__(self, rng: np.random.Generator, centre: tuple[float, float], scale: float,
+                 keep_clear_xy: np.ndarray | None, clearance_m: float) -> None:
+        self.rng, self.centre, self.scale, self.clearance_m = rng, centre, scale, clearance_m
+        self.clear = None
+        if keep_clear_xy is not None and len(keep_clear_xy):
+            from scipy.spatial import cKDTree
 
-    def place(n, r_min, r_max, sector=(0.0, 2 * np.pi), footprint_m=0.0):
+            self.clear = cKDTree(np.asarray(keep_clear_xy, float)[:, :2])
+
+    def place(self, n, r_min, r_max, sector=(0.0, 2 * np.pi), footprint_m=0.0) -> list[tuple[float, float]]:
         """n positions in the annulus sector; redrawn (at most 100 times) while the footprint
         (radius, m) would reach within clearance_m of the path."""
+        cx0, cy0 = self.centre
         out = []
-        for _ in range(round(n * scale ** 2)):
+        for _ in range(round(n * self.scale ** 2)):
             for _attempt in range(100):
-                r, a = rng.uniform(r_min * scale, r_max * scale), rng.uniform(*sector)
+                r, a = self.rng.uniform(r_min * self.scale, r_max * self.scale), self.rng.uniform(*sector)
                 xy = (cx0 + r * math.cos(a), cy0 + r * math.sin(a))
-                if clear is None or clear.query(xy)[0] >= clearance_m + footprint_m:
+                if self.clear is None or self.clear.query(xy)[0] >= self.clearance_m + footprint_m:
                     out.append(xy)
                     break
         return out
 
-    def tree(x, y, trunk_r, height, crown_r):
-        scene.add(*_cylinder(x, y, z(x, y) - 0.2, trunk_r, height), MATERIALS["bark"])
-        scene.add(*_sphere(x, y, z(x, y) + height, crown_r), MATERIALS["foliage"])
 
-    if name == "yard":
-        for x, y in place(6, 12, 30, footprint_m=8.5):  # buildings / walls (15 x 8 m at most)
-            scene.add(*box_mesh(x, y, z(x, y) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8), rng.uniform(3, 8),
+def _ground_z(scene: Scene, x: float, y: float) -> float:
+    return float(scene.terrain.height(np.array(x), np.array(y)))
+
+
+def _tree(scene: Scene, x: float, y: float, trunk_r: float, height: float, crown_r: float) -> None:
+    scene.add(*_cylinder(x, y, _ground_z(scene, x, y) - 0.2, trunk_r, height), MATERIALS["bark"])
+    scene.add(*_sphere(x, y, _ground_z(scene, x, y) + height, crown_r), MATERIALS["foliage"])
+
+
+def _furnish_yard(scene: Scene, placer: _Placer) -> None:
+    rng, z = placer.rng, partial(_ground_z, scene)
+    for x, y in placer.place(6, 12, 30, footprint_m=8.5):  # buildings / walls (15 x 8 m at most)
+        scene.add(*box_mesh(x, y, z(x, y) - 0.5, rng.uniform(6, 15), rng.uniform(3, 8), rng.uniform(3, 8),
                             rng.uniform(0, np.pi)), MATERIALS["concrete"])
-        for x, y in place(8, 9, 25, footprint_m=3.3):  # 20 ft containers
-            scene.add(*box_mesh(x, y, z(x, y) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), MATERIALS["container"])
-        for x, y in place(10, 9, 28, footprint_m=0.12):  # lamp poles
-            scene.add(*_cylinder(x, y, z(x, y) - 0.2, 0.12, 6.0), MATERIALS["metal_pole"])
-        for x, y in place(3, 10, 20, footprint_m=2.5):  # parked vehicles
-            scene.add(*box_mesh(x, y, z(x, y), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), MATERIALS["vehicle"])
-    elif name == "forest":  # the forest occupies a 200 deg sector; the rest is open ground
-        for x, y in place(70, 8, 38, (0.0, np.radians(200)), footprint_m=3.0):  # crown radius
-            tree(x, y, rng.uniform(0.12, 0.35), rng.uniform(5, 12), rng.uniform(1.5, 3.0))
-        for x, y in place(5, 10, 30, (np.radians(200), 2 * np.pi), footprint_m=2.5):  # lone trees in the open
-            tree(x, y, rng.uniform(0.15, 0.3), rng.uniform(4, 8), rng.uniform(1.5, 2.5))
-        for x, y in place(8, 9, 30, (np.radians(200), 2 * np.pi), footprint_m=1.2):  # rocks and stumps
-            size = rng.uniform(0.8, 2.0), rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.2)
-            scene.add(*box_mesh(x, y, z(x, y) - 0.3, *size, rng.uniform(0, np.pi)), MATERIALS["rock"])
-    elif name == "corridor":  # two long featureless walls 8 m apart, along x
-        for side in (-1, 1):
-            scene.add(*box_mesh(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), MATERIALS["concrete"])
-    # "field": open ground only (degenerate: no structure)
-    return scene
+    for x, y in placer.place(8, 9, 25, footprint_m=3.3):  # 20 ft containers
+        scene.add(*box_mesh(x, y, z(x, y) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), MATERIALS["container"])
+    for x, y in placer.place(10, 9, 28, footprint_m=0.12):  # lamp poles
+        scene.add(*_cylinder(x, y, z(x, y) - 0.2, 0.12, 6.0), MATERIALS["metal_pole"])
+    for x, y in placer.place(3, 10, 20, footprint_m=2.5):  # parked vehicles
+        scene.add(*box_mesh(x, y, z(x, y), 4.5, 1.9, 1.6, rng.uniform(0, np.pi)), MATERIALS["vehicle"])
+
+
+def _furnish_forest(scene: Scene, placer: _Placer) -> None:
+    """A forest edge: trees in a 200 deg sector; the rest is open ground with lone trees and rocks."""
+    rng, z = placer.rng, partial(_ground_z, scene)
+    for x, y in placer.place(70, 8, 38, (0.0, np.radians(200)), footprint_m=3.0):  # crown radius
+        _tree(scene, x, y, rng.uniform(0.12, 0.35), rng.uniform(5, 12), rng.uniform(1.5, 3.0))
+    for x, y in placer.place(5, 10, 30, (np.radians(200), 2 * np.pi), footprint_m=2.5):  # lone trees in the open
+        _tree(scene, x, y, rng.uniform(0.15, 0.3), rng.uniform(4, 8), rng.uniform(1.5, 2.5))
+    for x, y in placer.place(8, 9, 30, (np.radians(200), 2 * np.pi), footprint_m=1.2):  # rocks and stumps
+        size = rng.uniform(0.8, 2.0), rng.uniform(0.6, 1.2), rng.uniform(0.6, 1.2)
+        scene.add(*box_mesh(x, y, z(x, y) - 0.3, *size, rng.uniform(0, np.pi)), MATERIALS["rock"])
+
+
+def _furnish_corridor(scene: Scene, placer: _Placer) -> None:
+    """Two long featureless walls 8 m apart, along x."""
+    cx0, cy0 = placer.centre
+    for side in (-1, 1):
+        scene.add(*box_mesh(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), MATERIALS["concrete"])
