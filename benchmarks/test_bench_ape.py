@@ -77,7 +77,7 @@ def test_ape_1m_poses_vs_evo(tmp_path_factory: pytest.TempPathFactory, relation:
     ref, est = tmp_path / "ref.tum", tmp_path / "est.tum"
     if not est.exists():
         _write_pair(tmp_path)
-    ours(tmp_path / "ref.tum", tmp_path / "ref.tum", relation, tmp_path)  # compiles the cached parser once, untimed
+    ours(tmp_path / "ref.tum", tmp_path / "ref.tum", relation, tmp_path)  # warms the page cache, untimed
     before = ours(ref, est, relation, tmp_path)
     theirs = evo(ref, est, relation, tmp_path)
     after = ours(ref, est, relation, tmp_path)

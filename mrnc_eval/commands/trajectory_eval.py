@@ -156,7 +156,7 @@ def _index_pairing(ref: str, est: str) -> bool:
 
 def _load(ref: str, est: list[str]) -> tuple[Any, list[tuple[Any, bool]]]:
     """The reference and each estimate (with its pairing mode), named uniquely. Files are read
-    in parallel threads (the parser releases the GIL); the first error is raised as is."""
+    in parallel threads (pandas' C tokenizer releases the GIL); the first error is raised as is."""
     from concurrent.futures import ThreadPoolExecutor
 
     pairing = [_index_pairing(ref, e) for e in est]
