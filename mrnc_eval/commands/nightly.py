@@ -34,6 +34,10 @@ TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/ape/end_drift_m", "slam/rtf", "con
                  "control/recorded/right/rms_error_mps", "control/recorded/left/funnel_violations",
                  "control/recorded/right/funnel_violations", "control/recorded/path/cross_track_rms_m")
 HIGHER_IS_BETTER = ("slam/rtf",)
+# Wall-clock metrics depend on how many logs shared the cores: they are compared only with nights
+# that ran as many logs at once (CONCURRENCY_METRIC: 1 in-process, N for --jobs N, 0 on a Dask cluster).
+WALL_CLOCK_METRICS = ("slam/rtf",)
+CONCURRENCY_METRIC = "nightly/concurrent_logs"
 REGRESSION_WINDOW = 5  # previous nights compared against
 REGRESSION_TOLERANCE = 0.2  # flagged when 20 % worse than their median
 NIGHTLY_OUTPUT_BYTES = 200_000_000  # free space asked for per log before the night starts (maps, reports)
@@ -96,6 +100,7 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     night = _night(date)
     cfg = _with_gates(cfg, gates)
     executor = make_executor(jobs, scheduler, cfg.nightly.scheduler_timeout_s)
+    concurrency = 0 if scheduler else max(1, jobs)
     since_date = _since(since)
     logs = discover_logs(log_dir, since_date)
     if not logs and since_date is None:  # a wrong folder, not a quiet night
@@ -105,7 +110,7 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     for folder in skipped:
         log.error("%s: cannot read this folder; any log in it was skipped", folder)
     with _exclusive(out / ".nightly.lock"):
-        _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis, junit, force)
+        _run_night(logs, log_dir, cfg, out, night, executor, pdf, analysis, junit, force, concurrency)
     if skipped:  # reported, never silently left out of the night
         raise SomeInputsFailed(f"{len(skipped)} folder(s) of {log_dir} could not be read: "
                                + ", ".join(shorten(str(f), 120) for f in skipped[:5]))
@@ -159,7 +164,7 @@ def plan_night(logs: dict[str, str], cfg_hash: str, last: dict[str, LastRun], ni
 
 def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: str, executor: Executor, pdf: bool,
                analysis: str, junit: Path | None = None,
-               force: bool = False) -> None:
+               force: bool = False, concurrency: int = 1) -> None:
     night_dir = out / night
     history = History(out / "history.sqlite")
     ids = _unique_ids(logs, log_dir)
@@ -174,7 +179,7 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
     with progress_bar(len(todo)) as bar:
         task = bar.add_task(f"night {night}", total=len(todo)) if bar else None
         for summary in executor.run(todo):
-            _record(history, night, summary, by_path.get(summary.log_path, ""))
+            _record(history, night, summary, by_path.get(summary.log_path, ""), concurrency)
             if bar:
                 bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
     rows = _write_index(history, night, night_dir)
@@ -223,10 +228,11 @@ def _plain(obj: object) -> dict[str, Any]:
     return as_dict(obj)
 
 
-def _record(history: History, night: str, s: LogSummary, stamp: str) -> None:
+def _record(history: History, night: str, s: LogSummary, stamp: str, concurrency: int = 1) -> None:
     """One (night, log) row set, written in one transaction once the log is complete."""
     metrics = (*s.metrics, ("gates_failed", float(len(s.gates_failed)), ""),
-               *((f"gate_failed/{label}", 1.0, "") for label in s.gates_failed))
+               *((f"gate_failed/{label}", 1.0, "") for label in s.gates_failed),
+               (CONCURRENCY_METRIC, float(concurrency), ""))
     history.record(LogRecord(night=night, log_id=s.log_id, run_id=s.run_id, log_path=s.log_path,
                              tool_version=s.tool_version, config_hash=s.config_hash, status=s.status, error=s.error,
                              finished_utc=dt.datetime.now(dt.UTC).strftime("%Y-%m-%dT%H:%M:%SZ"), metrics=metrics,
@@ -267,15 +273,30 @@ def _write_index(history: History, night: str, night_dir: Path) -> list[IndexRow
     return rows
 
 
+def _comparable(per_log: dict[str, dict[str, float]],
+                concurrency: dict[tuple[str, str], float]) -> dict[str, dict[str, float]]:
+    """Per log, only the nights that ran as many logs at once as its latest night (a wall-clock
+    metric of a --jobs 2 night is not a regression against a --jobs 1 night)."""
+    out = {}
+    for log_id, by_night in per_log.items():
+        latest = concurrency.get((max(by_night), log_id))
+        out[log_id] = {n: v for n, v in by_night.items() if concurrency.get((n, log_id)) == latest}
+    return out
+
+
 def _write_trends(history: History, out: Path) -> list[Regression]:
     from mrnc_eval.reports.night import render_trends
 
     data: dict[str, dict[str, dict[str, float]]] = {}
+    concurrency: dict[tuple[str, str], float] = {}  # (night, log) -> logs that ran at once
     for night, log_id, metric, value in history.metric_series():
         if metric in TREND_METRICS:
             data.setdefault(metric, {}).setdefault(log_id, {})[night] = value
+        elif metric == CONCURRENCY_METRIC:
+            concurrency[(night, log_id)] = value
     data = {m: data[m] for m in TREND_METRICS if m in data}  # SLAM first, then control
-    flagged = {metric: find_regressions(metric, per_log, REGRESSION_WINDOW, REGRESSION_TOLERANCE,
+    flagged = {metric: find_regressions(metric, _comparable(per_log, concurrency) if metric in WALL_CLOCK_METRICS
+                                        else per_log, REGRESSION_WINDOW, REGRESSION_TOLERANCE,
                                         higher_is_better=metric in HIGHER_IS_BETTER)
                for metric, per_log in data.items()}
     regressions = [r for found in flagged.values() for r in found]

@@ -48,3 +48,13 @@ def gated_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf
     if log_id == "l1":
         outcome.gates_failed.append("APE RMSE")
     return outcome
+
+
+RTF_ENV = "MRNC_TEST_RTF"
+
+
+def rtf_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:
+    """The info analysis plus a SLAM real-time factor taken from the environment (a wall-clock metric)."""
+    outcome = info_analysis(log_path, cfg, work_dir, log_id, pdf)
+    outcome.metrics.append(("slam/rtf", float(os.environ[RTF_ENV]), ""))
+    return outcome

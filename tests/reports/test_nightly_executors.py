@@ -71,8 +71,14 @@ def test_in_process_pool_and_dask_cluster_give_the_same_history(imu_logs: Path, 
     assert reference[("l1", "info/messages")] == 50
     assert reference[("night_l3", "info/messages")] == 120
     assert reference[("night_l3", "info/duration_s")] == pytest.approx(1.19)  # 120 samples at 100 Hz
+    # each night records how many logs ran at once (1, 2, 0 for a cluster); every measured value is the same
+    concurrency = {"inproc": 1.0, "pool": 2.0, "dask": 0.0}
+    assert {v for (_, m), v in reference.items() if m == nightly.CONCURRENCY_METRIC} == {concurrency["inproc"]}
     for other in ("pool", "dask"):
-        assert metrics(tmp_path / other / "history.sqlite", night) == reference, other
+        theirs = metrics(tmp_path / other / "history.sqlite", night)
+        assert {v for (_, m), v in theirs.items() if m == nightly.CONCURRENCY_METRIC} == {concurrency[other]}
+        measured = {k: v for k, v in theirs.items() if k[1] != nightly.CONCURRENCY_METRIC}
+        assert measured == {k: v for k, v in reference.items() if k[1] != nightly.CONCURRENCY_METRIC}, other
         index = (tmp_path / other / night / "index.html").read_text(encoding="utf-8")
         assert all(f'href="logs/{log}/report.html"' in index for log in IDS)
 
@@ -141,7 +147,7 @@ def test_killed_night_resumes_without_redoing_or_double_counting(imu_logs: Path,
             assert sorted(con.execute("SELECT log_id, status FROM runs WHERE night = '2026-11-03'").fetchall()) == \
                 [(log, "ok") for log in IDS]
             counts = con.execute("SELECT log_id, COUNT(*) FROM metrics GROUP BY log_id").fetchall()
-        assert sorted(counts) == [(log, 4) for log in IDS]  # 3 metrics + gates_failed, each once
+        assert sorted(counts) == [(log, 5) for log in IDS]  # 3 metrics, gates_failed, concurrency: each once
         assert not list(out.rglob("*.partial"))
         assert not list(out.rglob(".*.tmp"))
         # a re-run of the same night is idempotent: nothing redone, history unchanged
