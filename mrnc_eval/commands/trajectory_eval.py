@@ -16,12 +16,15 @@ from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.ape import ApeResult, ape
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.evaluation.config import EvaluationConfig
+from mrnc_eval.evaluation.decompose import Decomposition
+from mrnc_eval.evaluation.drift import DriftResult
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.evaluation.relations import TITLES
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
 from mrnc_eval.io.trajectory_files import read_trajectory
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
 from mrnc_eval.results import atomic_write_text
+from mrnc_eval.tables import Cell as CellValue
 from mrnc_eval.tables import Table
 from mrnc_eval.text import printable
 
@@ -42,7 +45,7 @@ def _is_kitti(spec: str) -> bool:
 def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
     return Table(title=title, row_labels=[printable(r.name) for r in results],  # file names: one line each
                  column_labels=[*STAT_ORDER, "n", "span_s"],
-                 cells=[[r.stats[k] for k in STAT_ORDER] + [r.n, round(r.span_s, 3)] for r in results],
+                 cells=[[*(r.stats[k] for k in STAT_ORDER), r.n, round(r.span_s, 3)] for r in results],
                  unit=results[0].unit, best=None, precision=6)
 
 
@@ -81,10 +84,11 @@ def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
     return summaries
 
 
-def _decomposition_table(names: list[str], decs: list) -> Table:
+def _decomposition_table(names: list[str], decs: list[Decomposition]) -> Table:
     parts = (("along_m", "along-track (m)"), ("cross_m", "cross-track (m, + left)"), ("vertical_m", "vertical (m)"),
              ("yaw_deg", "yaw (deg)"))
-    rows, cells = [], []
+    rows: list[str] = []
+    cells: list[list[CellValue]] = []
     for name, dec in zip(names, decs, strict=True):
         summary = dec.summary()
         for key, label in parts:
@@ -204,8 +208,9 @@ def _offsets(reference: Trajectory, estimates: list[tuple[Trajectory, bool]], of
 def _warn_stamps(ref: str, est: list[str], results: list[ApeResult] | list[RpeResult]) -> None:
     """One warning line per file with repeated or unsorted stamps (the reference once)."""
     seen = set()
-    sides = [(ref, r.matching.ref_counts) for r in results[:1]] + [
-        (spec, r.matching.est_counts) for spec, r in zip(est, results, strict=True)]
+    either: list[ApeResult | RpeResult] = list(results)
+    sides = [(ref, r.matching.ref_counts) for r in either[:1]] + [
+        (spec, r.matching.est_counts) for spec, r in zip(est, either, strict=True)]
     for spec, counts in sides:
         if spec in seen or not (counts.repeated or counts.unsorted):
             continue
@@ -254,11 +259,12 @@ def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: DeltaUnit, a
     _emit(results, title, json_out, table, plot, drifts=drifts)
 
 
-def _drift_table(names: list[str], drifts: list) -> Table:
+def _drift_table(names: list[str], drifts: list[DriftResult]) -> Table:
     lengths = drifts[0].lengths_m
     cols = [f"{L:g} m" for L in lengths] + ["mean"]
-    trans = [[d.trans_pct.get(L, "n/a") for L in lengths] + [d.mean_trans_pct] for d in drifts]
-    rot = [[d.rot_deg_per_m.get(L, "n/a") for L in lengths] + [d.mean_rot_deg_per_m] for d in drifts]
+    trans: list[list[CellValue]] = [[*(d.trans_pct.get(L, "n/a") for L in lengths), d.mean_trans_pct] for d in drifts]
+    rot: list[list[CellValue]] = [[*(d.rot_deg_per_m.get(L, "n/a") for L in lengths), d.mean_rot_deg_per_m]
+                                  for d in drifts]
     return Table(title="KITTI drift: translation (%) / rotation (deg/m) over segments of the reference path",
                  row_labels=[f"{n} t%" for n in names] + [f"{n} deg/m" for n in names], column_labels=cols,
                  cells=trans + rot, best=None, precision=4,
@@ -271,8 +277,8 @@ def _drift_table(names: list[str], drifts: list) -> Table:
 
 def _manifest(source: Path) -> dict[str, dict[str, Any]]:
     """sequence -> {"reference": path, "methods": {method: path | None}}."""
+    out: dict[str, dict[str, Any]] = {}
     if source.is_dir():
-        out = {}
         for seq_dir in sorted(p for p in source.iterdir() if p.is_dir()):
             gt = next((seq_dir / n for n in ("ground_truth.tum", "gt.tum") if (seq_dir / n).exists()), None)
             if gt is None:
@@ -290,11 +296,13 @@ def _manifest(source: Path) -> dict[str, dict[str, Any]]:
     if not isinstance(data, dict) or not isinstance(data.get("sequences"), dict):
         raise InputError(source, "manifest needs a 'sequences' mapping: {name: {reference: ..., methods: {...}}}")
     base = source.parent
-    out = {}
+
+    def res(p: str | None) -> str | None:
+        return None if p is None else str(base / p)
+
     for seq, entry in data["sequences"].items():
         if not isinstance(entry, dict) or "reference" not in entry:
             raise InputError(source, f"sequence {seq!r} needs a 'reference'")
-        res = lambda p: None if p is None else str(base / p)  # noqa: E731
         out[str(seq)] = {"reference": res(entry["reference"]),
                          "methods": {str(m): res(p) for m, p in (entry.get("methods") or {}).items()}}
     return out
