@@ -5,8 +5,10 @@ passed on, never another exception."""
 
 from __future__ import annotations
 
+from collections.abc import Callable
 from pathlib import Path
 from types import SimpleNamespace
+from typing import Any, TypeVar
 
 import numpy as np
 from hypothesis import HealthCheck, given, settings
@@ -19,6 +21,8 @@ from mrnc_eval.io.fast_imu import decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.validate import ValidationConfig
 from mrnc_eval.io.writers import LogWriter
+
+T = TypeVar("T")
 
 FUZZ = settings(max_examples=40, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
 SLOW_FUZZ = settings(max_examples=20, deadline=None, suppress_health_check=[HealthCheck.function_scoped_fixture])
@@ -64,6 +68,17 @@ def _vectors(n: int, k: int) -> st.SearchStrategy[np.ndarray]:
                     max_size=n).map(lambda v: np.asarray(v, float))
 
 
+def _read_or_refused(path: Path, topic: str, read: Callable[[Any], T]) -> T | None:
+    """The stream as `read` returns it from the log, or None when the reader refused it, naming `topic`."""
+    try:
+        with open_log(path) as lg:
+            return read(lg)
+    except InputError as err:
+        refused_topic = err.topic
+        assert refused_topic == topic
+        return None
+
+
 @st.composite
 def imu_streams(draw: st.DrawFn) -> tuple[np.ndarray, np.ndarray, np.ndarray | None]:
     n = draw(st.integers(5, 40))
@@ -80,12 +95,8 @@ def test_imu_stream_is_valid_or_refused(tmp_path: Path, stream) -> None:
     path.unlink(missing_ok=True)
     with LogWriter(path, "mcap") as w:
         w.write_imu("/imu", ImuSeries(1.0 + np.arange(n) / 100.0, acc, gyro, quat, frame_id="imu"))
-    try:
-        with open_log(path) as lg:
-            imu = lg.imu()
-    except InputError as err:
-        refused_topic = err.topic
-        assert refused_topic == "/imu"
+    imu = _read_or_refused(path, "/imu", lambda lg: lg.imu())
+    if imu is None:
         return
     assert np.isfinite(imu.acc).all()
     assert np.isfinite(imu.gyro).all()
@@ -115,12 +126,8 @@ def test_navsatfix_stream_is_valid_or_refused(tmp_path: Path, data) -> None:
     path.unlink(missing_ok=True)
     with LogWriter(path, "mcap") as w:
         w.write_navsatfix("/fix", 1.0 + np.arange(n) * 0.2, lla, np.tile(np.eye(3).ravel(), (n, 1)), status)
-    try:
-        with open_log(path) as lg:
-            g = lg.gnss()
-    except InputError as err:
-        refused_topic = err.topic
-        assert refused_topic == "/fix"
+    g = _read_or_refused(path, "/fix", lambda lg: lg.gnss())
+    if g is None:
         return
     assert (np.abs(g.lla[:, 0]) <= 90).all()
     assert (np.abs(g.lla[:, 1]) <= 180).all()
