@@ -64,15 +64,12 @@ def _run_config(run_dir: Path) -> Config:
 
 def read_log_context(log_path: Path, cfg: Config) -> LogContext:
     from mrnc_eval.io import open_log
-    from mrnc_eval.io.ground_truth import gt_tum_path
-    from mrnc_eval.io.trajectory_files import read_tum
+    from mrnc_eval.io.ground_truth import ground_truth_of
 
     with open_log(log_path, cfg.io) as lg:
         start, end = lg.start_s, lg.end_s
-        gt = lg.ground_truth() if lg.has_role("ground_truth") else None
+        gt = ground_truth_of(lg, log_path)
         wheel = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m) if lg.has_role("wheel_speeds") else None
-    if gt is None and gt_tum_path(log_path).is_file():
-        gt = read_tum(gt_tum_path(log_path))
     return LogContext(log_path, start, end, gt, float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size
                       else None)
 

@@ -22,6 +22,7 @@ from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, NoGnssFix, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
+from mrnc_eval.io.ground_truth import ground_truth_of
 from mrnc_eval.io.prefetch import Prefetched
 from mrnc_eval.results import (
     Event,
@@ -133,7 +134,7 @@ def _read_inputs(lg: Any, log_path: Path, cfg: Config) -> LogInputs:
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
     antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
     lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
-    return LogInputs(duration, base_to_sensor, imu, sensor_to_imu, gnss, _ground_truth(lg, log_path), antenna,
+    return LogInputs(duration, base_to_sensor, imu, sensor_to_imu, gnss, ground_truth_of(lg, log_path), antenna,
                      antenna_in_sensor, lidar.count, lidar.max_gap_s,
                      (gnss_note,) if gnss_note else ())
 
@@ -151,16 +152,6 @@ def _gnss_or_none(lg: Any, cfg: Config) -> tuple[GnssSeries | None, str]:
         if cfg.slam.gps.enabled:
             raise
         return None, f"GNSS not used: {err.problem}"
-
-
-def _ground_truth(lg: Any, log_path: Path) -> Trajectory | None:
-    from mrnc_eval.io.ground_truth import gt_tum_path
-    from mrnc_eval.io.trajectory_files import read_tum
-
-    if lg.has_role("ground_truth"):
-        return lg.ground_truth()
-    beside = gt_tum_path(log_path)
-    return read_tum(beside) if beside.exists() else None
 
 
 def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutput:

@@ -6,6 +6,11 @@ defined once, here, so neither has to import the other."""
 from __future__ import annotations
 
 from pathlib import Path
+from typing import TYPE_CHECKING
+
+if TYPE_CHECKING:
+    from mrnc_eval.data import Trajectory
+    from mrnc_eval.io.reader import LogReader
 
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")
 
@@ -16,3 +21,13 @@ def gt_tum_path(log_path: Path) -> Path:
     for suffix in LOG_SUFFIXES:
         name = name.removesuffix(suffix)
     return log_path.with_name(name + ".gt.tum")
+
+
+def ground_truth_of(lg: LogReader, log_path: Path) -> Trajectory | None:
+    """The log's ground-truth topic, else the `<log>.gt.tum` sidecar beside it, else None."""
+    from mrnc_eval.io.trajectory_files import read_tum
+
+    if lg.has_role("ground_truth"):
+        return lg.ground_truth()
+    beside = gt_tum_path(log_path)
+    return read_tum(beside) if beside.is_file() else None
