@@ -9,9 +9,9 @@ from collections.abc import Sequence
 from pathlib import Path
 
 from mrnc_eval.evaluation.config import GatesConfig
-from mrnc_eval.reports.junit import LogSuite, error_suite, render_junit, suite_of_results
+from mrnc_eval.reports.junit import LogSuite, error_suite, suite_of_results
 from mrnc_eval.reports.night import IndexRow
-from mrnc_eval.results import RunResult, atomic_write_text, read_result
+from mrnc_eval.results import RunResult, read_result
 
 
 def results_in(log_dir: Path) -> list[RunResult]:
@@ -37,7 +37,3 @@ def night_suites(rows: Sequence[IndexRow], night_dir: Path, gates: GatesConfig) 
             continue
         suites.append(suite_of_results(row.log_id, row.log_path, results, gates))
     return suites
-
-
-def write_junit(path: Path, suites: Sequence[LogSuite], name: str) -> None:
-    atomic_write_text(path, render_junit(suites, name))

@@ -12,13 +12,13 @@ import sys
 from collections.abc import Iterator
 from contextlib import contextmanager
 from pathlib import Path
-from typing import TYPE_CHECKING, Any
+from typing import TYPE_CHECKING
 
 import yaml
 
 from mrnc_eval.commands.log_job import DEFAULT_ANALYSIS, LogJob, LogSummary
 from mrnc_eval.commands.progress import progress_bar
-from mrnc_eval.config import Config, build, config_hash, dump_config, load_yaml_file
+from mrnc_eval.config import Config, as_dict, build, config_hash, dump_config, load_yaml_file
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
 from mrnc_eval.history import History, LastRun, LogRecord, Regression, find_regressions
 from mrnc_eval.reports.night import IndexRow
@@ -186,7 +186,8 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
     link_latest(night_dir)
     regressions = _write_trends(history, out)
     if junit is not None:
-        from mrnc_eval.commands.junit import night_suites, write_junit
+        from mrnc_eval.commands.junit import night_suites
+        from mrnc_eval.reports.junit import write_junit
 
         write_junit(junit, night_suites(rows, night_dir, cfg.gates), f"mrnc-eval nightly {night}")
     failed = [r for r in rows if r.status != "ok"]
@@ -210,7 +211,7 @@ def _with_gates(cfg: Config, gates: Path | None) -> Config:
         data = load_yaml_file(gates, "gates") or {}
         if not isinstance(data, dict):
             raise TypeError("expected a mapping of gate names to limits")
-        return build(Config, {**_plain(cfg), "gates": {**_plain(cfg.gates), **data}})
+        return build(Config, {**as_dict(cfg), "gates": {**as_dict(cfg.gates), **data}})
     except (OSError, yaml.YAMLError, ConfigError, TypeError) as err:
         raise ConfigError(f"{gates}: invalid gates file: {err}") from err
 
@@ -220,12 +221,6 @@ def _since(since: str | None) -> dt.date | None:
         return dt.date.fromisoformat(since) if since else None
     except ValueError as err:
         raise UsageError(f"--since {since!r}: expected YYYY-MM-DD") from err
-
-
-def _plain(obj: object) -> dict[str, Any]:
-    from mrnc_eval.config import as_dict
-
-    return as_dict(obj)
 
 
 def _record(history: History, night: str, s: LogSummary, stamp: str, concurrency: int = 1) -> None:

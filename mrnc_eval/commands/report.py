@@ -44,11 +44,10 @@ def main(result_dirs: list[Path], *, out: Path | None, pdf: bool, junit: Path | 
     target = out or (result_dirs[0] if len(dirs) > 1 or not (result_dirs[0] / RESULT_FILE).is_file() else dirs[0])
     written = write_report(results, target, gates=cfg.gates, config_text=config_text, pdf=pdf)
     if junit is not None:
-        from mrnc_eval.reports.junit import render_junit, suite_of_results
-        from mrnc_eval.results import atomic_write_text
+        from mrnc_eval.reports.junit import suite_of_results, write_junit
 
         suite = suite_of_results(results[0].log_id, results[0].log_path, results, cfg.gates)
-        atomic_write_text(junit, render_junit([suite], f"mrnc-eval report {results[0].log_id}"))
+        write_junit(junit, [suite], f"mrnc-eval report {results[0].log_id}")
         written["junit"] = junit
     for kind, path in written.items():
         sys.stdout.write(f"{kind}: {path}\n")

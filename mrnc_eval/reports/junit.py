@@ -13,11 +13,12 @@ import re
 import xml.etree.ElementTree as ET
 from collections.abc import Sequence
 from dataclasses import dataclass, field
+from pathlib import Path
 from typing import Literal
 
 from mrnc_eval.evaluation.config import GatesConfig
 from mrnc_eval.reports.render import Gate, evaluate_gates
-from mrnc_eval.results import RunResult
+from mrnc_eval.results import RunResult, atomic_write_text
 
 Status = Literal["pass", "fail", "skipped", "error"]
 _NOT_XML = re.compile("[^\u0009\u000a\u000d\u0020-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
@@ -102,3 +103,8 @@ def render_junit(suites: Sequence[LogSuite], name: str) -> str:
                 ET.SubElement(case, "system-out").text = f"measured {c.value}, limit {c.limit}"
     ET.indent(root)
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
+
+
+def write_junit(path: Path, suites: Sequence[LogSuite], name: str) -> None:
+    """The suites as one JUnit XML file, written atomically."""
+    atomic_write_text(path, render_junit(suites, name))
