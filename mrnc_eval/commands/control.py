@@ -5,7 +5,8 @@ from __future__ import annotations
 
 import logging
 import math
-from dataclasses import dataclass
+from collections.abc import Mapping
+from dataclasses import dataclass, field
 from pathlib import Path
 from typing import Any
 
@@ -208,10 +209,12 @@ def paper_reading_table(per_ctrl: dict[str, dict[str, dict[str, float]]], names:
                  cells=cells, best=None, precision=3, notes=paper_reading_notes(cfg))
 
 
-def _scenario_from_log(log_path: Path, cfg: Config) -> Scenario:
+def _scenario_from_log(log_path: Path, cfg: Config) -> tuple[Scenario, dict[str, str]]:
+    """The log's path as a scenario, and the log's roles (role -> topic)."""
     from mrnc_eval.io import open_log
 
     with open_log(log_path, cfg.io) as lg:
+        roles = dict(lg.roles)
         wp = lg.waypoints().xy
         start = lg.ground_truth() if lg.has_role("ground_truth") else None
     if start is not None:
@@ -219,7 +222,7 @@ def _scenario_from_log(log_path: Path, cfg: Config) -> Scenario:
     else:
         pose = (float(wp[0, 0]), float(wp[0, 1]), math.atan2(wp[1, 1] - wp[0, 1], wp[1, 0] - wp[0, 0]))
     base = paper_circle_scenario(cfg.control)
-    return Scenario(f"path of {log_path.name}", wp, base.slip_patches, pose)
+    return Scenario(f"path of {log_path.name}", wp, base.slip_patches, pose), roles
 
 
 def simulate(cfg: Config, names: tuple[str, ...],
@@ -252,13 +255,9 @@ def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarra
                                "(none found; set io.roles.ground_truth, io.roles.wheel_odom or io.roles.gnss)")
 
 
-def topics_used(log_path: Path, cfg: Config, mode: str) -> dict[str, str]:
+def topics_used(roles: Mapping[str, str], mode: str) -> dict[str, str]:
     """role -> topic of what a replay (or a simulation along the log's path) reads, for summaries
     and reports; the pose source follows recorded_pose's order."""
-    from mrnc_eval.io import open_log
-
-    with open_log(log_path, cfg.io) as lg:
-        roles = lg.roles
     pose = next((r for r in ("ground_truth", "wheel_odom", "gnss") if r in roles), "")
     wanted = ("path", "ground_truth") if mode == "simulate" else ("path", pose, "wheel_speeds", "commands")
     return {r: roles[r] for r in wanted if r in roles}
@@ -274,6 +273,7 @@ class _Recording:
     speeds: SidePair  # wheel surface speeds, m/s
     commands: SidePair | None  # pump commands, RPM
     health_notes: tuple[str, ...] = ()  # samples dropped, stamps sorted while reading
+    roles: Mapping[str, str] = field(default_factory=dict)  # role -> topic of the log
 
 
 def _read_recording(log_path: Path, cfg: Config) -> _Recording:
@@ -293,7 +293,7 @@ def _read_recording(log_path: Path, cfg: Config) -> _Recording:
         raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles["path"])
     if speeds.stamps.size < 3:
         raise InputError(log_path, "too few wheel-speed messages to evaluate tracking", topic=roles["wheel_speeds"])
-    return _Recording(wp, (pt, pxs, pys, pyaws), source, speeds, cmds, notes)
+    return _Recording(wp, (pt, pxs, pys, pyaws), source, speeds, cmds, notes, dict(roles))
 
 
 def _replay_references(t: np.ndarray, px: np.ndarray, py: np.ndarray, pyaw: np.ndarray, speeds: SidePair,
@@ -339,7 +339,10 @@ def replay(log_path: Path, cfg: Config) -> tuple[dict[str, ClosedLoopTrace], dic
     """Recompute the references the chain would issue along the recorded pose (pure pursuit at its
     rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
     pump commands against them."""
-    rec = _read_recording(log_path, cfg)
+    return _replay_recording(_read_recording(log_path, cfg), cfg)
+
+
+def _replay_recording(rec: _Recording, cfg: Config) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any], list[str]]:
     warnings: list[str] = list(rec.health_notes)
     if rec.pose_source != "ground_truth":
         warnings.append(f"recorded pose from {rec.pose_source} (no ground truth): it must be in the frame of the path")
@@ -376,14 +379,20 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
             controllers: tuple[str, ...] = CONTROLLERS, log_id: str | None = None) -> RunResult:
     """`log_id` names the log in results (default: from its file name; the nightly job passes its own)."""
     warnings: list[str] = []
+    roles: Mapping[str, str] = {}  # of the log, read once with its streams
     if mode == "simulate":
-        scenario = paper_circle_scenario(cfg.control) if log_path is None else _scenario_from_log(log_path, cfg)
+        if log_path is None:
+            scenario = paper_circle_scenario(cfg.control)
+        else:
+            scenario, roles = _scenario_from_log(log_path, cfg)
         traces, metrics = simulate(cfg, controllers, scenario)
         names = controllers
     elif mode == "replay":
         if log_path is None:
             raise UsageError("control --mode replay needs a LOG")
-        traces, metrics, warnings = replay(log_path, cfg)
+        rec = _read_recording(log_path, cfg)
+        roles = rec.roles
+        traces, metrics, warnings = _replay_recording(rec, cfg)
         names = ("recorded",)
     else:
         raise UsageError(f"unknown mode {mode!r}: replay, simulate or sweep")
@@ -406,7 +415,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                     "seed": cfg.control.seed, "definitions": table_notes(cfg),
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
                     "curvature": cfg.control.pure_pursuit.curvature,
-                    "roles": {} if log_path is None else topics_used(log_path, cfg, mode)}
+                    "roles": topics_used(roles, mode)}
     write_result(result, out_dir, dump_config(cfg))
     return result
 
