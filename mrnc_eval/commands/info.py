@@ -60,9 +60,6 @@ def run(path: Path, cfg: Config) -> InfoSummary:
     return summary
 
 
-_VALIDATED_ROLES = ("imu", "chassis_imu", "gnss", "wheel_speeds", "commands", "ground_truth", "wheel_odom", "path")
-
-
 def _validation_findings(lg, summary: InfoSummary) -> None:
     """Read each typed stream once through the reader's validation: a refused stream is an
     error finding, dropped samples a warning (the same policy SLAM and control replay see)."""
@@ -71,12 +68,12 @@ def _validation_findings(lg, summary: InfoSummary) -> None:
     readers = {"imu": lg.imu, "chassis_imu": lg.imu, "gnss": lg.gnss, "wheel_speeds": lg.wheel_speeds,
                "commands": lg.commands, "ground_truth": lg.trajectory, "wheel_odom": lg.trajectory,
                "path": lg.waypoints}
-    for role in _VALIDATED_ROLES:
+    for role, read in readers.items():
         topic = summary.roles.get(role)
         if topic is None:
             continue
         try:
-            readers[role](topic)
+            read(topic)
         except NoGnssFix as err:  # already counted by the fix-ratio finding
             summary.findings.append(Finding("warning", topic, err.problem))
             continue
