@@ -110,10 +110,6 @@ def load_history(root: str | Path) -> pd.DataFrame:
     columns night, log_id, metric, value, unit, status, config_hash."""
     import pandas as pd
 
-    from mrnc_eval.errors import InputError
-    from mrnc_eval.history import METRIC_ROW_COLUMNS, History
+    from mrnc_eval.history import METRIC_ROW_COLUMNS, open_history
 
-    path = Path(root) / "history.sqlite"
-    if not path.is_file():
-        raise InputError(path, "no nightly history here (history.sqlite)")
-    return pd.DataFrame(History(path).metric_rows(), columns=list(METRIC_ROW_COLUMNS))
+    return pd.DataFrame(open_history(Path(root)).metric_rows(), columns=list(METRIC_ROW_COLUMNS))

@@ -14,7 +14,9 @@ from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 
-from mrnc_eval.errors import OutputError
+from mrnc_eval.errors import InputError, OutputError
+
+HISTORY_FILE = "history.sqlite"  # in a nightly report root
 
 SCHEMA = """
 CREATE TABLE IF NOT EXISTS runs (
@@ -129,6 +131,14 @@ class History:
             runs = db.execute("SELECT COUNT(*) FROM runs WHERE night = ?", (night,)).fetchone()[0]
             mets = db.execute("SELECT COUNT(*) FROM metrics WHERE night = ?", (night,)).fetchone()[0]
         return runs, mets
+
+
+def open_history(root: Path) -> History:
+    """The history of the report root `root`, which must exist (reading never creates one)."""
+    path = root / HISTORY_FILE
+    if not path.is_file():
+        raise InputError(path, "no nightly history here (history.sqlite)")
+    return History(path)
 
 
 @dataclass(frozen=True)

@@ -44,14 +44,12 @@ def run_metrics(run: Path, label: str) -> RunMetrics:
 def night_metrics(root: Path, night: str, log_id: str | None) -> RunMetrics:
     """A night's metrics from the history (per log, or of one log); its configuration from the
     night's per-log folders (the nightly runs every log of a night with one configuration)."""
-    from mrnc_eval.history import History
+    from mrnc_eval.history import open_history
 
-    path = root / "history.sqlite"
-    if not path.is_file():
-        raise InputError(path, "no nightly history here (history.sqlite)")
-    history = History(path)
-    if night not in history.nights():
-        raise InputError(path, f"night {night} is not in the history (nights: {', '.join(history.nights())})")
+    history = open_history(root)
+    path, nights = history.path, history.nights()
+    if night not in nights:
+        raise InputError(path, f"night {night} is not in the history (nights: {', '.join(nights)})")
     rows = [r for r in history.metric_rows(night) if r[5] == "ok" and (log_id is None or r[1] == log_id)]
     if not rows:
         raise InputError(path, f"night {night} has no metrics" + (f" for log {log_id}" if log_id else ""))
