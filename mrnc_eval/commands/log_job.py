@@ -105,10 +105,10 @@ def process_log(job: LogJob) -> LogSummary:
     target = Path(job.out_dir)
     partial = target.with_name(f".{target.name}.partial")
     run_id = f"{job.log_id}-{dt.datetime.now(dt.UTC).strftime('%Y%m%dT%H%M%S.%fZ')}"
-    failed = partial_summary = LogSummary(job.log_id, job.log_path, "failed", run_id=run_id)
+    partial_summary = LogSummary(job.log_id, job.log_path, "failed", run_id=run_id)
     try:
         cfg = build(Config, yaml.safe_load(job.config_yaml) or {})
-        partial_summary = replace(failed, config_hash=config_hash(cfg))
+        partial_summary = replace(partial_summary, config_hash=config_hash(cfg))
         shutil.rmtree(partial, ignore_errors=True)
         partial.mkdir(parents=True)
         outcome = resolve(job.analysis)(Path(job.log_path), cfg, partial, job.log_id, job.pdf)

@@ -61,14 +61,6 @@ class AlignedPair:
         return project_rotations(r, self.plane) if self.plane else r
 
 
-def _homogeneous(rot: NDArray[np.float64], xyz: NDArray[np.float64]) -> NDArray[np.float64]:
-    t = np.zeros((xyz.shape[0], 4, 4))
-    t[:, :3, :3] = rot
-    t[:, :3, 3] = xyz
-    t[:, 3, 3] = 1.0
-    return t
-
-
 @dataclass(frozen=True, eq=False)
 class ApeResult:
     name: str
@@ -106,12 +98,12 @@ class ApeResult:
     @cached_property
     def est_poses(self) -> NDArray[np.float64]:
         """(N, 4, 4) aligned (and projected) estimate."""
-        return _homogeneous(self.pair.est_rot, self.pair.est_xyz)
+        return lie.homogeneous(self.pair.est_rot, self.pair.est_xyz)
 
     @cached_property
     def ref_poses(self) -> NDArray[np.float64]:
         """(N, 4, 4) matched (and projected) reference."""
-        return _homogeneous(self.pair.ref_rot, self.pair.ref_xyz)
+        return lie.homogeneous(self.pair.ref_rot, self.pair.ref_xyz)
 
     @cached_property
     def est_aligned(self) -> Trajectory:

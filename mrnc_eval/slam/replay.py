@@ -233,8 +233,8 @@ class _Replay:
             poses = np.array([kf_poses[k] @ r for k, r in zip(tr.ref_kf, tr.rel_to_kf, strict=True)])
         map_points, quality = np.zeros((0, 3)), None
         if self.kf_features:
-            dense = np.vstack([se3.apply(kf_poses[i], np.r_[f.edges, f.surfs])
-                               for i, f in enumerate(self.kf_features)])
+            dense = np.vstack([_keyframe_cloud(self.graph, self.kf_features, i)
+                               for i in range(len(self.kf_features))])
             map_points = voxel_downsample(dense, self.cfg.matching.surf_leaf_m)
             quality = self.map_quality(dense)
         stamps = np.asarray(tr.stamps)
