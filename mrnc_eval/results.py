@@ -35,6 +35,7 @@ import numpy as np
 
 from mrnc_eval import __version__
 from mrnc_eval.errors import InputError, OutputError
+from mrnc_eval.io.containers import LOG_SUFFIXES
 from mrnc_eval.tables import Table
 
 if TYPE_CHECKING:
@@ -106,7 +107,7 @@ def safe_name(text: str, max_len: int = 80) -> str:
 
 
 def _strip_log_suffix(name: str) -> str:
-    for suffix in (".mcap", ".db3", ".bag"):
+    for suffix in LOG_SUFFIXES:
         if name.endswith(suffix):
             return name[: -len(suffix)]
     return name

@@ -21,6 +21,7 @@ from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.config import Config, as_dict, build, config_hash, dump_config, load_yaml_file
 from mrnc_eval.errors import ConfigError, GateFailed, InputError, SomeInputsFailed, UsageError
 from mrnc_eval.history import History, LastRun, LogRecord, Regression, find_regressions
+from mrnc_eval.io.containers import LOG_SUFFIXES
 from mrnc_eval.reports.night import IndexRow
 from mrnc_eval.results import atomic_write_text, check_output_root, link_latest, path_hash, stable_id
 from mrnc_eval.text import shorten
@@ -29,7 +30,6 @@ if TYPE_CHECKING:
     from mrnc_eval.commands.executors import Executor
 
 log = logging.getLogger(__name__)
-LOG_SUFFIXES = (".mcap", ".db3", ".bag")
 TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/ape/end_drift_m", "slam/rtf", "control/recorded/left/rms_error_mps",
                  "control/recorded/right/rms_error_mps", "control/recorded/left/funnel_violations",
                  "control/recorded/right/funnel_violations", "control/recorded/path/cross_track_rms_m")

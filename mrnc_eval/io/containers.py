@@ -15,6 +15,7 @@ from pathlib import Path
 
 from mrnc_eval.errors import InputError
 
+LOG_SUFFIXES = (".mcap", ".db3", ".bag")  # single-file logs; a ROS 2 bag may also be a folder
 SUPPORTED = "a ROS 1 .bag, a ROS 2 bag directory (metadata.yaml), a .db3 or an .mcap file"
 
 

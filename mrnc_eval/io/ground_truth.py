@@ -8,11 +8,11 @@ from __future__ import annotations
 from pathlib import Path
 from typing import TYPE_CHECKING
 
+from mrnc_eval.io.containers import LOG_SUFFIXES
+
 if TYPE_CHECKING:
     from mrnc_eval.data import Trajectory
     from mrnc_eval.io.reader import LogReader
-
-LOG_SUFFIXES = (".mcap", ".db3", ".bag")
 
 
 def gt_tum_path(log_path: Path) -> Path:

@@ -16,9 +16,8 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.containers import LOG_SUFFIXES
 from mrnc_eval.io.trajectory_inputs import trajectory_file_in
-
-_LOG_SUFFIXES = (".bag", ".mcap", ".db3")
 
 
 def _load_columns(path: Path, ncols: int) -> NDArray[np.float64]:
@@ -86,7 +85,7 @@ def read_kitti(path: str | Path) -> Trajectory:
     from mrnc_eval.evaluation.lie import matrix_to_quat_xyzw
 
     path = Path(path)
-    a = np.ascontiguousarray(_load_columns(path, 12).T).reshape(-1, 3, 4)
+    a = np.ascontiguousarray(_load_table(path, 12)).reshape(-1, 3, 4)
     rot = a[:, :, :3]
     # evo's test (np.allclose, atol 1e-6, rtol 1e-5): files printed to 6 digits must pass
     gram = np.abs(np.matmul(np.swapaxes(rot, 1, 2), rot) - np.eye(3)) > 1e-6 + 1e-5 * np.eye(3)
@@ -153,7 +152,7 @@ def write_kitti(path: str | Path, traj: Trajectory) -> None:
 def read_trajectory(spec: str | Path, *, fmt: str | None = None) -> Trajectory:
     """A trajectory from a file or a `log:/topic` spec; the format by suffix unless given."""
     text = str(spec)
-    for suffix in _LOG_SUFFIXES:
+    for suffix in LOG_SUFFIXES:
         marker = suffix + ":"
         if marker in text:
             log_path, topic = text.split(marker, 1)

@@ -6,9 +6,9 @@ from __future__ import annotations
 from pathlib import Path
 
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.containers import LOG_SUFFIXES
 from mrnc_eval.io.roles import POSE_TYPES
 
-LOG_SUFFIXES = (".bag", ".mcap", ".db3")
 RESULT_TRAJECTORY = "trajectory.tum"  # what `slam` writes into each result folder
 
 
