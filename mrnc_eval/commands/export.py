@@ -23,7 +23,8 @@ from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.export import topics
 from mrnc_eval.export.mcap_file import JsonMcap, stamp_ns
-from mrnc_eval.results import RunResult, read_result
+from mrnc_eval.results import RunResult, follow_umask, read_result
+from mrnc_eval.text import printable
 
 
 @dataclass
@@ -169,7 +170,7 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
 
                 summary.counts.update(copy_log(out.writer, ctx.path, topics.ROOT))
             out.finish()
-        os.chmod(tmp, 0o666 & ~_umask())  # mkstemp makes 0600; the export is an ordinary file
+        follow_umask(Path(tmp))  # mkstemp makes 0600; the export is an ordinary file
         os.replace(tmp, out_path)
     except BaseException:
         with contextlib.suppress(OSError):
@@ -177,12 +178,6 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
         raise
     summary.size_bytes = out_path.stat().st_size
     return summary
-
-
-def _umask() -> int:
-    mask = os.umask(0)
-    os.umask(mask)
-    return mask
 
 
 def main(run_dirs: list[Path], *, mcap: Path, with_log: bool, force: bool) -> None:
@@ -193,5 +188,4 @@ def main(run_dirs: list[Path], *, mcap: Path, with_log: bool, force: bool) -> No
     sys.stdout.write(f"{summary.path}: {summary.size_bytes / 1e6:.2f} MB, {total} messages on "
                      f"{len(summary.counts)} topics, map {summary.map_points} points\n")
     for topic, n in sorted(summary.counts.items()):
-        shown = "".join(c if c.isprintable() else repr(c)[1:-1] for c in topic)  # a log's topic names
-        sys.stdout.write(f"  {shown}: {n}\n")
+        sys.stdout.write(f"  {printable(topic)}: {n}\n")  # a log's topic names
