@@ -126,12 +126,6 @@ class History:
         with closing(self._connect()) as db:
             return [r[0] for r in db.execute("SELECT DISTINCT night FROM runs ORDER BY night")]
 
-    def count(self, night: str) -> tuple[int, int]:
-        with closing(self._connect()) as db:
-            runs = db.execute("SELECT COUNT(*) FROM runs WHERE night = ?", (night,)).fetchone()[0]
-            mets = db.execute("SELECT COUNT(*) FROM metrics WHERE night = ?", (night,)).fetchone()[0]
-        return runs, mets
-
 
 def open_history(root: Path) -> History:
     """The history of the report root `root`, which must exist (reading never creates one)."""

@@ -449,14 +449,10 @@ class LogReader:
 
     def _set_health(self, health: StreamHealth) -> None:
         """Store a stream's counts, keeping notes made while reading it earlier."""
-        from dataclasses import replace
-
         old = self._health.get(health.topic)
         self._health[health.topic] = replace(health, notes=old.notes) if old and old.notes else health
 
     def _note(self, topic: str, note: str) -> None:
-        from dataclasses import replace
-
         base = self._health.get(topic) or StreamHealth(topic=topic, count=0)
         self._health[topic] = replace(base, notes=(*base.notes, note))
 
