@@ -24,6 +24,7 @@ from mrnc_eval.evaluation.align import align_positions, estimate_alignment
 from mrnc_eval.evaluation.interpolate import interpolate_at, sorted_unique
 from mrnc_eval.evaluation.modes import AlignMode
 from mrnc_eval.evaluation.sync import take
+from mrnc_eval.peaks import parabola_vertex
 
 MAX_SIGNAL_SAMPLES = 50_000  # the correlation grid is coarsened beyond this
 MAX_REFINE_POSES = 20_000  # estimate poses used by the fine search (evenly spread)
@@ -121,11 +122,8 @@ def estimate_offset(ref: Trajectory, est: Trajectory, *, max_offset: float = 1.0
                               f"correlate (best {corr[peak]:.2f} within +-{max_offset} s): no shared motion to "
                               "estimate a clock offset from; give --offset in seconds")
     coarse = float(lags[peak])
-    if 0 < peak < lags.size - 1 and np.all(np.isfinite(corr[peak - 1:peak + 2])):  # parabola through the peak
-        c0, c1, c2 = corr[peak - 1:peak + 2]
-        denom = c0 - 2 * c1 + c2
-        if denom < 0:
-            coarse += float(0.5 * (c0 - c2) / denom * step)
+    if 0 < peak < lags.size - 1 and np.all(np.isfinite(corr[peak - 1:peak + 2])):
+        coarse += float(parabola_vertex(*corr[peak - 1:peak + 2])) * step
     if len(est) > MAX_REFINE_POSES:
         est = take(est, np.linspace(0, len(est) - 1, MAX_REFINE_POSES).astype(np.int64))
     max_gap = 5.0 * float(np.median(np.diff(ref.stamps)))

@@ -8,6 +8,7 @@ from __future__ import annotations
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mrnc_eval.peaks import parabola_vertex
 from mrnc_eval.slam.imu import ImuTrack
 
 SEARCH_S = 0.1  # offsets searched in [-SEARCH_S, SEARCH_S], s
@@ -71,7 +72,4 @@ def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: I
     k = int(np.argmin(cost))
     if k == 0 or k == grid.size - 1:
         return float(grid[k])
-    c0, c1, c2 = cost[k - 1], cost[k], cost[k + 1]
-    curvature = c0 - 2 * c1 + c2
-    shift = 0.5 * (c0 - c2) / curvature if curvature > 0 else 0.0
-    return float(grid[k] + shift * STEP_S)
+    return float(grid[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S)
