@@ -14,7 +14,7 @@ import glob
 import logging
 import struct
 from array import array
-from collections.abc import Iterator
+from collections.abc import Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -486,15 +486,15 @@ class LogReader:
             raise NoGnssFix(self.path, f"no valid GNSS fix ({no_fix} without fix)", topic=topic)
         valid = self._screen(topic, {"impossible latitude/longitude/altitude":
                                      bad_lat_lon(np.asarray(lla), self.cfg.validation.max_abs_altitude_m)})
-        t, lla, cov = list(np.asarray(t)[valid]), list(np.asarray(lla)[valid]), list(np.asarray(cov)[valid])
-        keep, health = _sort_dedup(np.asarray(t), topic)
+        t_a, lla_a, cov_a = np.asarray(t)[valid], np.asarray(lla)[valid], np.asarray(cov)[valid]
+        keep, health = _sort_dedup(t_a, topic)
         self._set_health(health)
         if unknown_cov:
             self._note(topic, f"{unknown_cov} fix(es) without covariance: variance "
                        f"{self.cfg.gnss_unknown_variance_m2} m^2 assumed (io.gnss_unknown_variance_m2)")
-        lla_a = np.asarray(lla)[keep]
+        lla_a = lla_a[keep]
         origin = np.asarray(self.cfg.gnss_origin_lla if self.cfg.gnss_origin_lla is not None else lla_a[0], float)
-        return GnssSeries(np.asarray(t)[keep], lla_a, geodesy.lla_to_enu(lla_a, origin), np.asarray(cov)[keep],
+        return GnssSeries(t_a[keep], lla_a, geodesy.lla_to_enu(lla_a, origin), cov_a[keep],
                           origin, n_no_fix=no_fix, frame_id=frame)
 
     def _joint_pair(self, role: str, topic: str | None, scale: float, unit: str,
@@ -592,8 +592,10 @@ class LogReader:
         self._set_health(health)
         return Trajectory(t_a[keep], p_a[keep], q_a[keep], name=topic, frame_id=frame, child_frame_id=child)
 
-    def _valid_poses(self, topic: str, t: list[float], p: list[tuple[float, float, float]],
-                     q: list[tuple[float, float, float, float]]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    def _valid_poses(self, topic: str, t: Sequence[float] | np.ndarray,
+                     p: Sequence[tuple[float, float, float]] | np.ndarray,
+                     q: Sequence[tuple[float, float, float, float]] | np.ndarray,
+                     ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
         """Poses with finite, plausible positions and unit quaternions (normalised)."""
         p_a, q_a = np.asarray(p, float).reshape(-1, 3), np.asarray(q, float).reshape(-1, 4)
         v = self.cfg.validation
@@ -615,8 +617,7 @@ class LogReader:
         static = self._messages(static_topic, tf_types) if static_topic and static_topic != tf_topic else ()
         edges = edges_from_messages(self._messages(tf_topic, tf_types), static)
         traj = chain_trajectory(edges, parent, child, where=self.path, name=spec)
-        t_a, p_a, q_a = self._valid_poses(tf_topic, list(traj.stamps), list(map(tuple, traj.positions)),
-                                          list(map(tuple, traj.quat_xyzw)))
+        t_a, p_a, q_a = self._valid_poses(tf_topic, traj.stamps, traj.positions, traj.quat_xyzw)
         return Trajectory(t_a, p_a, q_a, name=spec, frame_id=parent, child_frame_id=child)
 
     def ground_truth(self, topic: str | None = None) -> Trajectory:
