@@ -312,25 +312,38 @@ def rpe(
 def table(
     source: Annotated[
         Path,
-        typer.Argument(metavar="SOURCE", help="A YAML manifest or a directory <seq>/<method>.tum "
-                       "with <seq>/ground_truth.tum."),
+        typer.Argument(metavar="SOURCE", help="A folder of slam results (results/: one row per log, one column "
+                       "per method, the newest run of each), a folder of sequence folders <seq>/<method>.tum "
+                       "with <seq>/ground_truth.tum, or a YAML manifest."),
     ],
     out: Annotated[
         Path | None,
         typer.Option(help="Write the table (.md, .tex, .csv, .html by suffix); default: Markdown on stdout."),
     ] = None,
     align: AlignOpt = AlignMode.se3,
-    max_diff: MaxDiffOpt = 0.01,
+    max_diff: Annotated[float | None, typer.Option(
+        "--max-diff", help="Association: maximum stamp difference, s (sets evaluation.max_diff_s).")] = None,
     json_out: JsonOpt = False,
-    min_span_fraction: Annotated[float, typer.Option(
-        help="A method whose matched span is shorter than this fraction of the reference's is Failed.")] = 0.8,
-    min_matches: Annotated[int, typer.Option(help="Fewer matched poses than this is Failed.")] = 10,
+    min_span_fraction: Annotated[float | None, typer.Option(
+        help="A method whose matched span is shorter than this fraction of the reference's is Failed "
+             "(sets evaluation.failed_min_span_fraction).")] = None,
+    min_matches: Annotated[int | None, typer.Option(
+        help="Fewer matched poses than this is Failed (sets evaluation.failed_min_matches).")] = None,
+    config: ConfigOpt = None,
+    set_: SetOpt = None,
+    dump_config: DumpOpt = False,
 ) -> None:
-    """Table I layout: APE RMSE (m), sequences as rows, methods as columns, 'Failed' cells,
-    mean row over non-failed cells, best per row marked."""
-    from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
-    trajectory_eval_command.table_main(source, out=out, align=align, max_diff=max_diff, json_out=json_out,
-                                            min_span_fraction=min_span_fraction, min_matches=min_matches)
+    """Table I layout: APE RMSE (m), sequences as rows, methods as columns, 'Failed' cells, mean row
+    over non-failed cells, best per row marked. From slam result folders: each run's trajectory named
+    by slam.table_trajectory (online or smoothed) against the ground truth the run found (its topic or
+    <log>.gt.tum, recorded in result.json). A manifest (format below) names each sequence's reference
+    and each method's estimate as ape reads them: files, result folders or log.bag:/topic."""
+    shorthands = {"evaluation.max_diff_s": max_diff, "evaluation.failed_min_span_fraction": min_span_fraction,
+                  "evaluation.failed_min_matches": min_matches}  # the flags are config keys: checked alike
+    cfg = _config(config, [*(set_ or []), *(f"{k}={v}" for k, v in shorthands.items() if v is not None)],
+                  dump_config)
+    from mrnc_eval.commands import table as table_command
+    table_command.main(source, cfg, out=out, align=align, json_out=json_out)
 
 
 @app.command()

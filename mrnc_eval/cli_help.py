@@ -26,13 +26,26 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "control": ("mrnc-eval control sample_logs/loop_forest_ros1.bag --mode replay",),
     "ape": ("mrnc-eval ape sample_logs/loop_forest.gt.tum results/latest/trajectory.tum --align se3",),
     "rpe": ("mrnc-eval rpe sample_logs/loop_forest.gt.tum results/latest/trajectory.tum --delta 1 --delta-unit m",),
-    "table": ("mrnc-eval table sequences/ --out table1.md",),
+    "table": ("mrnc-eval table results/ --out table1.md",),
     "report": ("mrnc-eval report results/latest --pdf",),
     "nightly": ("mrnc-eval nightly sample_logs --out nightly_reports --jobs 2",),
     "compare": ("mrnc-eval compare results/run-a results/run-b --changed-only",
                 "mrnc-eval compare --history nightly_reports --nights 2026-11-20 2026-11-21"),
     "export": ("mrnc-eval export results/latest --mcap run.mcap",),
     "simulate": ("mrnc-eval simulate sim/yard.mcap --scene yard --path circle --duration 20",),
+}
+
+# Formats a verb reads, shown under its examples (lines keep their relative indentation; no [ ]: rich markup).
+FORMATS: dict[str, str] = {
+    "table": "Manifest (YAML; paths relative to it):\n\n"
+             "  sequences:\n"
+             "    forest:\n"
+             "      reference: forest.gt.tum      # or forest.mcap:/ground_truth: what ape reads\n"
+             "      methods:\n"
+             "        lio: results/forest-lio/    # a slam result folder (slam.table_trajectory picks the file)\n"
+             "        kiss-icp: kiss/forest.tum  # a TUM, KITTI or EuRoC file\n"
+             "        odometry: forest.mcap:/odom  # a log's pose topic\n"
+             "        orb: null                  # no trajectory: Failed",
 }
 
 GLOBAL_FLAGS = ("--debug", "--quiet", "-q", "--verbose")  # plus -v, -vv, ...: accepted before or after the verb
@@ -112,7 +125,7 @@ class PlainGroup(TyperGroup):
                 command.help = re.sub(r"(?<!\n)\n(?!\n)", " ", inspect.cleandoc(command.help))
             if name in EXAMPLES and not command.epilog:
                 command.epilog = "Example" + ("s" if len(EXAMPLES[name]) > 1 else "") + ":\n\n" + \
-                    "\n\n".join(f"  {e}" for e in EXAMPLES[name])
+                    "\n\n".join(f"  {e}" for e in EXAMPLES[name]) + (f"\n\n{FORMATS[name]}" if name in FORMATS else "")
 
     def parse_args(self, ctx: click.Context, args: list[str]) -> list[str]:
         return super().parse_args(ctx, hoist_global_options(args))

@@ -278,8 +278,9 @@ def _restore_float(value: Any) -> Any:
     return value
 
 
-def read_result(run_dir: str | Path) -> RunResult:
-    """Load a result directory written by `write_result` (no pickle, ever)."""
+def read_result(run_dir: str | Path, *, with_series: bool = True) -> RunResult:
+    """Load a result directory written by `write_result` (no pickle, ever); without its arrays
+    (series.npz) when only the metrics and details are needed."""
     run_dir = Path(run_dir)
     path = run_dir / RESULT_FILE
     try:
@@ -290,7 +291,7 @@ def read_result(run_dir: str | Path) -> RunResult:
         raise InputError(path, f"unreadable result: {err}") from err
     series: dict[str, np.ndarray] = {}
     npz = run_dir / SERIES_FILE
-    if npz.exists():
+    if with_series and npz.exists():
         with np.load(npz, allow_pickle=False) as data:
             series = {k: data[k] for k in data.files}
     try:

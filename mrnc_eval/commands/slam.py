@@ -22,7 +22,7 @@ from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, NoGnssFix, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
-from mrnc_eval.io.ground_truth import ground_truth_of
+from mrnc_eval.io.ground_truth import ground_truth_of, ground_truth_spec
 from mrnc_eval.io.prefetch import Prefetched
 from mrnc_eval.results import (
     Event,
@@ -79,6 +79,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         inputs = _read_inputs(lg, log_path, cfg)
         result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
+        result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         out = _replay(lg, inputs, cfg, progress)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
     if out.stamps.size < 2:

@@ -1,4 +1,4 @@
-"""CLI glue of `ape`, `rpe` and `table`: read trajectories, evaluate, print, write."""
+"""CLI glue of `ape` and `rpe`: read trajectories, evaluate, print, write (`table`: commands/table.py)."""
 
 from __future__ import annotations
 
@@ -9,19 +9,15 @@ from dataclasses import replace
 from pathlib import Path
 from typing import Any
 
-import yaml
-
 from mrnc_eval.data import Trajectory
-from mrnc_eval.errors import EvaluationError, InputError, UsageError
+from mrnc_eval.errors import UsageError
 from mrnc_eval.evaluation.ape import ApeResult, ape
-from mrnc_eval.evaluation.comparison import Cell, judge, table_one
-from mrnc_eval.evaluation.config import EvaluationConfig
 from mrnc_eval.evaluation.decompose import Decomposition
 from mrnc_eval.evaluation.drift import DriftResult
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.evaluation.relations import TITLES
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
-from mrnc_eval.io.trajectory_files import read_trajectory
+from mrnc_eval.io.trajectory_files import is_kitti_file, read_trajectory
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
 from mrnc_eval.results import atomic_write_text
 from mrnc_eval.tables import Cell as CellValue
@@ -31,15 +27,6 @@ from mrnc_eval.text import printable
 log = logging.getLogger(__name__)
 STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
 PLOT_SUFFIXES = (".svg", ".png", ".pdf")
-
-
-def _is_kitti(spec: str) -> bool:
-    p = Path(spec)
-    if not p.is_file() or p.suffix.lower() in (".csv", ".tum"):
-        return False
-    with p.open(encoding="utf-8-sig", errors="replace") as fh:
-        first = next((ln for ln in fh if ln.strip() and not ln.startswith("#")), "")
-    return len(first.split()) == 12
 
 
 def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
@@ -150,7 +137,7 @@ def _save_figure(fig, path: Path) -> None:
 
 def _index_pairing(ref: str, est: str) -> bool:
     """KITTI files have no stamps: pair them by line, and only with each other."""
-    ref_k, est_k = _is_kitti(ref), _is_kitti(est)
+    ref_k, est_k = is_kitti_file(ref), is_kitti_file(est)
     if ref_k != est_k:
         kitti, other = (ref, est) if ref_k else (est, ref)
         raise UsageError(f"{kitti} is a KITTI pose file (no time stamps) but {other} is not: "
@@ -270,94 +257,3 @@ def _drift_table(names: list[str], drifts: list[DriftResult]) -> Table:
                  cells=trans + rot, best=None, precision=4,
                  notes=[f"{n}: {d.n_segments} segments, reference path {d.path_length_m:.1f} m"
                         for n, d in zip(names, drifts, strict=True)])
-
-
-# ------------------------------------------------------------------ Table I comparison
-
-
-def _manifest(source: Path) -> dict[str, dict[str, Any]]:
-    """sequence -> {"reference": path, "methods": {method: path | None}}."""
-    out: dict[str, dict[str, Any]] = {}
-    if source.is_dir():
-        for seq_dir in sorted(p for p in source.iterdir() if p.is_dir()):
-            gt = next((seq_dir / n for n in ("ground_truth.tum", "gt.tum") if (seq_dir / n).exists()), None)
-            if gt is None:
-                log.warning("%s: no ground_truth.tum, skipped", seq_dir)
-                continue
-            methods = {p.stem: str(p) for p in sorted(seq_dir.glob("*.tum")) if p != gt}
-            out[seq_dir.name] = {"reference": str(gt), "methods": methods}
-        if not out:
-            raise InputError(source, "no <sequence>/ground_truth.tum found")
-        return out
-    try:
-        data = yaml.safe_load(source.read_text(encoding="utf-8"))
-    except (OSError, yaml.YAMLError) as err:
-        raise InputError(source, f"cannot read manifest: {err}") from err
-    if not isinstance(data, dict) or not isinstance(data.get("sequences"), dict):
-        raise InputError(source, "manifest needs a 'sequences' mapping: {name: {reference: ..., methods: {...}}}")
-    base = source.parent
-
-    def res(p: str | None) -> str | None:
-        return None if p is None else str(base / p)
-
-    for seq, entry in data["sequences"].items():
-        if not isinstance(entry, dict) or "reference" not in entry:
-            raise InputError(source, f"sequence {seq!r} needs a 'reference'")
-        out[str(seq)] = {"reference": res(entry["reference"]),
-                         "methods": {str(m): res(p) for m, p in (entry.get("methods") or {}).items()}}
-    return out
-
-
-def build_table_one(source: Path, *, align: AlignMode = AlignMode.se3, max_diff: float = 0.01,
-                    cfg: EvaluationConfig | None = None) -> Table:
-    cfg = cfg or EvaluationConfig()
-    manifest = _manifest(source)
-    methods = sorted({m for e in manifest.values() for m in e["methods"]})
-    cells: dict[tuple[str, str], Cell] = {}
-    for seq, entry in manifest.items():
-        ref = read_trajectory(entry["reference"])
-        for m in methods:
-            path = entry["methods"].get(m)
-            if path is None or not Path(path).exists():
-                cells[(seq, m)] = Cell(None, "no trajectory")
-                continue
-            try:
-                r = ape(ref, read_trajectory(path), align=align, max_diff=max_diff)
-            except (EvaluationError, InputError) as err:
-                cells[(seq, m)] = Cell(None, str(err))
-                continue
-            cells[(seq, m)] = judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.failed_min_matches,
-                                    min_span_fraction=cfg.failed_min_span_fraction)
-    table = table_one(cells, list(manifest), methods)
-    table.notes.append("Failed: no trajectory, an evaluation error, "
-                       f"fewer than {cfg.failed_min_matches} matched poses, "
-                       f"or a matched span under {cfg.failed_min_span_fraction:.0%} of the reference's; "
-                       f"APE after {align} alignment, max_diff {max_diff} s")
-    return table
-
-
-def table_main(source: Path, *, out: Path | None, align: AlignMode, max_diff: float, json_out: bool,
-               min_span_fraction: float | None = None, min_matches: int | None = None) -> None:
-    import dataclasses
-
-    from mrnc_eval.commands.output import emit_json
-
-    cfg = EvaluationConfig()
-    if min_span_fraction is not None:
-        if not 0.0 <= min_span_fraction <= 1.0:
-            raise UsageError(f"--min-span-fraction must be in [0, 1], got {min_span_fraction}")
-        cfg = dataclasses.replace(cfg, failed_min_span_fraction=min_span_fraction)
-    if min_matches is not None:
-        cfg = dataclasses.replace(cfg, failed_min_matches=max(1, min_matches))
-    if out is not None and SUFFIX_FORMAT.get(out.suffix.lower()) is None:
-        raise UsageError(f"--out {out}: use a .md, .tex, .csv or .html file")
-    table = build_table_one(source, align=align, max_diff=max_diff, cfg=cfg)
-    if json_out:
-        emit_json(table.__dict__)
-    elif out is None:
-        sys.stdout.write(render_table(table, "markdown"))
-    if out is not None:
-        fmt = SUFFIX_FORMAT.get(out.suffix.lower())
-        if fmt is None:
-            raise UsageError(f"--out {out}: use a .md, .tex, .csv or .html file")
-        atomic_write_text(out, render_table(table, fmt))

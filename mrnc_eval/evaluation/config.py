@@ -9,12 +9,12 @@ from mrnc_eval.params import param
 
 @dataclass(frozen=True)
 class EvaluationConfig:
-    max_diff_s: float = param(0.01, "association: maximum stamp difference", "s")
+    max_diff_s: float = param(0.01, "association: maximum stamp difference", "s", ge=0.0)
     offset_s: float = param(0.0, "association: added to the estimate's clock", "s")
     failed_min_span_fraction: float = param(
         0.8, "tables: a method whose matched span is shorter than this fraction of the reference is 'Failed'"
     )
-    failed_min_matches: int = param(10, "tables: fewer matched poses than this is 'Failed'")
+    failed_min_matches: int = param(10, "tables: fewer matched poses than this is 'Failed'", ge=1)
 
 
 @dataclass(frozen=True)

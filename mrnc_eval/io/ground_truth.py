@@ -1,6 +1,7 @@
-"""Where a log's ground-truth sidecar lives: `<log name without suffix>.gt.tum` beside the log.
+"""Where a log's ground truth is: its ground-truth topic, else the sidecar `<log name without
+suffix>.gt.tum` beside the log.
 
-The simulator writes it there and the SLAM command looks for it there; the convention is
+The simulator writes the sidecar there and the SLAM command looks for it there; the convention is
 defined once, here, so neither has to import the other."""
 
 from __future__ import annotations
@@ -31,3 +32,14 @@ def ground_truth_of(lg: LogReader, log_path: Path) -> Trajectory | None:
         return lg.ground_truth()
     beside = gt_tum_path(log_path)
     return read_tum(beside) if beside.is_file() else None
+
+
+def ground_truth_spec(lg: LogReader, log_path: Path) -> str | None:
+    """Where `ground_truth_of` found the ground truth, as a trajectory spec with an absolute path
+    (`/abs/log.mcap:/ground_truth` or `/abs/log.gt.tum`): recorded with a run, so `table` reads
+    the same reference later from any folder."""
+    if lg.has_role("ground_truth"):
+        files = ",".join(str(p.resolve()) for p in lg.paths)  # a split log: every file
+        return f"{files}:{lg.roles['ground_truth']}"
+    beside = gt_tum_path(log_path)
+    return str(beside.resolve()) if beside.is_file() else None

@@ -16,8 +16,7 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
-from mrnc_eval.io.containers import LOG_SUFFIXES
-from mrnc_eval.io.trajectory_inputs import trajectory_file_in
+from mrnc_eval.io.trajectory_inputs import TrajectorySpec, parse_trajectory_spec, trajectory_file_in
 
 
 def _load_columns(path: Path, ncols: int) -> NDArray[np.float64]:
@@ -149,39 +148,42 @@ def write_kitti(path: str | Path, traj: Trajectory) -> None:
     np.savetxt(path, rt.reshape(-1, 12), fmt="%.9f", delimiter=" ")
 
 
-def read_trajectory(spec: str | Path, *, fmt: str | None = None) -> Trajectory:
+def read_trajectory(spec: str | Path | TrajectorySpec, *, fmt: str | None = None) -> Trajectory:
     """A trajectory from a file or a `log:/topic` spec; the format by suffix unless given."""
-    text = str(spec)
-    for suffix in LOG_SUFFIXES:
-        marker = suffix + ":"
-        if marker in text:
-            log_path, topic = text.split(marker, 1)
-            return _from_log(Path(log_path + suffix), topic)
-    if ":/" in text and not Path(text).exists():  # ROS 2 bag directory:/topic
-        log_path, topic = text.split(":/", 1)
-        return _from_log(Path(log_path), "/" + topic)
-    path = trajectory_file_in(Path(text))  # a result folder gives its trajectory; a bare log says how to name a topic
-    kind = fmt or _guess_format(path)
+    parsed = parse_trajectory_spec(spec)
+    if parsed.topic is not None:
+        return _from_log(parsed.path, parsed.topic)
+    path = trajectory_file_in(Path(parsed.path))  # a result folder gives its trajectory; a bare log names its topics
+    kind = fmt or trajectory_format(path)
     readers = {"tum": read_tum, "kitti": read_kitti, "euroc": read_euroc}
     if kind not in readers:
         raise InputError(path, f"unknown trajectory format {kind!r} (tum, kitti, euroc)")
     return readers[kind](path)
 
 
-def _from_log(path: Path, topic: str) -> Trajectory:
+def is_kitti_file(spec: str | Path | TrajectorySpec) -> bool:
+    """Whether `spec` names a KITTI pose file (no stamps: it pairs line by line)."""
+    parsed = parse_trajectory_spec(spec)
+    path = Path(parsed.path)
+    return parsed.topic is None and path.is_file() and trajectory_format(path) == "kitti"
+
+
+def _from_log(log: str, topic: str) -> Trajectory:
     from mrnc_eval.io import open_log
 
-    with open_log(path) as log:
-        traj = log.trajectory(topic)
-    return Trajectory(traj.stamps, traj.positions, traj.quat_xyzw, name=f"{path.name}:{topic}",
+    with open_log(log) as lg:
+        traj = lg.trajectory(topic)
+    return Trajectory(traj.stamps, traj.positions, traj.quat_xyzw, name=f"{Path(log).name}:{topic}",
                       frame_id=traj.frame_id, child_frame_id=traj.child_frame_id)
 
 
-def _guess_format(path: Path) -> str:
-    if path.suffix.lower() == ".csv":
-        return "euroc"
+def trajectory_format(path: Path) -> str:
+    """tum, kitti or euroc: by suffix (.csv, .tum), else by the first data line (12 numbers: KITTI)."""
     with path.open(encoding="utf-8-sig", errors="replace") as fh:
-        for line in fh:
-            if line.strip() and not line.startswith("#"):
-                return "kitti" if len(line.split()) == 12 else "tum"
-    raise InputError(path, "file is empty")
+        first = next((line for line in fh if line.strip() and not line.startswith("#")), None)
+    if first is None:
+        raise InputError(path, "file is empty")
+    suffix = path.suffix.lower()
+    if suffix in (".csv", ".tum"):
+        return "euroc" if suffix == ".csv" else "tum"
+    return "kitti" if len(first.split()) == 12 else "tum"

@@ -1,8 +1,11 @@
-"""What a trajectory argument names, for the mistakes newcomers make: a result folder (its
-trajectory.tum is meant), or a log without `:/topic` (say it is a log and list its pose topics)."""
+"""What a trajectory argument names, parsed in one place for `ape`, `rpe`, `table` and the API: a
+file (TUM, KITTI, EuRoC), a result folder (its trajectory.tum is meant) or a log with a topic
+(`log.bag:/topic`, `a.mcap,b.mcap:/topic`, `bag_dir:/topic`, `log.bag:/tf:odom.base_link`); and the
+mistakes newcomers make: a log without `:/topic` (say it is a log and list its pose topics)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
 from pathlib import Path
 
 from mrnc_eval.errors import InputError
@@ -10,6 +13,52 @@ from mrnc_eval.io.containers import LOG_SUFFIXES
 from mrnc_eval.io.roles import POSE_TYPES
 
 RESULT_TRAJECTORY = "trajectory.tum"  # what `slam` writes into each result folder
+
+
+@dataclass(frozen=True)
+class TrajectorySpec:
+    """A trajectory argument split once. `path` is a file or folder, or for a log what `open_log`
+    takes (one file, a ROS 2 bag folder, "a.mcap,b.mcap" or a glob of split files); `topic` is
+    the pose topic of a log ("/odom", "/tf:odom.base_link"), None for a file."""
+
+    path: str
+    topic: str | None = None
+
+    def __str__(self) -> str:
+        return self.path if self.topic is None else f"{self.path}:{self.topic}"
+
+    def relative_to(self, base: Path) -> TrajectorySpec:
+        """Relative paths taken from `base` (a manifest's folder); each file of a split log."""
+        parts = self.path.split(",") if self.topic is not None else [self.path]
+        return TrajectorySpec(",".join(p if Path(p).is_absolute() else str(base / p) for p in parts), self.topic)
+
+    def exists(self) -> bool:
+        """Whether the file or folder is there (a log's split files and glob patterns: when
+        opened, which names the missing file)."""
+        return self.topic is not None or Path(self.path).exists()
+
+
+def parse_trajectory_spec(spec: str | Path | TrajectorySpec, *, base: Path | None = None) -> TrajectorySpec:
+    """`log.bag:/topic` (any log suffix, split logs included) or `bag_dir:/topic` for a ROS 2 bag
+    folder; anything else is a file or folder path, taken whole. With `base` (a manifest's folder),
+    relative paths are taken from there."""
+    if isinstance(spec, TrajectorySpec):
+        return spec
+    text = str(spec)
+    whole = Path(text) if base is None else base / text
+    if whole.exists():  # an existing path wins, even with a colon in its name
+        return TrajectorySpec(str(whole))
+    parsed = TrajectorySpec(str(whole))
+    for suffix in LOG_SUFFIXES:
+        log_path, marker, topic = text.partition(suffix + ":")
+        if marker:
+            parsed = TrajectorySpec(log_path + suffix, topic)
+            break
+    else:
+        log_path, marker, topic = text.partition(":/")
+        if marker:
+            parsed = TrajectorySpec(log_path, "/" + topic)
+    return parsed if base is None or parsed.topic is None else parsed.relative_to(base)
 
 
 def trajectory_file_in(path: Path) -> Path:

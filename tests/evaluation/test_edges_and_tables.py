@@ -195,9 +195,9 @@ def test_table_from_directory_marks_short_tracking_as_failed(tmp_path: Path) -> 
     write_tum(seq / "good.tum", est)
     half = Trajectory(est.stamps[:400], est.positions[:400], est.quat_xyzw[:400], name="half")
     write_tum(seq / "half.tum", half)
-    from mrnc_eval.commands.trajectory_eval import build_table_one
+    from mrnc_eval.commands.table import build_table_one
 
-    table = build_table_one(tmp_path, max_diff=0.01)
+    table = build_table_one(tmp_path)  # evaluation.max_diff_s 0.01
     assert table.column_labels == ["good", "half"]
     assert isinstance(table.cells[0][0], float)
     assert table.cells[0][1] == "Failed"

@@ -118,7 +118,7 @@ def test_table_from_yaml_manifest_with_missing_and_hostile_names(tmp_path: Path)
         "    reference: gt.tum\n"
         "    methods: {'<b>LIO</b>': a.tum}\n"
     )
-    from mrnc_eval.commands.trajectory_eval import build_table_one
+    from mrnc_eval.commands.table import build_table_one
 
     table = build_table_one(tmp_path / "m.yaml")
     assert table.row_labels == ["<seq & 1>", "seq2", "Mean"]

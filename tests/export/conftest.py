@@ -1,5 +1,5 @@
 """One short simulated log (ROS 2 MCAP, 6 s, OS0-32 x 512, yard circle) with its SLAM and
-control-replay result directories, shared by the export, API and compare tests."""
+control-replay result directories, shared by the export, API, compare and table tests."""
 
 from __future__ import annotations
 
