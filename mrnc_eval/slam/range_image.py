@@ -7,6 +7,7 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
+from numba import njit
 
 from mrnc_eval.data import Sweep
 from mrnc_eval.slam.config import FeatureConfig, SensorConfig
@@ -44,23 +45,44 @@ def outside_box(points: np.ndarray, box: tuple[float, ...] | None) -> np.ndarray
     z_max] (m, cloud frame); all True when box is None."""
     if box is None:
         return np.ones(len(points), bool)
-    lo, hi = np.asarray(box[:3]), np.asarray(box[3:])
-    inside: np.ndarray = np.all((points >= lo) & (points <= hi), axis=1)
-    return ~inside
+    keep, _ = _range_and_keep(np.ascontiguousarray(points), -np.inf, np.inf, np.asarray(box, np.float64), True)
+    return keep
+
+
+@njit(cache=True)
+def _range_and_keep(points: np.ndarray, min_range: float, max_range: float, box: np.ndarray,
+                    use_box: bool) -> tuple[np.ndarray, np.ndarray]:
+    """One pass over the cloud: each point's range (m, float64) and whether it is kept (finite,
+    within [min_range, max_range], outside box [x_min, y_min, z_min, x_max, y_max, z_max] when
+    use_box). numpy needed a float64 copy of the cloud and eight temporaries for the same."""
+    n = points.shape[0]
+    keep = np.empty(n, np.bool_)
+    rng = np.empty(n)
+    for i in range(n):
+        x, y, z = np.float64(points[i, 0]), np.float64(points[i, 1]), np.float64(points[i, 2])
+        r = np.sqrt(x * x + y * y + z * z)
+        rng[i] = r
+        k = np.isfinite(r) and min_range <= r <= max_range
+        if k and use_box:
+            k = not (box[0] <= x <= box[3] and box[1] <= y <= box[4] and box[2] <= z <= box[5])
+        keep[i] = k
+    return keep, rng
 
 
 def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> RangeImage:
-    pts = sweep.points.astype(np.float64)
-    rng = np.linalg.norm(pts, axis=1)
-    ring = sweep.ring.astype(np.int64) if sweep.ring is not None else elevation_ring(pts, sensor)
+    box = features.body_crop_box_m
+    keep, rng = _range_and_keep(np.ascontiguousarray(sweep.points), features.min_range_m, features.max_range_m,
+                                np.asarray(box if box is not None else np.zeros(6), np.float64), box is not None)
+    if sweep.ring is not None:
+        ring = sweep.ring.astype(np.int64)
+    else:
+        ring = elevation_ring(sweep.points.astype(np.float64), sensor)
     if sweep.column is not None:
         column = sweep.column.astype(np.int64)
         width = int(column.max(initial=0)) + 1
     else:
-        column = azimuth_column(pts, sensor.horizon_scan)
+        column = azimuth_column(sweep.points.astype(np.float64), sensor.horizon_scan)
         width = sensor.horizon_scan
-    keep = (rng >= features.min_range_m) & (rng <= features.max_range_m) & np.isfinite(rng)
-    keep &= outside_box(pts, features.body_crop_box_m)
     if sensor.downsample_rate > 1:
         keep &= ring % sensor.downsample_rate == 0
     idx = np.flatnonzero(keep)
@@ -71,4 +93,5 @@ def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> Rang
         first = np.r_[True, pixel[1:] != pixel[:-1]]  # first point per pixel wins
         idx = idx[first]
     t = sweep.point_time[idx].astype(np.float64) if sweep.point_time is not None else None
-    return RangeImage(pts[idx], ring[idx] // max(sensor.downsample_rate, 1), column[idx], rng[idx], t)
+    return RangeImage(sweep.points[idx].astype(np.float64), ring[idx] // max(sensor.downsample_rate, 1), column[idx],
+                      rng[idx], t)

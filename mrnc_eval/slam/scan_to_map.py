@@ -41,23 +41,22 @@ class MatchResult:
 
 
 @njit(cache=True)
-def _plane_rows(q: np.ndarray, o: np.ndarray, nb: np.ndarray, ok: np.ndarray, max_offset: float, J: np.ndarray,
-                r: np.ndarray) -> int:
-    """Point-to-plane rows (LIO-SAM): plane n.x + 1 = 0 fitted to the 5 neighbours by least
-    squares, rejected when a neighbour is > max_offset off; weight s = 1 - 0.9 |pd| / sqrt(|q|).
-    Writes J (m, 6) = s [q x n, n] and r = s pd; returns the number of rows. One numba loop
-    over the queries with the 3x3 solve written out: longer than 50 lines, but a split would
-    pass the plane through arrays in the hottest loop of the replay."""
-    m = 0
-    for i in range(q.shape[0]):
+def _fit_planes(cloud: np.ndarray, idx: np.ndarray, ok: np.ndarray, max_offset: float, planes: np.ndarray) -> None:
+    """Plane n.x + d = 0 (|n| = 1) through the 5 neighbours cloud[idx[i]] of each query (LIO-SAM:
+    least squares A x = -1, rejected when a neighbour is > max_offset off). planes (n, 4) =
+    [n, d]; a row of NaN where no plane. Depends on the neighbours only, so it is fitted once
+    per nearest-neighbour query, not per iteration."""
+    for i in range(idx.shape[0]):
+        planes[i, 0] = np.nan
         if not ok[i]:
             continue
         # normal equations of A x = -1 (5 x 3), a tiny ridge keeps planes through the origin solvable
-        a00 = a01 = a02 = a11 = a12 = a22 = 1e-9
+        a00 = a11 = a22 = 1e-9
         a01 = a02 = a12 = 0.0
         b0 = b1 = b2 = 0.0
         for k in range(5):
-            x0, x1, x2 = nb[i, k, 0], nb[i, k, 1], nb[i, k, 2]
+            j = idx[i, k]
+            x0, x1, x2 = cloud[j, 0], cloud[j, 1], cloud[j, 2]
             a00 += x0 * x0
             a01 += x0 * x1
             a02 += x0 * x2
@@ -76,18 +75,100 @@ def _plane_rows(q: np.ndarray, o: np.ndarray, nb: np.ndarray, ok: np.ndarray, ma
         c11 = a00 * a22 - a02 * a02
         c12 = a01 * a02 - a00 * a12
         c22 = a00 * a11 - a01 * a01
-        x = ((c00 * b0 + c01 * b1 + c02 * b2) / det, (c01 * b0 + c11 * b1 + c12 * b2) / det,
-             (c02 * b0 + c12 * b1 + c22 * b2) / det)
-        nrm = np.sqrt(x[0] * x[0] + x[1] * x[1] + x[2] * x[2])
+        x0 = (c00 * b0 + c01 * b1 + c02 * b2) / det
+        x1 = (c01 * b0 + c11 * b1 + c12 * b2) / det
+        x2 = (c02 * b0 + c12 * b1 + c22 * b2) / det
+        nrm = np.sqrt(x0 * x0 + x1 * x1 + x2 * x2)
         if nrm < 1e-9:
             continue
-        n0, n1, n2, d = x[0] / nrm, x[1] / nrm, x[2] / nrm, 1.0 / nrm
+        n0, n1, n2, d = x0 / nrm, x1 / nrm, x2 / nrm, 1.0 / nrm
         planar = True
         for k in range(5):
-            if abs(n0 * nb[i, k, 0] + n1 * nb[i, k, 1] + n2 * nb[i, k, 2] + d) > max_offset:
+            j = idx[i, k]
+            if abs(n0 * cloud[j, 0] + n1 * cloud[j, 1] + n2 * cloud[j, 2] + d) > max_offset:
                 planar = False
                 break
-        if not planar:
+        if planar:
+            planes[i, 0], planes[i, 1], planes[i, 2], planes[i, 3] = n0, n1, n2, d
+
+
+@njit(cache=True)
+def _fit_lines(cloud: np.ndarray, idx: np.ndarray, ok: np.ndarray, lines: np.ndarray) -> None:
+    """Line through the 5 neighbours of each query (LIO-SAM): their centroid and the principal
+    axis of their covariance, kept when its eigenvalue exceeds 3x the second. lines (n, 6) =
+    [centroid, unit direction]; a row of NaN where no line. The 3x3 eigenproblem is solved in
+    closed form (trigonometric roots, eigenvector from a cross product of two rows of
+    cov - l1 I): a LAPACK call per point cost more than the rest of the matching."""
+    for i in range(idx.shape[0]):
+        lines[i, 0] = np.nan
+        if not ok[i]:
+            continue
+        c0 = c1 = c2 = 0.0
+        for k in range(5):
+            j = idx[i, k]
+            c0 += cloud[j, 0] / 5.0
+            c1 += cloud[j, 1] / 5.0
+            c2 += cloud[j, 2] / 5.0
+        a00 = a01 = a02 = a11 = a12 = a22 = 0.0
+        for k in range(5):
+            j = idx[i, k]
+            d0, d1, d2 = cloud[j, 0] - c0, cloud[j, 1] - c1, cloud[j, 2] - c2
+            a00 += d0 * d0 / 5.0
+            a01 += d0 * d1 / 5.0
+            a02 += d0 * d2 / 5.0
+            a11 += d1 * d1 / 5.0
+            a12 += d1 * d2 / 5.0
+            a22 += d2 * d2 / 5.0
+        u = _principal_axis(a00, a01, a02, a11, a12, a22)
+        if u[0] == u[0]:  # not NaN: a line
+            lines[i, 0], lines[i, 1], lines[i, 2] = c0, c1, c2
+            lines[i, 3], lines[i, 4], lines[i, 5] = u[0], u[1], u[2]
+
+
+@njit(cache=True)
+def _principal_axis(a00: float, a01: float, a02: float, a11: float, a12: float,
+                    a22: float) -> tuple[float, float, float]:
+    """Unit eigenvector of the largest eigenvalue l1 of the symmetric 3x3 [[a00 a01 a02] [. a11 a12]
+    [. . a22]] when l1 > 3 l2 (a line), else (NaN, NaN, NaN)."""
+    none = (np.nan, np.nan, np.nan)
+    q = (a00 + a11 + a22) / 3.0
+    off = a01 * a01 + a02 * a02 + a12 * a12
+    p2 = (a00 - q) ** 2 + (a11 - q) ** 2 + (a22 - q) ** 2 + 2.0 * off
+    if p2 <= 0.0:
+        return none  # isotropic (or all points equal)
+    p = np.sqrt(p2 / 6.0)
+    b00, b11, b22 = (a00 - q) / p, (a11 - q) / p, (a22 - q) / p
+    b01, b02, b12 = a01 / p, a02 / p, a12 / p
+    half_det = 0.5 * (b00 * (b11 * b22 - b12 * b12) - b01 * (b01 * b22 - b12 * b02) + b02 * (b01 * b12 - b11 * b02))
+    phi = np.arccos(min(1.0, max(-1.0, half_det))) / 3.0
+    l1 = q + 2.0 * p * np.cos(phi)
+    l3 = q + 2.0 * p * np.cos(phi + 2.0 * np.pi / 3.0)
+    l2 = 3.0 * q - l1 - l3
+    if not l1 > 3.0 * l2:
+        return none
+    r0 = (a00 - l1, a01, a02)  # rows of cov - l1 I: the eigenvector is orthogonal to all three
+    r1 = (a01, a11 - l1, a12)
+    r2 = (a02, a12, a22 - l1)
+    best, v0, v1, v2 = -1.0, 0.0, 0.0, 0.0
+    for x, y in ((r0, r1), (r0, r2), (r1, r2)):
+        w0, w1, w2 = x[1] * y[2] - x[2] * y[1], x[2] * y[0] - x[0] * y[2], x[0] * y[1] - x[1] * y[0]
+        n = w0 * w0 + w1 * w1 + w2 * w2
+        if n > best:
+            best, v0, v1, v2 = n, w0, w1, w2
+    if best <= 0.0:
+        return none
+    s = 1.0 / np.sqrt(best)
+    return (v0 * s, v1 * s, v2 * s)
+
+
+@njit(cache=True)
+def _plane_rows(q: np.ndarray, o: np.ndarray, planes: np.ndarray, J: np.ndarray, r: np.ndarray) -> int:
+    """Point-to-plane rows (LIO-SAM): pd = n.q + d, weight s = 1 - 0.9 |pd| / sqrt(|q|), kept when
+    s > 0.1. Writes J (m, 6) = s [(q - o) x n, n] and r = s pd; returns m."""
+    m = 0
+    for i in range(q.shape[0]):
+        n0, n1, n2, d = planes[i, 0], planes[i, 1], planes[i, 2], planes[i, 3]
+        if n0 != n0:  # NaN: no plane
             continue
         pd = n0 * q[i, 0] + n1 * q[i, 1] + n2 * q[i, 2] + d
         s = 1.0 - 0.9 * abs(pd) / np.sqrt(np.sqrt(q[i, 0] ** 2 + q[i, 1] ** 2 + q[i, 2] ** 2) + 1e-9)
@@ -104,28 +185,15 @@ def _plane_rows(q: np.ndarray, o: np.ndarray, nb: np.ndarray, ok: np.ndarray, ma
 
 
 @njit(cache=True)
-def _edge_rows(q: np.ndarray, o: np.ndarray, nb: np.ndarray, ok: np.ndarray, J: np.ndarray, r: np.ndarray) -> int:
-    """Point-to-line rows (LIO-SAM): the 5 neighbours form a line when the largest eigenvalue of
-    their covariance exceeds 3x the second; residual = distance to the line through the centroid,
-    weight s = 1 - 0.9 ld."""
+def _edge_rows(q: np.ndarray, o: np.ndarray, lines: np.ndarray, J: np.ndarray, r: np.ndarray) -> int:
+    """Point-to-line rows (LIO-SAM): ld = distance to the line, weight s = 1 - 0.9 ld, kept when
+    s > 0.1; the row's direction is the unit normal from the line to the point."""
     m = 0
     for i in range(q.shape[0]):
-        if not ok[i]:
+        if lines[i, 0] != lines[i, 0]:  # NaN: no line
             continue
-        c = np.zeros(3)
-        for k in range(5):
-            for u in range(3):
-                c[u] += nb[i, k, u] / 5.0
-        cov = np.zeros((3, 3))
-        for k in range(5):
-            for u in range(3):
-                for v in range(3):
-                    cov[u, v] += (nb[i, k, u] - c[u]) * (nb[i, k, v] - c[v]) / 5.0
-        w, vec = np.linalg.eigh(cov)
-        if not w[2] > 3.0 * w[1]:
-            continue
-        u0, u1, u2 = vec[0, 2], vec[1, 2], vec[2, 2]
-        d0, d1, d2 = q[i, 0] - c[0], q[i, 1] - c[1], q[i, 2] - c[2]
+        u0, u1, u2 = lines[i, 3], lines[i, 4], lines[i, 5]
+        d0, d1, d2 = q[i, 0] - lines[i, 0], q[i, 1] - lines[i, 1], q[i, 2] - lines[i, 2]
         along = d0 * u0 + d1 * u1 + d2 * u2
         p0, p1, p2 = d0 - along * u0, d1 - along * u1, d2 - along * u2
         ld = np.sqrt(p0 * p0 + p1 * p1 + p2 * p2)
@@ -144,35 +212,44 @@ def _edge_rows(q: np.ndarray, o: np.ndarray, nb: np.ndarray, ok: np.ndarray, J: 
 
 
 class _Correspondences:
-    """Nearest map neighbours of one feature set, re-queried only when the pose has moved more
-    than `requery_m` since the last query (0 = every iteration, as LIO-SAM)."""
+    """The map's plane or line at each feature, from its 5 nearest map points; re-queried and
+    re-fitted only when the pose has moved more than `requery_m` since the last query (0 = every
+    iteration, as LIO-SAM). Neighbours farther than sqrt(max_sq) are not searched for: a feature
+    whose 5th neighbour is that far has no correspondence anyway."""
 
-    def __init__(self, tree: KdTree, cloud: np.ndarray, max_sq: float, requery_m: float) -> None:
-        self.tree, self.cloud, self.max_sq, self.requery_m = tree, cloud, max_sq, requery_m
+    def __init__(self, tree: KdTree, cloud: np.ndarray, kind: str, max_sq: float, max_offset: float,
+                 requery_m: float) -> None:
+        self.tree, self.cloud, self.kind = tree, cloud, kind
+        self.max_dist, self.max_offset, self.requery_m = max_sq ** 0.5, max_offset, requery_m
         self.at: np.ndarray | None = None
+        self.fits = np.zeros((0, 6))
 
-    def neighbours(self, q: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def rows(self, features: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Residual rows of the features (sensor frame) at pose T: Jacobian (m, 6) w.r.t. the
+        perturbation T <- [exp(dtheta) R, t + dt] (rotation about the sensor, map axes) and residual (m,)."""
+        q = se3.apply(T, features)
         if self.at is None or _motion(self.at, T) > self.requery_m:
-            d, idx = self.tree.query(q, k=5)
-            self.ok, self.nb, self.at = d[:, 4] < self.max_sq ** 0.5, self.cloud[idx], T
-        return self.ok, self.nb
+            d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
+            ok = d[:, 4] < self.max_dist
+            idx[~ok] = 0  # unmatched rows point past the cloud's end
+            if self.kind == "plane":
+                self.fits = np.empty((len(q), 4))
+                _fit_planes(self.cloud, idx, ok, self.max_offset, self.fits)
+            else:
+                self.fits = np.empty((len(q), 6))
+                _fit_lines(self.cloud, idx, ok, self.fits)
+            self.at = T
+        J, r = np.empty((len(q), 6)), np.empty(len(q))
+        origin = np.ascontiguousarray(T[:3, 3])
+        m = (_plane_rows(q, origin, self.fits, J, r) if self.kind == "plane"
+             else _edge_rows(q, origin, self.fits, J, r))
+        return J[:m], r[:m]
 
 
 def _motion(a: np.ndarray, b: np.ndarray) -> float:
     """Largest displacement (m) of a point 10 m from the sensor between poses a and b."""
     d = se3.inv(a) @ b
     return float(np.linalg.norm(d[:3, 3]) + 10.0 * se3.delta_angle(d))
-
-
-def _terms(q: np.ndarray, origin: np.ndarray, corr: _Correspondences, T: np.ndarray, kind: str,
-           max_offset: float) -> tuple[np.ndarray, np.ndarray]:
-    """Residual rows of the transformed features q against the map's planes or lines. A row's
-    Jacobian w.r.t. the perturbation T <- [exp(dtheta) R, t + dt] (rotation about the sensor,
-    map axes) is [(q - t) x n, n]."""
-    ok, nb = corr.neighbours(q, T)
-    J, r = np.empty((q.shape[0], 6)), np.empty(q.shape[0])
-    m = _plane_rows(q, origin, nb, ok, max_offset, J, r) if kind == "plane" else _edge_rows(q, origin, nb, ok, J, r)
-    return J[:m], r[:m]
 
 
 def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray,
@@ -186,14 +263,13 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
     P = np.eye(6)
     degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
     weakest: tuple[float, ...] = ()
-    edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, cfg.max_nn_sq_dist_m2, cfg.requery_motion_m)
-                 if use_edges and local_map.edge_tree is not None else None)
-    surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, cfg.max_nn_sq_dist_m2, cfg.requery_motion_m)
+    edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, "line", cfg.max_nn_sq_dist_m2, 0.0,
+                                  cfg.requery_motion_m) if use_edges and local_map.edge_tree is not None else None)
+    surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, "plane", cfg.max_nn_sq_dist_m2,
+                                 cfg.plane_max_offset_m, cfg.requery_motion_m)
     for it in range(1, cfg.max_iterations + 1):
-        Je, re = np.zeros((0, 6)), np.zeros(0)
-        if edge_corr is not None:
-            Je, re = _terms(se3.apply(T, edges), T[:3, 3], edge_corr, T, "edge", 0.0)
-        Js, rs = _terms(se3.apply(T, surfs), T[:3, 3], surf_corr, T, "plane", cfg.plane_max_offset_m)
+        Je, re = edge_corr.rows(edges, T) if edge_corr is not None else (np.zeros((0, 6)), np.zeros(0))
+        Js, rs = surf_corr.rows(surfs, T)
         J, r = np.r_[Je, Js], np.r_[re, rs]
         if r.size < cfg.min_correspondences:
             break
