@@ -18,7 +18,7 @@ from typer.exceptions import TyperException
 
 from mrnc_eval import __version__
 from mrnc_eval.cli_help import PlainGroup
-from mrnc_eval.errors import MrncError
+from mrnc_eval.errors import MrncError, UsageError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.text import printable
 
@@ -464,7 +464,9 @@ class LogFormat(StrEnum):
 
 @app.command()
 def simulate(
-    out: Annotated[Path, typer.Argument(metavar="OUT", help="Output log path (.mcap, .db3 directory or .bag).")],
+    out: Annotated[str | None, typer.Argument(
+        metavar="OUT", help="Output log: NAME.bag (ROS 1 bag), NAME.mcap (ROS 2 MCAP), NAME.db3 (ROS 2 sqlite3), "
+        "NAME/ (a ROS 2 bag folder); without a suffix, --format's is added. Not needed with --dump-config.")] = None,
     scene: Annotated[Scene, typer.Option(help="Scene.")] = Scene.yard,
     path: Annotated[SimPath, typer.Option(help="Path: circle is the paper's mission.")] = SimPath.circle,
     duration: Annotated[float | None, typer.Option(help="Duration, s (default: until the path is done).")] = None,
@@ -472,9 +474,10 @@ def simulate(
     columns: Annotated[int, typer.Option(help="Columns per sweep: 512, 1024 or 2048.")] = 1024,
     rate: Annotated[float, typer.Option(help="Sweep rate, Hz (10 or 20).")] = 10.0,
     fmt: Annotated[
-        LogFormat,
-        typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1)."),
-    ] = LogFormat.mcap,
+        LogFormat | None,
+        typer.Option("--format", help="mcap (ROS 2, zstd), db3 (ROS 2 sqlite3) or bag (ROS 1); default: from "
+                     "OUT's suffix, mcap when it has none (must agree with the suffix)."),
+    ] = None,
     seed: Annotated[int | None, typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
                                                   "byte-identical logs.")] = None,
     profile: Annotated[str | None, typer.Option(help="Sensor profile: ideal (exact sensors, one clock) or field "
@@ -489,10 +492,12 @@ def simulate(
 ) -> None:
     """Generate a synthetic skid-steer wheeled mobile robot (SSWMR) recording with exact ground
     truth (LiDAR, IMU, GNSS, wheel odometry, commands, path) driven in closed loop through the control chain."""
-    cfg = _config(config, set_, dump_config)
+    cfg = _config(config, set_, dump_config)  # --dump-config needs no OUT
+    if out is None:
+        raise UsageError("simulate needs OUT, the log to write (e.g. sim/yard.mcap); see mrnc-eval simulate --help")
     from mrnc_eval.commands import simulate as simulate_command
     simulate_command.main(out, cfg, scene=scene.value, path=path.value, duration=duration, lidar=lidar.value,
-                          columns=columns, rate=rate, fmt=fmt.value, seed=seed, profile=profile, force=force)
+                          columns=columns, rate=rate, fmt=_plain(fmt), seed=seed, profile=profile, force=force)
 
 
 # ------------------------------------------------------------------ entry point

@@ -32,7 +32,7 @@ EXAMPLES: dict[str, tuple[str, ...]] = {
     "compare": ("mrnc-eval compare results/run-a results/run-b --changed-only",
                 "mrnc-eval compare --history nightly_reports --nights 2026-11-20 2026-11-21"),
     "export": ("mrnc-eval export results/latest --mcap run.mcap",),
-    "simulate": ("mrnc-eval simulate sim/yard.mcap --scene yard --path circle --duration 20",),
+    "simulate": ("mrnc-eval simulate sim/yard.bag --scene yard --path circle --duration 20",),
 }
 
 # Formats a verb reads, shown under its examples (lines keep their relative indentation; no [ ]: rich markup).

@@ -3,14 +3,40 @@ when stderr is a terminal."""
 
 from __future__ import annotations
 
+import os
 import sys
 from pathlib import Path
 
 from mrnc_eval.config import Config
 from mrnc_eval.errors import OutputError, UsageError
+from mrnc_eval.io.containers import FORMAT_NAMES, FORMAT_SUFFIX, SUFFIX_FORMAT
 
 SIM_OUTPUT_BYTES = 100_000_000  # free space asked for before simulating (a minute of OS0-128 is ~50 MB)
 _BAG_FILES = (".mcap", ".db3", ".yaml")  # what a ROS 2 bag folder written by this tool holds
+
+
+def log_target(out: str | Path, fmt: str | None) -> tuple[Path, str]:
+    """The log to write and its format, from OUT's suffix and --format: .bag a ROS 1 bag, .mcap a
+    ROS 2 MCAP file, .db3 a ROS 2 sqlite3 file; a folder (OUT ends in / or is one) a ROS 2 bag folder
+    (sqlite3 unless --format mcap); no suffix: --format's suffix (default mcap) is added. A suffix
+    that names another format than --format, or any other suffix, is a UsageError."""
+    text = str(out)
+    path = Path(text)
+    named = SUFFIX_FORMAT.get(path.suffix.lower())
+    if named is not None:
+        if fmt is not None and fmt != named:
+            raise UsageError(f"{path}: the name makes a {FORMAT_NAMES[named]} but --format {fmt} asks for a "
+                             f"{FORMAT_NAMES[fmt]}; drop --format or name it {path.with_suffix(FORMAT_SUFFIX[fmt])}")
+        return path, named
+    if text.endswith(("/", os.sep)) or path.is_dir():
+        if fmt == "bag":
+            raise UsageError(f"{text}: a ROS 1 bag is one file, not a folder; name it {path.name or 'sim'}.bag")
+        return path, fmt or "db3"
+    if path.suffix:
+        raise UsageError(f"{path}: unknown log suffix {path.suffix!r}; use .bag (ROS 1 bag), .mcap (ROS 2 MCAP) "
+                         "or .db3 (ROS 2 sqlite3), or end OUT with / for a ROS 2 bag folder")
+    fmt = fmt or "mcap"
+    return path.with_name(path.name + FORMAT_SUFFIX[fmt]), fmt
 
 
 def check_target(out: Path, *, force: bool) -> None:
@@ -36,23 +62,26 @@ def check_target(out: Path, *, force: bool) -> None:
                           "inside); not replaced, even with --force")
 
 
-def main(out: Path, cfg: Config, *, scene: str, path: str, duration: float | None, lidar: str, columns: int,
-         rate: float, fmt: str, seed: int | None, profile: str | None = None,
+def main(out: str | Path, cfg: Config, *, scene: str, path: str, duration: float | None, lidar: str, columns: int,
+         rate: float, fmt: str | None, seed: int | None, profile: str | None = None,
          force: bool = False) -> None:
+    """The `simulate` verb: the format from OUT's name and --format (log_target), checked before
+    any work; the log and its ground truth written atomically."""
     from mrnc_eval.commands.progress import progress_bar
     from mrnc_eval.sim.recorder import SimRequest, simulate_log, validate
 
+    target, log_format = log_target(out, fmt)
     req = SimRequest(scene=scene, path=path, duration_s=duration, lidar=lidar, columns=columns, rate_hz=rate,
-                     fmt=fmt, seed=seed, profile=profile)
+                     fmt=log_format, seed=seed, profile=profile)
     try:
         validate(req)
     except ValueError as exc:
         raise UsageError(str(exc)) from None
-    check_target(out, force=force)
+    check_target(target, force=force)
     with progress_bar(total=1) as bar:  # the sweep count is known once the mission has been driven
         if bar is None:
-            written = simulate_log(out, cfg, req)
+            written = simulate_log(target, cfg, req)
         else:
             task = bar.add_task(f"simulating {req.lidar} sweeps ({req.profile or cfg.sim.profile} profile)", total=None)
-            written = simulate_log(out, cfg, req, lambda n, total: bar.update(task, completed=n, total=total))
+            written = simulate_log(target, cfg, req, lambda n, total: bar.update(task, completed=n, total=total))
     sys.stderr.write(f"wrote {written}\n")

@@ -15,7 +15,7 @@ if TYPE_CHECKING:
     from mcap.writer import Writer
 
 from mrnc_eval.errors import InputError
-from mrnc_eval.io.containers import describe_error, detect_container
+from mrnc_eval.io.containers import describe_error, detect_container, openable
 
 
 def copy_log(writer: Writer, log_path: Path, reserved_prefix: str) -> Counter[str]:
@@ -25,7 +25,7 @@ def copy_log(writer: Writer, log_path: Path, reserved_prefix: str) -> Counter[st
     try:
         if container in ("mcap", "ros2-mcap") and log_path.is_file():
             return _copy_mcap(writer, log_path, reserved_prefix)
-        return _copy_rosbags(writer, log_path, container == "ros1", reserved_prefix)
+        return _copy_rosbags(writer, log_path, container, reserved_prefix)
     except InputError:
         raise
     except Exception as err:
@@ -60,13 +60,15 @@ def _copy_mcap(writer: Writer, log_path: Path, reserved_prefix: str) -> Counter[
     return counts
 
 
-def _copy_rosbags(writer: Writer, log_path: Path, ros1: bool, reserved_prefix: str) -> Counter[str]:
+def _copy_rosbags(writer: Writer, log_path: Path, container: str, reserved_prefix: str) -> Counter[str]:
     from rosbags.highlevel import AnyReader
 
     from mrnc_eval.io.typestore import typestore_for
 
     counts: Counter[str] = Counter()
-    with AnyReader([log_path], default_typestore=typestore_for(ros1=ros1)) as reader:
+    ros1 = container == "ros1"
+    with openable([log_path], container) as named, \
+            AnyReader(named, default_typestore=typestore_for(ros1=ros1)) as reader:
         store = reader.typestore
         channel_ids: dict[int, int] = {}
         schema_ids: dict[str, int] = {}

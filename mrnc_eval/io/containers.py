@@ -1,22 +1,35 @@
 """Which container a path is, and opening it with the right library.
 
-An explicit registry keyed by what the path looks like:
-  *.bag (one or several split files)      -> ROS 1 (rosbags)
-  directory with metadata.yaml           -> ROS 2 bag (sqlite3 or MCAP storage)
-  *.db3                                   -> ROS 2 sqlite3 single file
-  *.mcap with ROS 2 profile/encodings     -> ROS 2 MCAP single file (rosbags)
-  *.mcap otherwise                        -> plain MCAP (mcap library): ROS 1 and CDR channels
-                                             are decoded, others refused when read
+A file is recognised by its first bytes, its suffix only when those say nothing (a truncated
+file, an unknown format):
+  #ROSBAG V2.0 (*.bag; several: a split recording) -> ROS 1 (rosbags)
+  directory with metadata.yaml                     -> ROS 2 bag (sqlite3 or MCAP storage)
+  SQLite format 3 (*.db3)                           -> ROS 2 sqlite3 single file
+  MCAP magic (*.mcap) with ROS 2 profile/encodings  -> ROS 2 MCAP single file (rosbags)
+  MCAP magic otherwise                              -> plain MCAP (mcap library): ROS 1 and CDR
+                                                       channels are decoded, others refused when read
+rosbags itself picks its reader by suffix: `openable` gives it links with the right one.
 """
 
 from __future__ import annotations
 
+import shutil
+import tempfile
+from collections.abc import Iterator
+from contextlib import contextmanager
 from pathlib import Path
 
 from mrnc_eval.errors import InputError
 
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")  # single-file logs; a ROS 2 bag may also be a folder
 SUPPORTED = "a ROS 1 .bag, a ROS 2 bag directory (metadata.yaml), a .db3 or an .mcap file"
+# the writers' formats (`simulate --format`, io.writers.LogWriter) and the suffix each one's file has
+FORMAT_SUFFIX = {"bag": ".bag", "mcap": ".mcap", "db3": ".db3"}
+SUFFIX_FORMAT = {suffix: fmt for fmt, suffix in FORMAT_SUFFIX.items()}
+FORMAT_NAMES = {"bag": "ROS 1 bag", "mcap": "ROS 2 MCAP", "db3": "ROS 2 sqlite3"}
+MAGIC = ((b"#ROSBAG V2.0", "ros1"), (b"\x89MCAP0\r\n", "mcap"), (b"SQLite format 3\x00", "ros2-sqlite3"))
+SUFFIX_CONTAINER = {".bag": "ros1", ".mcap": "mcap", ".db3": "ros2-sqlite3"}
+CONTAINER_SUFFIX = {"ros1": ".bag", "ros2-mcap": ".mcap", "ros2-sqlite3": ".db3"}  # what rosbags needs to see
 
 
 def describe_error(err: BaseException) -> str:
@@ -24,6 +37,21 @@ def describe_error(err: BaseException) -> str:
     text = " ".join(str(err).split())
     text = text or type(err).__name__
     return text if len(text) <= 300 else text[:297] + "..."
+
+
+def sniff(path: Path) -> str | None:
+    """ros1, mcap or ros2-sqlite3 by the file's first bytes; None when they say none of these."""
+    try:
+        with path.open("rb") as fh:
+            head = fh.read(16)
+    except OSError:
+        return None
+    return next((kind for magic, kind in MAGIC if head.startswith(magic)), None)
+
+
+def is_log_file(path: Path) -> bool:
+    """A single-file log, by its first bytes or its suffix."""
+    return path.is_file() and (sniff(path) is not None or path.suffix.lower() in LOG_SUFFIXES)
 
 
 def detect_container(paths: list[Path]) -> str:
@@ -36,22 +64,41 @@ def detect_container(paths: list[Path]) -> str:
         if not meta.exists():
             raise InputError(first, f"directory is not a ROS 2 bag (no metadata.yaml); expected {SUPPORTED}")
         return "ros2-mcap" if _bag_storage(meta) == "mcap" else "ros2-sqlite3"
-    suffix = first.suffix.lower()
-    if suffix == ".bag":
-        if any(p.suffix.lower() != ".bag" for p in paths):
-            raise InputError(first, "split logs must all be ROS 1 .bag files")
-        return "ros1"
     if len(paths) > 1:  # a split recording: every file of the same kind
         kinds = {p: detect_container([p]) for p in paths}
         if len(set(kinds.values())) > 1:
             listed = ", ".join(f"{p.name} ({k})" for p, k in kinds.items())
             raise InputError(first, f"the files of a split log must be of one kind: {listed}")
         return kinds[first]
-    if suffix == ".db3":
-        return "ros2-sqlite3"
-    if suffix == ".mcap":
+    kind = sniff(first) or SUFFIX_CONTAINER.get(first.suffix.lower())
+    if kind is None:
+        raise InputError(first, f"unrecognised log format; expected {SUPPORTED}")
+    if kind == "mcap":
         return "ros2-mcap" if _mcap_is_ros2(first) else "mcap"
-    raise InputError(first, f"unrecognised log format; expected {SUPPORTED}")
+    return kind
+
+
+@contextmanager
+def openable(paths: list[Path], container: str) -> Iterator[list[Path]]:
+    """`paths` as rosbags can open them. rosbags picks its reader by suffix (ROS 1 only for .bag),
+    so a file whose suffix does not say what its first bytes say is opened through a link with the
+    right suffix, in a temporary folder removed on exit."""
+    want = CONTAINER_SUFFIX.get(container)
+    if want is None or all(p.is_dir() or p.suffix == want for p in paths):
+        yield paths
+        return
+    links = Path(tempfile.mkdtemp(prefix=".mrnc-open-"))
+    try:
+        named = []
+        for k, p in enumerate(paths):
+            if p.is_dir() or p.suffix == want:
+                named.append(p)
+                continue
+            named.append(links / f"{k}-{p.stem or 'log'}{want}")
+            named[-1].symlink_to(p.resolve())
+        yield named
+    finally:
+        shutil.rmtree(links, ignore_errors=True)
 
 
 def _bag_storage(meta: Path) -> str:

@@ -25,7 +25,7 @@ from mrnc_eval import geodesy
 from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, StreamHealth, Sweep, Trajectory, Twists, Waypoints
 from mrnc_eval.errors import InputError, NoGnssFix
 from mrnc_eval.io.config import IoConfig
-from mrnc_eval.io.containers import describe_error, detect_container
+from mrnc_eval.io.containers import describe_error, detect_container, openable
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import Ambiguity, Candidate, candidates_by_role, choose_roles
@@ -101,18 +101,14 @@ class LogReader:
         self.path = paths[0]
         self.cfg = io_cfg or IoConfig()
         self.container = detect_container(paths)
+        self._links = contextlib.ExitStack()  # rosbags' view of files whose suffix is not theirs; closed with the log
         try:
-            if self.container != "ros1" and len(paths) > 1:  # split ROS 2 / MCAP: one source per file
-                self._src: McapSource | RosbagsSource | SplitSource = SplitSource(
-                    [McapSource(p) if self.container == "mcap" else RosbagsSource([p], ros1=False) for p in paths],
-                    paths)
-            elif self.container == "mcap":
-                self._src = McapSource(self.path)
-            else:
-                self._src = RosbagsSource(paths, ros1=self.container == "ros1")
+            self._src = self._open_source(self._links.enter_context(openable(paths, self.container)))
         except InputError:
+            self._links.close()
             raise
         except Exception as err:  # rosbags/mcap/sqlite raise many unrelated types for broken files
+            self._links.close()
             raise InputError(self.path, f"cannot open {self.container} log: {describe_error(err)}") from err
         self._channels = self._src.channels
         if not self._channels:
@@ -125,10 +121,20 @@ class LogReader:
         self._stamps: dict[str, np.ndarray] = {}
         self._cache: dict[str, list[tuple[int, bytes]]] = {}  # small topics' raw messages from the overview pass
 
+    def _open_source(self, named: list[Path]) -> McapSource | RosbagsSource | SplitSource:
+        """The reading library for the container; `named`: the paths as rosbags can open them."""
+        if self.container != "ros1" and len(named) > 1:  # split ROS 2 / MCAP: one source per file
+            return SplitSource([McapSource(p) if self.container == "mcap" else RosbagsSource([p], ros1=False)
+                                for p in named], self.paths)
+        if self.container == "mcap":
+            return McapSource(self.path)
+        return RosbagsSource(named, ros1=self.container == "ros1")
+
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:
         with contextlib.suppress(Exception):
             self._src.close()
+        self._links.close()
 
     def __enter__(self) -> LogReader:
         return self

@@ -9,7 +9,7 @@ from dataclasses import dataclass
 from pathlib import Path
 
 from mrnc_eval.errors import InputError
-from mrnc_eval.io.containers import LOG_SUFFIXES
+from mrnc_eval.io.containers import LOG_SUFFIXES, is_log_file
 from mrnc_eval.io.roles import POSE_TYPES
 
 RESULT_TRAJECTORY = "trajectory.tum"  # what `slam` writes into each result folder
@@ -71,7 +71,7 @@ def trajectory_file_in(path: Path) -> Path:
             return path / RESULT_TRAJECTORY
         raise InputError(path, f"is a folder, not a trajectory file (a slam result folder holds {RESULT_TRAJECTORY}; "
                                "pass a TUM, KITTI or EuRoC file)")
-    if path.is_dir() or path.suffix.lower() in LOG_SUFFIXES:
+    if path.is_dir() or is_log_file(path):  # by its first bytes, or its suffix
         raise InputError(path, f"is a log, not a trajectory file: name a pose topic as {path}:/TOPIC "
                                f"({_pose_topics(path)})")
     return path

@@ -20,8 +20,9 @@ import numpy as np
 from numpy.typing import ArrayLike
 
 from mrnc_eval.data import ImuSeries, Trajectory, Twists, Waypoints
-from mrnc_eval.errors import InputError, OutputError
+from mrnc_eval.errors import InputError, OutputError, UsageError
 from mrnc_eval.io import messages as M
+from mrnc_eval.io.containers import FORMAT_NAMES, SUFFIX_FORMAT
 from mrnc_eval.io.typestore import typestore_for
 
 Format = Literal["mcap", "db3", "bag"]
@@ -42,11 +43,16 @@ def _ns(t: float) -> int:
 
 class LogWriter:
     """Write a robot log. `path` ending in .mcap/.db3 gives a single file; otherwise a
-    ROS 2 bag directory (for mcap/db3) or a .bag file (for bag)."""
+    ROS 2 bag directory (for mcap/db3) or a ROS 1 bag file (for bag). A log suffix that names
+    another format is refused (`x.bag` as MCAP would be a folder no reader takes for a ROS 1 bag)."""
 
     def __init__(self, path: str | Path, fmt: Format = "mcap", *, ros1_compression: str | None = "lz4") -> None:
         self.path = Path(path)
         self.fmt = fmt
+        named = SUFFIX_FORMAT.get(self.path.suffix.lower(), fmt)
+        if named != fmt:
+            raise UsageError(f"{self.path}: a {self.path.suffix} name is a {FORMAT_NAMES[named]}, but the format "
+                             f"asked for is {fmt} ({FORMAT_NAMES.get(fmt, 'unknown')})")
         self.ros1 = fmt == "bag"
         self.ts = typestore_for(ros1=self.ros1)
         parent = self.path.parent if self.path.parent.exists() else None  # same filesystem: the final move is a rename
@@ -186,8 +192,8 @@ class LogWriter:
             self._remove_previous_log()
         if self.ros1:
             src = self._inner_path
-        elif self.path.suffix in (".mcap", ".db3"):
-            files = [p for p in self._inner_path.iterdir() if p.suffix == self.path.suffix]
+        elif self.path.suffix.lower() in (".mcap", ".db3"):
+            files = [p for p in self._inner_path.iterdir() if p.suffix == self.path.suffix.lower()]
             if len(files) != 1:
                 raise InputError(self.path, f"expected one {self.path.suffix} file from the bag writer")
             src = files[0]
