@@ -6,10 +6,12 @@ machine is averaged rather than hitting one side only. Cases: translation (SE(3)
 alignment) and rotation angle in degrees. Targets (issue 14): >= 30x faster than evo on
 translation, >= 100x on angle_deg, peak memory <= 1/4 of evo's; the RMSE equal to 1e-9.
 Run: PYTHONPATH=. .venv/bin/python -m pytest -m benchmark benchmarks/test_bench_ape.py -s
+(the C reader of io/number_table must be built: `pip install -e .` does it in place).
 """
 
 from __future__ import annotations
 
+import importlib.util
 import json
 import os
 import re
@@ -74,6 +76,9 @@ def test_ape_1m_poses_vs_evo(tmp_path_factory: pytest.TempPathFactory, relation:
     tmp_path.mkdir(exist_ok=True)
     if shutil.which("evo_ape", path=str(Path(sys.executable).parent)) is None:
         pytest.fail("evo is not installed (pip install 'mrnc-eval[test]'): the benchmark has no peer")
+    if importlib.util.find_spec("mrnc_eval.io._numtext") is None:
+        pytest.fail("mrnc_eval/io/_numtext.c is not built (pip install -e .): the benchmark would time the "
+                    "strict text path")
     ref, est = tmp_path / "ref.tum", tmp_path / "est.tum"
     if not est.exists():
         _write_pair(tmp_path)

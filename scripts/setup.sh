@@ -13,8 +13,10 @@ want_test=0
 [[ "${1:-}" == "--test" ]] && want_test=1
 
 # open3d: libusb (import), libGL/libgomp (rendering module, OpenMP); WeasyPrint: Pango;
-# python3-venv: Debian's Python ships venv separately.
-pkgs=(libusb-1.0-0 libgl1 libgomp1 libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz-subset0 fonts-dejavu-core python3-venv)
+# python3-venv: Debian's Python ships venv separately; gcc, python3-dev: the C reader of TUM/KITTI
+# text (mrnc_eval/io/_numtext.c; optional: without them every file goes through the slower pandas path).
+pkgs=(libusb-1.0-0 libgl1 libgomp1 libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz-subset0 fonts-dejavu-core python3-venv
+      gcc python3-dev)
 # Tests: headless Chromium opens the HTML report, pdftoppm renders the PDF.
 (( want_test )) && pkgs+=(chromium poppler-utils)
 

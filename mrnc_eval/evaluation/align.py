@@ -47,15 +47,16 @@ def _sequential_sum(rows: NDArray[np.float64]) -> NDArray[np.float64]:
     return acc
 
 
-def _sequential_outer_sum(y: NDArray[np.float64], my: NDArray[np.float64], xc: NDArray[np.float64]) -> F64:
-    """sum_i (y_i - my) xc_i^T added one point after the other, as evo's loop does (cumsum
-    is sequential, sum is pairwise). A BLAS product rounds differently, and for nearly
-    collinear paths the SVD turns that 1e-16 into 1e-12 in R; this order gives evo's bits."""
+def _sequential_outer_sum(y: F64, my: F64, x: F64, mx: F64) -> F64:
+    """sum_i (y_i - my) (x_i - mx)^T added one point after the other, as evo's loop does
+    (cumsum is sequential, sum is pairwise). A BLAS product rounds differently, and for nearly
+    collinear paths the SVD turns that 1e-16 into 1e-12 in R; this order gives evo's bits.
+    Centred in blocks: the same bits as centring the whole array first, without its copy."""
     products = np.empty((9, min(CHUNK, y.shape[0])))
     acc = np.zeros(9)
     for k in range(0, y.shape[0], CHUNK):
         yc = np.array(y[k:k + CHUNK].T, order="C") - my[:, None]
-        xk = np.array(xc[k:k + CHUNK].T, order="C")
+        xk = np.array(x[k:k + CHUNK].T, order="C") - mx[:, None]
         p = products[:, :yc.shape[1]]
         for a in range(3):
             for b in range(3):
@@ -67,13 +68,11 @@ def _sequential_outer_sum(y: NDArray[np.float64], my: NDArray[np.float64], xc: N
 
 def umeyama(x: F64, y: F64, with_scale: bool) -> tuple[F64, F64, float]:
     """R, t, c minimising sum |y - (c R x + t)|^2; x, y are (n, 3) matched positions
-    (Umeyama 1991, eqs. 34-43; same operation order as evo, so the same bits). Memory: one
-    (n, 3) array (the centred x, whose norm BLAS takes in one piece) plus small blocks."""
+    (Umeyama 1991, eqs. 34-43; same operation order as evo, so the same bits). Memory: small
+    blocks, plus with scale one (n, 3) array (the centred x, whose norm BLAS takes in one piece)."""
     n = x.shape[0]
     mx, my = _sequential_sum(x) / n, _sequential_sum(y) / n
-    xc = np.subtract(x, mx, order="C")
-    sigma_x = 1.0 / n * np.linalg.norm(xc) ** 2
-    cov = np.multiply(1.0 / n, _sequential_outer_sum(y, my, xc))
+    cov = np.multiply(1.0 / n, _sequential_outer_sum(y, my, x, mx))
     u, d, vt = np.linalg.svd(cov)
     if np.count_nonzero(d > np.finfo(float).eps) < 2:
         raise EvaluationError("degenerate covariance rank: Umeyama alignment is not possible "
@@ -82,7 +81,10 @@ def umeyama(x: F64, y: F64, with_scale: bool) -> tuple[F64, F64, float]:
     if np.linalg.det(u) * np.linalg.det(vt) < 0.0:
         s[2, 2] = -1.0
     r = u.dot(s).dot(vt)
-    c = float(1.0 / sigma_x * np.trace(np.diag(d).dot(s))) if with_scale else 1.0
+    c = 1.0
+    if with_scale:
+        sigma_x = 1.0 / n * np.linalg.norm(np.subtract(x, mx, order="C")) ** 2
+        c = float(1.0 / sigma_x * np.trace(np.diag(d).dot(s)))
     t = my - np.multiply(c, r.dot(mx))
     return r, t, c
 

@@ -1,78 +1,24 @@
 """Trajectory files: TUM, KITTI poses, EuRoC ground-truth CSV, and `log:/topic` specs.
 
 Parsing is strict (like evo: TUM rows of exactly 8 numbers, KITTI of 12) but errors name
-the file and the line. Parsing is pandas' C parser: 0.31-0.38 s per million poses, within 10-20 %
-of an exact compiled (numba) parser that was measured and dropped (importing numba cost more than
-it saved for a CLI run, and 115 MB); np.fromstring took 6 s.
+the file and the line (io.number_table: a fast path for plain files, a strict one for the rest).
 """
 
 from __future__ import annotations
 
-import math
 from pathlib import Path
 
 import numpy as np
-from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.number_table import first_bad_line, read_columns
 from mrnc_eval.io.trajectory_inputs import TrajectorySpec, parse_trajectory_spec, trajectory_file_in
-
-
-def _load_columns(path: Path, ncols: int) -> NDArray[np.float64]:
-    """(ncols, rows) view of the parsed table: columns without copying 1e6-row arrays."""
-    return _load_table(path, ncols).T
-
-
-def _load_table(path: Path, ncols: int, *, delimiter: str = " ", skip_header: bool = False) -> NDArray[np.float64]:
-    import pandas as pd
-
-    try:
-        df = pd.read_csv(path, sep=delimiter, header=None, comment="#", engine="c", dtype=np.float64,
-                         skiprows=1 if skip_header else 0, skip_blank_lines=True, encoding="utf-8-sig")
-    except FileNotFoundError as err:
-        raise InputError(path, "no such file") from err
-    except pd.errors.EmptyDataError as err:
-        raise InputError(path, "no poses (the file is empty or only comments)") from err
-    except (ValueError, pd.errors.ParserError) as err:
-        raise InputError(path, _first_bad_line(path, ncols, delimiter)) from err
-    if df.shape[1] != ncols:
-        raise InputError(path, _first_bad_line(path, ncols, delimiter))
-    arr: NDArray[np.float64] = df.to_numpy()
-    if not np.isfinite(arr).all():
-        raise InputError(path, _first_bad_line(path, ncols, delimiter))
-    return arr
-
-
-def _first_bad_line(path: Path, ncols: int, delimiter: str) -> str:
-    """The first line that breaks the format, said plainly (for the error message)."""
-    try:
-        with path.open(encoding="utf-8-sig", errors="replace") as fh:
-            for k, line in enumerate(fh, 1):
-                row = line.rstrip("\r\n")
-                if not row.strip() or row.startswith("#"):
-                    continue
-                if delimiter == " " and "\t" in row:
-                    return f"line {k} contains a tab; fields must be separated by single spaces"
-                parts = row.split(delimiter)
-                if delimiter == " " and "" in parts:
-                    return f"line {k} has leading, trailing or double spaces"
-                if ncols > 0 and len(parts) != ncols:
-                    return f"line {k} has {len(parts)} fields, expected {ncols}"
-                for x in parts:
-                    try:
-                        if not math.isfinite(float(x)):
-                            return f"line {k} has a non-finite value ({x[:20]!r})"
-                    except ValueError:
-                        return f"line {k} is not numeric ({x[:20]!r})"
-    except OSError:
-        pass
-    return "see the first rows"
 
 
 def read_tum(path: str | Path) -> Trajectory:
     path = Path(path)
-    cols = _load_columns(path, 8)  # views into one block: no copies of 1e6-pose arrays
+    cols = read_columns(path, 8)  # views into one block: no copies of 1e6-pose arrays
     return Trajectory(cols[0], cols[1:4].T, cols[4:8].T, name=path.stem)
 
 
@@ -84,7 +30,7 @@ def read_kitti(path: str | Path) -> Trajectory:
     from mrnc_eval.evaluation.lie import matrix_to_quat_xyzw
 
     path = Path(path)
-    a = np.ascontiguousarray(_load_table(path, 12)).reshape(-1, 3, 4)
+    a = np.ascontiguousarray(read_columns(path, 12).T).reshape(-1, 3, 4)
     rot = a[:, :, :3]
     # evo's test (np.allclose, atol 1e-6, rtol 1e-5): files printed to 6 digits must pass
     gram = np.abs(np.matmul(np.swapaxes(rot, 1, 2), rot) - np.eye(3)) > 1e-6 + 1e-5 * np.eye(3)
@@ -122,7 +68,7 @@ def read_euroc(path: str | Path) -> Trajectory:
     except pd.errors.EmptyDataError as err:
         raise InputError(path, "no poses (the file is empty or only comments)") from err
     except (ValueError, pd.errors.ParserError) as err:
-        raise InputError(path, f"not a EuRoC ground-truth CSV ({_first_bad_line(path, -1, ',')})") from err
+        raise InputError(path, f"not a EuRoC ground-truth CSV ({first_bad_line(path, -1, ',')})") from err
     a = df.to_numpy()
     if a.shape[1] < 8:
         raise InputError(path, f"EuRoC CSV needs at least 8 columns (ns, x, y, z, qw, qx, qy, qz), found {a.shape[1]}")
