@@ -20,6 +20,7 @@ from pathlib import Path
 from typing import Any
 
 from mrnc_eval.config import Config, load_yaml_file
+from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import ConfigError, EvaluationError, InputError, UsageError
 from mrnc_eval.evaluation.ape import ape
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
@@ -166,7 +167,7 @@ def _from_manifest(path: Path, table_trajectory: str) -> dict[str, Sequence]:
 # ------------------------------------------------------------------ the table
 
 
-def _cell(reference: Any, estimate: TrajectorySpec | None, cfg: Config, align: AlignMode) -> Cell:
+def _cell(reference: Trajectory, estimate: TrajectorySpec | None, cfg: Config, align: AlignMode) -> Cell:
     if estimate is None or not estimate.exists():
         return Cell(None, "no trajectory")
     ev = cfg.evaluation
