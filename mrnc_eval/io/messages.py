@@ -84,6 +84,37 @@ OUSTER_DTYPE = np.dtype({
 })
 
 
+RETURNS_FIELDS = (  # the returns only, with the fields a deskewing SLAM reads (LIO-SAM's point type minus
+    # reflectivity, noise and range): x y z intensity f32, t u32 ns, ring u16, 2 bytes of padding
+    ("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("t", 16, 6), ("ring", 20, 4),
+)
+RETURNS_POINT_STEP = 24
+RETURNS_DTYPE = np.dtype({
+    "names": [n for n, _, _ in RETURNS_FIELDS],
+    "formats": [_NUMPY_OF_DATATYPE[d] for _, _, d in RETURNS_FIELDS],
+    "offsets": [o for _, o, _ in RETURNS_FIELDS],
+    "itemsize": RETURNS_POINT_STEP,
+})
+
+
+def returns_cloud(ts: Typestore, t: float, frame_id: str, xyz: ArrayLike, t_ns: ArrayLike, intensity: ArrayLike,
+                  ring: ArrayLike, ros1: bool, seq: int = 0) -> RosMsg:
+    """An unorganised cloud (height 1) of N returns: xyz (N, 3), t_ns, intensity, ring (N,)."""
+    xyz = np.asarray(xyz, dtype=np.float32).reshape(-1, 3)
+    n = xyz.shape[0]
+    rec = np.zeros(n, dtype=RETURNS_DTYPE)  # zeroed: padding bytes are deterministic
+    rec["x"], rec["y"], rec["z"] = xyz[:, 0], xyz[:, 1], xyz[:, 2]
+    rec["intensity"] = np.asarray(intensity).reshape(-1)
+    rec["t"] = np.asarray(t_ns).reshape(-1)
+    rec["ring"] = np.asarray(ring).reshape(-1)
+    pf = ts.types["sensor_msgs/msg/PointField"]
+    fields = [pf(name=n, offset=o, datatype=d, count=1) for n, o, d in RETURNS_FIELDS]
+    return ts.types["sensor_msgs/msg/PointCloud2"](
+        header=header(ts, t, frame_id, ros1, seq), height=1, width=n, fields=fields, is_bigendian=False,
+        point_step=RETURNS_POINT_STEP, row_step=RETURNS_POINT_STEP * n, data=rec.view(np.uint8), is_dense=True,
+    )
+
+
 def ouster_cloud(ts: Typestore, t: float, frame_id: str, xyz: ArrayLike, t_ns: ArrayLike, range_mm: ArrayLike,
                  reflectivity: ArrayLike, intensity: ArrayLike, ambient: ArrayLike, ros1: bool, seq: int = 0) -> RosMsg:
     h, w = np.shape(t_ns)

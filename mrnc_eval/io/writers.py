@@ -136,6 +136,14 @@ class LogWriter:
         conn = self._conn(topic, "sensor_msgs/msg/PointCloud2")
         self._writer.write(conn, _ns(stamp), self._serialize(msg, "sensor_msgs/msg/PointCloud2"))
 
+    def write_returns_cloud(self, topic: str, stamp: float, xyz: ArrayLike, t_ns: ArrayLike, intensity: ArrayLike,
+                            ring: ArrayLike, frame_id: str = "os_sensor") -> None:
+        """One sweep's returns as an unorganised cloud (N points); buffered messages up to `stamp` go first."""
+        self._flush_until(_ns(stamp))
+        msg = M.returns_cloud(self.ts, stamp, frame_id, xyz, t_ns, intensity, ring, self.ros1, self._next_seq(topic))
+        conn = self._conn(topic, "sensor_msgs/msg/PointCloud2")
+        self._writer.write(conn, _ns(stamp), self._serialize(msg, "sensor_msgs/msg/PointCloud2"))
+
     def write_navsatfix(self, topic: str, stamps: np.ndarray, lla: np.ndarray, covariance: np.ndarray,
                         status: np.ndarray, frame_id: str = "gnss") -> None:
         for i, t in enumerate(stamps):

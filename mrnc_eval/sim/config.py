@@ -39,6 +39,13 @@ class LidarSimConfig:
                                  "need a body crop")
     body_clearance_m: float = param(0.3, "ground clearance of the body box (self_occlusion)", "m")
     record_every: int = param(1, "record every n-th sweep (a throttled recording, like topic_tools throttle)")
+    cloud_layout: Literal["organised", "returns"] = param(
+        "organised", "organised: ouster-ros' original point type for every pixel (48 B a point, no-return pixels "
+        "as zeros); returns: the returns only, x y z intensity (f32), t (u32 ns), ring (u16) in 24 B, as a "
+        "recording node that slims the driver's cloud to what a deskewing SLAM reads writes it")
+    xyz_step_m: float = param(0.0, "stored coordinates are rounded to multiples of this (0 = as computed); "
+                              "0.0078125 (2^-7 m) is the low-bandwidth profile's 8 mm range step and zeroes the "
+                              "float's low bits so the bag's compression works", "m")
     full_rate_window_s: tuple[float, float] | None = param(None, "record every sweep that starts in [start, end) "
                                                            "of log time, every record_every-th outside it (a "
                                                            "full-rate stretch for peer comparisons)", "s")
@@ -224,4 +231,7 @@ class SimConfig:
     ground_truth_rate_hz: float = param(100.0, "ground-truth odometry rate", "Hz")
     terrain_amplitude_m: float = param(0.3, "gentle relief amplitude", "m")
     terrain_roughness_m: float = param(0.02, "small-scale roughness amplitude", "m")
+    motion_smoothing_s: float = param(0.1, "the driven trace is smoothed over this time (triangle kernel) before "
+                                      "it becomes the ground truth: a 4.8 t machine cannot change speed or yaw rate "
+                                      "within one 1 ms control step (0 = as simulated)", "s")
     field: FieldConfig = section(FieldConfig, "field profile (sim.profile = field)")

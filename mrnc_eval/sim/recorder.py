@@ -24,7 +24,7 @@ from mrnc_eval.io.writers import Format, LogWriter
 from mrnc_eval.sim.config import LidarSimConfig
 from mrnc_eval.sim.gnss import simulate_field_gnss, simulate_gnss
 from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
-from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, ouster_metadata
+from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, OrganisedSweep, ouster_metadata
 from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
 from mrnc_eval.sim.scene import SCENES, Scene, build_scene
 from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
@@ -138,7 +138,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         shake = stone_shake(np.asarray(trace.t, float), np.c_[trace.x, trace.y], stones_per_m=w.stones_per_m,
                             height_m=w.stone_height_m, length_m=w.stone_length_m, track_m=cfg.robot.track_width_m,
                             wheelbase_m=w.wheelbase_m, natural_hz=w.shake_hz, damping=w.shake_damping, rng=frng)
-    traj = BodyTrajectory.from_trace(trace, scene.terrain, shake)
+    traj = BodyTrajectory.from_trace(trace, scene.terrain, shake, scfg.motion_smoothing_s)
     t_end = float(trace.t[-1]) if req.duration_s is None else float(req.duration_s)
 
     base_to_sensor, true_base_to_sensor = mounts(cfg)
@@ -195,8 +195,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         for n, start in enumerate(kept):
             s = lidar.sweep(traj, float(start))
             stamp = s.stamp if field is None else s.stamp + frng.normal(0.0, field.clock.lidar_jitter_s)
-            writer.write_ouster_cloud(TOPICS["lidar"], t0 + stamp, s.xyz, s.t_ns, s.range_mm, s.reflectivity,
-                                      s.intensity, s.ambient)
+            _write_cloud(writer, t0 + stamp, s, lcfg)
             if progress is not None:
                 progress(n + 1, kept.size)
         path = writer.close()
@@ -216,6 +215,18 @@ def recorded_sweep_starts(t_end: float, lcfg: LidarSimConfig) -> np.ndarray:
         a, b = lcfg.full_rate_window_s
         keep |= (starts >= a) & (starts < b)
     return starts[keep]
+
+
+def _write_cloud(writer: LogWriter, stamp: float, s: OrganisedSweep, lcfg: LidarSimConfig) -> None:
+    """One sweep in the configured layout, coordinates rounded to `xyz_step_m` (no return stays 0)."""
+    xyz = s.xyz if lcfg.xyz_step_m <= 0 else (np.round(s.xyz / lcfg.xyz_step_m) * lcfg.xyz_step_m).astype(np.float32)
+    if lcfg.cloud_layout == "organised":
+        writer.write_ouster_cloud(TOPICS["lidar"], stamp, xyz, s.t_ns, s.range_mm, s.reflectivity, s.intensity,
+                                  s.ambient)
+        return
+    ret = s.range_mm > 0  # (H, W) pixels with a return, ring-major like the organised cloud
+    ring = np.broadcast_to(np.arange(ret.shape[0], dtype=np.uint16)[:, None], ret.shape)
+    writer.write_returns_cloud(TOPICS["lidar"], stamp, xyz[ret], s.t_ns[ret], s.intensity[ret], ring[ret])
 
 
 def _field_imu_series(traj: BodyTrajectory, times: np.ndarray, base_to_imu: np.ndarray, cfg: Config,

@@ -77,6 +77,31 @@ def test_static_robot_imu_averages_to_gravity_in_the_body_frame() -> None:
     assert imu.acc.std(axis=0).min() > 0.5 * noise.acc_noise_density * 10.0  # noise is really there (sqrt(100 Hz))
 
 
+def test_slip_patches_do_not_jolt_the_imu_once_the_motion_is_smoothed() -> None:
+    """Entering a slip patch changes speed and yaw rate within one 1 ms control step of the closed
+    loop; taken as it is (the negative control, smoothing 0) the Ouster IMU on the mast feels
+    several g on the circle of the sample log. Smoothed over sim.motion_smoothing_s (0.1 s) the
+    motion stays far below the field IMU's +-2 g full scale."""
+    from mrnc_eval.control.closed_loop import run_closed_loop
+    from mrnc_eval.control.scenario import scripted_scenario
+
+    cfg = Config()
+    trace = run_closed_loop(scripted_scenario("circle", cfg.control), cfg.control, cfg.robot, "raid", seed=1)
+    terrain = Terrain(0.3, 0.02, 1)
+    lever = np.add(cfg.sim.lidar.mount_xyz_m, cfg.sim.imu.mount_xyz_m)  # the Ouster IMU in base_link, m
+    times = np.arange(1.0, float(trace.t[-1]) - 1.0, 2e-3)
+
+    def worst_acceleration(smoothing_s: float) -> float:
+        traj = BodyTrajectory.from_trace(trace, terrain, None, smoothing_s)
+        f, _, _, r = traj.imu_kinematics(times, lever)
+        acc = f - r.inv().apply(np.tile([0.0, 0.0, GRAVITY_MPS2], (times.size, 1)))  # motion alone, m/s^2
+        return float(np.linalg.norm(acc, axis=1).max())
+
+    saturation = Config().sim.field.imu.acc_range  # m/s^2
+    assert worst_acceleration(0.0) > saturation  # measured 63 m/s^2 at 40.97 s
+    assert worst_acceleration(cfg.sim.motion_smoothing_s) < 2.6  # measured 1.3 m/s^2, a fifteenth of the full scale
+
+
 def test_integrated_ideal_imu_from_the_log_reproduces_ground_truth(tmp_path: Path) -> None:
     """Strapdown-integrate the noise-free 1 kHz chassis IMU read back from the log from the true
     initial state: over 3 s the pose stays on the ground truth read back from the same log."""
@@ -426,3 +451,29 @@ def test_full_rate_window_keeps_every_sweep_inside_it(tmp_path: Path) -> None:
         stamps = np.asarray([s.stamp for s in lg.sweeps()]) - LOG_EPOCH_S
     # 1 Hz everywhere (0, 1, 2, 3 s) plus 10 Hz inside [1, 2)
     np.testing.assert_allclose(stamps, np.r_[0.0, np.arange(1.0, 2.0, 0.1), 2.0, 3.0], atol=1e-6)
+
+
+def test_returns_layout_keeps_each_return_with_its_time_and_ring(tmp_path: Path) -> None:
+    """The slim layout of the sample logs (sim.lidar.cloud_layout = returns, coordinates rounded to
+    2^-7 m) reads back as the organised cloud's returns: same points within half a step, the same
+    per-point time and ring, no column (the SLAM takes it from the azimuth), at half the point size."""
+    step = 2.0 ** -7
+    cfg = Config()
+    slim = replace(cfg, sim=replace(cfg.sim, lidar=replace(cfg.sim.lidar, cloud_layout="returns", xyz_step_m=step)))
+    req = SimRequest(scene="yard", path="circle", duration_s=0.8, seed=4, **SMALL)
+    logs = [simulate_log(tmp_path / name, c, req) for name, c in (("organised.mcap", cfg), ("returns.mcap", slim))]
+    with open_log(logs[0]) as a, open_log(logs[1]) as b:
+        pairs = list(zip(a.sweeps(), b.sweeps(), strict=True))
+    assert len(pairs) == 7
+    for full, thin in pairs:
+        assert thin.stamp == full.stamp
+        assert thin.height == 1
+        assert thin.column is None
+        assert full.column is not None
+        assert thin.reflectivity is None
+        np.testing.assert_array_equal(thin.ring, full.ring)
+        np.testing.assert_array_equal(thin.point_time, full.point_time)
+        np.testing.assert_allclose(thin.points, full.points, atol=step / 2 + 1e-6)
+        assert np.all(np.round(thin.points / step) * step == thin.points)  # on the grid: low float bits zero
+        assert np.abs(thin.points - full.points).max() > step / 4  # rounded, not copied
+    assert logs[1].stat().st_size < 0.6 * logs[0].stat().st_size
