@@ -26,7 +26,7 @@ import pytest
 from mrnc_eval.config import Config
 
 pytestmark = pytest.mark.benchmark
-SAMPLE = Path(__file__).resolve().parents[1] / "sample_logs" / "loop_forest_ros1.bag"
+SAMPLE = Path(__file__).resolve().parents[1] / "sample_logs" / "loop_forest.bag"
 RUNS = {"lio @ 0.15 s (LIO-SAM rate)": ("lio", 0.15), "lio @ every sweep": ("lio", 0.0),
         "kiss-icp @ every sweep": ("kiss-icp", 0.0)}
 

@@ -3,7 +3,7 @@ result objects the CLI writes, each with `.to_dataframe()` (pandas).
 
     from mrnc_eval import api
 
-    result = api.run_slam("sample_logs/loop_forest.mcap", "results/loop")   # RunResult, as `mrnc-eval slam`
+    result = api.run_slam("sample_logs/loop_forest.bag", "results/loop")   # RunResult, as `mrnc-eval slam`
     result.to_dataframe()                                       # one row per metric
     ape = api.ape("sample_logs/loop_forest.gt.tum", "results/loop/trajectory.tum")
     ape.stats["rmse"], ape.to_dataframe()                       # one row per matched pose

@@ -21,9 +21,9 @@ from typer.core import TyperArgument, TyperCommand, TyperGroup, TyperOption
 # One example per verb, shown under its --help (and in the README's verb table).
 EXAMPLES: dict[str, tuple[str, ...]] = {
     "config": ("mrnc-eval config slam.loop", "mrnc-eval config --set control.raid.beta=1.5 > my.yaml"),
-    "info": ("mrnc-eval info sample_logs/loop_forest_ros1.bag",),
-    "slam": ("mrnc-eval slam sample_logs/loop_forest_ros1.bag --method lio --out results",),
-    "control": ("mrnc-eval control sample_logs/loop_forest_ros1.bag --mode replay",),
+    "info": ("mrnc-eval info sample_logs/loop_forest.bag",),
+    "slam": ("mrnc-eval slam sample_logs/loop_forest.bag --method lio --out results",),
+    "control": ("mrnc-eval control sample_logs/loop_forest.bag --mode replay",),
     "ape": ("mrnc-eval ape sample_logs/loop_forest.gt.tum results/latest/trajectory.tum --align se3",),
     "rpe": ("mrnc-eval rpe sample_logs/loop_forest.gt.tum results/latest/trajectory.tum --delta 1 --delta-unit m",),
     "table": ("mrnc-eval table results/ --out table1.md",),

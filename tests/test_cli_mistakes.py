@@ -11,8 +11,8 @@ import pytest
 from mrnc_eval.cli import main
 
 SAMPLES = Path(__file__).resolve().parents[1] / "sample_logs"
-GT = SAMPLES / "loop_forest_ros1.gt.tum"
-LOG = SAMPLES / "loop_forest_ros1.bag"
+GT = SAMPLES / "loop_forest.gt.tum"
+LOG = SAMPLES / "loop_forest.bag"
 
 
 def test_a_result_folder_stands_for_its_trajectory(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -29,10 +29,10 @@ def test_readme_example_runs(sim_runs: Runs, tmp_path: Path, monkeypatch, capsys
     code = readme_example()
     assert len([line for line in code.splitlines() if line.strip()]) <= 12
     (tmp_path / "sample_logs").mkdir()
-    os.symlink(sim_runs.log, tmp_path / "sample_logs" / "loop_forest.mcap")
-    os.symlink(sim_runs.log.with_name("yard.gt.tum"), tmp_path / "sample_logs" / "loop_forest.gt.tum")
+    os.symlink(sim_runs.log, tmp_path / "sample_logs" / "circle_soft_ground.mcap")
+    os.symlink(sim_runs.log.with_name("yard.gt.tum"), tmp_path / "sample_logs" / "circle_soft_ground.gt.tum")
     History(tmp_path / "nightly_reports" / "history.sqlite").record(LogRecord(
-        "2026-11-20", "loop_forest", "r", "loop_forest.mcap", "0", "h", "ok", "", "t",
+        "2026-11-20", "circle_soft_ground", "r", "circle_soft_ground.mcap", "0", "h", "ok", "", "t",
         (("slam/ape/ape_rmse_m", 0.01, "m"),)))
     monkeypatch.chdir(tmp_path)
     scope: dict = {}

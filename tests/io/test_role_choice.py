@@ -13,7 +13,7 @@ from mrnc_eval.io import open_log
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.roles import Candidate, choose_roles
 
-SAMPLE = Path(__file__).resolve().parents[2] / "sample_logs" / "loop_forest_ros1.bag"
+SAMPLE = Path(__file__).resolve().parents[2] / "sample_logs" / "loop_forest.bag"
 
 
 def _copy_with_extra(dest: Path, extra: dict[str, tuple[str, int | None]]) -> Path:

@@ -12,9 +12,6 @@ from mrnc_eval.config import Config, replace_path
 from mrnc_eval.io.trajectory_files import read_tum
 from mrnc_eval.results import read_result
 
-REPO = Path(__file__).resolve().parents[2]
-THROTTLED = REPO / "sample_logs" / "loop_forest_ros1.bag"  # 1 Hz sweeps of a 10 Hz OS0
-
 
 def _value(result, name: str) -> float:
     metric = result.metric(name)
@@ -45,13 +42,14 @@ def test_without_corrections_online_and_smoothed_coincide_and_table_follows_the_
     assert table.cells[0][0] == _value(smoothed_run, "ape_rmse_m")
 
 
-def test_kiss_icp_deskew_is_off_on_a_throttled_log_and_on_at_full_rate(yard_log: Path, tmp_path: Path) -> None:
+def test_kiss_icp_deskew_is_off_on_a_throttled_log_and_on_at_full_rate(throttled_log: Path, yard_log: Path,
+                                                                        tmp_path: Path) -> None:
     """1 Hz sweeps of a 10 Hz sensor: kiss-icp's deskew would spread 1 s of motion over 0.1 s, so
     it runs without deskew and the result says so. The 10 Hz log (negative control) keeps it."""
     pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
     from mrnc_eval.commands.slam import run_log
 
-    throttled = run_log(THROTTLED, Config(), tmp_path / "throttled", method="kiss-icp")
+    throttled = run_log(throttled_log, Config(), tmp_path / "throttled", method="kiss-icp")
     assert throttled.extra["deskew"] is False
     assert any("deskew off" in w and "1.5 sweep periods" in w for w in throttled.warnings)
     assert read_result(tmp_path / "throttled").extra["deskew"] is False
