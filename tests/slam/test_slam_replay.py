@@ -130,13 +130,14 @@ def test_degenerate_corridor_reports_degeneracy_along_its_axis(corridor_log: Pat
 def turning_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     d = tmp_path_factory.mktemp("turning")
     return simulate_log(d / "forest_circle.mcap", Config(), SimRequest(scene="forest", path="circle", duration_s=8.0,
-                                                                       lidar="os0-32", columns=512, seed=3))
+                                                                       lidar="os0-32", columns=512, seed=3,
+                                                                       profile="field"))
 
 
-def test_without_imu_and_point_time_is_measurably_worse(turning_log: Path) -> None:
+def test_field_profile_without_imu_and_point_time_is_measurably_worse(turning_log: Path) -> None:
     """Without IMU and per-point time there is no deskew and only a constant-velocity guess:
-    APE 0.025 m against 0.014 m with both (OS0-32 x 512, 8 s forest circle, ideal sensor profile);
-    the replay says why in its warnings."""
+    APE 0.024 m against 0.018 m with both (field sensor profile, OS0-32 x 512, 8 s forest circle;
+    the ideal profile gives 0.025 against 0.015 m); the replay says why in its warnings."""
     with_imu, base_to_sensor = _replay(turning_log)
     without, _ = _replay(turning_log, with_imu=False, with_point_time=False)
     assert any("no IMU" in w for w in without.warnings)
@@ -146,8 +147,8 @@ def test_without_imu_and_point_time_is_measurably_worse(turning_log: Path) -> No
     assert with_imu.imu_bias is not None
     assert without.stamps.size == with_imu.stamps.size
     ape_with, ape_without = _ape(turning_log, with_imu, base_to_sensor), _ape(turning_log, without, base_to_sensor)
-    assert ape_with < 0.03
-    assert ape_without > 1.4 * ape_with
+    assert ape_with < 0.035, f"field profile: APE {ape_with:.4f} m with IMU and point time (measured 0.0177 m)"
+    assert ape_without > 1.2 * ape_with, f"field profile: {ape_without:.4f} m without vs {ape_with:.4f} m with (x1.35)"
 
 
 def test_voxel_downsample_keeps_one_centroid_per_voxel() -> None:
