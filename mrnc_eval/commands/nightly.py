@@ -237,6 +237,7 @@ def _record(history: History, night: str, s: LogSummary, stamp: str, concurrency
 INDEX_COLUMNS = (  # (label, metric, format): the worst value over the log's groups
     ("APE RMSE (m)", "slam/ape/ape_rmse_m", "{:.4f}"),
     ("RTF", "slam/rtf", "{:.2f}"),
+    ("mapping rate (Hz)", "slam/mapping_rate_hz", "{:.1f}"),  # the work the RTF was measured at
     ("funnel violations", "funnel_violations", "{:.0f}"),
     ("saturation ratio", "saturation_ratio", "{:.3f}"),
     ("safety stops", "safety_stops", "{:.0f}"),

@@ -32,7 +32,8 @@ SLAM_KEYS = (  # (label, metric name) of the SLAM key-number table
     ("APE mean, smoothed (m)", "ape_mean_m"), ("APE max, smoothed (m)", "ape_max_m"),
     ("end drift, online (m)", "end_drift_online_m"), ("end drift, smoothed (m)", "end_drift_m"),
     ("APE vs GNSS, 2-D RMSE (m)", "ape_gnss_rmse_m"), ("matched poses", "ape_n"),
-    ("real-time factor", "rtf"), ("mapping rate (Hz)", "mapping_rate_hz"), ("sweeps processed", "sweeps_processed"),
+    ("real-time factor (at the mapping rate below)", "rtf"), ("mapping rate (Hz)", "mapping_rate_hz"),
+    ("sweeps processed", "sweeps_processed"),
     ("keyframes", "keyframes"), ("loop closures", "loop_closures"), ("degeneracy events", "degeneracy_events"),
     ("IMU time offset (s)", "imu_time_offset_s"), ("mean map entropy (nats)", "map_entropy"),
     ("mean plane variance (m^2)", "map_plane_variance_m2"))

@@ -106,7 +106,6 @@ class MatchingConfig:
     plane_max_offset_m: float = param(0.2, "a plane is rejected when a neighbour is farther from it", "m")
     requery_motion_m: float = param(0.01, "re-query nearest neighbours only after the pose moved more than this "
                                     "since the last query (a point 10 m away); 0 = every iteration as LIO-SAM", "m")
-    map_cache_size: int = param(1000, "keyframe clouds kept in the map frame (cleared above, and after loops)")
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,7 @@ from mrnc_eval.slam.range_image import RangeImage
 
 @dataclass(frozen=True)
 class Features:
-    edges: np.ndarray  # (Ne, 3) float64, sensor frame (deskewed)
+    edges: np.ndarray  # (Ne, 3) float64, sensor frame (deskewed); float32 once kept with a keyframe
     surfs: np.ndarray  # (Ns, 3)
 
 

@@ -182,7 +182,7 @@ class _Replay:
         """Graph #1 keyframe, GNSS factor, loop closure (timed apart), new local map.
         Returns the optimised pose and the loop-closure time (ms)."""
         self.graph.add_keyframe(pose, stamp)
-        self.kf_features.append(feats)
+        self.kf_features.append(_compact(feats))
         if self.aligner is not None and self.aligner.maybe_add(self.graph, stamp, self.events):
             self.map_cache.clear()
         loop_ms = 0.0
@@ -323,11 +323,14 @@ def _is_keyframe(graph: KeyframeGraph, pose: np.ndarray, cfg: SlamConfig) -> boo
 
 def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict[int, tuple[np.ndarray, np.ndarray]],
                cfg: SlamConfig) -> LocalMap:
-    """The keyframes of `_local_keyframes` in the map frame (cached), voxelised into edge and plane maps."""
+    """The keyframes of `_local_keyframes` in the map frame, voxelised into edge and plane maps. The
+    map-frame clouds are cached for the keyframes of the current local map only (LIO-SAM keeps up to
+    1000: all of a 10-minute run's keyframes, a second copy of every keyframe cloud); a keyframe that
+    comes back into the local map is transformed again, well under a millisecond."""
     m = cfg.matching
     chosen = _local_keyframes(np.array([p[:3, 3] for p in graph.poses]), np.asarray(graph.stamps), cfg)
-    if len(cache) > m.map_cache_size:
-        cache.clear()
+    for gone in set(cache) - set(chosen.tolist()):  # keep only the current local map's clouds
+        del cache[gone]
     edges, surfs = [], []
     for i in chosen:
         if i not in cache:
@@ -336,6 +339,12 @@ def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict[int, tup
         surfs.append(cache[i][1])
     return LocalMap.build(voxel_downsample(np.vstack(edges), m.corner_leaf_m),
                           voxel_downsample(np.vstack(surfs), m.surf_leaf_m))
+
+
+def _compact(feats: Features) -> Features:
+    """A keyframe's features as kept for the whole run: float32 (LIO-SAM's PCL clouds are float32
+    too; 1e-6 m at 10 m), half the memory of every keyframe's feature clouds."""
+    return Features(feats.edges.astype(np.float32), feats.surfs.astype(np.float32))
 
 
 def _local_keyframes(pos: np.ndarray, t: np.ndarray, cfg: SlamConfig) -> np.ndarray:
