@@ -80,22 +80,27 @@ def detect_container(paths: list[Path]) -> str:
 
 @contextmanager
 def openable(paths: list[Path], container: str) -> Iterator[list[Path]]:
-    """`paths` as rosbags can open them. rosbags picks its reader by suffix (ROS 1 only for .bag),
-    so a file whose suffix does not say what its first bytes say is opened through a link with the
-    right suffix, in a temporary folder removed on exit."""
+    """`paths` as rosbags can open them. rosbags picks its reader by suffix (ROS 1 for anything
+    named .bag, a folder included), so a file whose suffix does not say what its first bytes say,
+    or a ROS 2 bag folder named x.bag (what `simulate x.bag` wrote before), is opened through a
+    link with the right name, in a temporary folder removed on exit."""
     want = CONTAINER_SUFFIX.get(container)
-    if want is None or all(p.is_dir() or p.suffix == want for p in paths):
+
+    def misnamed(p: Path) -> bool:
+        return p.suffix == ".bag" if p.is_dir() else want is not None and p.suffix != want
+
+    if not any(misnamed(p) for p in paths):
         yield paths
         return
     links = Path(tempfile.mkdtemp(prefix=".mrnc-open-"))
     try:
         named = []
         for k, p in enumerate(paths):
-            if p.is_dir() or p.suffix == want:
+            if not misnamed(p):
                 named.append(p)
                 continue
-            named.append(links / f"{k}-{p.stem or 'log'}{want}")
-            named[-1].symlink_to(p.resolve())
+            named.append(links / f"{k}-{p.stem or 'log'}{'' if p.is_dir() else want}")
+            named[-1].symlink_to(p.resolve(), target_is_directory=p.is_dir())
         yield named
     finally:
         shutil.rmtree(links, ignore_errors=True)

@@ -109,3 +109,12 @@ def test_the_suffix_is_the_fallback(tmp_path: Path) -> None:
     unknown.write_bytes(b"hello")
     with pytest.raises(InputError, match="unrecognised log format"):
         open_log(unknown)
+
+
+@pytest.mark.parametrize("fmt", ["db3", "mcap"])
+def test_a_ros2_bag_folder_named_dot_bag_opens(tmp_path: Path, fmt: str) -> None:
+    """What `simulate x.bag` wrote before: a ROS 2 bag folder whose name says ROS 1."""
+    folder = _imu_log(tmp_path / "x", fmt).rename(tmp_path / "x.bag")
+    with open_log(folder) as lg:
+        assert lg.container == f"ros2-{'sqlite3' if fmt == 'db3' else 'mcap'}"
+        assert lg.imu("/imu").stamps.size == 40
