@@ -441,6 +441,7 @@ class Scene(StrEnum):
     forest = "forest"
     corridor = "corridor"
     field = "field"
+    open_field = "open_field"
 
 
 class SimPath(StrEnum):

@@ -58,7 +58,7 @@ def test_help_placeholders_survive_the_markup(capsys: pytest.CaptureFixture[str]
 
 
 @pytest.mark.parametrize(("verb", "listed"), [
-    ("slam", "[lio|kiss-icp]"), ("ape", "[xy|xz|yz]"), ("simulate", "[yard|forest|corridor|field]"),
+    ("slam", "[lio|kiss-icp]"), ("ape", "[xy|xz|yz]"), ("simulate", "[yard|forest|corridor|field|open_field]"),
     ("simulate", "[circle|figure8|loop|line]"), ("simulate", "[os0-128|os0-64|os0-32]"),
     ("simulate", "[mcap|db3|bag]"),
 ])

@@ -12,7 +12,7 @@ from functools import partial
 
 import numpy as np
 
-SCENES = ("yard", "forest", "corridor", "field")
+SCENES = ("yard", "forest", "corridor", "field", "open_field")
 
 
 @dataclass(frozen=True)
@@ -122,8 +122,9 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
                 clearance_m: float = 1.5, scale: float = 1.0) -> Scene:
     """A named scene around `centre` (m): yard (buildings, containers, poles, vehicles), forest
     (a forest edge: dense trees on one side, open ground with shrubs and rocks on the other),
-    corridor (two long featureless walls: degenerate along its axis) or field (open ground only:
-    degenerate). The layout is a pure function of `seed` and `keep_clear_xy`: no object (its
+    corridor (two long featureless walls: degenerate along its axis), field (open ground only:
+    degenerate) or open_field (open ground with a few lone structures: most of the time only 1-3
+    within 30 m). The layout is a pure function of `seed` and `keep_clear_xy`: no object (its
     whole footprint, tree crowns included) comes within `clearance_m` of those points (m, the
     driven path), so the machine never drives through a trunk or with its LiDAR inside a crown.
     `scale` stretches the layout for larger paths: distances x scale, object counts x scale^2
@@ -135,7 +136,8 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
     cx0, cy0 = centre
     scene.add(*_ground(terrain, half_size_m * scale + max(abs(cx0), abs(cy0)), 0.5), MATERIALS["soil"])
     placer = _Placer(np.random.default_rng(seed + 1000), centre, scale, keep_clear_xy, clearance_m)
-    furnish = {"yard": _furnish_yard, "forest": _furnish_forest, "corridor": _furnish_corridor}.get(name)
+    furnish = {"yard": _furnish_yard, "forest": _furnish_forest, "corridor": _furnish_corridor,
+               "open_field": _furnish_open_field}.get(name)
     if furnish is not None:  # "field": open ground only (degenerate: no structure)
         furnish(scene, placer)
     return scene
@@ -209,3 +211,18 @@ def _furnish_corridor(scene: Scene, placer: _Placer) -> None:
     cx0, cy0 = placer.centre
     for side in (-1, 1):
         scene.add(*box_mesh(cx0, cy0 + side * 4.0, -0.5, 400.0, 0.3, 4.0), MATERIALS["concrete"])
+
+
+def _furnish_open_field(scene: Scene, placer: _Placer) -> None:
+    """Open ground where a machine works: six lone structures 10-55 m from the centre (about one per
+    1500 m^2, so 1-3 within 30 m of the path most of the time): two trees, two utility poles, a
+    parked machine and a 20 ft container."""
+    rng, z = placer.rng, partial(_ground_z, scene)
+    for x, y in placer.place(2, 10, 55, footprint_m=3.0):  # lone trees (crown radius)
+        _tree(scene, x, y, rng.uniform(0.15, 0.35), rng.uniform(5, 10), rng.uniform(1.5, 3.0))
+    for x, y in placer.place(2, 10, 55, footprint_m=0.15):  # utility poles
+        scene.add(*_cylinder(x, y, z(x, y) - 0.2, 0.15, 8.0), MATERIALS["metal_pole"])
+    for x, y in placer.place(1, 10, 55, footprint_m=2.7):  # a parked machine
+        scene.add(*box_mesh(x, y, z(x, y), 4.5, 2.2, 2.8, rng.uniform(0, np.pi)), MATERIALS["vehicle"])
+    for x, y in placer.place(1, 10, 55, footprint_m=3.3):  # a 20 ft container
+        scene.add(*box_mesh(x, y, z(x, y) - 0.2, 6.1, 2.4, 2.6, rng.uniform(0, np.pi)), MATERIALS["container"])

@@ -36,8 +36,12 @@ class ImuConfig:
                                                     "LiDAR frame (extrinsicRot); None = from /tf_static")
     extrinsic_trans: list[float] | None = param(None, "IMU position in the LiDAR frame (extrinsicTrans); "
                                                 "None = from /tf_static", "m")
-    attitude_window_s: float = param(0.5, "6-axis IMU: average the accelerometer over the first seconds "
-                                     "for the initial roll/pitch", "s")
+    attitude_window_s: float = param(0.5, "6-axis IMU: initial roll/pitch from the accelerometer averaged over "
+                                     "this long before the first sweep (the machine stands or moves steadily)", "s")
+    attitude_lookahead_s: float = param(0.1, "... and this long after it: a machine that starts driving with the log "
+                                        "accelerates, and 0.1 m/s^2 of start-up acceleration in the average tilts the "
+                                        "map by 0.6 deg, which leaks 0.1 m/s^2 of gravity into the IMU prediction "
+                                        "(the 0.5 s window used before drifted 7 m in 40 s of open field)", "s")
     use_heading_init: bool = param(False, "start the map yaw at the 9-axis IMU's yaw (useImuHeadingInitialization); "
                                    "6-axis IMUs have no heading")
     use_preintegration_graph: bool = param(True, "estimate velocity and biases with gtsam ImuFactors and lidar pose "
@@ -45,6 +49,9 @@ class ImuConfig:
     pose_prior_sigmas: tuple[float, float, float, float, float, float] = param(
         (0.05, 0.05, 0.05, 0.1, 0.1, 0.1), "lidar pose prior sigmas in graph #2 [rot rad, trans m]")
     degenerate_pose_sigma: float = param(1.0, "... when scan-to-map was degenerate")
+    degenerate_prior: Literal["directions", "all"] = param(
+        "directions", "degenerate scan-to-map: directions = degenerate_pose_sigma only along the projected-out "
+        "directions (the IMU carries them, the rest stays measured); all = on all six (LIO-SAM)")
     reset_every: int = param(100, "restart graph #2 every n keys, keeping its velocity and bias estimates")
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "
@@ -75,6 +82,10 @@ class FeatureConfig:
     occlusion_jump_m: float = param(0.3, "range jump marking an occlusion", "m")
     parallel_ratio: float = param(0.02, "neighbour range differences above this fraction mark a parallel beam")
     surf_leaf_m: float = param(0.4, "voxel size of the planar cloud (odometrySurfLeafSize)", "m")
+    ground_max_angle_deg: float = param(10.0, "no edges on the ground: a point below the sensor whose step to the "
+                                        "next ring in its column rises less than this is ground (LeGO-LOAM); on open "
+                                        "ground the arcs of the rings otherwise give edges that pose as x, y and yaw "
+                                        "information; 0 = off (LIO-SAM)", "deg")
     smoothness: Literal["range", "paper"] = param(
         "range", "range: LIO-SAM's code, (sum of 10 neighbour ranges - 10 r)^2 in m^2; paper: the paper's (LOAM's) "
         "formula |sum(p - p_u)| / (10 |p|), dimensionless, so edge/surf thresholds must be set for its scale")
@@ -90,9 +101,15 @@ class MatchingConfig:
     max_iterations: int = param(30, "Gauss-Newton iterations")
     min_edges: int = param(10, "optimise only with at least this many edge features (edgeFeatureMinValidNum)")
     min_surfs: int = param(100, "... and planar features (surfFeatureMinValidNum)")
-    match_without_edges: bool = param(False, "with too few edges, still match the planes (LIO-SAM keeps the IMU guess "
+    match_without_edges: bool = param(True, "with too few edges, still match the planes (LIO-SAM keeps the IMU guess "
                                       "instead): on open ground the ground plane fixes z, roll and pitch, and the "
                                       "degeneracy remapping holds x, y and yaw at the IMU guess")
+    ground_normal_min_z: float = param(0.9, "plane residuals whose map normal has |n_z| above this (ground, within "
+                                       "26 deg of vertical) constrain only z, roll and pitch (LeGO-LOAM's split); "
+                                       "0 = off (LIO-SAM: every row constrains all six)")
+    max_rotation_correction_deg: float = param(2.0, "with an IMU: reject a match that turns the IMU-predicted "
+                                               "attitude by more than this (a false match, not a gyro error) and keep "
+                                               "the guess; 0 = off (LIO-SAM)", "deg")
     degeneracy_eigen_threshold: float = param(100.0, "eigenvalues of J^T J below this are degenerate directions")
     converge_rot_deg: float = param(0.05, "convergence: rotation update", "deg")
     converge_trans_cm: float = param(0.05, "convergence: translation update", "cm")
@@ -102,6 +119,10 @@ class MatchingConfig:
     local_map_selection: Literal["nearest", "oldest"] = param(
         "nearest", "one keyframe per keyframe_density voxel of the surrounding key poses: nearest = the keyframe "
         "nearest to the voxel centroid (LIO-SAM); oldest = the first keyframe in the voxel (earlier rule)")
+    plane_min_spread_m: float = param(0.1, "a plane is rejected when its 5 neighbours spread less than this (std) "
+                                      "across their line: the neighbours on one ring arc of far ground are nearly "
+                                      "collinear and their normal is arbitrary, which poses as x, y and yaw "
+                                      "information; 0 = off (LIO-SAM)", "m")
     min_correspondences: int = param(50, "stop iterating with fewer residuals than this")
     plane_max_offset_m: float = param(0.2, "a plane is rejected when a neighbour is farther from it", "m")
     requery_motion_m: float = param(0.01, "re-query nearest neighbours only after the pose moved more than this "
@@ -122,6 +143,11 @@ class GraphConfig:
     relinearize_threshold: float = param(0.1, "iSAM2 relinearizeThreshold")
     relinearize_skip: int = param(1, "iSAM2 relinearizeSkip")
     extra_updates: int = param(5, "extra iSAM2 update() calls after a loop or GNSS factor")
+    degenerate_odometry_sigma: float = param(0.0, "odometry factor sigma along the directions scan-to-map left to "
+                                             "the IMU at the new keyframe (rad and m; LIO-SAM: the odometry_variances "
+                                             "on all six): GNSS and loop factors can bend the chain there (e.g. 0.1 "
+                                             "with gps.rtk_max_variance_m2); 0 = off: with LIO-SAM's 1 m^2 fixes and a "
+                                             "map yaw fitted on a drifting start it made open-field runs worse")
 
 
 @dataclass(frozen=True)
@@ -131,6 +157,10 @@ class LoopConfig:
     search_radius_m: float = param(15.0, "candidate keyframes within this (historyKeyframeSearchRadius)", "m")
     time_gap_s: float = param(30.0, "... and older than this (historyKeyframeSearchTimeDiff)", "s")
     neighbours: int = param(25, "submap of +/- this many keyframes (historyKeyframeSearchNum)")
+    min_eigenvalue: float = param(100.0, "... and the aligned clouds pin all six degrees of freedom: smallest "
+                                  "eigenvalue of the point-to-plane J^T J (ground rows: z, roll, pitch only) at least "
+                                  "this (slam.matching.degeneracy_eigen_threshold's scale); on bare ground ICP slides "
+                                  "with a low fitness; 0 = fitness only (LIO-SAM)")
     fitness_threshold_m2: float = param(0.3, "accept ICP if mean squared NN distance below "
                                         "(historyKeyframeFitnessScore)", "m^2")
     icp_max_correspondence_m: float = param(30.0, "ICP max correspondence distance (first stage)", "m")
@@ -150,6 +180,13 @@ class GpsConfig:
     max_time_diff_s: float = param(0.2, "fix must be this close to the keyframe", "s")
     min_travel_m: float = param(5.0, "no GNSS factor before the first-to-last keyframe distance reaches this", "m")
     use_elevation: bool = param(False, "use the GNSS height (useGpsElevation); off = keep the estimated z", "")
+    rtk_max_variance_m2: float = param(0.0, "fixes with horizontal variances at most this (e.g. 0.01) are RTK-grade: "
+                                       "added whenever the keyframe's x/y variance exceeds the fix's own (not only "
+                                       "above pose_cov_threshold_m2), with their own variance (no 1 m^2 floor) and "
+                                       "rtk_min_spacing_m apart; 0 = LIO-SAM's rules for every fix (default: the "
+                                       "ENU -> map yaw is fitted from the first align_min_travel_m of keyframes, and "
+                                       "a drifting start makes tight fixes twist the map)", "m^2")
+    rtk_min_spacing_m: float = param(1.0, "distance between RTK-grade GNSS factors", "m")
     align_min_travel_m: float = param(10.0, "travel needed before the ENU -> map yaw alignment is estimated", "m")
 
 

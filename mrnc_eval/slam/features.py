@@ -179,6 +179,26 @@ def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
     return out
 
 
+def ground_mask(image: RangeImage, points: np.ndarray, max_angle_deg: float) -> np.ndarray:
+    """LeGO-LOAM's ground test: a point below the sensor whose segment to the same column's point
+    on the next ring rises less than max_angle_deg is ground. (N,) bool."""
+    n = len(image)
+    ground = np.zeros(n, bool)
+    if n == 0 or max_angle_deg <= 0:
+        return ground
+    grid = np.full((int(image.ring.max()) + 1, int(image.column.max()) + 1), -1, np.int64)
+    grid[image.ring, image.column] = np.arange(n)
+    a, b = grid[:-1].ravel(), grid[1:].ravel()
+    pair = (a >= 0) & (b >= 0)
+    a, b = a[pair], b[pair]
+    d = points[b] - points[a]
+    flat = np.abs(d[:, 2]) < np.tan(np.radians(max_angle_deg)) * np.hypot(d[:, 0], d[:, 1])
+    flat &= (points[a, 2] < 0) & (points[b, 2] < 0)
+    ground[a[flat]] = True
+    ground[b[flat]] = True
+    return ground
+
+
 def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) -> Features:
     """Edges and planes of one sweep. `image` gives the ring-major order and the (raw) ranges,
     `points` (N, 3) the same points deskewed."""
@@ -191,6 +211,9 @@ def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) 
     label = _extract(rng, curv, image.column, starts + 5, starts + counts - 6, cfg.edge_threshold,
                      cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
                      cfg.parallel_ratio)
-    edges = points[label == 1]
+    edge = label == 1
+    if cfg.ground_max_angle_deg > 0:  # ground rings are smooth arcs: their "edges" are roughness and noise
+        edge &= ~ground_mask(image, points, cfg.ground_max_angle_deg)
+    edges = points[edge]
     surfs = voxel_downsample(points[label < 0], cfg.surf_leaf_m)
     return Features(edges, surfs)

@@ -61,20 +61,22 @@ class GnssAligner:
             return False
         if len(graph.poses) < 2 or np.linalg.norm(pose[:3, 3] - graph.poses[0][:3, 3]) < g.min_travel_m:
             return False
-        if graph.xy_variance() < g.pose_cov_threshold_m2:
-            return False  # LIO-SAM adds GNSS only once the pose has become uncertain
         if i is None:
             return False
         var = np.diag(self.gnss.covariance[i]).copy()
         if var[0] > g.gps_cov_threshold_m2 or var[1] > g.gps_cov_threshold_m2:
             return False
+        rtk = 0 < max(var[0], var[1]) <= g.rtk_max_variance_m2
+        if graph.xy_variance() < (max(var[0], var[1]) if rtk else g.pose_cov_threshold_m2):
+            return False  # LIO-SAM adds GNSS only once the pose has become uncertain (RTK: less certain than it)
         p = self._to_map(self.gnss.enu[i], self.enu_to_map)
         if not g.use_elevation:
             p[2], var[2] = antenna[2], 0.01
         if abs(p[0]) < 1e-6 and abs(p[1]) < 1e-6:
             return False  # LIO-SAM skips (0, 0): an uninitialised fix
-        if graph.last_gps_xy is not None and np.linalg.norm(p[:2] - graph.last_gps_xy) < g.min_spacing_m:
+        spacing = g.rtk_min_spacing_m if rtk else g.min_spacing_m
+        if graph.last_gps_xy is not None and np.linalg.norm(p[:2] - graph.last_gps_xy) < spacing:
             return False
-        graph.add_gps(len(graph.poses) - 1, p, var, self.lever)
+        graph.add_gps(len(graph.poses) - 1, p, var, self.lever, floor_m2=0.0 if rtk else 1.0)
         events.append(SlamEvent(stamp, "gps", f"GNSS factor at keyframe {len(graph.poses) - 1}"))
         return True

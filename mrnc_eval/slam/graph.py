@@ -38,8 +38,10 @@ class KeyframeGraph:
     def _noise(self, variances: Sequence[float] | np.ndarray) -> Any:
         return self.gtsam.noiseModel.Diagonal.Variances(np.asarray(variances, float))
 
-    def add_keyframe(self, pose: np.ndarray, stamp: float) -> np.ndarray:
-        """Add a keyframe with its scan-to-map pose; returns the optimised pose."""
+    def add_keyframe(self, pose: np.ndarray, stamp: float, loose_directions: np.ndarray | None = None) -> np.ndarray:
+        """Add a keyframe with its scan-to-map pose; returns the optimised pose. `loose_directions`
+        (k, 6): directions ([rot, trans], map axes) the match left to the IMU; the odometry factor
+        gets degenerate_odometry_sigma along them."""
         g = self.gtsam
         graph, values = g.NonlinearFactorGraph(), g.Values()
         k = len(self.poses)
@@ -47,12 +49,20 @@ class KeyframeGraph:
             graph.add(g.PriorFactorPose3(k, g.Pose3(pose), self._noise(self.cfg.prior_variances)))
         else:
             rel = se3.inv(self.poses[-1]) @ pose
-            graph.add(g.BetweenFactorPose3(k - 1, k, g.Pose3(rel), self._noise(self.cfg.odometry_variances)))
+            graph.add(g.BetweenFactorPose3(k - 1, k, g.Pose3(rel), self._odometry_noise(pose, loose_directions)))
         values.insert(k, g.Pose3(pose))
         self.poses.append(pose)
         self.stamps.append(stamp)
         self._update(graph, values, extra=0)
         return self.poses[-1]
+
+    def _odometry_noise(self, pose: np.ndarray, loose: np.ndarray | None) -> Any:
+        sigma = self.cfg.degenerate_odometry_sigma
+        if loose is None or len(loose) == 0 or sigma <= 0:
+            return self._noise(self.cfg.odometry_variances)
+        u = loose @ np.kron(np.eye(2), pose[:3, :3])  # map axes -> the new keyframe's frame (gtsam's tangent)
+        cov = np.diag(self.cfg.odometry_variances) + sigma ** 2 * (u.T @ u)
+        return self.gtsam.noiseModel.Gaussian.Covariance(cov)
 
     def add_loop(self, cur: int, prev: int, relative: np.ndarray, fitness: float) -> None:
         g = self.gtsam
@@ -61,12 +71,13 @@ class KeyframeGraph:
         self.loops.append((cur, prev, fitness))
         self._update(graph, g.Values(), extra=self.cfg.extra_updates)
 
-    def add_gps(self, k: int, position: np.ndarray, variances: np.ndarray, lever_arm: np.ndarray | None = None) -> None:
+    def add_gps(self, k: int, position: np.ndarray, variances: np.ndarray, lever_arm: np.ndarray | None = None,
+                floor_m2: float = 1.0) -> None:
         """GNSS position (map frame) of the antenna at `lever_arm` in the LiDAR frame of keyframe k;
-        variances floored at 1 m^2 as LIO-SAM does."""
+        variances floored at floor_m2 (LIO-SAM: 1 m^2)."""
         g = self.gtsam
         graph = g.NonlinearFactorGraph()
-        noise = self._noise(np.maximum(variances, 1.0))
+        noise = self._noise(np.maximum(variances, floor_m2))
         if lever_arm is not None and np.any(lever_arm != 0):
             graph.add(g.GPSFactorArm(k, np.asarray(position, float), np.asarray(lever_arm, float), noise))
         else:
@@ -96,6 +107,28 @@ def icp_fitness(source: np.ndarray, target: np.ndarray, max_dist: float) -> floa
     d, _ = KdTree(target).query(source, k=1, max_dist=max_dist)
     d = d[np.isfinite(d)]
     return float(np.mean(d * d)) if d.size else float("inf")
+
+
+def icp_min_eigenvalue(source: np.ndarray, target: np.ndarray, origin: np.ndarray, ground_normal_min_z: float,
+                       max_dist: float = 1.0, k: int = 8) -> float:
+    """How well the aligned clouds pin all six degrees of freedom: the smallest eigenvalue of
+    J^T J of point-to-plane rows [(p - origin) x n, n], n = the normal of the target's k nearest
+    points around each source point's nearest target point (within max_dist), with scan-to-map's
+    ground split (ground rows: z, roll, pitch only). Flat ground alone gives ~0: ICP then slides
+    freely in x, y and yaw and its low fitness says nothing."""
+    tree = KdTree(target)
+    d, nearest = tree.query(source, k=1, max_dist=max_dist)
+    hit = np.isfinite(d)
+    if hit.sum() < 6:
+        return 0.0
+    _, nb = tree.query(target[nearest[hit]], k=k)
+    patch = target[nb] - target[nb].mean(axis=1, keepdims=True)
+    _, vec = np.linalg.eigh(np.einsum("nki,nkj->nij", patch, patch))
+    n = vec[:, :, 0]  # smallest-eigenvalue eigenvector: the patch normal
+    J = np.c_[np.cross(source[hit] - origin, n), n]
+    if ground_normal_min_z > 0:
+        J[np.ix_(np.abs(n[:, 2]) > ground_normal_min_z, [2, 3, 4])] = 0.0
+    return float(np.linalg.eigvalsh(J.T @ J)[0])
 
 
 def loop_candidate(graph: KeyframeGraph, cfg: LoopConfig) -> int | None:

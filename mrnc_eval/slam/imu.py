@@ -112,16 +112,16 @@ def imu_track(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, gyro_bias: np.ndarra
 def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig, t0: float | None = None) -> Rotation:
     """Attitude of the LiDAR at t0 (default: the first sample): 9-axis IMU -> its orientation
     (yaw kept only with use_heading_init); 6-axis -> roll/pitch from the mean specific force
-    of the first window, yaw = 0."""
+    from attitude_window_s before t0 to attitude_lookahead_s after it, yaw = 0."""
     t0 = imu.stamps[0] if t0 is None else t0
     if imu.orientation_xyzw is not None:
         i = max(int(np.searchsorted(imu.stamps, t0, side="right")) - 1, 0)  # last orientation <= t0
         q = Rotation.from_quat(imu.orientation_xyzw[i]) * Rotation.from_matrix(lidar_to_imu_rot).inv()
         r, p, y = q.as_euler("xyz")
         return Rotation.from_euler("xyz", [r, p, y if cfg.use_heading_init else 0.0])
-    sel = (imu.stamps >= t0 - cfg.attitude_window_s) & (imu.stamps <= t0 + cfg.attitude_window_s)
+    sel = (imu.stamps >= t0 - cfg.attitude_window_s) & (imu.stamps <= t0 + cfg.attitude_lookahead_s)
     if not sel.any():
-        sel = imu.stamps <= imu.stamps[0] + cfg.attitude_window_s
+        sel = imu.stamps <= imu.stamps[0] + cfg.attitude_lookahead_s
     f = (imu.acc[sel] @ lidar_to_imu_rot.T).mean(axis=0)
     roll = np.arctan2(f[1], f[2])
     pitch = np.arctan2(-f[0], np.hypot(f[1], f[2]))
@@ -188,12 +188,16 @@ class ImuOdometry:
         nxt = pim.predict(state, self.bias)
         return np.asarray(nxt.pose().matrix() @ np.linalg.inv(self.lever), np.float64)
 
-    def add_lidar_pose(self, lidar_pose: np.ndarray, t: float, degenerate: bool) -> str | None:
-        """Correct the states with a scan-to-map pose; returns a warning text after a reset."""
+    def add_lidar_pose(self, lidar_pose: np.ndarray, t: float, degenerate: bool,
+                       directions: np.ndarray | None = None) -> str | None:
+        """Correct the states with a scan-to-map pose; returns a warning text after a reset.
+        `directions` (k, 6): the degenerate directions of the match ([rot, trans], map axes); with
+        `degenerate_prior: directions` only they get degenerate_pose_sigma, the rest keeps the
+        measured pose_prior_sigmas."""
         g = self.g
         body = g.Pose3(lidar_pose @ self.lever)
         graph, values = g.NonlinearFactorGraph(), g.Values()
-        prior = self._noise([self.cfg.degenerate_pose_sigma] * 6 if degenerate else self.cfg.pose_prior_sigmas)
+        prior = self._pose_prior(lidar_pose[:3, :3], degenerate, directions)
         if self.key < 0 or self.key + 1 >= self.cfg.reset_every:
             # (re)start: priors on pose, velocity (loose) and bias, as LIO-SAM does
             self._start_graph()
@@ -234,6 +238,21 @@ class ImuOdometry:
         if np.linalg.norm(self.velocity) > self.cfg.max_velocity_mps or np.linalg.norm(bias_vec) > self.cfg.max_bias:
             return self._reset(t, body, "Large velocity/bias, reset IMU-preintegration")
         return None
+
+    def _pose_prior(self, rot: np.ndarray, degenerate: bool, directions: np.ndarray | None) -> Any:
+        """LIO-SAM: pose_prior_sigmas, or degenerate_pose_sigma on all six when degenerate. With
+        directions: covariance diag(pose_prior_sigmas^2) + degenerate_pose_sigma^2 sum u u^T over
+        the degenerate directions u, rotated into the body frame (gtsam's Pose3 tangent [rot, trans]):
+        the ground still holds z, roll and pitch while the IMU carries x, y and yaw."""
+        cfg = self.cfg
+        if not degenerate:
+            return self._noise(cfg.pose_prior_sigmas)
+        if directions is None or cfg.degenerate_prior == "all":
+            return self._noise([cfg.degenerate_pose_sigma] * 6)
+        to_body = np.kron(np.eye(2), rot.T)  # map-axes perturbation -> body frame
+        u = directions @ to_body.T
+        cov = np.diag(np.square(cfg.pose_prior_sigmas)) + cfg.degenerate_pose_sigma ** 2 * (u.T @ u)
+        return self.g.noiseModel.Gaussian.Covariance(cov)
 
     @property
     def can_predict(self) -> bool:

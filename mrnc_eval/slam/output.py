@@ -16,7 +16,7 @@ STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: wa
 @dataclass
 class SlamEvent:
     t: float  # log time, s
-    kind: str  # "degeneracy", "loop_closure", "warning", "gps"
+    kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps"
     message: str
     data: dict[str, Any] = field(default_factory=dict)
 

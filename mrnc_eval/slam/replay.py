@@ -18,7 +18,7 @@ from mrnc_eval.slam.config import SlamConfig
 from mrnc_eval.slam.deskew import deskew
 from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
 from mrnc_eval.slam.gnss import GnssAligner
-from mrnc_eval.slam.graph import KeyframeGraph, loop_candidate, register_loop
+from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.nearest import KdTree
@@ -62,6 +62,7 @@ class _State:
     velocity: np.ndarray | None = None  # world frame, m/s
     last_mapped: float = -np.inf
     last_loop_t: float = -np.inf
+    loose: np.ndarray | None = None  # directions the latest match left to the IMU ([rot, trans], map axes)
     warned: set[str] = field(default_factory=set)
 
 
@@ -151,15 +152,32 @@ class _Replay:
         res: MatchResult | None = None
         if self.local_map is not None:
             res = match(feats.edges, feats.surfs, self.local_map, pose, self.cfg.matching)
-            pose = _imu_attitude_blend(res.pose, self.imu, self.extr, stamp, self.cfg)
             self.events += _match_events(res, stamp, self.cfg)
+            if self.track is not None:
+                res = self.gate_rotation(res, pose, stamp)
+            pose = _imu_attitude_blend(res.pose, self.imu, self.extr, stamp, self.cfg)
         degenerate = bool(res is not None and res.degenerate)
         self.trace.measured.append(bool(res is not None and res.optimised and not res.degenerate))
+        # the directions the IMU carries; no match (too few features, a rejected turn): all six
+        unmatched = res is not None and not res.optimised
+        self.st.loose = np.eye(6) if unmatched else res.degenerate_directions if degenerate and res else None
         if self.odom is not None:
-            why = self.odom.add_lidar_pose(pose, stamp, degenerate)
+            why = self.odom.add_lidar_pose(pose, stamp, degenerate or unmatched, self.st.loose)
             if why:
                 self.events.append(SlamEvent(stamp, "warning", why))
         return pose, degenerate
+
+    def gate_rotation(self, res: MatchResult, guess: np.ndarray, stamp: float) -> MatchResult:
+        """A match that turns the gyro-predicted attitude by more than max_rotation_correction_deg
+        is a false match (sparse structure, wrong neighbours: in an open field up to 30 deg in one
+        sweep), not a gyro error: keep the IMU guess, as for a sweep without features."""
+        limit = self.cfg.matching.max_rotation_correction_deg
+        turn = np.degrees(se3.delta_angle(se3.inv(guess) @ res.pose))
+        if not res.optimised or limit <= 0 or turn <= limit:
+            return res
+        self.events.append(SlamEvent(stamp, "warning", f"scan-to-map turned the IMU attitude by {turn:.1f} deg "
+                                     f"(limit {limit:g}): rejected, kept the IMU guess", {"correction_deg": turn}))
+        return replace(res, pose=guess, optimised=False, degenerate=False, degenerate_directions=None)
 
     def guess(self, t: float) -> np.ndarray:
         """Initial pose: IMU attitude for the first sweep; then graph #2's prediction, else the IMU
@@ -181,10 +199,14 @@ class _Replay:
     def add_keyframe(self, pose: np.ndarray, stamp: float, feats: Features) -> tuple[np.ndarray, float]:
         """Graph #1 keyframe, GNSS factor, loop closure (timed apart), new local map.
         Returns the optimised pose and the loop-closure time (ms)."""
-        self.graph.add_keyframe(pose, stamp)
+        self.graph.add_keyframe(pose, stamp, self.st.loose)
         self.kf_features.append(_compact(feats))
         if self.aligner is not None and self.aligner.maybe_add(self.graph, stamp, self.events):
             self.map_cache.clear()
+            moved = float(np.linalg.norm(self.graph.poses[-1][:3, 3] - pose[:3, 3]))
+            if self.odom is not None and self.cfg.gps.rtk_max_variance_m2 > 0 \
+                    and moved > self.cfg.imu.restart_after_loop_m:
+                self.odom.restart()  # RTK fixes move the pose by decimetres: graph #2 restarts as after a loop
         loop_ms = 0.0
         if self.cfg.loop.enabled and stamp - self.st.last_loop_t >= self.cfg.loop.interval_s:
             self.st.last_loop_t = stamp
@@ -371,6 +393,20 @@ def _keyframe_cloud(graph: KeyframeGraph, feats: list[Features], i: int) -> np.n
     return se3.apply(graph.poses[i], np.r_[feats[i].edges, feats[i].surfs])
 
 
+def _degenerate_loop(aligned_src: np.ndarray, tgt: np.ndarray, origin: np.ndarray, cfg: SlamConfig,
+                     stamp: float) -> SlamEvent | None:
+    """A "loop_rejected" event when the ICP-aligned clouds leave a direction free (bare ground:
+    ICP slides in x, y and yaw with a low fitness); None when the loop may be closed."""
+    threshold = cfg.loop.min_eigenvalue
+    if threshold <= 0:
+        return None
+    eig = icp_min_eigenvalue(aligned_src, tgt, origin, cfg.matching.ground_normal_min_z)
+    if eig >= threshold:
+        return None
+    return SlamEvent(stamp, "loop_rejected", f"rejected: degenerate (smallest eigenvalue {eig:.1f} < {threshold:g})",
+                     {"min_eigenvalue": eig})
+
+
 def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, events: list[SlamEvent],
               stamp: float) -> float | None:
     """Radius search for an old keyframe, ICP of the latest keyframe cloud onto the old one's
@@ -388,6 +424,12 @@ def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, even
         return None
     T, fitness, ok = register_loop(src, tgt, np.eye(4), lc)
     if not ok or fitness > lc.fitness_threshold_m2:
+        return None
+    rejected = _degenerate_loop(se3.apply(T, src), tgt, (T @ graph.poses[cur])[:3, 3], cfg, stamp)
+    if rejected is not None:
+        events.append(replace(rejected, message=f"loop closure {cur} -> {prev} {rejected.message}, fitness "
+                              f"{fitness:.3f} m^2", data={"current": cur, "previous": prev, "fitness": fitness,
+                                                          **rejected.data}))
         return None
     relative = se3.inv(graph.poses[prev]) @ (T @ graph.poses[cur])  # corrected current pose, seen from prev
     before = graph.poses[cur][:3, 3].copy()

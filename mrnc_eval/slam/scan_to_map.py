@@ -38,12 +38,19 @@ class MatchResult:
     n_degenerate: int = 0  # directions projected out
     weakest_direction: tuple[float, ...] = ()  # unit eigenvector of J^T J with the smallest eigenvalue,
     # [rotation (3), translation (3)] in map axes (first iteration); empty when not optimised
+    eigenvalues: tuple[float, ...] = ()  # of J^T J at the first iteration, ascending; empty when not optimised
+    degenerate_directions: np.ndarray | None = None  # (k, 6) unit eigenvectors projected out, [rot, trans] in
+    # map axes (rotation about the sensor); None when not optimised: then every direction is the guess's
 
 
 @njit(cache=True)
-def _fit_planes(cloud: np.ndarray, idx: np.ndarray, ok: np.ndarray, max_offset: float, planes: np.ndarray) -> None:
+def _fit_planes(cloud: np.ndarray, idx: np.ndarray, ok: np.ndarray, max_offset: float, min_spread: float,
+                planes: np.ndarray) -> None:
     """Plane n.x + d = 0 (|n| = 1) through the 5 neighbours cloud[idx[i]] of each query (LIO-SAM:
-    least squares A x = -1, rejected when a neighbour is > max_offset off). planes (n, 4) =
+    least squares A x = -1, rejected when a neighbour is > max_offset off; not in LIO-SAM: also
+    rejected when the neighbours spread less than min_spread (std, m) across their line, since
+    nearly collinear neighbours, one ring arc of far ground, leave the normal free to turn about
+    that line, and a wrong normal 30 m away poses as yaw information). planes (n, 4) =
     [n, d]; a row of NaN where no plane. Depends on the neighbours only, so it is fitted once
     per nearest-neighbour query, not per iteration."""
     for i in range(idx.shape[0]):
@@ -88,8 +95,31 @@ def _fit_planes(cloud: np.ndarray, idx: np.ndarray, ok: np.ndarray, max_offset: 
             if abs(n0 * cloud[j, 0] + n1 * cloud[j, 1] + n2 * cloud[j, 2] + d) > max_offset:
                 planar = False
                 break
-        if planar:
+        if planar and _in_plane_spread(cloud, idx[i], n0, n1, n2) >= min_spread * min_spread:
             planes[i, 0], planes[i, 1], planes[i, 2], planes[i, 3] = n0, n1, n2, d
+
+
+@njit(cache=True)
+def _in_plane_spread(cloud: np.ndarray, idx: np.ndarray, n0: float, n1: float, n2: float) -> float:
+    """Smaller eigenvalue (m^2) of the 2x2 covariance of the points cloud[idx] projected on the
+    plane with normal n."""
+    u0, u1, u2 = (n1, -n0, 0.0) if abs(n2) < 0.9 else (0.0, n2, -n1)  # a vector normal to n
+    un = np.sqrt(u0 * u0 + u1 * u1 + u2 * u2)
+    u0, u1, u2 = u0 / un, u1 / un, u2 / un
+    v0, v1, v2 = n1 * u2 - n2 * u1, n2 * u0 - n0 * u2, n0 * u1 - n1 * u0
+    c0 = c1 = c2 = 0.0
+    for k in range(idx.size):
+        c0 += cloud[idx[k], 0] / idx.size
+        c1 += cloud[idx[k], 1] / idx.size
+        c2 += cloud[idx[k], 2] / idx.size
+    a = b = d = 0.0
+    for k in range(idx.size):
+        x0, x1, x2 = cloud[idx[k], 0] - c0, cloud[idx[k], 1] - c1, cloud[idx[k], 2] - c2
+        pu, pv = x0 * u0 + x1 * u1 + x2 * u2, x0 * v0 + x1 * v1 + x2 * v2
+        a += pu * pu / idx.size
+        b += pu * pv / idx.size
+        d += pv * pv / idx.size
+    return float(0.5 * (a + d) - np.sqrt(0.25 * (a - d) ** 2 + b * b))
 
 
 @njit(cache=True)
@@ -218,9 +248,10 @@ class _Correspondences:
     whose 5th neighbour is that far has no correspondence anyway."""
 
     def __init__(self, tree: KdTree, cloud: np.ndarray, kind: str, max_sq: float, max_offset: float,
-                 requery_m: float) -> None:
+                 requery_m: float, min_spread: float = 0.0) -> None:
         self.tree, self.cloud, self.kind = tree, cloud, kind
         self.max_dist, self.max_offset, self.requery_m = max_sq ** 0.5, max_offset, requery_m
+        self.min_spread = min_spread
         self.at: np.ndarray | None = None
         self.fits = np.zeros((0, 6))
 
@@ -234,7 +265,7 @@ class _Correspondences:
             idx[~ok] = 0  # unmatched rows point past the cloud's end
             if self.kind == "plane":
                 self.fits = np.empty((len(q), 4))
-                _fit_planes(self.cloud, idx, ok, self.max_offset, self.fits)
+                _fit_planes(self.cloud, idx, ok, self.max_offset, self.min_spread, self.fits)
             else:
                 self.fits = np.empty((len(q), 6))
                 _fit_lines(self.cloud, idx, ok, self.fits)
@@ -252,6 +283,17 @@ def _motion(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(d[:3, 3]) + 10.0 * se3.delta_angle(d))
 
 
+def _ground_rows_vertical_only(J: np.ndarray, min_normal_z: float) -> None:
+    """Plane rows whose normal is within acos(min_normal_z) of the map's z axis (ground) keep only
+    their z, roll and pitch columns, in place (LeGO-LOAM's split: the ground fixes z, roll and
+    pitch, the rest of the scene x, y and yaw). The small tilts of rough-ground normals otherwise
+    pose as x, y and yaw information that the degeneracy test trusts (eigenvalues of J^T J in the
+    hundreds on bare ground), and the yaw walks by degrees per sweep."""
+    n = J[:, 3:]  # s * normal
+    ground = np.abs(n[:, 2]) > min_normal_z * np.linalg.norm(n, axis=1)
+    J[np.ix_(ground, [2, 3, 4])] = 0.0
+
+
 def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray,
           cfg: MatchingConfig) -> MatchResult:
     """Refine `guess` (4x4) so the sweep's features lie on the map's lines and planes."""
@@ -263,13 +305,17 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
     P = np.eye(6)
     degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
     weakest: tuple[float, ...] = ()
+    eigenvalues: tuple[float, ...] = ()
+    directions = np.zeros((0, 6))
     edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, "line", cfg.max_nn_sq_dist_m2, 0.0,
                                   cfg.requery_motion_m) if use_edges and local_map.edge_tree is not None else None)
     surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, "plane", cfg.max_nn_sq_dist_m2,
-                                 cfg.plane_max_offset_m, cfg.requery_motion_m)
+                                 cfg.plane_max_offset_m, cfg.requery_motion_m, cfg.plane_min_spread_m)
     for it in range(1, cfg.max_iterations + 1):
         Je, re = edge_corr.rows(edges, T) if edge_corr is not None else (np.zeros((0, 6)), np.zeros(0))
         Js, rs = surf_corr.rows(surfs, T)
+        if cfg.ground_normal_min_z > 0:
+            _ground_rows_vertical_only(Js, cfg.ground_normal_min_z)
         J, r = np.r_[Je, Js], np.r_[re, rs]
         if r.size < cfg.min_correspondences:
             break
@@ -278,11 +324,11 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
         dx = np.linalg.lstsq(H, g, rcond=None)[0]
         if it == 1:  # degeneracy: project out directions with tiny curvature (LIO-SAM remapping)
             w, V = np.linalg.eigh(H)
-            min_eig, weakest = float(w[0]), tuple(float(v) for v in V[:, 0])
+            min_eig, weakest, eigenvalues = float(w[0]), tuple(float(v) for v in V[:, 0]), tuple(float(v) for v in w)
             V2 = V.copy()
             bad = w < cfg.degeneracy_eigen_threshold
             if bad.any():
-                degenerate, n_bad = True, int(bad.sum())
+                degenerate, n_bad, directions = True, int(bad.sum()), V[:, bad].T.copy()
                 V2[:, bad] = 0.0
                 P = V2 @ V.T
         if degenerate:
@@ -292,4 +338,5 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
         if rot_deg < cfg.converge_rot_deg and trans_cm < cfg.converge_trans_cm:
             converged = True
             break
-    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad, weakest)
+    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad, weakest, eigenvalues,
+                       directions)

@@ -1,0 +1,70 @@
+"""Slow (issue 16 item 5): a 40 s open-field drive at about 1 m/s with only 1-3 lone structures
+(trees, poles, a parked machine, a container) within 30 m most of the time. Run:
+    .venv/bin/python -m pytest -m slow tests/slam/test_slam_open_field_slow.py -s
+
+The same log replayed with LIO-SAM's rules (the negative control) drifts much further: with few
+edges it keeps the IMU guess, rough-ground normals and far, nearly collinear map neighbours pose
+as yaw information that the degeneracy test trusts, graph #2 forgets the measured z, roll and
+pitch on every degenerate sweep, and the initial attitude averages the start-up acceleration
+into a tilted map. The issue's 0.15 m is not reached (docs/simulation.md, "Open field", says why).
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from mrnc_eval.config import Config, replace_path
+
+pytestmark = pytest.mark.slow
+
+# docs/simulation.md, "Open field": the drive and the LiDAR packets of the issue-16 log
+DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
+         "control.pure_pursuit.max_speed_mps": 1.0, "control.pure_pursuit.speed_cap": False,
+         "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8"}
+LIO_SAM_RULES = {"slam.matching.match_without_edges": False, "slam.matching.ground_normal_min_z": 0.0,
+                 "slam.matching.plane_min_spread_m": 0.0, "slam.features.ground_max_angle_deg": 0.0,
+                 "slam.matching.max_rotation_correction_deg": 0.0, "slam.imu.degenerate_prior": "all",
+                 "slam.imu.attitude_lookahead_s": 0.5, "slam.loop.min_eigenvalue": 0.0}
+# (profile, LiDAR): online APE limit, m. Ideal: ~2x the measured 0.44-0.65 m (LIO-SAM's rules:
+# 7.5-7.6 m). Field: 1.3-1.4x the measured 10.1-10.9 m, since 2x would let LIO-SAM's rules
+# (17.9-18.2 m) pass too: with the field IMU's uncalibrated biases this replay still drifts metres
+# there (docs/simulation.md). Ranges: main 128061b and 7690735 (float32 keyframe features).
+CASES = {("field", "os0-32"): 14.0, ("ideal", "os0-64"): 1.3}
+
+
+def _with(cfg: Config, values: dict[str, object]) -> Config:
+    for key, value in values.items():
+        cfg = replace_path(cfg, key, value)
+    return cfg
+
+
+def _open_field_log(folder: Path, profile: str, lidar: str) -> Path:
+    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+
+    return simulate_log(folder / f"open_field_{profile}_{lidar}.mcap", _with(Config(), DRIVE),
+                        SimRequest(scene="open_field", path="line", duration_s=40.0, lidar=lidar, columns=512,
+                                   seed=2, profile=profile))
+
+
+def _metrics(log: Path, out: Path, rules: dict[str, object]) -> dict[str, float]:
+    from mrnc_eval.commands.slam import run_log
+
+    r = run_log(log, _with(Config(), rules), out, method="lio")
+    return {m.name: float(m.value) for m in r.metrics if isinstance(m.value, (int, float))}
+
+
+@pytest.mark.parametrize(("profile", "lidar"), list(CASES))
+def test_open_field_drive_stays_within_the_limit_and_lio_sam_rules_do_not(profile: str, lidar: str,
+                                                                          tmp_path: Path) -> None:
+    log = _open_field_log(tmp_path, profile, lidar)
+    ours = _metrics(log, tmp_path / "ours", {})
+    lio_sam = _metrics(log, tmp_path / "lio_sam", LIO_SAM_RULES)
+    limit = CASES[(profile, lidar)]
+    print(f"\nopen field 40 s, {profile} profile, {lidar} x 512, APE online / smoothed / end drift online (m):")
+    for name, v in (("this replay", ours), ("LIO-SAM rules", lio_sam)):
+        print(f"  {name}: {v['ape_online_rmse_m']:.3f} / {v['ape_rmse_m']:.3f} / {v['end_drift_online_m']:.3f}")
+    assert ours["ape_span_s"] > 35.0
+    assert ours["ape_online_rmse_m"] < limit
+    assert lio_sam["ape_online_rmse_m"] > limit  # the negative control fails the same test
