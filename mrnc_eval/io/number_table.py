@@ -20,6 +20,7 @@ from __future__ import annotations
 import math
 import mmap
 import os
+import stat
 from pathlib import Path
 
 import numpy as np
@@ -48,9 +49,12 @@ def _fast_columns(path: Path, ncols: int) -> NDArray[np.float64] | None:
     except ImportError:
         return None
     try:
-        cap = os.path.getsize(path) // (2 * ncols) + 1
+        info = os.stat(path)
     except OSError:
         return None
+    if not stat.S_ISREG(info.st_mode):  # a pipe (`<(zcat gt.tum.gz)`) can be read once: by the strict path
+        return None
+    cap = info.st_size // (2 * ncols) + 1
     buffer = mmap.mmap(-1, 8 * ncols * cap, flags=mmap.MAP_PRIVATE | mmap.MAP_ANONYMOUS)
     rows = _numtext.read_columns(path, buffer, ncols)
     if rows <= 0:

@@ -9,6 +9,7 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+import threading
 from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
@@ -145,3 +146,20 @@ def test_fast_path_reads_like_the_strict_path(tmp_path: Path, rows: list[list[fl
     path.write_bytes(text.encode("utf-8"))
     strict = _outcome(path, lambda p, n: number_table._strict_table(p, n).T)
     assert _outcome(path, number_table.read_columns) == strict
+
+
+@pytest.mark.timeout(30)  # opening the pipe without a writer blocks: that failure must not take 15 minutes
+def test_a_pipe_is_read_once_by_the_strict_path(tmp_path: Path, with_numtext: None) -> None:
+    """`ape <(zcat gt.tum.gz) est.tum`: the fast path must not consume the stream."""
+    fifo = tmp_path / "gt.fifo"
+    os.mkfifo(fifo)
+    assert number_table._fast_columns(fifo, 8) is None  # returns without opening it (would block)
+
+    def write() -> None:
+        fifo.write_text(f"{ROW}\n{ROW}\n")
+
+    writer = threading.Thread(target=write)
+    writer.start()
+    cols = number_table.read_columns(fifo, 8)
+    writer.join()
+    assert cols.shape == (8, 2)
