@@ -39,3 +39,5 @@ class SlamOutput:
     imu_time_offset_s: float | None = None  # estimated IMU clock lag after slam.imu.time_offset_s, s
     map_quality: MapQuality | None = None
     deskew: bool = True  # False when the method ran without deskew (kiss-icp on throttled logs)
+    # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
+    warmup_ms: dict[str, float] = field(default_factory=dict)
