@@ -88,14 +88,18 @@ def run_slam(log: str | Path, out_dir: str | Path, *, method: str = "lio", cfg: 
 
 def run_control(log: str | Path | None, out_dir: str | Path, *, mode: str = "replay",
                 controllers: Sequence[str] | None = None, cfg: Config | None = None,
-                overrides: Sequence[str] = ()) -> RunResult:
+                overrides: Sequence[str] = (), path: str | Path | None = None) -> RunResult:
     """The control evaluation of `mrnc-eval control` (mode "replay" or "simulate"; log None with
-    "simulate": the paper's circle); writes its result directory to `out_dir`."""
+    "simulate": the paper's circle); writes its result directory to `out_dir`. `path`: a TUM or
+    CSV waypoint file replacing the log's path topic (`--path`)."""
     from mrnc_eval.commands.control import run_log
     from mrnc_eval.control.controllers import CONTROLLERS
+    from mrnc_eval.io.waypoint_files import read_waypoints
 
+    waypoints = read_waypoints(path) if path is not None else None
     return run_log(None if log is None else Path(log), _cfg(cfg, overrides), Path(out_dir), mode=mode,
-                   controllers=tuple(controllers) if controllers else CONTROLLERS)
+                   controllers=tuple(controllers) if controllers else CONTROLLERS, path=waypoints,
+                   path_source=f"{path} (--path)")
 
 
 def load_result(run_dir: str | Path) -> RunResult:

@@ -197,6 +197,10 @@ def control(
     ] = "raid,pid,apc,foptc,ff",
     runs: Annotated[int | None, typer.Option(help="sweep: plants drawn (default control.sweep.runs).")] = None,
     seed: Annotated[int | None, typer.Option(help="sweep: seed of the draws (default control.sweep.seed).")] = None,
+    path: Annotated[Path | None, typer.Option(
+        "--path", metavar="FILE", help="replay: the planned path as TUM poses (.tum, .txt) or CSV waypoints (.csv: "
+        "x,y per line), in the frame of the recorded pose; replaces the log's path topic. Without a path the replay "
+        "is wheel-speed tracking against the inverse kinematics of cmd_vel (or the wheel odometry's twist).")] = None,
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
@@ -209,7 +213,7 @@ def control(
     cfg = _config(config, set_, dump_config)
     from mrnc_eval.commands import control as control_command
     control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out,
-                         runs=runs, seed=seed)
+                         runs=runs, seed=seed, path_file=path)
 
 
 AlignOpt = Annotated[AlignMode, typer.Option(help="Alignment of each estimate to the reference.")]

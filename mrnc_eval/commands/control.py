@@ -17,11 +17,13 @@ from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS, PAPER_ORDER
 from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
-from mrnc_eval.data import SidePair
+from mrnc_eval.control.wheel_references import wheel_speed_references
+from mrnc_eval.data import SidePair, Twists, Waypoints
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import feedback_share, paper_metrics, path_metrics, tracking_metrics
 from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
 from mrnc_eval.io.split_logs import split_log_paths
+from mrnc_eval.io.waypoint_files import read_waypoints
 from mrnc_eval.results import (
     Event,
     Metric,
@@ -60,6 +62,8 @@ TABLE_ROWS = [("Settling time (s)", "settling_time_s", "max"), ("Overshoot (%)",
               ("Cross-track max (m)", "cross_track_max_m", "path"),
               ("Completion time (s)", "completion_time_s", "path")]
 PAPER_ROWS = 3
+WHEEL_SPEED_TRACKING = "wheel-speed tracking (no path)"  # how a replay of a log without a path is labelled
+Pose = tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # t s, x m, y m, yaw rad
 
 
 def parse_controllers(text: str) -> tuple[str, ...]:
@@ -71,7 +75,7 @@ def parse_controllers(text: str) -> tuple[str, ...]:
 
 
 def evaluate_trace(tr: ClosedLoopTrace, cfg: Config) -> dict[str, dict[str, float]]:
-    """Per side and path metrics of one controller's run."""
+    """Per side metrics of one controller's run, and path metrics when it followed a path."""
     mc = cfg.control.metrics
     out: dict[str, dict[str, float]] = {}
     for side in ("left", "right"):
@@ -89,9 +93,8 @@ def evaluate_trace(tr: ClosedLoopTrace, cfg: Config) -> dict[str, dict[str, floa
         m.update(paper_metrics(tr.t, getattr(tr, f"v_ref_{side}"), getattr(tr, f"v_wheel_{side}"),
                                cfg.control.paper_metrics))
         out[side] = m
-    if tr.waypoints is None:
-        raise ValueError(f"trace of {tr.controller} has no path to measure cross-track error against")
-    out["path"] = path_metrics(tr.x, tr.y, tr.yaw, tr.waypoints, tr.completion_time_s)
+    if tr.waypoints is not None:
+        out["path"] = path_metrics(tr.x, tr.y, tr.yaw, tr.waypoints, tr.completion_time_s)
     return out
 
 
@@ -255,6 +258,32 @@ def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarra
                                "(none found; set io.roles.ground_truth, io.roles.wheel_odom or io.roles.gnss)")
 
 
+def _replay_roles(rec: _Recording) -> dict[str, str]:
+    """role -> topic (or --path file) of what a replay read, for summaries and reports."""
+    used = {"path": rec.path_source} if rec.path_source else {}
+    for role in (rec.twist_role, rec.pose_source, "wheel_speeds", "commands"):
+        if role and role in rec.roles and role not in used:
+            used[role] = rec.roles[role]
+    return used
+
+
+def _replay_definitions(rec: _Recording, cfg: Config) -> list[str]:
+    """What the replay's references are, printed above the metric definitions."""
+    if rec.waypoints is not None:
+        return [f"Path following: the references pure pursuit (at {cfg.control.pure_pursuit.rate_hz:g} Hz), the "
+                f"inverse kinematics (track {cfg.robot.track_width_m:g} m) and the reference slew "
+                f"({cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2) issue along the recorded pose "
+                f"({rec.pose_source}), path from {rec.path_source}."]
+    how = ("held between messages and slewed as the chain slews its references "
+           f"({cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2)" if rec.twist_role == "cmd_vel"
+           else "interpolated, not slewed (a measured twist, not a command)")
+    return [f"{WHEEL_SPEED_TRACKING.capitalize()}: the log has no planned path, so the "
+            f"recorded wheel speeds are compared with the inverse kinematics v -/+ omega Lr / 2 (Lr = "
+            f"robot.track_width_m = {cfg.robot.track_width_m:g} m) of {rec.twist_role} "
+            f"{rec.roles.get(rec.twist_role, '')}, {how}; no cross-track or completion metrics (give a path with "
+            "--path FILE for those)."]
+
+
 def topics_used(roles: Mapping[str, str], mode: str) -> dict[str, str]:
     """role -> topic of what a replay (or a simulation along the log's path) reads, for summaries
     and reports; the pose source follows recorded_pose's order."""
@@ -265,35 +294,78 @@ def topics_used(roles: Mapping[str, str], mode: str) -> dict[str, str]:
 
 @dataclass(frozen=True)
 class _Recording:
-    """What a control replay reads from a log."""
+    """What a control replay reads from a log: a path to follow (the log's, or --path) and the
+    recorded pose, or without a path the body twist whose inverse kinematics the wheels tracked."""
 
-    waypoints: np.ndarray  # (N, 2) m
-    pose: tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray]  # t s, x m, y m, yaw rad
+    waypoints: np.ndarray | None  # (N, 2) m; None: wheel-speed tracking
+    pose: Pose | None  # None: no pose topic (allowed without a path)
     pose_source: str
     speeds: SidePair  # wheel surface speeds, m/s
     commands: SidePair | None  # pump commands, RPM
     health_notes: tuple[str, ...] = ()  # samples dropped, stamps sorted while reading
     roles: Mapping[str, str] = field(default_factory=dict)  # role -> topic of the log
+    twists: Twists | None = None  # wheel-speed tracking: cmd_vel, else the wheel odometry's twist
+    twist_role: str = ""  # "cmd_vel" or "wheel_odom"
+    path_source: str = ""  # the path topic, or the --path file
 
 
-def _read_recording(log_path: Path, cfg: Config) -> _Recording:
+def _read_recording(log_path: Path, cfg: Config, path: Waypoints | None = None, path_source: str = "") -> _Recording:
+    """The streams of a replay; `path` (from --path, named `path_source`) replaces the log's path topic."""
     from mrnc_eval.io import open_log
 
     with open_log(log_path, cfg.io) as lg:
         roles = lg.roles
-        for role in ("path", "wheel_speeds"):
-            if role not in roles:
-                raise InputError(log_path, f"control replay needs a {role} topic (none found; set io.roles.{role})")
-        wp = lg.waypoints().xy
-        pt, pxs, pys, pyaws, source = recorded_pose(lg, log_path)
+        if "wheel_speeds" not in roles:
+            raise InputError(log_path, "control replay needs a wheel_speeds topic (none found; set "
+                                       "io.roles.wheel_speeds)")
+        if path is None and "path" in roles:
+            path, path_source = lg.waypoints(), roles["path"]
+        twists, twist_role = None, ""
+        if path is None:
+            twists, twist_role = _tracking_twists(lg, log_path)
+        pose, source, pose_note = _pose_if_any(lg, log_path, required=path is not None)
         speeds = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m)
         cmds = lg.commands() if "commands" in roles else None
-        notes = tuple(lg.health_notes())  # samples dropped, stamps sorted: said in the result
-    if wp.shape[0] < 2:
-        raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles["path"])
+        notes = (*lg.health_notes(), *pose_note)  # samples dropped, stamps sorted: said in the result
+    wp = path.xy if path is not None else None
+    if wp is not None and wp.shape[0] < 2:
+        raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles.get("path"))
     if speeds.stamps.size < 3:
         raise InputError(log_path, "too few wheel-speed messages to evaluate tracking", topic=roles["wheel_speeds"])
-    return _Recording(wp, (pt, pxs, pys, pyaws), source, speeds, cmds, notes, dict(roles))
+    if twists is not None and np.count_nonzero((speeds.stamps >= twists.stamps[0])
+                                               & (speeds.stamps <= twists.stamps[-1])) < 3:
+        raise InputError(log_path, f"the {twist_role} messages do not overlap the wheel speeds ("
+                                   f"{roles['wheel_speeds']}) in time: nothing to evaluate", topic=roles[twist_role])
+    return _Recording(wp, pose, source, speeds, cmds, notes, dict(roles), twists, twist_role, path_source)
+
+
+def _pose_if_any(lg, log_path: Path, *, required: bool) -> tuple[Pose | None, str, tuple[str, ...]]:
+    """The recorded pose and its source: required to follow a path; without one it only places the
+    run and shows slip, so a log without a usable pose topic is evaluated anyway (and says so)."""
+    if not required and not any(r in lg.roles for r in ("ground_truth", "wheel_odom", "gnss")):
+        return None, "", ("no pose topic (ground truth, wheel odometry or GNSS): slip not estimated",)
+    try:
+        pt, pxs, pys, pyaws, source = recorded_pose(lg, log_path)
+    except InputError as err:
+        if required:
+            raise
+        return None, "", (f"recorded pose not used ({err}): slip not estimated",)
+    return (pt, pxs, pys, pyaws), source, ()
+
+
+def _tracking_twists(lg, log_path: Path) -> tuple[Twists, str]:
+    """The body twist wheel-speed tracking is measured against: the recorded cmd_vel, else the
+    wheel odometry's twist."""
+    roles = lg.roles
+    for role, read in (("cmd_vel", lg.cmd_vel), ("wheel_odom", lg.odometry_twist)):
+        if role in roles:
+            tw = read()
+            if tw.stamps.size < 2:
+                raise InputError(log_path, "too few messages for wheel-speed tracking", topic=roles[role])
+            return tw, role
+    raise InputError(log_path, "control replay needs a path to follow (a path topic, or --path FILE with TUM or CSV "
+                               "waypoints) or, for wheel-speed tracking without one, a cmd_vel or wheel-odometry "
+                               "topic (none found; set io.roles.path, io.roles.cmd_vel or io.roles.wheel_odom)")
 
 
 def _replay_references(t: np.ndarray, px: np.ndarray, py: np.ndarray, pyaw: np.ndarray, speeds: SidePair,
@@ -335,14 +407,19 @@ def _replay_slip(t: np.ndarray, px: np.ndarray, py: np.ndarray, pyaw: np.ndarray
             estimate_slip(t, speeds.right, v_body + w_body * half))
 
 
-def replay(log_path: Path, cfg: Config) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any], list[str]]:
+def replay(log_path: Path, cfg: Config, path: Waypoints | None = None, path_source: str = ""
+           ) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any], list[str]]:
     """Recompute the references the chain would issue along the recorded pose (pure pursuit at its
     rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
-    pump commands against them."""
-    return _replay_recording(_read_recording(log_path, cfg), cfg)
+    pump commands against them. Without a path (none in the log, no `path`): wheel-speed tracking
+    against the inverse kinematics of the recorded cmd_vel (or the wheel odometry's twist)."""
+    return _replay_recording(_read_recording(log_path, cfg, path, path_source), cfg)
 
 
 def _replay_recording(rec: _Recording, cfg: Config) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any], list[str]]:
+    if rec.waypoints is None:
+        return _wheel_speed_tracking(rec, cfg)
+    assert rec.pose is not None  # _read_recording requires it with a path
     warnings: list[str] = list(rec.health_notes)
     if rec.pose_source != "ground_truth":
         warnings.append(f"recorded pose from {rec.pose_source} (no ground truth): it must be in the frame of the path")
@@ -354,19 +431,69 @@ def _replay_recording(rec: _Recording, cfg: Config) -> tuple[dict[str, ClosedLoo
     px, py = np.interp(t, pt, pxs), np.interp(t, pt, pys)
     pyaw = np.interp(t, pt, np.unwrap(pyaws))
     v_ref, done, done_at = _replay_references(t, px, py, pyaw, speeds, rec.waypoints, cfg)
-    f = cfg.control.funnel
-    o = (f.o_ov_mps - f.o_b_mps) * np.exp(-f.o_star_per_s * (t - t[0])) + f.o_b_mps
-    u_l = np.interp(t, cmds.stamps, cmds.left) if cmds is not None else np.zeros_like(t)
-    u_r = np.interp(t, cmds.stamps, cmds.right) if cmds is not None else np.zeros_like(t)
+    u_l, u_r = _commands_at(t, cmds)
     slip_l, slip_r = _replay_slip(t, px, py, pyaw, speeds, rec.pose_source, cfg)
     zeros = np.zeros_like(t)
     tr = ClosedLoopTrace(controller="recorded", label=f"recorded ({rec.pose_source})", t=t - t[0], x=px, y=py,
                          yaw=pyaw, v=zeros, omega=zeros, cmd_v=zeros, cmd_omega=zeros,
                          v_ref_left=v_ref[:, 0], v_ref_right=v_ref[:, 1],
                          v_wheel_left=speeds.left, v_wheel_right=speeds.right, slip_left=slip_l, slip_right=slip_r,
-                         u_left=u_l, u_right=u_r, funnel=o, completed=done, completion_time_s=done_at,
+                         u_left=u_l, u_right=u_r, funnel=_funnel(t, cfg), completed=done, completion_time_s=done_at,
                          waypoints=rec.waypoints)
     return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg)}, warnings
+
+
+def _wheel_speed_tracking(rec: _Recording, cfg: Config
+                          ) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any], list[str]]:
+    """No path: the recorded wheel speeds against the inverse kinematics (track robot.track_width_m)
+    of the recorded cmd_vel, held between messages and slewed as the chain slews its references,
+    or of the wheel odometry's twist (a measurement: interpolated, not slewed); evaluated where the
+    twist is recorded, with the path replay's per-side metrics."""
+    assert rec.twists is not None  # _read_recording reads them when there is no path
+    tw, role = rec.twists, rec.twist_role
+    warnings = list(rec.health_notes)
+    if role != "cmd_vel":
+        warnings.append("references from the wheel odometry's twist (no cmd_vel topic): an odometry computed from "
+                        "these wheel speeds agrees with them by construction, so the error then shows only timing "
+                        "and track-width differences, not tracking")
+    if rec.commands is None:
+        warnings.append("no pump-command topic: command metrics (saturation, effort) are zero")
+    inside = (rec.speeds.stamps >= tw.stamps[0]) & (rec.speeds.stamps <= tw.stamps[-1])
+    if not inside.all():
+        warnings.append(f"{int(np.count_nonzero(~inside))} wheel-speed samples outside the {role} span not evaluated")
+    t = rec.speeds.stamps[inside]
+    speeds = SidePair(t, rec.speeds.left[inside], rec.speeds.right[inside], rec.speeds.unit)
+    v_ref = wheel_speed_references(t, tw.stamps, tw.v, tw.omega, cfg.robot.track_width_m, held=role == "cmd_vel",
+                                   accel_limit_mps2=cfg.control.kinematics.reference_accel_limit_mps2,
+                                   start=(float(speeds.left[0]), float(speeds.right[0])))
+    x = y = yaw = np.full_like(t, np.nan)
+    slip_l = slip_r = np.zeros_like(t)
+    if rec.pose is not None:
+        pt, pxs, pys, pyaws = rec.pose
+        x, y, yaw = np.interp(t, pt, pxs), np.interp(t, pt, pys), np.interp(t, pt, np.unwrap(pyaws))
+        slip_l, slip_r = _replay_slip(t, x, y, yaw, speeds, rec.pose_source, cfg)
+    u_l, u_r = _commands_at(t, rec.commands)
+    zeros = np.zeros_like(t)
+    label = f"recorded: {WHEEL_SPEED_TRACKING}, references from {role} {rec.roles.get(role, '')}".rstrip()
+    tr = ClosedLoopTrace(controller="recorded", label=label, t=t - t[0], x=x, y=y, yaw=yaw, v=zeros, omega=zeros,
+                         cmd_v=np.interp(t, tw.stamps, tw.v), cmd_omega=np.interp(t, tw.stamps, tw.omega),
+                         v_ref_left=v_ref[:, 0], v_ref_right=v_ref[:, 1], v_wheel_left=speeds.left,
+                         v_wheel_right=speeds.right, slip_left=slip_l, slip_right=slip_r, u_left=u_l, u_right=u_r,
+                         funnel=_funnel(t, cfg))
+    return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg)}, warnings
+
+
+def _funnel(t: np.ndarray, cfg: Config) -> np.ndarray:
+    """o(t), m/s, anchored at the start of the recording."""
+    f = cfg.control.funnel
+    return (f.o_ov_mps - f.o_b_mps) * np.exp(-f.o_star_per_s * (t - t[0])) + f.o_b_mps
+
+
+def _commands_at(t: np.ndarray, cmds: SidePair | None) -> tuple[np.ndarray, np.ndarray]:
+    """Recorded pump commands (RPM) at the stamps t; zeros without a command topic."""
+    if cmds is None:
+        return np.zeros_like(t), np.zeros_like(t)
+    return np.interp(t, cmds.stamps, cmds.left), np.interp(t, cmds.stamps, cmds.right)
 
 
 def _body_rates(t: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
@@ -376,10 +503,15 @@ def _body_rates(t: np.ndarray, x: np.ndarray, y: np.ndarray, yaw: np.ndarray) ->
 
 
 def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "replay",
-            controllers: tuple[str, ...] = CONTROLLERS, log_id: str | None = None) -> RunResult:
-    """`log_id` names the log in results (default: from its file name; the nightly job passes its own)."""
+            controllers: tuple[str, ...] = CONTROLLERS, log_id: str | None = None,
+            path: Waypoints | None = None, path_source: str = "--path") -> RunResult:
+    """`log_id` names the log in results (default: from its file name; the nightly job passes its own);
+    `path` (replay: waypoints from --path, named `path_source`) replaces the log's path topic."""
     warnings: list[str] = []
     roles: Mapping[str, str] = {}  # of the log, read once with its streams
+    replay_kind, definitions = "", table_notes(cfg)
+    if path is not None and mode != "replay":
+        raise UsageError("--path supplies the path of a replay (--mode replay)")
     if mode == "simulate":
         if log_path is None:
             scenario = paper_circle_scenario(cfg.control)
@@ -390,10 +522,12 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     elif mode == "replay":
         if log_path is None:
             raise UsageError("control --mode replay needs a LOG")
-        rec = _read_recording(log_path, cfg)
-        roles = rec.roles
+        rec = _read_recording(log_path, cfg, path, path_source if path is not None else "")
+        roles = _replay_roles(rec)
         traces, metrics, warnings = _replay_recording(rec, cfg)
         names = ("recorded",)
+        replay_kind = "path" if rec.waypoints is not None else "wheel_speed"
+        definitions = _replay_definitions(rec, cfg) + definitions
     else:
         raise UsageError(f"unknown mode {mode!r}: replay, simulate or sweep")
     result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
@@ -412,10 +546,12 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     result.extra = {"mode": mode, "controllers": list(names),
                     "labels": {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
-                    "seed": cfg.control.seed, "definitions": table_notes(cfg),
+                    "seed": cfg.control.seed, "definitions": definitions,
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
                     "curvature": cfg.control.pure_pursuit.curvature,
-                    "roles": topics_used(roles, mode)}
+                    "roles": topics_used(roles, mode) if mode != "replay" else dict(roles)}
+    if replay_kind:
+        result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
     write_result(result, out_dir, dump_config(cfg))
     return result
 
@@ -435,12 +571,14 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
                             (f"{name}_{side}_phi_hat", getattr(tr, f"phi_{side}"))):
             if series is not None and np.isfinite(series).any():
                 result.series[key] = series[::step]
-    cte = metrics["path"].pop("_cte")
-    for key, val in metrics["path"].items():
-        result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{name}/path"))
     result.series[f"{name}_t"] = tr.t[::step]
-    result.series[f"{name}_xy"] = np.c_[tr.x, tr.y][::step]
-    result.series[f"{name}_cte_m"] = cte[::step]
+    if np.isfinite(tr.x).any():  # wheel-speed tracking without a pose topic: nowhere to place the run
+        result.series[f"{name}_xy"] = np.c_[tr.x, tr.y][::step]
+    if "path" in metrics:
+        cte = metrics["path"].pop("_cte")
+        for key, val in metrics["path"].items():
+            result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{name}/path"))
+        result.series[f"{name}_cte_m"] = cte[::step]
     result.series[f"{name}_funnel_o"] = tr.funnel[::step]
     result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(name, name)}: {e['message']}",
                             {"side": e["side"]}) for e in tr.events]
@@ -454,10 +592,13 @@ CONTROL_OUTPUT_BYTES = 50_000_000  # free space asked for before a run: result.j
 
 
 def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out: Path, json_out: bool,
-         runs: int | None = None, seed: int | None = None) -> None:
+         runs: int | None = None, seed: int | None = None, path_file: Path | None = None) -> None:
     names = parse_controllers(controllers)
+    if path_file is not None and mode != "replay":
+        raise UsageError("--path supplies the path of a replay (--mode replay)")
     if log_path is not None and split_log_paths(log_path) is None and not log_path.exists():  # split: open_log checks
         raise InputError(log_path, "no such file or directory")
+    waypoints = read_waypoints(path_file) if path_file is not None else None  # a bad file fails before any output
     check_output_root(out, need_bytes=CONTROL_OUTPUT_BYTES)  # before the long work, not after it
     run_dir = new_run_dir(out, log_id_for(log_path) if log_path else "paper-circle", f"control-{mode}")
     if mode == "sweep":
@@ -465,7 +606,8 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
             raise UsageError("control --mode sweep runs the paper circle; it takes no LOG")
         result = run_sweep_result(cfg, names, run_dir, runs=runs, seed=seed)
     else:
-        result = run_log(log_path, cfg, run_dir, mode=mode, controllers=names)
+        result = run_log(log_path, cfg, run_dir, mode=mode, controllers=names, path=waypoints,
+                         path_source=f"{path_file} (--path)")
     link_latest(run_dir)
     if json_out:
         from mrnc_eval.commands.output import emit_json
@@ -560,12 +702,15 @@ def print_summary(result: RunResult, run_dir: Path) -> None:
 
 
 def _replay_table(result: RunResult) -> Table:
-    """Recorded tracking, one column per side plus the path."""
+    """Recorded tracking, one column per side plus the path (when it followed one)."""
     groups = ["left", "right", "path"]
     by = {(m.group.rsplit("/", 1)[-1], m.name): m for m in result.metrics}
     names = list(dict.fromkeys(m.name for m in result.metrics))
     rows = [n for n in names if any((g, n) in by for g in groups)]
-    return Table(title="Recorded tracking against the recomputed references", column_labels=groups,
+    title = ("Recorded tracking against the recomputed references" if result.extra.get("replay") != "wheel_speed"
+             else f"Recorded {WHEEL_SPEED_TRACKING}: wheel speeds against the inverse kinematics of the recorded twist")
+    groups = [g for g in groups if any(m.group.endswith(f"/{g}") for m in result.metrics)]
+    return Table(title=title, column_labels=groups,
                  row_labels=[f"{n} ({UNITS[n]})" if UNITS.get(n) else n for n in rows],
                  cells=[[by[(g, n)].value if (g, n) in by else None for g in groups] for n in rows], best=None,
                  precision=4, notes=list(result.extra.get("definitions", [])))

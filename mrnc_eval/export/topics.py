@@ -170,11 +170,12 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
         t = s[f"{name}_t"]
         side = {k: {f: s[f"{name}_{k}_{f}"] for f in ("v_ref", "v_meas", "u_rpm")} for k in ("left", "right")}
         o = s[f"{name}_funnel_o"]
+        cte = s.get(f"{name}_cte_m")  # None: wheel-speed tracking, no path to measure against
         for i in range(t.size):
             t_ns = stamp_ns(t0_s + float(t[i]))
             body: dict[str, Any] = {
                 "timestamp": time_of(t_ns), "funnel_upper_mps": float(o[i]), "funnel_lower_mps": -float(o[i]),
-                "cross_track_m": float(s[f"{name}_cte_m"][i]),
+                "cross_track_m": float(cte[i]) if cte is not None else float("nan"),
                 "safety_stops": int(np.searchsorted(stops, t[i], side="right"))}
             for k, v in side.items():
                 u = float(v["u_rpm"][i])
@@ -185,7 +186,8 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
         planned = s.get("path_xy")
         if planned is not None and planned.size:
             out.write(f"{topic}/planned_path", S.POSES_IN_FRAME, t0, _path_2d(t0, planned))
-        out.write(f"{topic}/driven_path", S.POSES_IN_FRAME, t0, _path_2d(t0, s[f"{name}_xy"]))
+        if f"{name}_xy" in s:  # absent: wheel-speed tracking of a log without a pose topic
+            out.write(f"{topic}/driven_path", S.POSES_IN_FRAME, t0, _path_2d(t0, s[f"{name}_xy"]))
 
 
 def _path_2d(t_ns: int, xy: np.ndarray) -> dict[str, Any]:

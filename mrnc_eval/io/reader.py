@@ -546,13 +546,29 @@ class LogReader:
             t.append(_stamp(m) if hasattr(m, "header") else t_rec)  # plain Twist: record time
             v.append(tw.linear.x)
             w.append(tw.angular.z)
+        return self._twists(topic, t, v, w)
+
+    def odometry_twist(self, topic: str | None = None) -> Twists:
+        """The body twist of an Odometry topic (default: the wheel odometry): forward speed m/s and
+        yaw rate rad/s, in its child frame (nav_msgs/Odometry's convention)."""
+        topic = self._topic_for("wheel_odom", topic)
+        t, v, w = [], [], []
+        for m in self._messages(topic, ("nav_msgs/msg/Odometry",)):
+            t.append(_stamp(m))
+            v.append(m.twist.twist.linear.x)
+            w.append(m.twist.twist.angular.z)
+        return self._twists(topic, t, v, w)
+
+    def _twists(self, topic: str, t: list[float], v: list[float], w: list[float]) -> Twists:
+        """Screened, sorted twists (non-finite or implausible speeds dropped and reported)."""
         if not t:
             raise InputError(self.path, "topic has no messages", topic=topic)
         vw = np.c_[np.asarray(v, float), np.asarray(w, float)]
         valid = self._screen(topic, {"non-finite": non_finite(vw),
                                      "speed out of range": beyond(vw[:, :1], self.cfg.validation.max_abs_speed_mps)})
         t_a, vw = np.asarray(t)[valid], vw[valid]
-        keep, _ = _sort_dedup(t_a, topic)
+        keep, health = _sort_dedup(t_a, topic)
+        self._set_health(health)
         return Twists(t_a[keep], vw[keep, 0], vw[keep, 1])
 
     def waypoints(self, topic: str | None = None) -> Waypoints:

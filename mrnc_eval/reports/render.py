@@ -157,7 +157,10 @@ def _control_section(r: RunResult) -> dict[str, Any]:
                + ", ".join(labels.get(c, c) for c in r.extra.get("controllers", []))
                + f". Saturation applies to the {r.extra.get('saturation_applies_to', 'total')} command; "
                f"pure-pursuit curvature {r.extra.get('curvature', 'standard')}.")
-    return {"title": "Control", "summary": summary, "tables": report_tables(r), "figures": control_figures(r)}
+    if r.extra.get("replay") and r.extra.get("definitions"):  # what the replay's references are
+        summary += " " + r.extra["definitions"][0]
+    title = "Control: wheel-speed tracking (no path)" if r.extra.get("replay") == "wheel_speed" else "Control"
+    return {"title": title, "summary": summary, "tables": report_tables(r), "figures": control_figures(r)}
 
 
 def report_tables(r: RunResult) -> list[Table]:
@@ -176,7 +179,8 @@ def _replay_table(r: RunResult) -> Table:
     values = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
     cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row]
                                for row in values]
-    return Table("Table II layout: control performance of the recorded run", [label for label, _ in rows],
+    what = " (wheel-speed tracking, no path)" if r.extra.get("replay") == "wheel_speed" else ""
+    return Table(f"Table II layout: control performance of the recorded run{what}", [label for label, _ in rows],
                  [g.split("/", 1)[-1].replace("/", " ") for g in groups], cells, best=None, precision=3)
 
 
