@@ -332,11 +332,11 @@ def _read_recording(log_path: Path, cfg: Config, path: Waypoints | None = None, 
         raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles.get("path"))
     if speeds.stamps.size < 3:
         raise InputError(log_path, "too few wheel-speed messages to evaluate tracking", topic=roles["wheel_speeds"])
-    if twists is not None and np.count_nonzero((speeds.stamps >= twists.stamps[0])
-                                               & (speeds.stamps <= twists.stamps[-1])) < 3:
+    rec = _Recording(wp, pose, source, speeds, cmds, notes, dict(roles), twists, twist_role, path_source)
+    if np.count_nonzero(_evaluated(rec)) < 3:
         raise InputError(log_path, f"the {twist_role} messages do not overlap the wheel speeds ("
                                    f"{roles['wheel_speeds']}) in time: nothing to evaluate", topic=roles[twist_role])
-    return _Recording(wp, pose, source, speeds, cmds, notes, dict(roles), twists, twist_role, path_source)
+    return rec
 
 
 def _pose_if_any(lg, log_path: Path, *, required: bool) -> tuple[Pose | None, str, tuple[str, ...]]:
@@ -458,7 +458,7 @@ def _wheel_speed_tracking(rec: _Recording, cfg: Config
                         "and track-width differences, not tracking")
     if rec.commands is None:
         warnings.append("no pump-command topic: command metrics (saturation, effort) are zero")
-    inside = (rec.speeds.stamps >= tw.stamps[0]) & (rec.speeds.stamps <= tw.stamps[-1])
+    inside = _evaluated(rec)
     if not inside.all():
         warnings.append(f"{int(np.count_nonzero(~inside))} wheel-speed samples outside the {role} span not evaluated")
     t = rec.speeds.stamps[inside]
@@ -481,6 +481,15 @@ def _wheel_speed_tracking(rec: _Recording, cfg: Config
                          v_wheel_right=speeds.right, slip_left=slip_l, slip_right=slip_r, u_left=u_l, u_right=u_r,
                          funnel=_funnel(t, cfg))
     return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg)}, warnings
+
+
+def _evaluated(rec: _Recording) -> np.ndarray:
+    """Which wheel-speed samples a replay evaluates: all when following a path, those inside the
+    recorded twist's span in wheel-speed tracking."""
+    t = rec.speeds.stamps
+    if rec.twists is None:
+        return np.ones(t.size, bool)
+    return (t >= rec.twists.stamps[0]) & (t <= rec.twists.stamps[-1])
 
 
 def _funnel(t: np.ndarray, cfg: Config) -> np.ndarray:
@@ -552,6 +561,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                     "roles": topics_used(roles, mode) if mode != "replay" else dict(roles)}
     if replay_kind:
         result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
+        result.extra["t0_stamp_s"] = float(rec.speeds.stamps[_evaluated(rec)][0])  # log time of the series' t = 0
     write_result(result, out_dir, dump_config(cfg))
     return result
 

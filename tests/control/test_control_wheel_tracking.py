@@ -80,6 +80,7 @@ def test_without_a_path_the_replay_tracks_wheel_speeds_against_cmd_vel(run, tmp_
     assert "wheel-speed tracking (no path)" in result.extra["labels"]["recorded"]
     assert "Wheel-speed tracking (no path)" in result.extra["definitions"][0]
     assert result.extra["roles"]["cmd_vel"] == "/cmd_vel"
+    assert result.extra["t0_stamp_s"] == pytest.approx(T0, abs=1e-6)
     assert not any(m.group.endswith("/path") for m in result.metrics)  # nothing to measure cross-track against
     # the references are the simulator's own: the same IK of the same commands, the same slew (the
     # replay steps the slew at 50 Hz, the simulation at 1 kHz: apart by at most one 20 ms step of it)
@@ -125,6 +126,9 @@ def test_a_wrong_reference_shows_a_larger_tracking_error(run, tmp_path: Path, wr
     if wrong.startswith("cmd_vel"):
         wrong_log = _write_log(tmp_path / "late.mcap", sc, tr, cmd_vel_shift_s=3.0)
         bad = run_log(wrong_log, cfg, tmp_path / "bad", mode="replay")
+        # evaluated only where cmd_vel exists; the series start there (the export's time origin)
+        assert bad.extra["t0_stamp_s"] == pytest.approx(T0 + 3.0, abs=1e-6)
+        assert any("outside the cmd_vel span not evaluated" in w for w in bad.warnings)
     else:
         wide = replace(cfg, robot=replace(cfg.robot, track_width_m=2.0 * cfg.robot.track_width_m))
         bad = run_log(tmp_path / "drive.mcap", wide, tmp_path / "bad", mode="replay")
