@@ -47,7 +47,7 @@ print(json.dumps({"marks": marks, "timing_ms": out.timing_ms, "warmup_ms": getat
 """
 
 
-def test_no_kernel_compiles_inside_the_timed_loop_and_the_statistics_agree(yard_log: Path, tmp_path: Path) -> None:
+def test_no_kernel_compiles_inside_the_timed_loop_and_no_sweep_pays_the_warmup(yard_log: Path, tmp_path: Path) -> None:
     from mrnc_eval.commands.slam import _stage_timing
     from mrnc_eval.slam.output import SlamOutput
 
@@ -68,7 +68,8 @@ def test_no_kernel_compiles_inside_the_timed_loop_and_the_statistics_agree(yard_
                                      np.zeros((0, 3)), got["timing_ms"], [], [], 0, 0.0))
     for stage in ("deskew", "features", "matching"):  # the stages that work on every sweep
         s = stats[stage]
-        # a compilation inside the loop (seconds, once) lifted the mean above the p95 and made the max
-        # tens of times the p95; the per-sweep work itself is steady on this log
-        assert s["mean"] <= s["p95"] <= s["max"], (stage, s)
-        assert s["max"] < warm[stage], (stage, s, warm[stage])
+        # before the warm-up, one sweep's matching held the compilation: max 4955 ms beside p95 117 ms and a
+        # mean (254 ms) above the p95; now no sweep comes near the one-off cost (seconds with an empty cache).
+        # (mean <= p95 itself is not asserted: matching takes ~5 ms a sweep on this log, so one scheduling
+        # hiccup on a shared machine can lift the mean above the p95 without any compilation.)
+        assert s["p95"] <= s["max"] < warm[stage], (stage, s, warm[stage])
