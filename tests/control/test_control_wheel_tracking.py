@@ -218,3 +218,15 @@ def test_a_log_with_neither_path_nor_twist_says_what_it_needs(run, tmp_path: Pat
     err = capsys.readouterr().err
     for needed in ("--path FILE", "cmd_vel", "io.roles.path"):
         assert needed in err, err
+
+
+def test_csv_waypoints_with_or_without_a_header(tmp_path: Path) -> None:
+    from mrnc_eval.io.waypoint_files import read_waypoints
+
+    plain = tmp_path / "plain.csv"
+    plain.write_text("# planned path\n0,0\n1.5,0.25\n\n3,1,0\n")
+    named = tmp_path / "named.csv"
+    named.write_text("stamp,y,x,z\n0,0,0,0\n1,0.25,1.5,0\n2,1,3,0\n")
+    want = np.array([[0.0, 0.0], [1.5, 0.25], [3.0, 1.0]])
+    for path in (plain, named):
+        np.testing.assert_array_equal(read_waypoints(path).xy, want)
