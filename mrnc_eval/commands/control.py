@@ -284,12 +284,10 @@ def _replay_definitions(rec: _Recording, cfg: Config) -> list[str]:
             "--path FILE for those)."]
 
 
-def topics_used(roles: Mapping[str, str], mode: str) -> dict[str, str]:
-    """role -> topic of what a replay (or a simulation along the log's path) reads, for summaries
-    and reports; the pose source follows recorded_pose's order."""
-    pose = next((r for r in ("ground_truth", "wheel_odom", "gnss") if r in roles), "")
-    wanted = ("path", "ground_truth") if mode == "simulate" else ("path", pose, "wheel_speeds", "commands")
-    return {r: roles[r] for r in wanted if r in roles}
+def simulation_topics(roles: Mapping[str, str]) -> dict[str, str]:
+    """role -> topic of what a simulation along the log's path reads, for summaries and reports
+    (a replay names every role it read)."""
+    return {r: roles[r] for r in ("path", "ground_truth") if r in roles}
 
 
 @dataclass(frozen=True)
@@ -558,7 +556,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                     "seed": cfg.control.seed, "definitions": definitions,
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
                     "curvature": cfg.control.pure_pursuit.curvature,
-                    "roles": topics_used(roles, mode) if mode != "replay" else dict(roles)}
+                    "roles": dict(roles) if mode == "replay" else simulation_topics(roles)}
     if replay_kind:
         result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
         result.extra["t0_stamp_s"] = float(rec.speeds.stamps[_evaluated(rec)][0])  # log time of the series' t = 0
