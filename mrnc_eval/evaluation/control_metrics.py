@@ -99,7 +99,7 @@ def tracking_metrics(t: FloatArray, r: FloatArray, y: FloatArray, u: FloatArray,
     out = {
         "settling_time_s": _worst([s.settling_time_s for s in steps]),
         "overshoot_pct": float(max((s.overshoot_pct for s in steps), default=float("nan"))),
-        "rise_time_s": float(np.nanmedian([s.rise_time_s for s in steps])) if steps else float("nan"),
+        "rise_time_s": _median_ignoring_nan([s.rise_time_s for s in steps]),
         # over the end window of each step segment, worst segment
         "steady_state_error_mps": float(max((s.steady_state_abs_error if cfg.steady_state_statistic == "mean_abs"
                                              else abs(s.steady_state_error) for s in steps), default=float("nan"))),
@@ -285,3 +285,11 @@ def path_metrics(x: FloatArray, y: FloatArray, yaw: FloatArray, waypoints: Float
         "final_position_error_m": float(np.hypot(x[-1] - waypoints[-1, 0], y[-1] - waypoints[-1, 1])),
         "_cte": cte,
     }
+
+
+def _median_ignoring_nan(values: list[float]) -> float:
+    """Median ignoring NaN (a step that never reached its rise level); NaN when all are,
+    without numpy's all-NaN warning."""
+    kept = np.asarray(values, float)
+    kept = kept[~np.isnan(kept)]
+    return float(np.median(kept)) if kept.size else float("nan")
