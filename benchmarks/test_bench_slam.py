@@ -57,8 +57,8 @@ from mrnc_eval.slam import graph as graph_module
 after_imports = rss_mb()
 samples = []
 add = graph_module.KeyframeGraph.add_keyframe
-def add_and_sample(self, pose, stamp):
-    out = add(self, pose, stamp)
+def add_and_sample(self, *args, **kwargs):
+    out = add(self, *args, **kwargs)
     samples.append((len(self.poses), rss_mb()))
     return out
 graph_module.KeyframeGraph.add_keyframe = add_and_sample
