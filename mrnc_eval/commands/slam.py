@@ -188,7 +188,13 @@ def _kiss_icp_deskew(first: Sweep | None, max_gap_s: float) -> tuple[bool, str |
 
 
 def _kiss_icp(sweeps: Any, cfg: Config, max_gap_s: float) -> SlamOutput:
-    """The peer on the same Sweep arrays: KISS-ICP's own deskew (when it applies) and adaptive threshold."""
+    """The peer on the same Sweep arrays, configured as kiss-icp's own runner configures it (its
+    default config: max range 100 m, voxel 1 m, min range 0, adaptive threshold). Deviations, each
+    required by the input: no-return pixels are already dropped by the reader (kiss-icp's loader
+    keeps the zeros and its deskew moves them off the origin into phantom points near the sensor),
+    the body crop box (the machine's own body is in the cloud), and deskew off on throttled logs or
+    clouds without per-point time (`_kiss_icp_deskew`). tests/slam/test_kiss_icp_peer.py checks
+    that the poses equal those of kiss-icp's own OdometryPipeline."""
     try:
         from kiss_icp.config import load_config
         from kiss_icp.kiss_icp import KissICP
@@ -200,8 +206,6 @@ def _kiss_icp(sweeps: Any, cfg: Config, max_gap_s: float) -> SlamOutput:
     first = next(sweeps, None)
     deskew, why = _kiss_icp_deskew(first, max_gap_s)
     kcfg = load_config(None)
-    kcfg.data.max_range = 100.0
-    kcfg.data.min_range = cfg.slam.features.min_range_m
     kcfg.data.deskew = deskew
     icp = KissICP(kcfg)
     if first is not None:
@@ -214,10 +218,9 @@ def _kiss_icp(sweeps: Any, cfg: Config, max_gap_s: float) -> SlamOutput:
         n += 1
         t0 = time.perf_counter()
         t_read.append((t0 - t_prev) * 1e3)
-        if not deskew or s.point_time is None:
-            ts = np.zeros(len(s))  # not read with deskew off (constant stamps would make kiss-icp's deskew NaN)
-        else:  # kiss-icp deskews with per-point time normalised to [0, 1]
-            ts = s.point_time.astype(np.float64) / max(float(s.point_time.max()), 1e-9)
+        # kiss-icp normalises per-point time to [0, 1] itself (min to max of the sweep); with
+        # deskew off it does not read the stamps
+        ts = s.point_time.astype(np.float64) if deskew and s.point_time is not None else np.zeros(len(s))
         keep = outside_box(s.points, cfg.slam.features.body_crop_box_m)  # the same body crop as lio
         icp.register_frame(s.points[keep].astype(np.float64), ts[keep])
         t_match.append((time.perf_counter() - t0) * 1e3)
