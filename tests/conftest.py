@@ -8,6 +8,8 @@ from pathlib import Path
 
 import pytest
 
+from tests.needs import missing
+
 REPO = Path(__file__).resolve().parents[1]
 SHARED_DATA = REPO.parent / "shared" / "data"
 REAL_OUSTER = SHARED_DATA / "ouster-os1-128-real-3scans" / "ouster_real_ros2_mcap_zstd.mcap"
@@ -19,7 +21,7 @@ os.environ.setdefault("MPLBACKEND", "Agg")
 @pytest.fixture(scope="session")
 def real_ouster_mcap() -> Path:
     if not REAL_OUSTER.exists():
-        pytest.skip(f"real Ouster recording not found at {REAL_OUSTER}")
+        missing(f"the real Ouster recording is missing: expected {REAL_OUSTER} (../shared/data beside the repository)")
     return REAL_OUSTER
 
 

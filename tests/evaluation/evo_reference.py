@@ -3,25 +3,18 @@
 from __future__ import annotations
 
 import copy
-import os
 
 import numpy as np
-import pytest
 from scipy.spatial.transform import Rotation
 
 from mrnc_eval.data import Trajectory
+from tests.needs import need_module
 
 
 def require_evo() -> None:
     """evo is the independent reference of the APE/RPE claims: with CI=true a missing evo
     fails the tests (it must not silently skip them); elsewhere they skip with the reason."""
-    try:
-        import evo  # noqa: F401
-    except ImportError:
-        reason = "evo is not installed (pip install 'mrnc-eval[test]'): the evo cross-checks cannot run"
-        if os.environ.get("CI", "").lower() in ("1", "true", "yes"):
-            pytest.fail(reason, pytrace=False)
-        pytest.skip(reason, allow_module_level=True)
+    need_module("evo", "evo is not installed (pip install 'mrnc-eval[test]'): the evo cross-checks cannot run")
 
 
 def make_pair(n: int = 600, seed: int = 0, dt_offset: float = 0.003, rate: float = 100.0):

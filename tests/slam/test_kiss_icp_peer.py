@@ -17,6 +17,7 @@ import numpy as np
 import pytest
 
 from mrnc_eval.config import Config, replace_path
+from tests.needs import need_module
 
 TOPIC = "/ouster/points"
 
@@ -52,7 +53,7 @@ class _WithoutNoReturns:
 def _kiss_icp_own_poses(log: Path, work: Path, config: Path | None = None, *,
                         keep_no_returns: bool = False) -> np.ndarray:
     """(N, 4, 4) cloud-frame poses from kiss-icp's own pipeline (it writes into ./results)."""
-    pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
+    need_module("kiss_icp", "kiss-icp is not installed (pip install 'mrnc-eval[test]'): the peer comparison cannot run")
     from kiss_icp.datasets.rosbag import RosbagDataset
     from kiss_icp.pipeline import OdometryPipeline
 

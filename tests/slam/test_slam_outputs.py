@@ -11,6 +11,7 @@ import pytest
 from mrnc_eval.config import Config, replace_path
 from mrnc_eval.io.trajectory_files import read_tum
 from mrnc_eval.results import read_result
+from tests.needs import need_module
 
 
 def _value(result, name: str) -> float:
@@ -46,7 +47,7 @@ def test_kiss_icp_deskew_is_off_on_a_throttled_log_and_on_at_full_rate(throttled
                                                                         tmp_path: Path) -> None:
     """1 Hz sweeps of a 10 Hz sensor: kiss-icp's deskew would spread 1 s of motion over 0.1 s, so
     it runs without deskew and the result says so. The 10 Hz log (negative control) keeps it."""
-    pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
+    need_module("kiss_icp", "kiss-icp is not installed (pip install 'mrnc-eval[test]'): the peer comparison cannot run")
     from mrnc_eval.commands.slam import run_log
 
     throttled = run_log(throttled_log, Config(), tmp_path / "throttled", method="kiss-icp")
