@@ -37,6 +37,7 @@ from mrnc_eval.results import (
     write_result,
 )
 from mrnc_eval.slam.output import STAGES, SlamOutput
+from mrnc_eval.slam.wheel_odometry import WheelTrack
 
 log = logging.getLogger(__name__)
 TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
@@ -168,8 +169,17 @@ def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutp
         with Prefetched(stream, depth=4) as sweeps:
             if lio:
                 return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
-                                antenna_in_sensor=inputs.antenna_in_sensor, progress=tick)
+                                antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
+                                base_to_sensor=inputs.base_to_sensor, progress=tick)
             return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
+
+
+def _wheel_track(lg: Any, cfg: Config) -> WheelTrack | None:
+    """The wheel odometry (odom -> base_link) when slam.wheel_odom.enabled and the log has it."""
+    if not cfg.slam.wheel_odom.enabled or not lg.has_role("wheel_odom"):
+        return None
+    odom = lg.wheel_odometry()
+    return WheelTrack(odom.stamps, odom.positions, odom.quat_xyzw)
 
 
 def _kiss_icp_deskew(first: Sweep | None, max_gap_s: float) -> tuple[bool, str | None]:

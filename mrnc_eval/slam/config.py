@@ -202,6 +202,37 @@ class MapQualityConfig:
 
 
 @dataclass(frozen=True)
+class WheelOdomConfig:
+    """Wheel odometry (the log's wheel_odom role, odom -> base_link): a relative-pose factor between
+    consecutive keyframes in graph #1 with a skid-steer noise model (1 sigma, base_link axes), and
+    x, y and yaw of each sweep's guess (docs/simulation.md, "Open field")."""
+
+    enabled: bool = param(True, "use the log's wheel odometry (when it has one): factors between keyframes, the "
+                          "sweep guess (guess), graph #2 restarts (restart_imu_after_m)")
+    forward_fraction: float = param(0.03, "forward sigma per metre driven (slip, effective wheel radius)", "m/m")
+    forward_floor_m: float = param(0.01, "forward sigma floor per keyframe step", "m")
+    lateral_fraction: float = param(0.01, "lateral sigma per metre driven (skid-steer: nearly non-holonomic)", "m/m")
+    lateral_floor_m: float = param(0.005, "lateral sigma floor per keyframe step", "m")
+    yaw_fraction: float = param(0.05, "yaw sigma per radian turned (track slip in turns; on a straight line both "
+                                "sides turn alike)", "rad/rad")
+    yaw_floor_rad: float = param(0.002, "yaw sigma floor per keyframe step", "rad")
+    tilt_sigma_rad: float = param(0.5, "roll and pitch sigma (planar odometry: left to the LiDAR ground)", "rad")
+    z_sigma_m: float = param(1.0, "vertical sigma (planar odometry: left to the LiDAR ground)", "m")
+    lidar_degenerate_sigma: float = param(0.0, "with wheel factors, the LiDAR odometry factor's sigma along the "
+                                          "directions scan-to-map left to the IMU, when graph.degenerate_odometry_"
+                                          "sigma is 0 (rad and m; 0 = the odometry_variances; on the open-field log "
+                                          "1.0 gave 3.1 m APE online against 0.25 m)")
+    guess: bool = param(True, "x, y and yaw of each sweep's initial guess from the wheels (z, roll, pitch from the "
+                        "IMU): where bare ground leaves them free, the online pose follows the wheels")
+    max_rotation_correction_deg: float = param(0.0, "with the wheel guess, the scan-to-map rotation gate instead "
+                                               "of matching.max_rotation_correction_deg (0 = that one); 1 halves the "
+                                               "open-field APE but wrecks the sample logs (slip: the wheels turn "
+                                               "wrongly, the gate then rejects the right match)", "deg")
+    restart_imu_after_m: float = param(0.02, "restart graph #2 from graph #1's pose and the wheels' velocity when "
+                                       "the wheel factor moved the keyframe by more than this (negative: never)", "m")
+
+
+@dataclass(frozen=True)
 class SlamConfig:
     method: Literal["lio", "kiss-icp"] = param("lio", "SLAM method: lio (this project's LIO-SAM replay) or "
                                                "kiss-icp (peer); the CLI's --method sets it")
@@ -220,4 +251,5 @@ class SlamConfig:
     graph: GraphConfig = section(GraphConfig, "keyframes and the factor graph")
     loop: LoopConfig = section(LoopConfig, "loop closure")
     gps: GpsConfig = section(GpsConfig, "GNSS factors")
+    wheel_odom: WheelOdomConfig = section(WheelOdomConfig, "wheel odometry factors in graph #1")
     map_quality: MapQualityConfig = section(MapQualityConfig, "map quality without ground truth")

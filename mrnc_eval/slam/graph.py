@@ -23,6 +23,7 @@ class KeyframeGraph:
     stamps: list[float] = field(default_factory=list)
     loops: list[tuple[int, int, float]] = field(default_factory=list)  # (current, previous, fitness)
     gps_factors: int = 0
+    wheel_factors: int = 0
     last_gps_xy: np.ndarray | None = None
 
     def __post_init__(self) -> None:
@@ -38,10 +39,12 @@ class KeyframeGraph:
     def _noise(self, variances: Sequence[float] | np.ndarray) -> Any:
         return self.gtsam.noiseModel.Diagonal.Variances(np.asarray(variances, float))
 
-    def add_keyframe(self, pose: np.ndarray, stamp: float, loose_directions: np.ndarray | None = None) -> np.ndarray:
+    def add_keyframe(self, pose: np.ndarray, stamp: float, loose_directions: np.ndarray | None = None,
+                     wheel: tuple[np.ndarray, np.ndarray] | None = None, wheel_loose_sigma: float = 0.0) -> np.ndarray:
         """Add a keyframe with its scan-to-map pose; returns the optimised pose. `loose_directions`
         (k, 6): directions ([rot, trans], map axes) the match left to the IMU; the odometry factor
-        gets degenerate_odometry_sigma along them."""
+        gets degenerate_odometry_sigma along them (wheel_loose_sigma when that is 0 and a wheel
+        factor comes). `wheel`: (relative pose from the previous keyframe, 6x6 covariance [rot, trans])."""
         g = self.gtsam
         graph, values = g.NonlinearFactorGraph(), g.Values()
         k = len(self.poses)
@@ -49,15 +52,18 @@ class KeyframeGraph:
             graph.add(g.PriorFactorPose3(k, g.Pose3(pose), self._noise(self.cfg.prior_variances)))
         else:
             rel = se3.inv(self.poses[-1]) @ pose
-            graph.add(g.BetweenFactorPose3(k - 1, k, g.Pose3(rel), self._odometry_noise(pose, loose_directions)))
+            sigma = self.cfg.degenerate_odometry_sigma or (wheel_loose_sigma if wheel is not None else 0.0)
+            graph.add(g.BetweenFactorPose3(k - 1, k, g.Pose3(rel), self._odometry_noise(pose, loose_directions, sigma)))
+            if wheel is not None:
+                graph.add(g.BetweenFactorPose3(k - 1, k, g.Pose3(wheel[0]), g.noiseModel.Gaussian.Covariance(wheel[1])))
+                self.wheel_factors += 1
         values.insert(k, g.Pose3(pose))
         self.poses.append(pose)
         self.stamps.append(stamp)
         self._update(graph, values, extra=0)
         return self.poses[-1]
 
-    def _odometry_noise(self, pose: np.ndarray, loose: np.ndarray | None) -> Any:
-        sigma = self.cfg.degenerate_odometry_sigma
+    def _odometry_noise(self, pose: np.ndarray, loose: np.ndarray | None, sigma: float) -> Any:
         if loose is None or len(loose) == 0 or sigma <= 0:
             return self._noise(self.cfg.odometry_variances)
         u = loose @ np.kron(np.eye(2), pose[:3, :3])  # map axes -> the new keyframe's frame (gtsam's tangent)

@@ -27,21 +27,27 @@ from mrnc_eval.slam.range_image import RangeImage, project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
 from mrnc_eval.slam.time_offset import estimate_imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
+from mrnc_eval.slam.wheel_odometry import WheelTrack, base_velocity, blend_planar, relative_motion, wheel_factor
 
 __all__ = ["STAGES", "SlamEvent", "SlamOutput", "run_slam"]
 
 
 def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
              sensor_to_imu: np.ndarray | None = None, gnss: GnssSeries | None = None,
-             antenna_in_sensor: np.ndarray | None = None,
+             antenna_in_sensor: np.ndarray | None = None, wheel: WheelTrack | None = None,
+             base_to_sensor: np.ndarray | None = None,
              progress: Callable[[int], None] | None = None) -> SlamOutput:
     """Replay the SLAM over `sweeps` (LiDAR frame). `sensor_to_imu` is the IMU pose in the LiDAR
-    frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors.
-    The stages are warmed first (slam/warmup.py): their one-off cost is reported as `warmup_ms`,
-    outside the per-sweep timing and `wall_s`."""
+    frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors;
+    `wheel` (odom -> base_link, with `base_to_sensor` the LiDAR pose in base_link) enables wheel
+    factors when slam.wheel_odom.enabled. The stages are warmed first (slam/warmup.py): their
+    one-off cost is reported as `warmup_ms`, outside the per-sweep timing and `wall_s`."""
     warmup_ms = warm_up(cfg)
     wall0 = time.perf_counter()
     replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor)
+    if wheel is not None and cfg.wheel_odom.enabled:
+        replay.wheel = wheel
+        replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
     n_sweeps = 0
     t_read = time.perf_counter()
     for sweep in sweeps:
@@ -102,6 +108,8 @@ class _Replay:
     local_map: LocalMap | None = None
     st: _State = field(default_factory=_State)
     trace: _Trace = field(default_factory=_Trace)
+    wheel: WheelTrack | None = None
+    base_to_sensor: np.ndarray = field(default_factory=lambda: np.eye(4))
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -176,6 +184,8 @@ class _Replay:
         is a false match (sparse structure, wrong neighbours: in an open field up to 30 deg in one
         sweep), not a gyro error: keep the IMU guess, as for a sweep without features."""
         limit = self.cfg.matching.max_rotation_correction_deg
+        if self.wheel is not None and self.cfg.wheel_odom.guess and self.cfg.wheel_odom.max_rotation_correction_deg > 0:
+            limit = self.cfg.wheel_odom.max_rotation_correction_deg  # a better guess may take a tighter gate
         turn = np.degrees(se3.delta_angle(se3.inv(guess) @ res.pose))
         if not res.optimised or limit <= 0 or turn <= limit:
             return res
@@ -193,17 +203,32 @@ class _Replay:
             return se3.make(att.as_matrix(), np.zeros(3))
         covered = track is not None and track.covers(st.t, t)
         if odom is not None and covered and odom.can_predict:  # also right after a loop restarted graph #2
-            return odom.predict(st.pose, st.t, t)
+            return self.wheel_guess(odom.predict(st.pose, st.t, t), t)
         step = (st.velocity if st.velocity is not None else np.zeros(3)) * (t - st.t)
         rot = st.pose[:3, :3]
         if covered and track is not None:
             rot = rot @ track.rotation_between(st.t, np.array([t]))[0].as_matrix()
         return se3.make(rot, st.pose[:3, 3] + step)
 
+    def wheel_guess(self, predicted: np.ndarray, t: float) -> np.ndarray:
+        """With slam.wheel_odom.guess: x, y and yaw of the guess from the wheels' motion since the
+        last pose, z, roll and pitch from graph #2 (a straight, slip-free drive carries no gyro or
+        accelerometer bias; scan-to-map keeps the guess along the directions bare ground leaves free)."""
+        if self.wheel is None or not self.cfg.wheel_odom.guess or not self.wheel.covers(self.st.t, t) \
+                or self.st.pose is None:
+            return predicted
+        by_wheels = self.st.pose @ relative_motion(self.wheel, self.st.t, t, self.base_to_sensor)
+        return blend_planar(predicted, by_wheels)
+
     def add_keyframe(self, pose: np.ndarray, stamp: float, feats: Features) -> tuple[np.ndarray, float]:
         """Graph #1 keyframe, GNSS factor, loop closure (timed apart), new local map.
         Returns the optimised pose and the loop-closure time (ms)."""
-        self.graph.add_keyframe(pose, stamp, self.st.loose)
+        wheel = None
+        if self.wheel is not None and self.graph.stamps:
+            wheel = wheel_factor(self.wheel, self.graph.stamps[-1], stamp, self.base_to_sensor, self.cfg.wheel_odom)
+        self.graph.add_keyframe(pose, stamp, self.st.loose, wheel, self.cfg.wheel_odom.lidar_degenerate_sigma)
+        if wheel is not None:
+            self.restart_from_wheels(pose, stamp)
         self.kf_features.append(_compact(feats))
         if self.aligner is not None and self.aligner.maybe_add(self.graph, stamp, self.events):
             self.map_cache.clear()
@@ -219,6 +244,19 @@ class _Replay:
             loop_ms = (time.perf_counter() - t0) * 1e3
         self.local_map = _local_map(self.graph, self.kf_features, self.map_cache, self.cfg)
         return self.graph.poses[-1], loop_ms
+
+    def restart_from_wheels(self, matched: np.ndarray, stamp: float) -> None:
+        """When the wheel factor moved the keyframe, graph #2 restarts from graph #1's pose (as after
+        a loop) with the wheels' velocity: graph #2 otherwise keeps integrating its own velocity and
+        attitude, and the next guess contradicts the corrected pose."""
+        kf = self.graph.poses[-1]
+        moved = float(np.linalg.norm(kf[:3, 3] - matched[:3, 3]))
+        if self.odom is None or self.wheel is None or moved <= self.cfg.wheel_odom.restart_imu_after_m:
+            return
+        v_base = base_velocity(self.wheel, stamp)
+        self.odom.restart()
+        if v_base is not None:  # base_link axes -> map: R_map_lidar R_lidar_base
+            self.odom.velocity = kf[:3, :3] @ self.base_to_sensor[:3, :3].T @ v_base
 
     def close_loop(self, stamp: float) -> None:
         moved = _try_loop(self.graph, self.kf_features, self.cfg, self.events, stamp)
