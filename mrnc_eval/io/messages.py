@@ -76,12 +76,27 @@ def imu(ts: Typestore, t: float, frame_id: str, acc: ArrayLike, gyro: ArrayLike,
 
 
 _NUMPY_OF_DATATYPE = {4: "<u2", 6: "<u4", 7: "<f4"}
-OUSTER_DTYPE = np.dtype({
-    "names": [n for n, _, _ in OUSTER_FIELDS],
-    "formats": [_NUMPY_OF_DATATYPE[d] for _, _, d in OUSTER_FIELDS],
-    "offsets": [o for _, o, _ in OUSTER_FIELDS],
-    "itemsize": OUSTER_POINT_STEP,
-})
+
+
+def _point_dtype(fields: Sequence[tuple[str, int, int]], point_step: int) -> np.dtype:
+    """The numpy record of one point of a PointCloud2 layout: (name, byte offset, PointField datatype)."""
+    return np.dtype({"names": [n for n, _, _ in fields], "formats": [_NUMPY_OF_DATATYPE[d] for _, _, d in fields],
+                     "offsets": [o for _, o, _ in fields], "itemsize": point_step})
+
+
+def _pointcloud2(ts: Typestore, t: float, frame_id: str, ros1: bool, seq: int, fields: Sequence[tuple[str, int, int]],
+                 rec: np.ndarray, height: int, width: int, is_dense: bool) -> RosMsg:
+    """A PointCloud2 of the records `rec` (height x width points of `fields`)."""
+    pf = ts.types["sensor_msgs/msg/PointField"]
+    step = rec.dtype.itemsize
+    return ts.types["sensor_msgs/msg/PointCloud2"](
+        header=header(ts, t, frame_id, ros1, seq), height=height, width=width,
+        fields=[pf(name=n, offset=o, datatype=d, count=1) for n, o, d in fields], is_bigendian=False,
+        point_step=step, row_step=step * width, data=rec.view(np.uint8), is_dense=is_dense,
+    )
+
+
+OUSTER_DTYPE = _point_dtype(OUSTER_FIELDS, OUSTER_POINT_STEP)
 
 
 RETURNS_FIELDS = (  # the returns only, with the fields a deskewing SLAM reads (LIO-SAM's point type minus
@@ -89,12 +104,7 @@ RETURNS_FIELDS = (  # the returns only, with the fields a deskewing SLAM reads (
     ("x", 0, 7), ("y", 4, 7), ("z", 8, 7), ("intensity", 12, 7), ("t", 16, 6), ("ring", 20, 4),
 )
 RETURNS_POINT_STEP = 24
-RETURNS_DTYPE = np.dtype({
-    "names": [n for n, _, _ in RETURNS_FIELDS],
-    "formats": [_NUMPY_OF_DATATYPE[d] for _, _, d in RETURNS_FIELDS],
-    "offsets": [o for _, o, _ in RETURNS_FIELDS],
-    "itemsize": RETURNS_POINT_STEP,
-})
+RETURNS_DTYPE = _point_dtype(RETURNS_FIELDS, RETURNS_POINT_STEP)
 
 
 def returns_cloud(ts: Typestore, t: float, frame_id: str, xyz: ArrayLike, t_ns: ArrayLike, intensity: ArrayLike,
@@ -107,12 +117,7 @@ def returns_cloud(ts: Typestore, t: float, frame_id: str, xyz: ArrayLike, t_ns: 
     rec["intensity"] = np.asarray(intensity).reshape(-1)
     rec["t"] = np.asarray(t_ns).reshape(-1)
     rec["ring"] = np.asarray(ring).reshape(-1)
-    pf = ts.types["sensor_msgs/msg/PointField"]
-    fields = [pf(name=n, offset=o, datatype=d, count=1) for n, o, d in RETURNS_FIELDS]
-    return ts.types["sensor_msgs/msg/PointCloud2"](
-        header=header(ts, t, frame_id, ros1, seq), height=1, width=n, fields=fields, is_bigendian=False,
-        point_step=RETURNS_POINT_STEP, row_step=RETURNS_POINT_STEP * n, data=rec.view(np.uint8), is_dense=True,
-    )
+    return _pointcloud2(ts, t, frame_id, ros1, seq, RETURNS_FIELDS, rec, height=1, width=n, is_dense=True)
 
 
 def ouster_cloud(ts: Typestore, t: float, frame_id: str, xyz: ArrayLike, t_ns: ArrayLike, range_mm: ArrayLike,
@@ -127,12 +132,7 @@ def ouster_cloud(ts: Typestore, t: float, frame_id: str, xyz: ArrayLike, t_ns: A
     rec["ring"] = np.repeat(np.arange(h, dtype=np.uint16), w)
     rec["ambient"] = np.asarray(ambient).reshape(-1)
     rec["range"] = np.asarray(range_mm).reshape(-1)
-    pf = ts.types["sensor_msgs/msg/PointField"]
-    fields = [pf(name=n, offset=o, datatype=d, count=1) for n, o, d in OUSTER_FIELDS]
-    return ts.types["sensor_msgs/msg/PointCloud2"](
-        header=header(ts, t, frame_id, ros1, seq), height=h, width=w, fields=fields, is_bigendian=False,
-        point_step=OUSTER_POINT_STEP, row_step=OUSTER_POINT_STEP * w, data=rec.view(np.uint8), is_dense=False,
-    )
+    return _pointcloud2(ts, t, frame_id, ros1, seq, OUSTER_FIELDS, rec, height=h, width=w, is_dense=False)
 
 
 def navsatfix(ts: Typestore, t: float, frame_id: str, lla: ArrayLike, cov: ArrayLike, status: int, ros1: bool,
