@@ -435,18 +435,15 @@ def _keyframe_cloud(graph: KeyframeGraph, feats: list[Features], i: int) -> np.n
     return se3.apply(graph.poses[i], np.r_[feats[i].edges, feats[i].surfs])
 
 
-def _degenerate_loop(aligned_src: np.ndarray, tgt: np.ndarray, origin: np.ndarray, cfg: SlamConfig,
-                     stamp: float) -> SlamEvent | None:
-    """A "loop_rejected" event when the ICP-aligned clouds leave a direction free (bare ground:
-    ICP slides in x, y and yaw with a low fitness); None when the loop may be closed."""
-    threshold = cfg.loop.min_eigenvalue
-    if threshold <= 0:
+def _leaves_a_direction_free(aligned_src: np.ndarray, tgt: np.ndarray, origin: np.ndarray,
+                             cfg: SlamConfig) -> float | None:
+    """The smallest eigenvalue of the ICP-aligned clouds' point-to-plane information when it is below
+    slam.loop.min_eigenvalue (bare ground: ICP slides in x, y and yaw with a low fitness); None when
+    the loop may be closed (or the gate is off)."""
+    if cfg.loop.min_eigenvalue <= 0:
         return None
     eig = icp_min_eigenvalue(aligned_src, tgt, origin, cfg.matching.ground_normal_min_z)
-    if eig >= threshold:
-        return None
-    return SlamEvent(stamp, "loop_rejected", f"rejected: degenerate (smallest eigenvalue {eig:.1f} < {threshold:g})",
-                     {"min_eigenvalue": eig})
+    return eig if eig < cfg.loop.min_eigenvalue else None
 
 
 def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, events: list[SlamEvent],
@@ -467,11 +464,11 @@ def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, even
     T, fitness, ok = register_loop(src, tgt, np.eye(4), lc)
     if not ok or fitness > lc.fitness_threshold_m2:
         return None
-    rejected = _degenerate_loop(se3.apply(T, src), tgt, (T @ graph.poses[cur])[:3, 3], cfg, stamp)
-    if rejected is not None:
-        events.append(replace(rejected, message=f"loop closure {cur} -> {prev} {rejected.message}, fitness "
-                              f"{fitness:.3f} m^2", data={"current": cur, "previous": prev, "fitness": fitness,
-                                                          **rejected.data}))
+    eig = _leaves_a_direction_free(se3.apply(T, src), tgt, (T @ graph.poses[cur])[:3, 3], cfg)
+    if eig is not None:
+        events.append(SlamEvent(stamp, "loop_rejected", f"loop closure {cur} -> {prev} rejected: degenerate (smallest "
+                                f"eigenvalue {eig:.1f} < {cfg.loop.min_eigenvalue:g}), fitness {fitness:.3f} m^2",
+                                {"current": cur, "previous": prev, "fitness": fitness, "min_eigenvalue": eig}))
         return None
     relative = se3.inv(graph.poses[prev]) @ (T @ graph.poses[cur])  # corrected current pose, seen from prev
     before = graph.poses[cur][:3, 3].copy()
