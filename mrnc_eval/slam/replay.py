@@ -73,6 +73,7 @@ class _State:
     last_mapped: float = -np.inf
     last_loop_t: float = -np.inf
     loose: np.ndarray | None = None  # directions the latest match left to the IMU ([rot, trans], map axes)
+    guess_by_wheels: bool = False  # the current sweep's guess took x, y and yaw from the wheels
     warned: set[str] = field(default_factory=set)
 
 
@@ -163,7 +164,7 @@ class _Replay:
         pose = self.guess(stamp)
         res: MatchResult | None = None
         if self.local_map is not None:
-            res = match(feats.edges, feats.surfs, self.local_map, pose, self.cfg.matching)
+            res = match(feats.edges, feats.surfs, self.local_map, pose, self.cfg.matching, self.guess_prior())
             self.events += _match_events(res, stamp, self.cfg)
             if self.track is not None:
                 res = self.gate_rotation(res, pose, stamp)
@@ -178,6 +179,15 @@ class _Replay:
             if why:
                 self.events.append(SlamEvent(stamp, "warning", why))
         return pose, degenerate
+
+    def guess_prior(self) -> np.ndarray | None:
+        """Information (J^T J's units) holding the matched yaw towards a wheel guess: over one sweep the
+        wheels' yaw increment is good to a few hundredths of a degree on a straight drive, while the
+        yaw a few far poles give jumps by a degree from sweep to sweep; None without a wheel guess."""
+        info = self.cfg.wheel_odom.yaw_information
+        if not self.st.guess_by_wheels or info <= 0:
+            return None
+        return np.array([0.0, 0.0, info, 0.0, 0.0, 0.0])
 
     def gate_rotation(self, res: MatchResult, guess: np.ndarray, stamp: float) -> MatchResult:
         """A match that turns the gyro-predicted attitude by more than max_rotation_correction_deg
@@ -197,6 +207,7 @@ class _Replay:
         """Initial pose: IMU attitude for the first sweep; then graph #2's prediction, else the IMU
         rotation increment with constant velocity, else constant velocity."""
         st, track, odom = self.st, self.track, self.odom
+        st.guess_by_wheels = False
         if st.pose is None:
             att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t) if self.imu is not None \
                 else Rotation.identity()
@@ -218,6 +229,7 @@ class _Replay:
                 or self.st.pose is None:
             return predicted
         by_wheels = self.st.pose @ relative_motion(self.wheel, self.st.t, t, self.base_to_sensor)
+        self.st.guess_by_wheels = True
         return blend_planar(predicted, by_wheels)
 
     def add_keyframe(self, pose: np.ndarray, stamp: float, feats: Features) -> tuple[np.ndarray, float]:

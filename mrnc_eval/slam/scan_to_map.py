@@ -7,6 +7,7 @@ from dataclasses import dataclass
 
 import numpy as np
 from numba import njit
+from scipy.spatial.transform import Rotation
 
 from mrnc_eval.slam import se3
 from mrnc_eval.slam.config import MatchingConfig
@@ -283,6 +284,12 @@ def _motion(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.linalg.norm(d[:3, 3]) + 10.0 * se3.delta_angle(d))
 
 
+def _tangent_from(guess: np.ndarray, T: np.ndarray) -> np.ndarray:
+    """T - guess as [rotation vector of R_T R_guess^T, t_T - t_guess] (map axes, the update's tangent)."""
+    rot = Rotation.from_matrix(T[:3, :3] @ guess[:3, :3].T).as_rotvec()
+    return np.asarray(np.r_[rot, T[:3, 3] - guess[:3, 3]], np.float64)
+
+
 def _ground_rows_vertical_only(J: np.ndarray, min_normal_z: float) -> None:
     """Plane rows whose normal is within acos(min_normal_z) of the map's z axis (ground) keep only
     their z, roll and pitch columns, in place (LeGO-LOAM's split: the ground fixes z, roll and
@@ -295,14 +302,18 @@ def _ground_rows_vertical_only(J: np.ndarray, min_normal_z: float) -> None:
 
 
 def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray,
-          cfg: MatchingConfig) -> MatchResult:
-    """Refine `guess` (4x4) so the sweep's features lie on the map's lines and planes."""
+          cfg: MatchingConfig, prior: np.ndarray | None = None) -> MatchResult:
+    """Refine `guess` (4x4) so the sweep's features lie on the map's lines and planes. `prior` (6,),
+    [rot, trans] in map axes, in J^T J's units (m^2 per rad^2 for rotations: a residual row of 1 m per
+    unit of the direction): information holding the pose towards the guess, added to J^T J, so a
+    direction the sweep measures weakly (a few far poles' yaw) moves only part of the way; the
+    degeneracy test still looks at the sweep's own J^T J."""
     use_edges = len(edges) >= cfg.min_edges and local_map.edge_tree is not None
     if (len(surfs) < cfg.min_surfs or local_map.surf_tree is None
             or (not use_edges and not cfg.match_without_edges)):
         return MatchResult(guess, 0, False, False, float("nan"), len(edges), len(surfs), False)
     T = guess.copy()
-    P = np.eye(6)
+    P = good = np.eye(6)
     degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
     weakest: tuple[float, ...] = ()
     eigenvalues: tuple[float, ...] = ()
@@ -321,18 +332,24 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
             break
         H = J.T @ J
         g = -J.T @ r
-        dx = np.linalg.lstsq(H, g, rcond=None)[0]
         if it == 1:  # degeneracy: project out directions with tiny curvature (LIO-SAM remapping)
             w, V = np.linalg.eigh(H)
             min_eig, weakest, eigenvalues = float(w[0]), tuple(float(v) for v in V[:, 0]), tuple(float(v) for v in w)
             V2 = V.copy()
             bad = w < cfg.degeneracy_eigen_threshold
+            good = V[:, ~bad]
             if bad.any():
                 degenerate, n_bad, directions = True, int(bad.sum()), V[:, bad].T.copy()
                 V2[:, bad] = 0.0
                 P = V2 @ V.T
-        if degenerate:
-            dx = P @ dx
+        if prior is None:
+            dx = np.linalg.lstsq(H, g, rcond=None)[0]
+            if degenerate:
+                dx = P @ dx
+        else:  # solved within the measured directions: projecting the prior-held solution afterwards
+            # would turn its translation into yaw (H's eigenvectors mix the two)
+            g_held = g - prior * _tangent_from(guess, T)
+            dx = good @ np.linalg.lstsq(good.T @ (H + np.diag(prior)) @ good, good.T @ g_held, rcond=None)[0]
         T = se3.make(se3.exp_so3(dx[:3]) @ T[:3, :3], T[:3, 3] + dx[3:])
         rot_deg, trans_cm = np.degrees(np.linalg.norm(dx[:3])), np.linalg.norm(dx[3:]) * 100
         if rot_deg < cfg.converge_rot_deg and trans_cm < cfg.converge_trans_cm:
