@@ -135,11 +135,14 @@ class GraphConfig:
                                    "(surroundingkeyframeAddingDistThreshold)", "m")
     keyframe_angle_rad: float = param(0.2, "... or this rotation", "rad")
     prior_variances: tuple[float, float, float, float, float, float] = param(
-        (1e-2, 1e-2, 1e-6, 1e-6, 1e-6, 1e-6), "first-pose prior variances [rot, trans]: the first keyframe "
-        "is the map's origin and heading (LIO-SAM: [1e-2, 1e-2, pi^2, 1e8, 1e8, 1e8], since its GNSS arrives in a "
-        "frame anchored by navsat_transform; here the ENU -> map alignment is fitted on the map itself, and a free "
-        "start let every fix slide and turn the whole chain: the online pose jumped 1.9 m at the first float fix on "
-        "an open field. GNSS factors now enter when the drift since the start exceeds gps.pose_cov_threshold_m2)")
+        (1e-2, 1e-2, 3.141592653589793 ** 2, 1e8, 1e8, 1e8), "first-pose prior variances [rot, trans] (LIO-SAM: "
+        "x, y and yaw free, so GNSS fixes place the whole chain)")
+    anchored_prior_variances: tuple[float, float, float, float, float, float] = param(
+        (1e-2, 1e-2, 1e-6, 1e-6, 1e-6, 1e-6), "... when anchor_start applies: the first keyframe is the map's origin "
+        "and heading, and GNSS factors enter only once the drift since the start exceeds gps.pose_cov_threshold_m2")
+    anchor_start: Literal["with_wheels", "always", "never"] = param(
+        "with_wheels", "anchor the first keyframe (anchored_prior_variances) instead of LIO-SAM's free start; "
+        "with_wheels: when wheel factors say how far the chain can have drifted (docs/simulation.md, \"Open field\")")
     odometry_variances: tuple[float, float, float, float, float, float] = param(
         (1e-6, 1e-6, 1e-6, 1e-4, 1e-4, 1e-4), "odometry between-factor variances [rot, trans]")
     factorization: Literal["QR", "CHOLESKY"] = param("QR", "iSAM2 factorisation; gtsam 4.3's CHOLESKY rejects "
@@ -228,11 +231,9 @@ class WheelOdomConfig:
                                           "1.0 gave 3.1 m APE online against 0.25 m)")
     guess: bool = param(True, "x, y and yaw of each sweep's initial guess from the wheels (z, roll, pitch from the "
                         "IMU): where bare ground leaves them free, the online pose follows the wheels")
-    yaw_information: float = param(1e4, "with the wheel guess, information holding the matched yaw towards the "
-                                   "guess, in J^T J's units (sum over residual rows of lever arm^2, m^2): a sweep "
-                                   "whose own yaw information is far below it moves the yaw only part of the way "
-                                   "(a few far poles on open ground), one that is far above it is not held "
-                                   "(walls, trees); 0 = off", "m^2")
+    yaw_information: float = param(1e4, "with the wheel guess, information holding the matched yaw towards it, "
+                                   "in J^T J's units (m^2): a few far poles move the yaw part of the way, walls "
+                                   "and trees (far more) are not held; 0 = off", "m^2")
     max_rotation_correction_deg: float = param(0.0, "with the wheel guess, the scan-to-map rotation gate instead "
                                                "of matching.max_rotation_correction_deg (0 = that one); 1 halves the "
                                                "open-field APE but wrecks the sample logs (slip: the wheels turn "

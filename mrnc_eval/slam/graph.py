@@ -25,6 +25,7 @@ class KeyframeGraph:
     gps_factors: int = 0
     wheel_factors: int = 0
     last_gps_xy: np.ndarray | None = None
+    anchored: bool = False  # the first keyframe's prior: cfg.anchored_prior_variances, else cfg.prior_variances
 
     def __post_init__(self) -> None:
         import gtsam
@@ -49,7 +50,8 @@ class KeyframeGraph:
         graph, values = g.NonlinearFactorGraph(), g.Values()
         k = len(self.poses)
         if k == 0:
-            graph.add(g.PriorFactorPose3(k, g.Pose3(pose), self._noise(self.cfg.prior_variances)))
+            prior = self.cfg.anchored_prior_variances if self.anchored else self.cfg.prior_variances
+            graph.add(g.PriorFactorPose3(k, g.Pose3(pose), self._noise(prior)))
         else:
             rel = se3.inv(self.poses[-1]) @ pose
             sigma = self.cfg.degenerate_odometry_sigma or (wheel_loose_sigma if wheel is not None else 0.0)

@@ -44,8 +44,10 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     one-off cost is reported as `warmup_ms`, outside the per-sweep timing and `wall_s`."""
     warmup_ms = warm_up(cfg)
     wall0 = time.perf_counter()
-    replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor)
-    if wheel is not None and cfg.wheel_odom.enabled:
+    with_wheels = wheel is not None and cfg.wheel_odom.enabled
+    anchored = cfg.graph.anchor_start == "always" or (cfg.graph.anchor_start == "with_wheels" and with_wheels)
+    replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor, anchored)
+    if wheel is not None and with_wheels:
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
     n_sweeps = 0
@@ -114,7 +116,7 @@ class _Replay:
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
-              gnss: GnssSeries | None, antenna_in_sensor: np.ndarray | None) -> _Replay:
+              gnss: GnssSeries | None, antenna_in_sensor: np.ndarray | None, anchored: bool) -> _Replay:
         warnings: list[str] = []
         extr = lidar_to_imu(cfg.imu, sensor_to_imu)
         if imu is not None and cfg.imu.time_offset_s != 0.0:  # a known IMU clock lag, before anything else
@@ -122,7 +124,8 @@ class _Replay:
         track, odom, imu = _imu_setup(imu, extr, cfg, warnings)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
-        return cls(cfg, extr, imu, track, odom, KeyframeGraph(cfg.graph), aligner, {s: [] for s in STAGES}, warnings)
+        graph = KeyframeGraph(cfg.graph, anchored=anchored)
+        return cls(cfg, extr, imu, track, odom, graph, aligner, {s: [] for s in STAGES}, warnings)
 
     # ---- one mapped sweep
     def map_sweep(self, sweep: Sweep) -> None:

@@ -202,11 +202,8 @@ def test_enu_alignment_recovers_yaw_and_offset() -> None:
     assert np.allclose(tt, t)
 
 
-LIO_SAM_PRIOR = (1e-2, 1e-2, np.pi ** 2, 1e8, 1e8, 1e8)  # first-pose prior variances, [rot, trans]
-
-
 def test_a_wrong_fix_moves_the_anchored_chain_little_and_lio_sams_free_start_a_lot() -> None:
-    """slam.graph.prior_variances: the first keyframe anchors the map (origin and heading), so a
+    """slam.graph.anchor_start: the first keyframe anchors the map (origin and heading), so a
     float fix 2 m off along the track (a multipath jump; variance floored at 1 m^2) meets 20
     metres of stiff odometry and moves the latest keyframe by centimetres. With LIO-SAM's free
     start (negative control) the one fix slides the whole chain by over a metre."""
@@ -214,8 +211,8 @@ def test_a_wrong_fix_moves_the_anchored_chain_little_and_lio_sams_free_start_a_l
     from mrnc_eval.slam.graph import KeyframeGraph
 
     moved = {}
-    for name, prior in (("anchored", GraphConfig().prior_variances), ("lio-sam", LIO_SAM_PRIOR)):
-        graph = KeyframeGraph(GraphConfig(prior_variances=prior))
+    for name, anchored in (("anchored", True), ("lio-sam", False)):
+        graph = KeyframeGraph(GraphConfig(), anchored=anchored)
         for k in range(21):
             graph.add_keyframe(se3.make(np.eye(3), np.array([float(k), 0.0, 0.0])), float(k))
         before = graph.poses[-1][:3, 3].copy()
@@ -237,7 +234,7 @@ def test_gnss_factors_pull_a_drifting_keyframe_chain_onto_the_fixes() -> None:
     step_drift = se3.make(Rotation.from_euler("z", 0.01).as_matrix(), np.array([1.0, 0.0, 0.0]))
     errors = {}
     for with_gnss in (False, True):
-        graph = KeyframeGraph(GraphConfig(prior_variances=LIO_SAM_PRIOR))
+        graph = KeyframeGraph(GraphConfig())
         for k in range(n):  # each new pose continues from the optimised last one, as scan-to-map does
             graph.add_keyframe(truth[0] if k == 0 else graph.poses[-1] @ step_drift, float(k))
             if with_gnss and k % 5 == 0 and k > 0:
