@@ -30,12 +30,15 @@ if TYPE_CHECKING:
     from mrnc_eval.commands.executors import Executor
 
 log = logging.getLogger(__name__)
-TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/ape/end_drift_m", "slam/rtf", "control/recorded/left/rms_error_mps",
+MAPPING_RATE_METRIC = "slam/mapping_rate_hz"  # the work an RTF was measured at, charted beside it
+TREND_METRICS = ("slam/ape/ape_rmse_m", "slam/ape/end_drift_m", "slam/rtf", MAPPING_RATE_METRIC,
+                 "control/recorded/left/rms_error_mps",
                  "control/recorded/right/rms_error_mps", "control/recorded/left/funnel_violations",
                  "control/recorded/right/funnel_violations", "control/recorded/path/cross_track_rms_m")
 HIGHER_IS_BETTER = ("slam/rtf",)
-# Wall-clock metrics depend on how many logs shared the cores: they are compared only with nights
-# that ran as many logs at once (CONCURRENCY_METRIC: 1 in-process, N for --jobs N, 0 on a Dask cluster).
+# Wall-clock metrics depend on how many logs shared the cores and on the work done: they are compared
+# only with nights that ran as many logs at once (CONCURRENCY_METRIC: 1 in-process, N for --jobs N, 0 on
+# a Dask cluster) and mapped at the same rate (MAPPING_RATE_METRIC, 0.1 Hz).
 WALL_CLOCK_METRICS = ("slam/rtf",)
 CONCURRENCY_METRIC = "nightly/concurrent_logs"
 REGRESSION_WINDOW = 5  # previous nights compared against
@@ -270,13 +273,14 @@ def _write_index(history: History, night: str, night_dir: Path) -> list[IndexRow
 
 
 def _comparable(per_log: dict[str, dict[str, float]],
-                concurrency: dict[tuple[str, str], float]) -> dict[str, dict[str, float]]:
-    """Per log, only the nights that ran as many logs at once as its latest night (a wall-clock
-    metric of a --jobs 2 night is not a regression against a --jobs 1 night)."""
+                work: dict[tuple[str, str], tuple[float, float]]) -> dict[str, dict[str, float]]:
+    """Per log, only the nights that ran under the same work as its latest night: as many logs at
+    once and the same mapping rate (a wall-clock metric of a --jobs 2 night, or of a night that mapped
+    every sweep, is not a regression against a --jobs 1 night at LIO-SAM's rate)."""
     out = {}
     for log_id, by_night in per_log.items():
-        latest = concurrency.get((max(by_night), log_id))
-        out[log_id] = {n: v for n, v in by_night.items() if concurrency.get((n, log_id)) == latest}
+        latest = work.get((max(by_night), log_id))
+        out[log_id] = {n: v for n, v in by_night.items() if work.get((n, log_id)) == latest}
     return out
 
 
@@ -290,8 +294,10 @@ def _write_trends(history: History, out: Path) -> list[Regression]:
             data.setdefault(metric, {}).setdefault(log_id, {})[night] = value
         elif metric == CONCURRENCY_METRIC:
             concurrency[(night, log_id)] = value
+    rate = data.get(MAPPING_RATE_METRIC, {})
+    work = {key: (logs, round(rate.get(key[1], {}).get(key[0], 0.0), 1)) for key, logs in concurrency.items()}
     data = {m: data[m] for m in TREND_METRICS if m in data}  # SLAM first, then control
-    flagged = {metric: find_regressions(metric, _comparable(per_log, concurrency) if metric in WALL_CLOCK_METRICS
+    flagged = {metric: find_regressions(metric, _comparable(per_log, work) if metric in WALL_CLOCK_METRICS
                                         else per_log, REGRESSION_WINDOW, REGRESSION_TOLERANCE,
                                         higher_is_better=metric in HIGHER_IS_BETTER)
                for metric, per_log in data.items()}

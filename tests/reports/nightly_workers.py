@@ -51,10 +51,13 @@ def gated_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf
 
 
 RTF_ENV = "MRNC_TEST_RTF"
+RATE_ENV = "MRNC_TEST_MAPPING_RATE_HZ"
 
 
 def rtf_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:
-    """The info analysis plus a SLAM real-time factor taken from the environment (a wall-clock metric)."""
+    """The info analysis plus a SLAM real-time factor (a wall-clock metric) and the mapping rate it was
+    measured at, taken from the environment."""
     outcome = info_analysis(log_path, cfg, work_dir, log_id, pdf)
     outcome.metrics.append(("slam/rtf", float(os.environ[RTF_ENV]), ""))
+    outcome.metrics.append(("slam/mapping_rate_hz", float(os.environ.get(RATE_ENV, "5.0")), "Hz"))
     return outcome
