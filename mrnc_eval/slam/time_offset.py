@@ -57,7 +57,8 @@ def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: I
     compare the gyro with itself."""
     inside = (stamps - SEARCH_S >= track.stamps[0]) & (stamps + SEARCH_S <= track.stamps[-1])
     ok = inside if measured is None else inside & np.asarray(measured, bool)
-    if stamps.size < 2 or float(np.median(np.diff(stamps[inside] if inside.any() else stamps))) > MAX_INTERVAL_S:
+    spaced = stamps[inside] if inside.sum() >= 2 else stamps  # the mapped sweeps' spacing, where the IMU is
+    if stamps.size < 2 or float(np.median(np.diff(spaced))) > MAX_INTERVAL_S:
         return None
     pair = ok[:-1] & ok[1:]
     if pair.sum() < 10:

@@ -100,6 +100,23 @@ def test_time_offset_needs_rotation() -> None:
     assert estimate_imu_time_offset(stamps, np.tile(np.eye(3), (stamps.size, 1, 1)), track) is None
 
 
+def test_time_offset_of_three_sweeps_with_one_inside_the_imu_span_is_none_without_warnings() -> None:
+    """The real recording's case: three sweeps, one more than the search window inside the IMU span
+    (numpy warned "Mean of empty slice" on the median of no interval)."""
+    import warnings
+
+    from mrnc_eval.data import ImuSeries
+    from mrnc_eval.slam.imu import imu_track
+    from mrnc_eval.slam.time_offset import estimate_imu_time_offset
+
+    t = np.arange(0.0, 0.5, 0.01)
+    track = imu_track(ImuSeries(t, np.tile([0.0, 0.0, 9.81], (t.size, 1)), np.zeros((t.size, 3))), np.eye(3))
+    stamps = np.array([0.05, 0.25, 0.45])  # only 0.25 is 0.1 s clear of both ends
+    with warnings.catch_warnings():
+        warnings.simplefilter("error")
+        assert estimate_imu_time_offset(stamps, np.tile(np.eye(3), (3, 1, 1)), track) is None
+
+
 def test_map_quality_rises_with_blur() -> None:
     """A plane sampled on a 5 cm grid: plane variance ~ 0 and entropy low; the same plane with
     2 cm of noise across it (a blurred map) has plane variance ~ (2 cm)^2 and higher entropy."""
