@@ -3,8 +3,9 @@ circle on rough ground: terrain 0.5 m, roughness 5 cm; ideal sensor profile). Ru
     .venv/bin/python -m pytest -m slow tests/slam/test_slam_time_offset_slow.py -s
 
 The IMU stamps are shifted in the test (the lag a late IMU clock would give). Measured: lag 0 ->
--1.4 ms (no health finding), lag 8 ms -> 6.0 ms (the odometry keeps part of the IMU-driven guess,
-so the estimate under-reads a lag by about 15 %), lag 8 ms with the known offset applied -> -1.4 ms.
+-1.7 ms (no health finding), lag 8 ms -> 5.5 ms (the odometry keeps part of the IMU-driven guess,
+and since 0d0758a the wheel guess holds part of the yaw, so the estimate under-reads a lag by about
+30 %; before, -1.4 and 6.0 ms), lag 8 ms with the known offset applied -> -1.7 ms.
 """
 
 from __future__ import annotations
