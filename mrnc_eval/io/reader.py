@@ -14,7 +14,7 @@ import glob
 import logging
 import struct
 from array import array
-from collections.abc import Iterator, Sequence
+from collections.abc import Iterable, Iterator, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any
@@ -27,6 +27,8 @@ from mrnc_eval.errors import InputError, NoGnssFix
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.containers import describe_error, detect_container, openable
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
+from mrnc_eval.io.mcap_index import WHOLE, IndexUnusable
+from mrnc_eval.io.mcap_index import overview as mcap_overview
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import Ambiguity, Candidate, candidates_by_role, choose_roles
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
@@ -47,6 +49,7 @@ _STAMPED_FIRST_FIELD = {  # message types whose first field is std_msgs/Header
 }
 
 
+_HEADER_BYTES = 12  # serialised bytes up to the end of a header stamp (ROS 1 and CDR)
 _IMU_BATCH = 65536  # messages decoded together (bounds the raw bytes held at once)
 
 
@@ -220,25 +223,15 @@ class LogReader:
     def _scan(self) -> None:
         """One pass over the whole log: header stamps (record times for unstamped types),
         counts and gaps per topic; the raw messages of small topics are kept (io.small_topic_cache_mb)."""
-        stamps = {t: array("d") for t in self._channels}  # 8 bytes a stamp (a list costs 32)
         header_topics = {t for t, ch in self._channels.items()
                          if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
         keep = {t for t, ch in self._channels.items() if ch.msgtype not in _BULK_TYPES and not ch.problem}
-        budget = int(self.cfg.small_topic_cache_mb * 1e6)
-        cache: dict[str, list[tuple[int, bytes]]] = {t: [] for t in keep}
-        for topic, t_rec, raw in self._iterate(list(self._channels)):
-            if topic in keep:
-                budget -= len(raw)
-                if budget >= 0:
-                    cache[topic].append((t_rec, bytes(raw)))
-            if topic in header_topics:
-                try:
-                    stamps[topic].append(self._raw_header_stamp(raw, topic))
-                except (struct.error, IndexError) as err:
-                    raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
-            else:
-                stamps[topic].append(t_rec * 1e-9)
-        self._cache = cache if budget >= 0 else {}  # over budget: each series reads the file again
+        wants = {t: WHOLE if t in keep else _HEADER_BYTES if t in header_topics else 0 for t in self._channels}
+        try:  # MCAP: from the indexes, the clouds left compressed (io/mcap_index.py)
+            stamps, cache = self._collect(self._indexed_overview(wants), header_topics, keep)
+        except (IndexUnusable, InputError):  # the full read, and its own error if the log is broken
+            stamps, cache = self._collect(self._iterate(list(self._channels)), header_topics, keep)
+        self._cache = cache
         stats: dict[str, TopicInfo] = {}
         self._stamps = {t: np.frombuffer(v, dtype=np.float64) if len(v) else np.zeros(0) for t, v in stamps.items()}
         for topic, ch in self._channels.items():
@@ -256,6 +249,36 @@ class LogReader:
         for role, topic in self.roles.items():
             by_topic.setdefault(topic, role)
         self._stats = {t: TopicInfo(**{**s.__dict__, "role": by_topic.get(t)}) for t, s in stats.items()}
+
+    def _indexed_overview(self, wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
+        """The overview's messages from MCAP indexes, file after file (a split log's order);
+        IndexUnusable when the log is no MCAP file or its indexes cannot be trusted."""
+        if self.container not in ("mcap", "ros2-mcap") or not all(p.is_file() for p in self.paths):
+            raise IndexUnusable(self.container)
+        for path in self.paths:
+            for topic, t_rec, data in mcap_overview(path, wants):
+                if topic in self._channels:
+                    yield topic, t_rec, data
+
+    def _collect(self, records: Iterable[tuple[str, int, bytes]], header_topics: set[str],
+                 keep: set[str]) -> tuple[dict[str, array[float]], dict[str, list[tuple[int, bytes]]]]:
+        """Stamps of every topic and the small topics' messages (none when over the cache budget)."""
+        stamps = {t: array("d") for t in self._channels}  # 8 bytes a stamp (a list costs 32)
+        budget = int(self.cfg.small_topic_cache_mb * 1e6)
+        cache: dict[str, list[tuple[int, bytes]]] = {t: [] for t in keep}
+        for topic, t_rec, raw in records:
+            if topic in keep:
+                budget -= len(raw)
+                if budget >= 0:
+                    cache[topic].append((t_rec, bytes(raw)))
+            if topic in header_topics:
+                try:
+                    stamps[topic].append(self._raw_header_stamp(raw, topic))
+                except (struct.error, IndexError) as err:
+                    raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
+            else:
+                stamps[topic].append(t_rec * 1e-9)
+        return stamps, cache if budget >= 0 else {}  # over budget: each series reads the file again
 
     def topic_types(self) -> dict[str, str]:
         """topic -> message type, from the container's index (no scan)."""

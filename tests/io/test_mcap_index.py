@@ -1,0 +1,141 @@
+"""The overview pass of an MCAP log reads its indexes and decompresses only the small topics'
+bytes: a SLAM-style read decompresses each cloud's chunk once (in the sweep stream), and the
+overview equals what reading the whole file gives (stamps, cached messages, counts, health)."""
+
+from __future__ import annotations
+
+from pathlib import Path
+from typing import Any
+
+import numpy as np
+import pytest
+
+from mrnc_eval.io import mcap_index, open_log
+from mrnc_eval.io import messages as M
+from mrnc_eval.io.writers import LogWriter
+from tests.io.test_io_roundtrip import write_sample
+
+CLOUD_STAMPS = [1.0, 1.1, 1.1, 1.05, 1.2, 1.3]  # header stamps in arrival order: a duplicate and a late cloud
+
+
+def _multi_chunk_log(path: Path) -> None:
+    """Clouds of 1.5 MB (each closes a 1 MiB chunk) between IMU messages, record times tied
+    across topics, a duplicate and an out-of-order header stamp in both streams."""
+    rng = np.random.default_rng(3)
+    h, w = 64, 512
+    w_ = LogWriter(path, "mcap")
+    clouds = w_._conn("/ouster/points", "sensor_msgs/msg/PointCloud2")
+    imu = w_._conn("/ouster/imu", "sensor_msgs/msg/Imu")
+    for k, stamp in enumerate(CLOUD_STAMPS):
+        t_rec = int((1.0 + 0.1 * k) * 1e9)
+        for j in range(10):
+            t_imu = 1.0 + 0.1 * k + 0.01 * j - (0.015 if j == 4 else 0.0) - (0.01 if j == 7 else 0.0)
+            msg = M.imu(w_.ts, t_imu, "os_imu", (0.0, 0.0, 9.81 + j), (0.0, 0.0, 0.1), None, False)
+            w_._writer.write(imu, t_rec + j * 10_000_000, w_._serialize(msg, "sensor_msgs/msg/Imu"))
+        xyz = rng.uniform(-20, 20, (h, w, 3)).astype(np.float32)
+        t_ns = np.repeat((np.arange(w, dtype=np.uint32) * 195_000)[None, :], h, axis=0)
+        fields = (np.ones((h, w), np.uint32), np.ones((h, w), np.uint16), np.ones((h, w), np.float32),
+                  np.ones((h, w), np.uint16))
+        cloud = M.ouster_cloud(w_.ts, stamp, "os_sensor", xyz, t_ns, *fields, ros1=False)
+        w_._writer.write(clouds, t_rec, w_._serialize(cloud, "sensor_msgs/msg/PointCloud2"))  # tied with an IMU
+    w_.close()
+
+
+def _overview(path: Path | str, monkeypatch: pytest.MonkeyPatch, *, indexed: bool) -> dict[str, Any]:
+    """What the overview pass leaves behind, read from the indexes or (indexed=False) from the whole file."""
+    used: list[int] = []
+
+    def counted(p: Path, wants: dict[str, int], real: Any = mcap_index.overview) -> Any:
+        if not indexed:
+            raise mcap_index.IndexUnusable("disabled by the test")
+        used.append(1)
+        return real(p, wants)
+
+    monkeypatch.setattr("mrnc_eval.io.reader.mcap_overview", counted)
+    with open_log(path) as lg:
+        out = {"topics": lg.topics, "stamps": {t: lg.stamps(t) for t in lg.topic_types()},
+               "cache": lg._cache, "health": lg.health_notes(), "imu": lg.imu().stamps}
+    assert bool(used) == indexed
+    return out
+
+
+def _same(a: dict[str, Any], b: dict[str, Any]) -> None:
+    assert a["topics"] == b["topics"]
+    assert a["cache"] == b["cache"]
+    assert a["health"] == b["health"]
+    np.testing.assert_array_equal(a["imu"], b["imu"])
+    assert a["stamps"].keys() == b["stamps"].keys()
+    for topic in a["stamps"]:
+        np.testing.assert_array_equal(a["stamps"][topic], b["stamps"][topic])
+
+
+@pytest.mark.parametrize("case", ["multi_chunk", "sample", "split"])
+def test_indexed_overview_equals_reading_the_whole_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                         case: str) -> None:
+    if case == "multi_chunk":
+        _multi_chunk_log(tmp_path / "a.mcap")
+        log: str | Path = tmp_path / "a.mcap"
+    elif case == "sample":
+        write_sample(tmp_path / "a.mcap", "mcap", duplicate_imu=True)
+        log = tmp_path / "a.mcap"
+    else:
+        _multi_chunk_log(tmp_path / "a.mcap")
+        write_sample(tmp_path / "b.mcap", "mcap")
+        log = f"{tmp_path / 'a.mcap'},{tmp_path / 'b.mcap'}"
+    fast = _overview(log, monkeypatch, indexed=True)
+    _same(fast, _overview(log, monkeypatch, indexed=False))
+    if case == "multi_chunk":  # the stream's defects are still seen
+        points = next(t for t in fast["topics"] if t.topic == "/ouster/points")
+        assert (points.count, points.duplicates, points.out_of_order) == (6, 1, 1)
+        imu = next(t for t in fast["topics"] if t.topic == "/ouster/imu")
+        assert imu.out_of_order > 0
+
+
+def test_slam_read_decompresses_each_chunk_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """topics, IMU, then the sweeps (what `slam` reads): every chunk holds a cloud, and each is
+    decompressed in full once, by the sweep stream (the overview used to decompress them all too)."""
+    from mcap.reader import make_reader
+    from rosbags.rosbag2 import storage_mcap
+
+    _multi_chunk_log(tmp_path / "a.mcap")
+    with (tmp_path / "a.mcap").open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    n_chunks = len(summary.chunk_indexes)
+    assert n_chunks == len(CLOUD_STAMPS)  # the log is what the test means: one cloud a chunk
+    decompressed: list[int] = []
+    real = storage_mcap.DECOMPRESSORS["zstd"]
+
+    def counting(data: bytes, size: int) -> bytes:
+        decompressed.append(size)
+        return real(data, size)
+
+    monkeypatch.setitem(storage_mcap.DECOMPRESSORS, "zstd", counting)
+    with open_log(tmp_path / "a.mcap") as lg:
+        assert lg.topics
+        assert lg.imu().stamps.size == 9 * len(CLOUD_STAMPS)  # one duplicate a cloud dropped
+        swept = [s.stamp for s in lg.sweeps()]
+    assert swept == pytest.approx([1.0, 1.1, 1.2, 1.3])
+    assert len(decompressed) == n_chunks
+
+
+def test_unchunked_mcap_is_read_in_full(tmp_path: Path) -> None:
+    """No chunk index: the overview reads the file itself and gives what a chunked copy gives."""
+    from mcap.writer import Writer
+
+    infos = {}
+    for chunked in (True, False):
+        p = tmp_path / f"c{chunked}.mcap"
+        with p.open("wb") as fh:
+            w = Writer(fh, use_chunking=chunked)
+            w.start(profile="", library="test")
+            sid = w.register_schema(name="Note", encoding="jsonschema", data=b"{}")
+            cid = w.register_channel(topic="/notes", message_encoding="json", schema_id=sid)
+            for k in (3, 1, 2, 2):
+                w.add_message(channel_id=cid, log_time=k, publish_time=k, data=b"{}")
+            w.finish()
+        with open_log(p) as lg:
+            infos[chunked] = (lg.topics, lg.stamps("/notes"))
+    assert infos[True][0] == infos[False][0]
+    np.testing.assert_array_equal(infos[True][1], infos[False][1])
+    np.testing.assert_array_equal(infos[True][1], np.array([1, 2, 2, 3]) * 1e-9)
