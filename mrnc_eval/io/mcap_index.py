@@ -27,17 +27,12 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
+from mrnc_eval.io.chunk_prefix import WHOLE, ChunkPrefix, IndexUnusable
+
 _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
-_PIECE = 16384  # compressed bytes fed to the decompressor at a time
 _INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
-
-WHOLE = -1  # `wants` value: the whole message
-
-
-class IndexUnusable(Exception):
-    """The file's indexes cannot give the overview; read the file in full instead."""
 
 
 def overview(path: Path, wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
@@ -114,60 +109,29 @@ def _read_message_index(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[t
 
 
 class _Prefix:
-    """A chunk's uncompressed records, decompressed only as far as they are read."""
+    """A chunk's records, decompressed only as far as they are read."""
 
     def __init__(self, fh: BinaryIO, ci: Any) -> None:
         fh.seek(ci.chunk_start_offset)
         head = fh.read(9 + 28 + 4)
         if len(head) != 41:
             raise IndexUnusable("truncated chunk")
-        size, (name_len,) = struct.unpack_from("<Q", head, 9 + 16)[0], struct.unpack_from("<I", head, 37)
+        (size,), (name_len,) = struct.unpack_from("<Q", head, 9 + 16), struct.unpack_from("<I", head, 37)
         compression = fh.read(name_len).decode("utf-8", "replace")
-        (compressed_size,) = struct.unpack("<Q", fh.read(8) or b"\0" * 8)
+        size_field = fh.read(8)
+        if len(size_field) != 8:
+            raise IndexUnusable("truncated chunk")
+        (compressed_size,) = struct.unpack("<Q", size_field)
         if compression != ci.compression or size != ci.uncompressed_size or compressed_size != ci.compressed_size:
             raise IndexUnusable("chunk record disagrees with its index")
-        self._fh, self._start, self._left, self._size = fh, fh.tell(), compressed_size, size
-        self._buf = bytearray()
-        self._decompress = _decompressor(compression)
+        self._chunk = ChunkPrefix(fh, fh.tell(), compressed_size, size, compression)
 
     def message(self, offset: int, channel: int, log_time: int, want: int) -> bytes:
         """The message data at `offset` (all of it, or its first `want` bytes)."""
-        self._ensure(offset + _RECORD_HEAD)
-        opcode, length, rec_channel, _seq, rec_time = struct.unpack_from("<BQHIQ", self._buf, offset)
+        buf = self._chunk.ensure(offset + _RECORD_HEAD)
+        opcode, length, rec_channel, _seq, rec_time = struct.unpack_from("<BQHIQ", buf, offset)
         if opcode != _MESSAGE or rec_channel != channel or rec_time != log_time or length < 22:
             raise IndexUnusable("message index points at another record")
         n = length - 22 if want == WHOLE else min(want, length - 22)
-        self._ensure(offset + _RECORD_HEAD + n)
-        return bytes(self._buf[offset + _RECORD_HEAD:offset + _RECORD_HEAD + n])
-
-    def _ensure(self, n: int) -> None:
-        if n > self._size:
-            raise IndexUnusable("record beyond the chunk's end")
-        while len(self._buf) < n:
-            if self._left <= 0:
-                raise IndexUnusable("chunk data ends early")
-            self._fh.seek(self._start)
-            piece = self._fh.read(min(_PIECE, self._left))
-            if not piece:
-                raise IndexUnusable("truncated chunk data")
-            self._start += len(piece)
-            self._left -= len(piece)
-            try:
-                self._buf += self._decompress(piece)
-            except Exception as err:  # corrupt data: the full read names it
-                raise IndexUnusable(str(err)) from err
-
-
-def _decompressor(compression: str) -> Any:
-    """A function feeding one piece of compressed data and returning what it decompressed."""
-    if compression == "":
-        return bytes
-    if compression == "zstd":
-        import zstandard
-
-        return zstandard.ZstdDecompressor().decompressobj().decompress
-    if compression == "lz4":
-        import lz4.frame
-
-        return lz4.frame.LZ4FrameDecompressor().decompress
-    raise IndexUnusable(f"compression {compression!r}")
+        buf = self._chunk.ensure(offset + _RECORD_HEAD + n)
+        return bytes(buf[offset + _RECORD_HEAD:offset + _RECORD_HEAD + n])

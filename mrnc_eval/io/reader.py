@@ -24,10 +24,10 @@ import numpy as np
 from mrnc_eval import geodesy
 from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, StreamHealth, Sweep, Trajectory, Twists, Waypoints
 from mrnc_eval.errors import InputError, NoGnssFix
+from mrnc_eval.io.chunk_prefix import WHOLE, IndexUnusable
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.containers import describe_error, detect_container, openable
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
-from mrnc_eval.io.mcap_index import WHOLE, IndexUnusable
 from mrnc_eval.io.mcap_index import overview as mcap_overview
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 from mrnc_eval.io.roles import Ambiguity, Candidate, candidates_by_role, choose_roles
@@ -227,9 +227,9 @@ class LogReader:
                          if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
         keep = {t for t, ch in self._channels.items() if ch.msgtype not in _BULK_TYPES and not ch.problem}
         wants = {t: WHOLE if t in keep else _HEADER_BYTES if t in header_topics else 0 for t in self._channels}
-        try:  # MCAP: from the indexes, the clouds left compressed (io/mcap_index.py)
+        try:  # MCAP, ROS 1: from the indexes, the clouds left compressed (io/chunk_prefix.py)
             stamps, cache = self._collect(self._indexed_overview(wants), header_topics, keep)
-        except (IndexUnusable, InputError):  # the full read, and its own error if the log is broken
+        except Exception:  # no usable index, or a broken log: the full read, and its own error
             stamps, cache = self._collect(self._iterate(list(self._channels)), header_topics, keep)
         self._cache = cache
         stats: dict[str, TopicInfo] = {}
@@ -251,8 +251,11 @@ class LogReader:
         self._stats = {t: TopicInfo(**{**s.__dict__, "role": by_topic.get(t)}) for t, s in stats.items()}
 
     def _indexed_overview(self, wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
-        """The overview's messages from MCAP indexes, file after file (a split log's order);
-        IndexUnusable when the log is no MCAP file or its indexes cannot be trusted."""
+        """The overview's messages from the container's indexes (MCAP files, file after file as a
+        split log is read; ROS 1 bags); IndexUnusable when the log has none that can be trusted."""
+        if self.container == "ros1" and isinstance(self._src, RosbagsSource):
+            yield from self._src.indexed_overview(list(self._channels), wants)
+            return
         if self.container not in ("mcap", "ros2-mcap") or not all(p.is_file() for p in self.paths):
             raise IndexUnusable(self.container)
         for path in self.paths:

@@ -23,6 +23,7 @@ from pathlib import Path
 from typing import Any
 
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.chunk_prefix import IndexUnusable
 
 
 @dataclass(frozen=True)
@@ -87,6 +88,15 @@ class RosbagsSource:
         conns = [c for t in topics for c in self._conns[t]]
         for conn, t_rec, raw in self._reader.messages(connections=conns):
             yield conn.topic, t_rec, raw
+
+    def indexed_overview(self, topics: list[str], wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
+        """`messages(topics)` with each message cut to wants[topic] bytes (io/bag_index.py), for
+        ROS 1 bags; IndexUnusable otherwise."""
+        from mrnc_eval.io.bag_index import overview
+
+        if not self.ros1:
+            raise IndexUnusable("not a ROS 1 bag")
+        return overview([(t, c) for t in topics for c in self._conns[t]], wants)
 
     def deserialize(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         return self._reader.deserialize(raw, self.channels[topic].msgtype)

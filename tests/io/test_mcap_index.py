@@ -1,6 +1,7 @@
-"""The overview pass of an MCAP log reads its indexes and decompresses only the small topics'
-bytes: a SLAM-style read decompresses each cloud's chunk once (in the sweep stream), and the
-overview equals what reading the whole file gives (stamps, cached messages, counts, health)."""
+"""The overview pass of an MCAP log or a ROS 1 bag reads its indexes and decompresses only the
+small topics' bytes: a SLAM-style read decompresses each cloud's chunk once (in the sweep
+stream), and the overview equals what reading the whole file gives (stamps, cached messages,
+counts, health)."""
 
 from __future__ import annotations
 
@@ -10,33 +11,36 @@ from typing import Any
 import numpy as np
 import pytest
 
-from mrnc_eval.io import mcap_index, open_log
+from mrnc_eval.io import bag_index, mcap_index, open_log
 from mrnc_eval.io import messages as M
+from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.writers import LogWriter
 from tests.io.test_io_roundtrip import write_sample
 
 CLOUD_STAMPS = [1.0, 1.1, 1.1, 1.05, 1.2, 1.3]  # header stamps in arrival order: a duplicate and a late cloud
 
 
-def _multi_chunk_log(path: Path) -> None:
+def _multi_chunk_log(path: Path, compression: str = "lz4") -> None:
     """Clouds of 1.5 MB (each closes a 1 MiB chunk) between IMU messages, record times tied
-    across topics, a duplicate and an out-of-order header stamp in both streams."""
+    across topics, a duplicate and an out-of-order header stamp in both streams (MCAP or ROS 1
+    by the suffix; `compression`: of the ROS 1 chunks)."""
     rng = np.random.default_rng(3)
     h, w = 64, 512
-    w_ = LogWriter(path, "mcap")
+    ros1 = path.suffix == ".bag"
+    w_ = LogWriter(path, "bag" if ros1 else "mcap", ros1_compression=compression)
     clouds = w_._conn("/ouster/points", "sensor_msgs/msg/PointCloud2")
     imu = w_._conn("/ouster/imu", "sensor_msgs/msg/Imu")
     for k, stamp in enumerate(CLOUD_STAMPS):
         t_rec = int((1.0 + 0.1 * k) * 1e9)
         for j in range(10):
             t_imu = 1.0 + 0.1 * k + 0.01 * j - (0.015 if j == 4 else 0.0) - (0.01 if j == 7 else 0.0)
-            msg = M.imu(w_.ts, t_imu, "os_imu", (0.0, 0.0, 9.81 + j), (0.0, 0.0, 0.1), None, False)
+            msg = M.imu(w_.ts, t_imu, "os_imu", (0.0, 0.0, 9.81 + j), (0.0, 0.0, 0.1), None, ros1)
             w_._writer.write(imu, t_rec + j * 10_000_000, w_._serialize(msg, "sensor_msgs/msg/Imu"))
         xyz = rng.uniform(-20, 20, (h, w, 3)).astype(np.float32)
         t_ns = np.repeat((np.arange(w, dtype=np.uint32) * 195_000)[None, :], h, axis=0)
         fields = (np.ones((h, w), np.uint32), np.ones((h, w), np.uint16), np.ones((h, w), np.float32),
                   np.ones((h, w), np.uint16))
-        cloud = M.ouster_cloud(w_.ts, stamp, "os_sensor", xyz, t_ns, *fields, ros1=False)
+        cloud = M.ouster_cloud(w_.ts, stamp, "os_sensor", xyz, t_ns, *fields, ros1=ros1)
         w_._writer.write(clouds, t_rec, w_._serialize(cloud, "sensor_msgs/msg/PointCloud2"))  # tied with an IMU
     w_.close()
 
@@ -44,14 +48,15 @@ def _multi_chunk_log(path: Path) -> None:
 def _overview(path: Path | str, monkeypatch: pytest.MonkeyPatch, *, indexed: bool) -> dict[str, Any]:
     """What the overview pass leaves behind, read from the indexes or (indexed=False) from the whole file."""
     used: list[int] = []
+    ros1 = str(path).endswith(".bag")
 
-    def counted(p: Path, wants: dict[str, int], real: Any = mcap_index.overview) -> Any:
+    def counted(*args: Any, real: Any = bag_index.overview if ros1 else mcap_index.overview) -> Any:
         if not indexed:
-            raise mcap_index.IndexUnusable("disabled by the test")
+            raise IndexUnusable("disabled by the test")
         used.append(1)
-        return real(p, wants)
+        return real(*args)
 
-    monkeypatch.setattr("mrnc_eval.io.reader.mcap_overview", counted)
+    monkeypatch.setattr("mrnc_eval.io.bag_index.overview" if ros1 else "mrnc_eval.io.reader.mcap_overview", counted)
     with open_log(path) as lg:
         out = {"topics": lg.topics, "stamps": {t: lg.stamps(t) for t in lg.topic_types()},
                "cache": lg._cache, "health": lg.health_notes(), "imu": lg.imu().stamps}
@@ -69,19 +74,22 @@ def _same(a: dict[str, Any], b: dict[str, Any]) -> None:
         np.testing.assert_array_equal(a["stamps"][topic], b["stamps"][topic])
 
 
+@pytest.mark.parametrize("suffix", [".mcap", ".bag"])
 @pytest.mark.parametrize("case", ["multi_chunk", "sample", "split"])
 def test_indexed_overview_equals_reading_the_whole_file(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
-                                                         case: str) -> None:
+                                                         case: str, suffix: str) -> None:
+    fmt = suffix.lstrip(".")
+    a, b = tmp_path / f"a{suffix}", tmp_path / f"b{suffix}"
     if case == "multi_chunk":
-        _multi_chunk_log(tmp_path / "a.mcap")
-        log: str | Path = tmp_path / "a.mcap"
+        _multi_chunk_log(a)
+        log: str | Path = a
     elif case == "sample":
-        write_sample(tmp_path / "a.mcap", "mcap", duplicate_imu=True)
-        log = tmp_path / "a.mcap"
+        write_sample(a, fmt, duplicate_imu=True)
+        log = a
     else:
-        _multi_chunk_log(tmp_path / "a.mcap")
-        write_sample(tmp_path / "b.mcap", "mcap")
-        log = f"{tmp_path / 'a.mcap'},{tmp_path / 'b.mcap'}"
+        _multi_chunk_log(a)
+        write_sample(b, fmt)
+        log = f"{a},{b}"
     fast = _overview(log, monkeypatch, indexed=True)
     _same(fast, _overview(log, monkeypatch, indexed=False))
     if case == "multi_chunk":  # the stream's defects are still seen
@@ -91,9 +99,18 @@ def test_indexed_overview_equals_reading_the_whole_file(tmp_path: Path, monkeypa
         assert imu.out_of_order > 0
 
 
-def test_slam_read_decompresses_each_chunk_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """topics, IMU, then the sweeps (what `slam` reads): every chunk holds a cloud, and each is
-    decompressed in full once, by the sweep stream (the overview used to decompress them all too)."""
+def _sweep_read(path: Path) -> None:
+    """What `slam` reads: topics, the IMU, then the sweeps."""
+    with open_log(path) as lg:
+        assert lg.topics
+        assert lg.imu().stamps.size == 9 * len(CLOUD_STAMPS)  # one duplicate a cloud dropped
+        swept = [s.stamp for s in lg.sweeps()]
+    assert swept == pytest.approx([1.0, 1.1, 1.2, 1.3])
+
+
+def test_slam_read_decompresses_each_mcap_chunk_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Every chunk holds a cloud, and each is decompressed in full once, by the sweep stream
+    (the overview used to decompress them all too)."""
     from mcap.reader import make_reader
     from rosbags.rosbag2 import storage_mcap
 
@@ -101,8 +118,7 @@ def test_slam_read_decompresses_each_chunk_once(tmp_path: Path, monkeypatch: pyt
     with (tmp_path / "a.mcap").open("rb") as fh:
         summary = make_reader(fh).get_summary()
     assert summary is not None
-    n_chunks = len(summary.chunk_indexes)
-    assert n_chunks == len(CLOUD_STAMPS)  # the log is what the test means: one cloud a chunk
+    assert len(summary.chunk_indexes) == len(CLOUD_STAMPS)  # the log is what the test means: one cloud a chunk
     decompressed: list[int] = []
     real = storage_mcap.DECOMPRESSORS["zstd"]
 
@@ -111,11 +127,29 @@ def test_slam_read_decompresses_each_chunk_once(tmp_path: Path, monkeypatch: pyt
         return real(data, size)
 
     monkeypatch.setitem(storage_mcap.DECOMPRESSORS, "zstd", counting)
-    with open_log(tmp_path / "a.mcap") as lg:
-        assert lg.topics
-        assert lg.imu().stamps.size == 9 * len(CLOUD_STAMPS)  # one duplicate a cloud dropped
-        swept = [s.stamp for s in lg.sweeps()]
-    assert swept == pytest.approx([1.0, 1.1, 1.2, 1.3])
+    _sweep_read(tmp_path / "a.mcap")
+    assert len(decompressed) == len(CLOUD_STAMPS)
+
+
+@pytest.mark.parametrize("compression", ["lz4", "bz2"])
+def test_slam_read_decompresses_each_bag_chunk_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                                    compression: str) -> None:
+    from rosbags.rosbag1 import reader as bag_reader
+
+    _multi_chunk_log(tmp_path / "a.bag", compression)
+    decompressed: list[int] = []
+    real = bag_reader.decompressors[compression]
+
+    def counting(data: bytes) -> bytes:
+        decompressed.append(len(data))
+        return real(data)
+
+    monkeypatch.setitem(bag_reader.decompressors, compression, counting)
+    with open_log(tmp_path / "a.bag") as lg:
+        n_chunks = len(lg._src._reader.readers[0].chunks)  # type: ignore[union-attr]
+    assert n_chunks == len(CLOUD_STAMPS)  # one cloud a chunk (the chunk of the last one also ends the bag)
+    decompressed.clear()
+    _sweep_read(tmp_path / "a.bag")
     assert len(decompressed) == n_chunks
 
 
