@@ -13,7 +13,7 @@ from __future__ import annotations
 import heapq
 import struct
 from collections.abc import Iterator, Sequence
-from itertools import groupby
+from itertools import groupby, repeat
 from typing import Any, BinaryIO
 
 from mrnc_eval.io.chunk_prefix import WHOLE, ChunkPrefix, IndexUnusable
@@ -33,7 +33,7 @@ def overview(conns: Sequence[tuple[str, Any]], wants: dict[str, int]) -> Iterato
 def _bag_messages(bag: Any, conns: list[Any], topics: dict[int, str],
                   wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
     """One bag's messages in rosbags' order (its IndexData compare by time only)."""
-    entries = heapq.merge(*[[(e, c.id) for e in bag.indexes[c.id]] for c in conns], key=lambda ec: ec[0])
+    entries = heapq.merge(*[zip(bag.indexes[c.id], repeat(c.id)) for c in conns], key=lambda ec: ec[0])
     with open(bag.path, "rb") as fh:
         chunk: ChunkPrefix | None = None
         chunk_pos = -1
