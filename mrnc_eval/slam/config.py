@@ -234,6 +234,9 @@ class WheelOdomConfig:
     yaw_information: float = param(1e4, "with the wheel guess, information holding the matched yaw towards it, "
                                    "in J^T J's units (m^2): a few far poles move the yaw part of the way, walls "
                                    "and trees (far more) are not held; 0 = off", "m^2")
+    pivot_max_gap_s: float = param(0.5, "with the wheel guess, when the last mapped sweep is at most this long "
+                                   "ago, the guess is blended as the base and scan-to-map turns about the base "
+                                   "origin, so the x and y it holds are the base's; 0 = the sensor's (LIO-SAM)", "s")
     max_rotation_correction_deg: float = param(0.0, "with the wheel guess, the scan-to-map rotation gate instead "
                                                "of matching.max_rotation_correction_deg (0 = that one); 1 halves the "
                                                "open-field APE but wrecks the sample logs (slip: the wheels turn "

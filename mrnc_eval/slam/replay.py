@@ -76,6 +76,7 @@ class _State:
     last_loop_t: float = -np.inf
     loose: np.ndarray | None = None  # directions the latest match left to the IMU ([rot, trans], map axes)
     guess_by_wheels: bool = False  # the current sweep's guess took x, y and yaw from the wheels
+    about_base: bool = False  # ... for the base, and scan-to-map turns about it (wheel_odom.pivot_max_gap_s)
     warned: set[str] = field(default_factory=set)
 
 
@@ -167,7 +168,8 @@ class _Replay:
         pose = self.guess(stamp)
         res: MatchResult | None = None
         if self.local_map is not None:
-            res = match(feats.edges, feats.surfs, self.local_map, pose, self.cfg.matching, self.guess_prior())
+            res = match(feats.edges, feats.surfs, self.local_map, pose, self.cfg.matching, self.guess_prior(),
+                        self.match_pivot())
             self.events += _match_events(res, stamp, self.cfg)
             if self.track is not None:
                 res = self.gate_rotation(res, pose, stamp)
@@ -192,6 +194,11 @@ class _Replay:
             return None
         return np.array([0.0, 0.0, info, 0.0, 0.0, 0.0])
 
+    def match_pivot(self) -> np.ndarray | None:
+        """The base origin in the sensor frame when the wheels placed the base (wheel_guess): scan-to-map
+        then turns about it, so the x and y it holds are the base's."""
+        return np.asarray(se3.inv(self.base_to_sensor)[:3, 3], np.float64) if self.st.about_base else None
+
     def gate_rotation(self, res: MatchResult, guess: np.ndarray, stamp: float) -> MatchResult:
         """A match that turns the gyro-predicted attitude by more than max_rotation_correction_deg
         is a false match (sparse structure, wrong neighbours: in an open field up to 30 deg in one
@@ -210,7 +217,7 @@ class _Replay:
         """Initial pose: IMU attitude for the first sweep; then graph #2's prediction, else the IMU
         rotation increment with constant velocity, else constant velocity."""
         st, track, odom = self.st, self.track, self.odom
-        st.guess_by_wheels = False
+        st.guess_by_wheels = st.about_base = False
         if st.pose is None:
             att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t) if self.imu is not None \
                 else Rotation.identity()
@@ -225,15 +232,22 @@ class _Replay:
         return se3.make(rot, st.pose[:3, 3] + step)
 
     def wheel_guess(self, predicted: np.ndarray, t: float) -> np.ndarray:
-        """With slam.wheel_odom.guess: x, y and yaw of the guess from the wheels' motion since the
-        last pose, z, roll and pitch from graph #2 (a straight, slip-free drive carries no gyro or
+        """With slam.wheel_odom.guess: x, y and yaw of the base from the wheels' motion since the
+        last pose, its z, roll and pitch from graph #2 (a straight, slip-free drive carries no gyro or
         accelerometer bias; scan-to-map keeps the guess along the directions bare ground leaves free)."""
         if self.wheel is None or not self.cfg.wheel_odom.guess or not self.wheel.covers(self.st.t, t) \
                 or self.st.pose is None:
             return predicted
         by_wheels = self.st.pose @ relative_motion(self.wheel, self.st.t, t, self.base_to_sensor)
         self.st.guess_by_wheels = True
-        return blend_planar(predicted, by_wheels)
+        # as the base (the sensor on its mast sways with roll and pitch), when the last mapped sweep is
+        # recent: over the 1 s gaps of throttled logs graph #2's guess can be metres off, and steps
+        # turning about a point 2 m away diverged there (sample loop_forest: 0.47 m)
+        self.st.about_base = t - self.st.t <= self.cfg.wheel_odom.pivot_max_gap_s
+        if not self.st.about_base:
+            return blend_planar(predicted, by_wheels)
+        to_base = se3.inv(self.base_to_sensor)
+        return np.asarray(blend_planar(predicted @ to_base, by_wheels @ to_base) @ self.base_to_sensor, np.float64)
 
     def add_keyframe(self, pose: np.ndarray, stamp: float, feats: Features) -> tuple[np.ndarray, float]:
         """Graph #1 keyframe, GNSS factor, loop closure (timed apart), new local map.

@@ -256,9 +256,11 @@ class _Correspondences:
         self.at: np.ndarray | None = None
         self.fits = np.zeros((0, 6))
 
-    def rows(self, features: np.ndarray, T: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    def rows(self, features: np.ndarray, T: np.ndarray,
+             pivot: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Residual rows of the features (sensor frame) at pose T: Jacobian (m, 6) w.r.t. the
-        perturbation T <- [exp(dtheta) R, t + dt] (rotation about the sensor, map axes) and residual (m,)."""
+        perturbation T <- [exp(dtheta) R, t + dt] (rotation about the sensor, map axes; about the
+        point `pivot` of the sensor frame when given) and residual (m,)."""
         q = se3.apply(T, features)
         if self.at is None or _motion(self.at, T) > self.requery_m:
             d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
@@ -272,7 +274,7 @@ class _Correspondences:
                 _fit_lines(self.cloud, idx, ok, self.fits)
             self.at = T
         J, r = np.empty((len(q), 6)), np.empty(len(q))
-        origin = np.ascontiguousarray(T[:3, 3])
+        origin = np.ascontiguousarray(T[:3, 3] if pivot is None else T[:3, :3] @ pivot + T[:3, 3])
         m = (_plane_rows(q, origin, self.fits, J, r) if self.kind == "plane"
              else _edge_rows(q, origin, self.fits, J, r))
         return J[:m], r[:m]
@@ -290,6 +292,22 @@ def _tangent_from(guess: np.ndarray, T: np.ndarray) -> np.ndarray:
     return np.asarray(np.r_[rot, T[:3, 3] - guess[:3, 3]], np.float64)
 
 
+def _update(T: np.ndarray, dx: np.ndarray, pivot: np.ndarray | None) -> np.ndarray:
+    """T after the step dx = [dtheta, dt] (map axes): rotation about the sensor, or about `pivot`."""
+    turn = se3.exp_so3(dx[:3])
+    if pivot is None:
+        return se3.make(turn @ T[:3, :3], T[:3, 3] + dx[3:])
+    c = T[:3, :3] @ pivot + T[:3, 3]
+    return se3.make(turn @ T[:3, :3], turn @ (T[:3, 3] - c) + c + dx[3:])
+
+
+def _about_sensor(directions: np.ndarray, pivot_offset: np.ndarray) -> np.ndarray:
+    """Unit directions [dtheta, dt] about a pivot at sensor + pivot_offset (map axes) as directions
+    about the sensor: the sensor moves by dt + dtheta x (sensor - pivot)."""
+    moved = np.c_[directions[:, :3], directions[:, 3:] + np.cross(directions[:, :3], -pivot_offset)]
+    return np.asarray(moved / np.linalg.norm(moved, axis=1, keepdims=True), np.float64)
+
+
 def _ground_rows_vertical_only(J: np.ndarray, min_normal_z: float) -> None:
     """Plane rows whose normal is within acos(min_normal_z) of the map's z axis (ground) keep only
     their z, roll and pitch columns, in place (LeGO-LOAM's split: the ground fixes z, roll and
@@ -302,12 +320,15 @@ def _ground_rows_vertical_only(J: np.ndarray, min_normal_z: float) -> None:
 
 
 def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray,
-          cfg: MatchingConfig, prior: np.ndarray | None = None) -> MatchResult:
+          cfg: MatchingConfig, prior: np.ndarray | None = None, pivot: np.ndarray | None = None) -> MatchResult:
     """Refine `guess` (4x4) so the sweep's features lie on the map's lines and planes. `prior` (6,),
     [rot, trans] in map axes, in J^T J's units (m^2 per rad^2 for rotations: a residual row of 1 m per
     unit of the direction): information holding the pose towards the guess, added to J^T J, so a
     direction the sweep measures weakly (a few far poles' yaw) moves only part of the way; the
-    degeneracy test still looks at the sweep's own J^T J."""
+    degeneracy test still looks at the sweep's own J^T J. `pivot` (3,), a point of the sensor frame
+    (the base origin): rotations turn about it, so the translation held along degenerate directions
+    is the pivot's; about the sensor (LIO-SAM), a roll or pitch the ground corrects would drag a
+    base that the wheels placed by h x the angle (1.9 m mast: 3 cm per degree) each sweep."""
     use_edges = len(edges) >= cfg.min_edges and local_map.edge_tree is not None
     if (len(surfs) < cfg.min_surfs or local_map.surf_tree is None
             or (not use_edges and not cfg.match_without_edges)):
@@ -323,8 +344,8 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
     surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, "plane", cfg.max_nn_sq_dist_m2,
                                  cfg.plane_max_offset_m, cfg.requery_motion_m, cfg.plane_min_spread_m)
     for it in range(1, cfg.max_iterations + 1):
-        Je, re = edge_corr.rows(edges, T) if edge_corr is not None else (np.zeros((0, 6)), np.zeros(0))
-        Js, rs = surf_corr.rows(surfs, T)
+        Je, re = edge_corr.rows(edges, T, pivot) if edge_corr is not None else (np.zeros((0, 6)), np.zeros(0))
+        Js, rs = surf_corr.rows(surfs, T, pivot)
         if cfg.ground_normal_min_z > 0:
             _ground_rows_vertical_only(Js, cfg.ground_normal_min_z)
         J, r = np.r_[Je, Js], np.r_[re, rs]
@@ -350,10 +371,12 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
             # would turn its translation into yaw (H's eigenvectors mix the two)
             g_held = g - prior * _tangent_from(guess, T)
             dx = good @ np.linalg.lstsq(good.T @ (H + np.diag(prior)) @ good, good.T @ g_held, rcond=None)[0]
-        T = se3.make(se3.exp_so3(dx[:3]) @ T[:3, :3], T[:3, 3] + dx[3:])
+        T = _update(T, dx, pivot)
         rot_deg, trans_cm = np.degrees(np.linalg.norm(dx[:3])), np.linalg.norm(dx[3:]) * 100
         if rot_deg < cfg.converge_rot_deg and trans_cm < cfg.converge_trans_cm:
             converged = True
             break
+    if pivot is not None and len(directions):  # report them about the sensor, as without a pivot
+        directions = _about_sensor(directions, T[:3, :3] @ pivot)
     return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad, weakest, eigenvalues,
                        directions)

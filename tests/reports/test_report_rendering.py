@@ -113,7 +113,10 @@ def test_pdf_pages_are_not_blank(night: Path, tmp_path: Path) -> None:
     assert len(pngs) == pages >= 4  # health, SLAM, control, configuration
     for png in pngs:
         arr = np.asarray(Image.open(png).convert("L"))
-        assert (arr < 200).mean() > 0.005, png.name  # some ink on every page
+        body = arr[: int(arr.shape[0] * 0.94)]  # above the bottom margin's page number ("11 / 11")
+        # some ink on every page: a last page with three lines of the configuration listing has 0.2 %,
+        # a blank one 0 (a fixed 0.5 % failed whenever the listing's last page came out short)
+        assert (body < 200).mean() > 0.0005, png.name
     text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True, check=True).stdout
     for words in ("Log health", "SLAM key numbers", "Table II layout", "Effective configuration"):
         assert words in text
