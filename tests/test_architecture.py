@@ -21,6 +21,7 @@ LAYERS: tuple[tuple[str, tuple[str, ...]], ...] = (
     ("edges", ("mrnc_eval.io", "mrnc_eval.reports", "mrnc_eval.results", "mrnc_eval.export",
                "mrnc_eval.history", "mrnc_eval.config", "mrnc_eval.sim.recorder")),
     ("pure", ("mrnc_eval.slam", "mrnc_eval.control", "mrnc_eval.evaluation", "mrnc_eval.sim")),
+    ("geometry", ("mrnc_eval.geometry",)),  # SE(3), quaternions, resampling: below slam, io, evaluation
     ("base", ("mrnc_eval",)),  # data, errors, params, geodesy, tables, the package itself
 )
 

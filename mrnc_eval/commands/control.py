@@ -21,7 +21,7 @@ from mrnc_eval.control.wheel_references import wheel_speed_references
 from mrnc_eval.data import SidePair, Twists, Waypoints
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_metrics import feedback_share, paper_metrics, path_metrics, tracking_metrics
-from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
+from mrnc_eval.geometry.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
 from mrnc_eval.results import (

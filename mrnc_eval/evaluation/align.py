@@ -14,8 +14,9 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import F64, Trajectory
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation import lie, sync
+from mrnc_eval.evaluation import sync
 from mrnc_eval.evaluation.modes import AlignMode, parse_choice
+from mrnc_eval.geometry import lie
 
 
 @dataclass(frozen=True)

@@ -14,7 +14,6 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.align import (
     Alignment,
     align_positions,
@@ -29,6 +28,7 @@ from mrnc_eval.evaluation.modes import AlignMode, Relation, SyncMethod
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
 from mrnc_eval.evaluation.sync import Matched, SyncOptions, match
+from mrnc_eval.geometry import lie
 
 if TYPE_CHECKING:
     import pandas as pd

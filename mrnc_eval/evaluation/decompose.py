@@ -16,8 +16,8 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.stats import error_stats
+from mrnc_eval.geometry import lie
 
 MIN_STEP_M = 1e-6  # reference steps shorter than this do not define a direction
 

@@ -16,8 +16,8 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import F64, Trajectory
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.modes import AlignMode
+from mrnc_eval.geometry import lie
 
 KITTI_LENGTHS = (100.0, 200.0, 300.0, 400.0, 500.0, 600.0, 700.0, 800.0)
 

@@ -19,11 +19,11 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.align import align_positions, estimate_alignment
-from mrnc_eval.evaluation.interpolate import interpolate_at, sorted_unique
 from mrnc_eval.evaluation.modes import AlignMode
 from mrnc_eval.evaluation.sync import take
+from mrnc_eval.geometry import lie
+from mrnc_eval.geometry.interpolate import interpolate_at, sorted_unique
 from mrnc_eval.peaks import parabola_vertex
 
 MAX_SIGNAL_SAMPLES = 50_000  # the correlation grid is coarsened beyond this

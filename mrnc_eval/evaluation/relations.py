@@ -5,8 +5,8 @@ from __future__ import annotations
 import numpy as np
 from numpy.typing import NDArray
 
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.modes import Relation, parse_choice
+from mrnc_eval.geometry import lie
 
 UNITS = {Relation.trans: "m", Relation.point: "m", Relation.rot: "", Relation.full: "",
          Relation.angle_deg: "deg", Relation.angle_rad: "rad"}

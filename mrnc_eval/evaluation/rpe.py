@@ -10,13 +10,13 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.ape import aligned_pair
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod, parse_choice
 from mrnc_eval.evaluation.pairs import pairs_by_distance, pairs_by_frames
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
 from mrnc_eval.evaluation.sync import Matched, SyncOptions, match
+from mrnc_eval.geometry import lie
 
 if TYPE_CHECKING:
     import pandas as pd

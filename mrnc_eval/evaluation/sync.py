@@ -20,8 +20,8 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation.interpolate import interpolate_at, sorted_unique
 from mrnc_eval.evaluation.modes import SyncMethod
+from mrnc_eval.geometry.interpolate import interpolate_at, sorted_unique
 
 
 @dataclass(frozen=True)

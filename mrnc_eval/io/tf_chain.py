@@ -19,8 +19,8 @@ import numpy as np
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
-from mrnc_eval.evaluation import lie
-from mrnc_eval.evaluation.interpolate import interpolate_at, sorted_unique
+from mrnc_eval.geometry import lie
+from mrnc_eval.geometry.interpolate import interpolate_at, sorted_unique
 
 Edge = tuple[str, str]  # (parent, child)
 

@@ -27,7 +27,7 @@ def read_kitti(path: str | Path) -> Trajectory:
     Rotation blocks must be orthonormal with det +1 (within evo's SO(3) check's tolerances):
     a quaternion would silently hide a broken matrix. The matrices are kept as read
     (`Trajectory.rotations`): evaluation uses them unchanged, as evo does."""
-    from mrnc_eval.evaluation.lie import matrix_to_quat_xyzw
+    from mrnc_eval.geometry.lie import matrix_to_quat_xyzw
 
     path = Path(path)
     a = np.ascontiguousarray(read_columns(path, 12).T).reshape(-1, 3, 4)
@@ -88,7 +88,7 @@ def write_tum(path: str | Path, traj: Trajectory) -> None:
 def write_kitti(path: str | Path, traj: Trajectory) -> None:
     """KITTI poses: the 3x4 [R | t] of each pose, row-major, one line per pose (no stamps: pair
     them with the TUM file's lines)."""
-    from mrnc_eval.evaluation.lie import quat_xyzw_to_matrix
+    from mrnc_eval.geometry.lie import quat_xyzw_to_matrix
 
     rt = np.concatenate([quat_xyzw_to_matrix(traj.quat_xyzw), traj.positions[:, :, None]], axis=2)
     np.savetxt(path, rt.reshape(-1, 12), fmt="%.9f", delimiter=" ")

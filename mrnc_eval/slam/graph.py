@@ -11,7 +11,7 @@ from typing import Any
 import numpy as np
 
 from mrnc_eval.errors import ProcessingError
-from mrnc_eval.slam import se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import GraphConfig, LoopConfig
 from mrnc_eval.slam.nearest import KdTree
 

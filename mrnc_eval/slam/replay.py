@@ -13,7 +13,7 @@ from scipy.spatial.transform import Rotation, Slerp
 
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep
 from mrnc_eval.errors import ProcessingError
-from mrnc_eval.slam import se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import SlamConfig
 from mrnc_eval.slam.deskew import deskew
 from mrnc_eval.slam.features import Features, extract_features, voxel_downsample

@@ -9,7 +9,7 @@ import numpy as np
 from numba import njit
 from scipy.spatial.transform import Rotation
 
-from mrnc_eval.slam import se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import MatchingConfig
 from mrnc_eval.slam.nearest import KdTree
 

@@ -14,7 +14,7 @@ from dataclasses import replace
 import numpy as np
 
 from mrnc_eval.data import Sweep
-from mrnc_eval.slam import se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import SlamConfig
 from mrnc_eval.slam.deskew import deskew
 from mrnc_eval.slam.features import extract_features, voxel_downsample

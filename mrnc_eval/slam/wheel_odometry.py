@@ -11,7 +11,7 @@ import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
 
 from mrnc_eval.errors import ProcessingError
-from mrnc_eval.slam import se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import WheelOdomConfig
 
 

@@ -11,11 +11,11 @@ from scipy.spatial.transform import Rotation
 from mrnc_eval.cli import main
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.ape import ape
 from mrnc_eval.evaluation.comparison import Cell, table_one
 from mrnc_eval.evaluation.drift import kitti_drift, segment_lengths
 from mrnc_eval.evaluation.sync import associate
+from mrnc_eval.geometry import lie
 from mrnc_eval.io.trajectory_files import read_trajectory, write_tum
 from mrnc_eval.reports.tables import best_cells, render_table
 from tests.evaluation.evo_reference import make_pair

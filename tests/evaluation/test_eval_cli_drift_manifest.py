@@ -12,8 +12,8 @@ import pytest
 from mrnc_eval.cli import main
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
-from mrnc_eval.evaluation import lie
 from mrnc_eval.evaluation.drift import drift, kitti_drift
+from mrnc_eval.geometry import lie
 from mrnc_eval.io.trajectory_files import read_trajectory, write_tum
 from mrnc_eval.reports.tables import render_table
 from tests.evaluation.evo_reference import make_pair

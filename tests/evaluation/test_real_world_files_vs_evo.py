@@ -121,7 +121,7 @@ def test_unsorted_longer_trajectory_uses_evos_fallback(tmp_path: Path) -> None:
 def _kitti_files(tmp_path: Path) -> tuple[Path, Path]:
     """KITTI ground truth style: %e with six digits, so R^T R - I is ~1e-7, not 1e-16."""
     ref, est = make_pair(n=500, seed=17)
-    from mrnc_eval.evaluation import lie
+    from mrnc_eval.geometry import lie
 
     paths = []
     for name, traj in (("gt", ref), ("est", est)):

@@ -15,8 +15,8 @@ from mrnc_eval.cli import main
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
 from mrnc_eval.evaluation.ape import ape
-from mrnc_eval.evaluation.interpolate import interpolate_at
 from mrnc_eval.evaluation.offset import estimate_offset
+from mrnc_eval.geometry.interpolate import interpolate_at
 from mrnc_eval.io.trajectory_files import write_tum
 
 AXIS = np.array([0.36, 0.48, 0.8])  # unit rotation axis

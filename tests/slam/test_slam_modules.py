@@ -10,7 +10,7 @@ from scipy.spatial import cKDTree
 from scipy.spatial.transform import Rotation
 
 from mrnc_eval.data import ImuSeries, Sweep
-from mrnc_eval.slam import se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import FeatureConfig, ImuConfig, MatchingConfig, SensorConfig
 from mrnc_eval.slam.features import extract_features
 from mrnc_eval.slam.imu import ImuOdometry, clean_imu, imu_track, initial_attitude

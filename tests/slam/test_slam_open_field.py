@@ -10,8 +10,8 @@ from dataclasses import replace
 import numpy as np
 from scipy.spatial.transform import Rotation
 
+from mrnc_eval.geometry import se3
 from mrnc_eval.sim.scene import build_scene
-from mrnc_eval.slam import se3
 from mrnc_eval.slam.config import FeatureConfig, ImuConfig, LoopConfig, MatchingConfig, SensorConfig
 from mrnc_eval.slam.features import ground_mask
 from mrnc_eval.slam.graph import icp_min_eigenvalue

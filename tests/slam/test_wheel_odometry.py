@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mrnc_eval.slam import se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import GraphConfig, WheelOdomConfig
 from mrnc_eval.slam.graph import KeyframeGraph
 from mrnc_eval.slam.wheel_odometry import (

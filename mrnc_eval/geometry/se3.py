@@ -1,12 +1,12 @@
 """Small SE(3)/SO(3) helpers for the SLAM (4x4 homogeneous matrices, rotation vectors).
-Pose matrices are assembled by evaluation.lie.homogeneous, the project's one builder."""
+Pose matrices are assembled by geometry.lie.homogeneous, the project's one builder."""
 
 from __future__ import annotations
 
 import numpy as np
 from scipy.spatial.transform import Rotation
 
-from mrnc_eval.evaluation.lie import homogeneous
+from mrnc_eval.geometry.lie import homogeneous
 
 
 def exp_so3(w: np.ndarray) -> np.ndarray:
