@@ -51,6 +51,22 @@ PL_SIZE = 14
 RUN_SIZE = 12
 
 
+@dataclass(frozen=True, kw_only=True)
+class SideTrace:
+    """One side's channels of a trace (typed access instead of attribute names built from strings)."""
+
+    v_ref: FloatArray  # reference wheel surface speed, m/s
+    v_wheel: FloatArray  # measured wheel surface speed, m/s
+    u: FloatArray  # pump command after the clamp, RPM
+    slip: FloatArray  # slip ratio
+    funnel: FloatArray  # o(t), m/s
+    u_fb: FloatArray | None  # applied feedback U - f, RPM (None: unknown)
+    phi: FloatArray | None  # RAID's phi-hat (None for the other laws)
+
+
+SIDES = ("left", "right")
+
+
 @dataclass
 class ClosedLoopTrace:
     controller: str
@@ -85,6 +101,16 @@ class ClosedLoopTrace:
 
     def funnel_of(self, side: str) -> FloatArray:
         return self.funnel_right if side == "right" and self.funnel_right is not None else self.funnel
+
+    def side(self, side: str) -> SideTrace:
+        """The channels of `side` ("left" or "right")."""
+        if side == "left":
+            return SideTrace(v_ref=self.v_ref_left, v_wheel=self.v_wheel_left, u=self.u_left, slip=self.slip_left,
+                             funnel=self.funnel, u_fb=self.u_fb_left, phi=self.phi_left)
+        if side == "right":
+            return SideTrace(v_ref=self.v_ref_right, v_wheel=self.v_wheel_right, u=self.u_right, slip=self.slip_right,
+                             funnel=self.funnel_of("right"), u_fb=self.u_fb_right, phi=self.phi_right)
+        raise ValueError(f"side must be 'left' or 'right', not {side!r}")
 
 
 def plant_params(cfg: ControlConfig, robot: RobotGeometry, dt: float) -> FloatArray:
