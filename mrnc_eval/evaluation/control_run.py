@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import numpy as np
 
-from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace
+from mrnc_eval.control.closed_loop import SIDES, ST_RESTARTS, ClosedLoopTrace
 from mrnc_eval.control.config import ControlConfig
 from mrnc_eval.evaluation.control_metrics import feedback_share, paper_metrics, path_metrics, tracking_metrics
 
@@ -15,11 +15,13 @@ def evaluate_trace(tr: ClosedLoopTrace, cfg: ControlConfig) -> dict[str, dict[st
     """Per side metrics of one controller's run, and path metrics when it followed a path."""
     mc = cfg.metrics
     out: dict[str, dict[str, float]] = {}
-    for side in SIDES:
+    for i, side in enumerate(SIDES):
         s = tr.side(side)
         m = tracking_metrics(tr.t, s.v_ref, s.v_wheel, s.u, s.funnel, u_max=cfg.actuator.u_max_rpm, slip=s.slip,
                              cfg=mc)
         m["safety_stops"] = sum(1 for e in tr.events if e.get("side") == side)
+        if tr.full_rate_stats is not None:  # simulated: restarts of the per-step clocks (funnel anchor, FOPTC)
+            m["segment_restarts"] = int(tr.full_rate_stats[i, ST_RESTARTS])
         if s.u_fb is not None:  # simulated: the applied feedback is known
             m["feedback_share_mean"], m["feedback_share_p95"] = feedback_share(s.u, s.u_fb, mc.feedback_share_min_rpm)
         if s.phi is not None and np.isfinite(s.phi).any():
