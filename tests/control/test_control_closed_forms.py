@@ -193,11 +193,12 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
 
 
 def test_table_two_has_the_papers_structure(paper_runs) -> None:
-    from mrnc_eval.commands.control import evaluate_trace, table_two
+    from mrnc_eval.evaluation.control_run import evaluate_trace
+    from mrnc_eval.reports.control_tables import table_two
     from mrnc_eval.reports.tables import render_table
 
     cfg, runs = paper_runs
-    metrics = {n: evaluate_trace(tr, cfg) for n, tr in runs.items()}
+    metrics = {n: evaluate_trace(tr, cfg.control) for n, tr in runs.items()}
     table = table_two(metrics, tuple(runs), cfg)
     # the paper: criteria as rows (settling time, overshoot, steady-state error), RAID | APC | PID | FOPTC
     assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]

@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 from mrnc_eval.cli import main
-from mrnc_eval.commands.control import evaluate_trace, run_log
+from mrnc_eval.commands.control import run_log
 from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.scenario import Scenario, scripted_scenario
 from mrnc_eval.data import Trajectory, Twists, Waypoints
+from mrnc_eval.evaluation.control_run import evaluate_trace
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
 from mrnc_eval.results import RunResult
@@ -85,7 +86,7 @@ def test_without_a_path_the_replay_tracks_wheel_speeds_against_cmd_vel(run, tmp_
     # the references are the simulator's own: the same IK of the same commands, the same slew (the
     # replay steps the slew at 50 Hz, the simulation at 1 kHz: apart by at most one 20 ms step of it)
     slew_step = cfg.control.kinematics.reference_accel_limit_mps2 * 0.02
-    sim = evaluate_trace(tr, cfg)
+    sim = evaluate_trace(tr, cfg.control)
     got = _metrics(result)
     for side in SIDES:
         v_ref = result.series[f"recorded_{side}_v_ref"]
