@@ -38,6 +38,7 @@ from mrnc_eval.results import (
 )
 from mrnc_eval.slam.output import STAGES, SlamOutput
 from mrnc_eval.slam.wheel_odometry import WheelTrack
+from mrnc_eval.text import printable
 
 log = logging.getLogger(__name__)
 TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
@@ -516,8 +517,9 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
                                                                     ("smoothed", "ape_rmse_m")) if name in vals]
         ape = ", ".join(apes) if apes else "n/a (no ground truth)"
         used = ", ".join(f"{role} {topic}" for role, topic in r.extra.get("roles", {}).items())
-        sys.stdout.write(f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
-                         f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
+        line = (f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
+                f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}")
+        sys.stdout.write(printable(line) + "\n")  # topic names come from the log
     if len(rows) > 1:
         title = f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"
         sys.stdout.write(render_table(table_one(cells, rows, [cfg.slam.method], title=title),

@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -18,8 +17,8 @@ from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
 from mrnc_eval.evaluation.relations import TITLES
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
 from mrnc_eval.io.trajectory_files import is_kitti_file, read_trajectory
+from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
-from mrnc_eval.results import atomic_write_text
 from mrnc_eval.tables import Cell as CellValue
 from mrnc_eval.tables import Table
 from mrnc_eval.text import printable
@@ -36,15 +35,26 @@ def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
                  unit=results[0].unit, best=None, precision=6)
 
 
-def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None,
-          decompositions=None) -> None:
-    """Print (JSON or Markdown), then write the table and plot files; all computed before."""
-    from mrnc_eval.commands.output import emit_json
-
+def _claim_outputs(table: Path | None, plot: Path | None, specs: list[str], force: bool) -> list[Path]:
+    """Before any work: the suffixes, and the one overwrite rule for --table and --plot (never
+    one of the trajectories read). Returns the input files."""
     if table is not None and SUFFIX_FORMAT.get(table.suffix.lower()) is None:
         raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
     if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
         raise UsageError(f"--plot {plot}: use a {', '.join(PLOT_SUFFIXES)} file")
+    inputs = [Path(s.split(":/", 1)[0]) for s in specs]  # log.bag:/topic reads log.bag
+    for target in (table, plot):
+        if target is not None:
+            claim_output(target, force=force, inputs=inputs)
+    return inputs
+
+
+def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None,
+          decompositions=None, force: bool = False, inputs: list[Path] | None = None) -> None:
+    """Print (JSON or Markdown), then write the table and plot files; all computed before."""
+    from mrnc_eval.commands.output import emit_json
+
+    inputs = inputs or []
     if json_out:
         emit_json(_summaries(results, drifts, decompositions))
     else:
@@ -55,11 +65,12 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
             sys.stdout.write("\n" + render_table(_decomposition_table([r.name for r in results], decompositions),
                                                  "markdown"))
     if table is not None:
-        atomic_write_text(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]))
+        write_output(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]),
+                     force=force, inputs=inputs)
     if plot is not None and isinstance(results[0], ApeResult):
-        _save_figure(_path_figure(results, title), plot)
+        _save_figure(_path_figure(results, title), plot, force, inputs)
     elif plot is not None:
-        _save_figure(_error_figure(results, title), plot)
+        _save_figure(_error_figure(results, title), plot, force, inputs)
 
 
 def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
@@ -125,14 +136,9 @@ def _error_figure(results, title: str):
     return fig
 
 
-def _save_figure(fig, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")  # atomic: no half-written plot
-    try:
-        fig.savefig(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+def _save_figure(fig, path: Path, force: bool, inputs: list[Path]) -> None:
+    with output_file(path, force=force, inputs=inputs) as tmp:  # atomic: no half-written plot
+        fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
 
 
 def _index_pairing(ref: str, est: str) -> bool:
@@ -211,7 +217,8 @@ def _warn_stamps(ref: str, est: list[str], results: list[ApeResult] | list[RpeRe
 def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | None, relation: Relation, max_diff: float,
              offset: str | float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None,
              strict: bool = False, sync: SyncMethod = SyncMethod.nearest, max_gap: float = 0.2,
-             decompose: bool = False) -> None:
+             decompose: bool = False, force: bool = False) -> None:
+    inputs = _claim_outputs(table, plot, [ref, *est], force)
     reference, estimates = _load(ref, est)
     offsets = _offsets(reference, estimates, offset, align)
     results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
@@ -220,14 +227,15 @@ def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | No
     _warn_stamps(ref, est, results)
     decompositions = [r.decompose() for r in results] if decompose else None
     _emit(results, f"APE w.r.t. {TITLES[relation]} ({align} alignment)", json_out, table, plot,
-          decompositions=decompositions)
+          decompositions=decompositions, force=force, inputs=inputs)
 
 
 def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: DeltaUnit, all_pairs: bool, align: AlignMode,
              n_to_align: int | None, relation: Relation, max_diff: float, offset: str | float, plane: str | None,
              json_out: bool, table: Path | None, plot: Path | None, pairs_from: PairsFrom = PairsFrom.estimate,
              drift: bool = False, strict: bool = False, sync: SyncMethod = SyncMethod.nearest,
-             max_gap: float = 0.2) -> None:
+             max_gap: float = 0.2, force: bool = False) -> None:
+    inputs = _claim_outputs(table, plot, [ref, *est], force)
     reference, estimates = _load(ref, est)
     offsets = _offsets(reference, estimates, offset, align)
     results = [rpe(reference, e, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
@@ -243,7 +251,7 @@ def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: DeltaUnit, a
                   for (e, by_index), o in zip(estimates, offsets, strict=True)]
     title = (f"RPE w.r.t. {TITLES[relation]}, delta {delta:g} {delta_unit}"
              f"{', all pairs' if all_pairs else ''} (pairs from the {pairs_from})")
-    _emit(results, title, json_out, table, plot, drifts=drifts)
+    _emit(results, title, json_out, table, plot, drifts=drifts, force=force, inputs=inputs)
 
 
 def _drift_table(names: list[str], drifts: list[DriftResult]) -> Table:
