@@ -139,7 +139,8 @@ def info(
     if json_out:
         from mrnc_eval.commands.output import emit_json
 
-        emit_json(summary.to_json())
+        emit_json("info", [summary.json_item()], warnings=[f"{f.topic}: {f.message}" if f.topic else f.message
+                                                           for f in summary.findings if f.level != "ok"])
     else:
         info_command.print_summary(summary)
 

@@ -191,31 +191,39 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
                          path_source=f"{path_file} (--path)")
     link_latest(run_dir)
     if json_out:
-        from mrnc_eval.commands.output import emit_json
+        from mrnc_eval.commands.output import emit_document
 
-        emit_json(json_body(result, run_dir, mode))
+        emit_document(json_body(result, run_dir, mode))
         return
     print_summary(result, run_dir)
 
 
 def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
-    """The --json document: per controller and side (simulate, replay) or per controller (sweep)."""
+    """The --json document (commands/output.py): one `results` item per controller and side
+    (simulate, replay; RAID's phi-hat(t) at about 1 Hz beside its stats) or per controller (sweep)."""
+    from mrnc_eval.commands.output import document, item, split_stats
+
+    meta = {"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"],
+            "definitions": result.extra["definitions"]}
     if mode == "sweep":
-        return {"run_dir": str(run_dir), "mode": mode, "runs": result.extra["runs"], "seed": result.extra["seed"],
-                "labels": result.extra["labels"], "controllers": result.extra["sweep"],
-                "definitions": result.extra["definitions"]}
-    body: dict[str, dict[str, Any]] = {}
+        items = []
+        for ctrl, summary in result.extra["sweep"].items():
+            stats, rest = split_stats(summary)
+            items.append(item(ctrl, stats, controller=ctrl, **rest))
+        return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"]},
+                        warnings=result.warnings)
+    body: dict[tuple[str, str], dict[str, Any]] = {}
     for m in result.metrics:
         _, ctrl, side = m.group.split("/")
-        body.setdefault(ctrl, {}).setdefault(side, {})[m.name] = m.value
-    for ctrl, sides in body.items():  # RAID's phi-hat(t), at about 1 Hz
-        t = result.series.get(f"{ctrl}_t")
-        for side in ("left", "right"):
-            phi = result.series.get(f"{ctrl}_{side}_phi_hat")
-            if phi is not None and t is not None:
-                every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
-                sides[side]["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
-    return {"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"], "controllers": body,
-            "events": [e.__dict__ for e in result.events], "warnings": result.warnings,
-            "definitions": result.extra["definitions"]}
+        body.setdefault((ctrl, side), {})[m.name] = m.value
+    items = []
+    for (ctrl, side), stats in body.items():
+        extra: dict[str, Any] = {}
+        t, phi = result.series.get(f"{ctrl}_t"), result.series.get(f"{ctrl}_{side}_phi_hat")
+        if phi is not None and t is not None:
+            every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
+            extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
+        items.append(item(f"{ctrl}/{side}", stats, controller=ctrl, side=side, **extra))
+    return document("control", items, meta={**meta, "events": [e.__dict__ for e in result.events]},
+                    warnings=result.warnings)
 

@@ -40,6 +40,14 @@ class InfoSummary:
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
+    def json_item(self) -> dict[str, Any]:
+        """This summary as one `results` item of the --json document (commands/output.py)."""
+        from mrnc_eval.commands.output import item
+
+        rest = self.to_json()
+        stats = {k: rest.pop(k) for k in ("duration_s", "start_s", "end_s")}
+        return item(self.path, {**stats, "n_topics": len(self.topics)}, **rest)
+
 
 def run(path: Path, cfg: Config) -> InfoSummary:
     with open_log(path, cfg.io) as lg:

@@ -506,10 +506,14 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
     from mrnc_eval.reports.tables import render_table
 
     if json_out:
-        from mrnc_eval.commands.output import emit_json
+        from mrnc_eval.commands.output import emit_json, item
 
-        emit_json([{"log": r.log_path, "run_dir": str(d), **{m.name: m.value for m in r.metrics}}
-                   for d, r in results])
+        emit_json("slam", [item(r.log_id, {m.name: m.value for m in r.metrics}, log=r.log_path, run_dir=str(d),
+                                method=r.extra.get("method"), units={m.name: m.unit for m in r.metrics},
+                                mapping=mapping_rate(r), warnings=list(r.warnings))
+                           for d, r in results],
+                  meta={"table_trajectory": cfg.slam.table_trajectory},
+                  warnings=[f"{r.log_id}: {w}" for _, r in results for w in r.warnings])
         return
     for d, r in results:
         vals = {m.name: m.value for m in r.metrics}

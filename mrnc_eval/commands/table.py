@@ -204,6 +204,20 @@ def build_table_one(source: Path, cfg: Config | None = None, *, align: AlignMode
     return table
 
 
+def table_items(table: Table) -> list[dict[str, Any]]:
+    """One --json `results` item per cell: sequence, method, its number (null when Failed) and
+    why it failed; the mean row is a sequence named "Mean" like in the table."""
+    from mrnc_eval.commands.output import is_stat, item
+
+    out = []
+    for row, cells in zip(table.row_labels, table.cells, strict=True):
+        for column, cell in zip(table.column_labels, cells, strict=True):
+            number = cell if is_stat(cell) else None
+            out.append(item(f"{row}/{column}", {"value": number}, sequence=row, method=column,
+                            failed=None if number is not None else str(cell or "no value")))
+    return out
+
+
 def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_out: bool, force: bool = False
          ) -> None:
     """The `table` verb: Markdown on stdout, JSON with --json, a file by suffix with --out."""
@@ -216,7 +230,7 @@ def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_
         claim_output(out, force=force, inputs=[source])
     table = build_table_one(source, cfg, align=align)  # everything computed before anything is written
     if json_out:
-        emit_json(table.__dict__)
+        emit_json("table", table_items(table), meta={"table": table.__dict__})
     elif out is None:
         sys.stdout.write(render_table(table, "markdown"))
     if out is not None:

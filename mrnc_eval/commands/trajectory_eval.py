@@ -56,7 +56,8 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
 
     inputs = inputs or []
     if json_out:
-        emit_json(_summaries(results, drifts, decompositions))
+        emit_json("ape" if isinstance(results[0], ApeResult) else "rpe", _summaries(results, drifts, decompositions),
+                  meta={"title": title})
     else:
         sys.stdout.write(render_table(_results_table(results, title), "markdown"))
         if drifts is not None:
@@ -74,7 +75,16 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
 
 
 def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
-    summaries = [r.summary() for r in results]
+    """One `results` item per estimate: the statistics, n and span under `stats`, the matching
+    counts, drift and decomposition beside them (commands/output.py)."""
+    from mrnc_eval.commands.output import item, split_stats
+
+    summaries = []
+    for r in results:
+        flat = r.summary()
+        name = str(flat.pop("name"))
+        stats, rest = split_stats(flat)
+        summaries.append(item(name, stats, unit=r.unit, **rest))
     for key, extra in (("drift", drifts), ("decomposition", decompositions)):
         if extra is not None:
             for s, x in zip(summaries, extra, strict=True):
