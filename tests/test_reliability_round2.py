@@ -119,8 +119,8 @@ def _hostile_log(src: Path, dst: Path) -> Path:
 
     names = {"/gnss/fix": "/gnss" + HOSTILE, "/wheel_odom": "/wheel_odom"}
     with open_log(src) as lg, LogWriter(dst, "mcap") as w:
-        for topic, t_rec, raw in lg._iterate(list(lg._channels)):
-            msgtype = lg._channels[topic].msgtype
+        for topic, t_rec, raw in lg.source.iterate(list(lg.source.channels)):
+            msgtype = lg.source.channels[topic].msgtype
             w._writer.write(w._conn(names.get(topic, topic), msgtype, latched=topic == "/tf_static"), t_rec,
                             bytes(raw))
             if topic == "/wheel_odom":
