@@ -8,7 +8,7 @@ import math
 from collections.abc import Mapping
 from dataclasses import dataclass, field
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -35,6 +35,9 @@ from mrnc_eval.results import (
     write_result,
 )
 from mrnc_eval.tables import Cell, Table
+
+if TYPE_CHECKING:
+    from mrnc_eval.io.reader import LogReader
 
 log = logging.getLogger(__name__)
 
@@ -239,7 +242,7 @@ def _yaw(quat_xyzw: np.ndarray) -> np.ndarray:
     return yaw_pitch_roll_sxyz(quat_xyzw_to_matrix(quat_xyzw))[0]
 
 
-def recorded_pose(lg, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:
+def recorded_pose(lg: LogReader, log_path: Path) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, str]:
     """(t, x, y, yaw, source) of the recorded motion: ground truth, else wheel odometry, else
     GNSS (ENU; heading from the track direction). The pose must be in the frame of the path."""
     roles = lg.roles
@@ -290,7 +293,7 @@ def simulation_topics(roles: Mapping[str, str]) -> dict[str, str]:
     return {r: roles[r] for r in ("path", "ground_truth") if r in roles}
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class _Recording:
     """What a control replay reads from a log: a path to follow (the log's, or --path) and the
     recorded pose, or without a path the body twist whose inverse kinematics the wheels tracked."""
@@ -330,14 +333,15 @@ def _read_recording(log_path: Path, cfg: Config, path: Waypoints | None = None, 
         raise InputError(log_path, "the planned path has fewer than 2 waypoints", topic=roles.get("path"))
     if speeds.stamps.size < 3:
         raise InputError(log_path, "too few wheel-speed messages to evaluate tracking", topic=roles["wheel_speeds"])
-    rec = _Recording(wp, pose, source, speeds, cmds, notes, dict(roles), twists, twist_role, path_source)
+    rec = _Recording(waypoints=wp, pose=pose, pose_source=source, speeds=speeds, commands=cmds, health_notes=notes,
+                     roles=dict(roles), twists=twists, twist_role=twist_role, path_source=path_source)
     if np.count_nonzero(_evaluated(rec)) < 3:
         raise InputError(log_path, f"the {twist_role} messages do not overlap the wheel speeds ("
                                    f"{roles['wheel_speeds']}) in time: nothing to evaluate", topic=roles[twist_role])
     return rec
 
 
-def _pose_if_any(lg, log_path: Path, *, required: bool) -> tuple[Pose | None, str, tuple[str, ...]]:
+def _pose_if_any(lg: LogReader, log_path: Path, *, required: bool) -> tuple[Pose | None, str, tuple[str, ...]]:
     """The recorded pose and its source: required to follow a path; without one it only places the
     run and shows slip, so a log without a usable pose topic is evaluated anyway (and says so)."""
     if not required and not any(r in lg.roles for r in ("ground_truth", "wheel_odom", "gnss")):
@@ -351,7 +355,7 @@ def _pose_if_any(lg, log_path: Path, *, required: bool) -> tuple[Pose | None, st
     return (pt, pxs, pys, pyaws), source, ()
 
 
-def _tracking_twists(lg, log_path: Path) -> tuple[Twists, str]:
+def _tracking_twists(lg: LogReader, log_path: Path) -> tuple[Twists, str]:
     """The body twist wheel-speed tracking is measured against: the recorded cmd_vel, else the
     wheel odometry's twist."""
     roles = lg.roles
@@ -571,7 +575,7 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
         group = f"control/{name}/{side}"
         for key, val in metrics[side].items():
             value = val if isinstance(val, int) else float(val)
-            result.metrics.append(Metric(key, value, UNITS.get(key, ""), group))
+            result.metrics.append(Metric(name=key, value=value, unit=UNITS.get(key, ""), group=group))
         result.series[f"{name}_{side}_v_ref"] = getattr(tr, f"v_ref_{side}")[::step]
         result.series[f"{name}_{side}_v_meas"] = getattr(tr, f"v_wheel_{side}")[::step]
         result.series[f"{name}_{side}_u_rpm"] = getattr(tr, f"u_{side}")[::step]
@@ -585,11 +589,12 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
     if "path" in metrics:
         cte = metrics["path"].pop("_cte")
         for key, val in metrics["path"].items():
-            result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{name}/path"))
+            result.metrics.append(Metric(name=key, value=float(val), unit=UNITS.get(key, ""),
+                                         group=f"control/{name}/path"))
         result.series[f"{name}_cte_m"] = cte[::step]
     result.series[f"{name}_funnel_o"] = tr.funnel[::step]
-    result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(name, name)}: {e['message']}",
-                            {"side": e["side"]}) for e in tr.events]
+    result.events += [Event(t_s=e["t_s"], kind="safety_stop", message=f"{LABELS.get(name, name)}: {e['message']}",
+                            data={"side": e["side"]}) for e in tr.events]
 
 
 def _decimate(t: np.ndarray, max_points: int = 20000) -> int:

@@ -23,7 +23,7 @@ from mrnc_eval.evaluation.control_metrics import cross_track, paper_metrics
 from mrnc_eval.tables import Table
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SweepRun:
     """One controller on one drawn plant (worst side where a metric is per side)."""
 

@@ -27,7 +27,7 @@ from mrnc_eval.results import RunResult, follow_umask, read_result
 from mrnc_eval.text import printable
 
 
-@dataclass
+@dataclass(kw_only=True)
 class ExportSummary:
     path: Path
     size_bytes: int = 0
@@ -36,7 +36,7 @@ class ExportSummary:
     warnings: list[str] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LogContext:
     """What the export needs from the original log (None when the log is not at its recorded path)."""
 
@@ -71,7 +71,8 @@ def read_log_context(log_path: Path, cfg: Config) -> LogContext:
         start, end = lg.start_s, lg.end_s
         gt = ground_truth_of(lg, log_path)
         wheel = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m) if lg.has_role("wheel_speeds") else None
-    return LogContext(log_path, start, end, gt, float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size
+    return LogContext(path=log_path, start_s=start, end_s=end, ground_truth=gt,
+                      wheel_t0_s=float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size
                       else None)
 
 
@@ -149,7 +150,7 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
     if out_path.exists() and not force:
         raise UsageError(f"{out_path}: exists; pass --force to replace it")
     runs = load_runs(run_dirs)
-    summary = ExportSummary(out_path)
+    summary = ExportSummary(path=out_path)
     log_path = next((Path(r.log_path) for _, r in runs if r.log_path != "paper-scenario"), None)
     ctx = None
     if log_path is not None and log_path.exists():

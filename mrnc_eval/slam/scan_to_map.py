@@ -14,7 +14,7 @@ from mrnc_eval.slam.config import MatchingConfig
 from mrnc_eval.slam.nearest import KdTree
 
 
-@dataclass
+@dataclass(kw_only=True)
 class LocalMap:
     edges: np.ndarray
     surfs: np.ndarray
@@ -23,10 +23,11 @@ class LocalMap:
 
     @classmethod
     def build(cls, edges: np.ndarray, surfs: np.ndarray) -> LocalMap:
-        return cls(edges, surfs, KdTree(edges) if len(edges) >= 5 else None, KdTree(surfs) if len(surfs) >= 5 else None)
+        return cls(edges=edges, surfs=surfs, edge_tree=KdTree(edges) if len(edges) >= 5 else None,
+                   surf_tree=KdTree(surfs) if len(surfs) >= 5 else None)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MatchResult:
     pose: np.ndarray  # 4x4 sensor pose in the map
     iterations: int
@@ -332,7 +333,8 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
     use_edges = len(edges) >= cfg.min_edges and local_map.edge_tree is not None
     if (len(surfs) < cfg.min_surfs or local_map.surf_tree is None
             or (not use_edges and not cfg.match_without_edges)):
-        return MatchResult(guess, 0, False, False, float("nan"), len(edges), len(surfs), False)
+        return MatchResult(pose=guess, iterations=0, converged=False, degenerate=False, min_eigenvalue=float("nan"),
+                           n_edges=len(edges), n_surfs=len(surfs), optimised=False)
     T = guess.copy()
     P = good = np.eye(6)
     degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
@@ -378,5 +380,6 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
             break
     if pivot is not None and len(directions):  # report them about the sensor, as without a pivot
         directions = _about_sensor(directions, T[:3, :3] @ pivot)
-    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad, weakest, eigenvalues,
-                       directions)
+    return MatchResult(pose=T, iterations=it, converged=converged, degenerate=degenerate, min_eigenvalue=min_eig,
+                       n_edges=len(edges), n_surfs=len(surfs), optimised=True, n_degenerate=n_bad,
+                       weakest_direction=weakest, eigenvalues=eigenvalues, degenerate_directions=directions)
