@@ -105,3 +105,25 @@ def test_the_commands_take_a_typed_log_reader() -> None:
     assert len(untyped_readers(planted, "x")) == 2
     pyproject = (PACKAGE.parent / "pyproject.toml").read_text(encoding="utf-8")
     assert 'module = ["mrnc_eval.commands.*"]\ndisallow_untyped_defs = true' in pyproject
+
+
+def literal_tolerances(tree: ast.Module, where: str) -> list[str]:
+    """Calls that pass a number as `max_diff` (a stamp-pairing tolerance belongs in evaluation/config.py)."""
+    return [f"{where}:{n.lineno} max_diff={ast.unparse(k.value)}" for n in ast.walk(tree) if isinstance(n, ast.Call)
+            for k in n.keywords if k.arg == "max_diff" and isinstance(k.value, ast.Constant)]
+
+
+def test_the_ground_truth_pairing_tolerance_has_one_home() -> None:
+    import inspect
+
+    from mrnc_eval import cli
+    from mrnc_eval.evaluation.config import EvaluationConfig
+
+    found = [hit for path in sorted(PACKAGE.rglob("*.py"))
+             for hit in literal_tolerances(_parse(path), str(path.relative_to(PACKAGE)))]
+    assert not found, f"use evaluation.gt_max_diff_s / gnss_max_diff_s / max_diff_s: {found}"
+    assert literal_tolerances(ast.parse("ape(gt, est, max_diff=0.02)"), "x")  # the check sees a planted one
+    # a slam result's APE is the one `mrnc-eval ape` gives on its files with the default --max-diff
+    for verb in (cli.ape, cli.rpe):
+        assert inspect.signature(verb).parameters["max_diff"].default == EvaluationConfig().gt_max_diff_s
+    assert EvaluationConfig().max_diff_s == EvaluationConfig().gt_max_diff_s

@@ -126,7 +126,8 @@ def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContex
                 topics.write_ground_truth(out, ctx.ground_truth)
                 gt_written = True
                 try:
-                    align = ape(ctx.ground_truth, files.trajectory, align="se3", max_diff=0.02)
+                    align = ape(ctx.ground_truth, files.trajectory, align="se3",
+                                max_diff=_run_config(run_dir).evaluation.gt_max_diff_s)
                     topics.write_alignment(out, stamp_ns(t0), align.transform)
                 except EvaluationError as err:
                     summary.warnings.append(f"no world -> map alignment: {err}")

@@ -37,6 +37,7 @@ from mrnc_eval.results import (
     stable_id,
     write_result,
 )
+from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.output import STAGES, SlamOutput
 from mrnc_eval.slam.wheel_odometry import WheelTrack
 
@@ -103,7 +104,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     else:
         result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
-        _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method)
+        _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
     _add_map_quality(result, out, cfg)
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
@@ -170,7 +171,7 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool) -> Sl
     with progress_bar(inputs.n_sweeps, progress) as b:
         task = b.add_task("SLAM sweeps", total=inputs.n_sweeps) if b else None
         tick = (lambda n: b.update(task, completed=n)) if b and task is not None else None
-        stream = lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s) if lio else lg.sweeps()
+        stream = lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take) if lio else lg.sweeps()
         with Prefetched(stream, depth=4) as sweeps:
             if lio:
                 return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
@@ -327,11 +328,11 @@ def _add_trajectory_series(result: RunResult, est: Trajectory, online: Trajector
     result.series["kf_xyz"] = keyframes.positions
 
 
-def _end_drift(gt: Trajectory, est: Trajectory) -> float:
+def _end_drift(gt: Trajectory, est: Trajectory, max_diff_s: float) -> float:
     """Distance (m) between the estimated and true last position once the first poses coincide."""
     from mrnc_eval.evaluation.ape import ape
 
-    return float(ape(gt, est, align="origin", max_diff=0.02).errors[-1])
+    return float(ape(gt, est, align="origin", max_diff=max_diff_s).errors[-1])
 
 
 def _add_ape(result: RunResult, gt: Trajectory, est: Trajectory, online: Trajectory, method: str, cfg: Config,
@@ -350,13 +351,14 @@ def _ape_online(result: RunResult, gt: Trajectory, online: Trajectory, cfg: Conf
     from mrnc_eval.evaluation.ape import ape
 
     try:
-        r = ape(gt, online, align="se3", max_diff=0.02)
+        r = ape(gt, online, align="se3", max_diff=cfg.evaluation.gt_max_diff_s)
     except EvaluationError as err:
         result.warnings.append(f"APE of the online trajectory failed: {err}")
         return Cell(None, str(err))
     result.metrics += [Metric(name="ape_online_rmse_m", value=r.stats["rmse"], unit="m", group="slam/ape",
                               note="online trajectory: each sweep's pose as estimated when it was processed"),
-                       Metric(name="end_drift_online_m", value=_end_drift(gt, online), unit="m", group="slam/ape",
+                       Metric(name="end_drift_online_m", value=_end_drift(gt, online, cfg.evaluation.gt_max_diff_s),
+                              unit="m", group="slam/ape",
                               note="end drift of the online trajectory")]
     result.series["ape_online_err_m"] = r.errors
     result.series["est_online_aligned_xyz"] = r.est_poses[:, :3, 3]
@@ -369,13 +371,14 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
     from mrnc_eval.evaluation.ape import ape
 
     try:
-        r = ape(gt, est, align="se3", max_diff=0.02)
+        r = ape(gt, est, align="se3", max_diff=cfg.evaluation.gt_max_diff_s)
         result.metrics += [Metric(name="ape_rmse_m", value=r.stats["rmse"], unit="m", group="slam/ape"),
                            Metric(name="ape_mean_m", value=r.stats["mean"], unit="m", group="slam/ape"),
                            Metric(name="ape_max_m", value=r.stats["max"], unit="m", group="slam/ape"),
                            Metric(name="ape_n", value=r.n, unit="", group="slam/ape"),
                            Metric(name="ape_span_s", value=r.span_s, unit="s", group="slam/ape"),
-                           Metric(name="end_drift_m", value=_end_drift(gt, est), unit="m", group="slam/ape",
+                           Metric(name="end_drift_m", value=_end_drift(gt, est, cfg.evaluation.gt_max_diff_s),
+                                  unit="m", group="slam/ape",
                                   note="position error of the last pose with the first pose aligned to the "
                                        "ground truth: the drift accumulated over the log")]
         result.series["ape_t"] = r.stamps - t_start
@@ -389,7 +392,8 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
         return Cell(None, str(err))
 
 
-def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str) -> None:
+def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str,
+                  max_diff_s: float) -> None:
     """2-D APE of the antenna track against the GNSS fixes (yaw + translation aligned)."""
     from mrnc_eval.evaluation.ape import ape
 
@@ -397,7 +401,7 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
         ref = Trajectory(gnss.stamps, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
         shifted = Trajectory(est.stamps, est.positions + Rotation.from_quat(est.quat_xyzw).apply(antenna),
                              est.quat_xyzw, name=method)
-        rg = ape(ref, shifted, align="yaw", relation="point", max_diff=0.1, plane="xy")
+        rg = ape(ref, shifted, align="yaw", relation="point", max_diff=max_diff_s, plane="xy")
         result.metrics.append(Metric(name="ape_gnss_rmse_m", value=rg.stats["rmse"], unit="m", group="slam/ape",
                                      note="2-D, yaw + translation alignment, against GNSS in ENU"))
     except EvaluationError as err:

@@ -21,6 +21,7 @@ from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
+from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage, project
@@ -50,15 +51,15 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     if wheel is not None and with_wheels:
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
+    interval = MappingInterval(interval_s=cfg.mapping_interval_s)
     n_sweeps = 0
     t_read = time.perf_counter()
     for sweep in sweeps:
         n_sweeps += 1
         if progress is not None:
             progress(n_sweeps)
-        if sweep.stamp - replay.st.last_mapped < cfg.mapping_interval_s or len(sweep) == 0:
+        if not interval.take(sweep.stamp) or len(sweep) == 0:
             continue  # mappingProcessInterval
-        replay.st.last_mapped = sweep.stamp
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
         replay.map_sweep(sweep)
         t_read = time.perf_counter()
@@ -72,7 +73,6 @@ class _State:
     pose: np.ndarray | None = None
     t: float = 0.0  # stamp of `pose`, s (meaningful once pose is set)
     velocity: np.ndarray | None = None  # world frame, m/s
-    last_mapped: float = -np.inf
     last_loop_t: float = -np.inf
     loose: np.ndarray | None = None  # directions the latest match left to the IMU ([rot, trans], map axes)
     guess_by_wheels: bool = False  # the current sweep's guess took x, y and yaw from the wheels

@@ -24,6 +24,7 @@ from numba.core.dispatcher import Dispatcher
 import mrnc_eval.slam as slam_pkg
 from mrnc_eval.config import Config
 from mrnc_eval.io import open_log
+from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.replay import run_slam
 
 def compiled():
@@ -39,7 +40,7 @@ def compiled():
 cfg = Config()
 marks = {}
 with open_log(sys.argv[1], cfg.io) as lg:
-    out = run_slam(lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s), lg.imu(), cfg.slam,
+    out = run_slam(lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take), lg.imu(), cfg.slam,
                    sensor_to_imu=lg.transform("os_sensor", "os_imu"),
                    progress=lambda n: marks.setdefault("first_sweep", compiled()))
 marks["after_loop"] = compiled()
