@@ -1,14 +1,14 @@
 """GNSS factors for graph #1. LIO-SAM receives GNSS already in its odom frame (navsat_transform
 with a magnetometer heading); a 6-axis replay has no heading, so the ENU -> map yaw and offset
 are estimated from the first `align_min_travel_m` of keyframes (2-D Umeyama, rotation about z
-plus translation: evaluation.align.yaw_align), then fixes enter as GPS factors under LIO-SAM's gates."""
+plus translation: geometry.point_fit.yaw_align), then fixes enter as GPS factors under LIO-SAM's gates."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
-from mrnc_eval.evaluation.align import yaw_align
+from mrnc_eval.geometry.point_fit import yaw_align
 from mrnc_eval.slam.config import GpsConfig
 from mrnc_eval.slam.graph import KeyframeGraph
 from mrnc_eval.slam.output import SlamEvent

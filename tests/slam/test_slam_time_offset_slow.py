@@ -22,7 +22,7 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def rocking_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     cfg = replace_path(replace_path(Config(), "sim.terrain_amplitude_m", 0.5), "sim.terrain_roughness_m", 0.05)
     return simulate_log(tmp_path_factory.mktemp("rock") / "rock100.mcap", cfg,
