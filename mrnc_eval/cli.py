@@ -449,7 +449,7 @@ def compare(
                          only_changed=changed_only, force=force)
 
 
-# choices of `simulate` (a test checks they match sim.scene.SCENES, sim.recorder.PATHS and LIDAR_MODELS)
+# choices of `simulate` (a test checks they match sim.scene.SCENES, recording.recorder.PATHS and LIDAR_MODELS)
 class Scene(StrEnum):
     yard = "yard"
     forest = "forest"

@@ -46,7 +46,7 @@ SERIES_FILE = "series.npz"
 CONFIG_FILE = "config.yaml"
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Metric:
     name: str  # unit-bearing key, e.g. "ape_rmse_m", "settling_time_s"
     value: float | int | None
@@ -56,7 +56,7 @@ class Metric:
     note: str = ""
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Event:
     t_s: float  # seconds since the log start
     kind: str  # "loop_closure", "degeneracy", "safety_stop", "slip", ...
@@ -64,7 +64,7 @@ class Event:
     data: dict[str, Any] = field(default_factory=dict)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class RunResult:
     kind: str  # "slam" | "control" | "info"
     log_path: str

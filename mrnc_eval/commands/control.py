@@ -143,7 +143,7 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
         s = tr.side(side)
         for key, val in metrics[side].items():
             value = val if isinstance(val, int) else float(val)
-            result.metrics.append(Metric(key, value, UNITS.get(key, ""), group))
+            result.metrics.append(Metric(name=key, value=value, unit=UNITS.get(key, ""), group=group))
         result.series[f"{name}_{side}_v_ref"] = s.v_ref[::step]
         result.series[f"{name}_{side}_v_meas"] = s.v_wheel[::step]
         result.series[f"{name}_{side}_u_rpm"] = s.u[::step]
@@ -156,11 +156,12 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
     if "path" in metrics:
         cte = metrics["path"].pop("_cte")
         for key, val in metrics["path"].items():
-            result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{name}/path"))
+            result.metrics.append(Metric(name=key, value=float(val), unit=UNITS.get(key, ""),
+                                         group=f"control/{name}/path"))
         result.series[f"{name}_cte_m"] = cte[::step]
     result.series[f"{name}_funnel_o"] = tr.funnel[::step]
-    result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(name, name)}: {e['message']}",
-                            {"side": e["side"]}) for e in tr.events]
+    result.events += [Event(t_s=e["t_s"], kind="safety_stop", message=f"{LABELS.get(name, name)}: {e['message']}",
+                            data={"side": e["side"]}) for e in tr.events]
 
 
 def _decimate(t: np.ndarray, max_points: int = 20000) -> int:

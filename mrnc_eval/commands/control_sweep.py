@@ -26,7 +26,7 @@ from mrnc_eval.results import RunResult, write_result
 from mrnc_eval.tables import Table
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SweepRun:
     """One controller on one drawn plant (worst side where a metric is per side)."""
 

@@ -42,7 +42,7 @@ MANIFEST_HELP = ("sequences: {NAME: {reference: REF, methods: {METHOD: EST, ...}
                  "TUM, KITTI or EuRoC files, slam result folders or log.bag:/topic, relative to the manifest")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Sequence:
     """One row: its reference and each method's estimate (None: the method has none)."""
 
@@ -114,7 +114,7 @@ def _from_runs(runs: list[tuple[Path, RunResult]], table_trajectory: str) -> dic
         row = log_id
         if row in sequences and sequences[row].reference != reference:  # two logs of one name
             row = f"{log_id} ({result.log_path})"
-        sequences.setdefault(row, Sequence(reference, {})).methods[method] = \
+        sequences.setdefault(row, Sequence(reference=reference, methods={})).methods[method] = \
             TrajectorySpec(str(run_dir / RUN_TRAJECTORY[table_trajectory]))
     if not sequences:
         raise InputError(runs[0][0].parent, "no slam run in it found ground truth: nothing to tabulate")
@@ -133,7 +133,7 @@ def _from_sequence_folders(root: Path) -> dict[str, Sequence]:
             continue
         methods: dict[str, TrajectorySpec | None] = {
             p.stem: TrajectorySpec(str(p)) for p in sorted(seq_dir.glob("*.tum")) if p != gt}
-        sequences[seq_dir.name] = Sequence(TrajectorySpec(str(gt)), methods)
+        sequences[seq_dir.name] = Sequence(reference=TrajectorySpec(str(gt)), methods=methods)
     return sequences
 
 
@@ -160,8 +160,9 @@ def _from_manifest(path: Path, table_trajectory: str) -> dict[str, Sequence]:
         methods = entry.get("methods") or {}
         if not isinstance(methods, dict):
             raise InputError(path, f"sequence {name!r}: 'methods' must map method names to trajectories")
-        sequences[str(name)] = Sequence(spec(entry["reference"]),
-                                        {str(m): None if est is None else spec(est) for m, est in methods.items()})
+        sequences[str(name)] = Sequence(reference=spec(entry["reference"]),
+                                        methods={str(m): None if est is None else spec(est)
+                                                 for m, est in methods.items()})
     return sequences
 
 

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import logging
 import sys
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import UsageError
@@ -23,12 +24,18 @@ from mrnc_eval.tables import Cell as CellValue
 from mrnc_eval.tables import Table
 from mrnc_eval.text import printable
 
+if TYPE_CHECKING:
+    import numpy as np
+    from matplotlib.figure import Figure
+
+Results = Sequence[ApeResult] | Sequence[RpeResult]
+
 log = logging.getLogger(__name__)
 STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
 PLOT_SUFFIXES = (".svg", ".png", ".pdf")
 
 
-def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
+def _results_table(results: Results, title: str) -> Table:
     return Table(title=title, row_labels=[printable(r.name) for r in results],  # file names: one line each
                  column_labels=[*STAT_ORDER, "n", "span_s"],
                  cells=[[*(r.stats[k] for k in STAT_ORDER), r.n, round(r.span_s, 3)] for r in results],
@@ -49,8 +56,9 @@ def _claim_outputs(table: Path | None, plot: Path | None, specs: list[str], forc
     return inputs
 
 
-def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None,
-          decompositions=None, force: bool = False, inputs: list[Path] | None = None) -> None:
+def _emit(results: Results, title: str, json_out: bool, table: Path | None, plot: Path | None,
+          drifts: list[DriftResult] | None = None, decompositions: list[Decomposition] | None = None,
+          force: bool = False, inputs: list[Path] | None = None) -> None:
     """Print (JSON or Markdown), then write the table and plot files; all computed before."""
     from mrnc_eval.commands.output import emit_json
 
@@ -68,13 +76,15 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
     if table is not None:
         write_output(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]),
                      force=force, inputs=inputs)
-    if plot is not None and isinstance(results[0], ApeResult):
-        _save_figure(_path_figure(results, title), plot, force, inputs)
+    apes = [r for r in results if isinstance(r, ApeResult)]
+    if plot is not None and len(apes) == len(results):
+        _save_figure(_path_figure(apes, title), plot, force, inputs)
     elif plot is not None:
         _save_figure(_error_figure(results, title), plot, force, inputs)
 
 
-def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
+def _summaries(results: Results, drifts: list[DriftResult] | None,
+               decompositions: list[Decomposition] | None) -> list[dict[str, Any]]:
     """One `results` item per estimate: the statistics, n and span under `stats`, the matching
     counts, drift and decomposition beside them (commands/output.py)."""
     from mrnc_eval.commands.output import item, split_stats
@@ -85,7 +95,8 @@ def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
         name = str(flat.pop("name"))
         stats, rest = split_stats(flat)
         summaries.append(item(name, stats, unit=r.unit, **rest))
-    for key, extra in (("drift", drifts), ("decomposition", decompositions)):
+    extras: dict[str, Sequence[DriftResult | Decomposition] | None] = {"drift": drifts, "decomposition": decompositions}
+    for key, extra in extras.items():
         if extra is not None:
             for s, x in zip(summaries, extra, strict=True):
                 s[key] = x.summary()
@@ -107,7 +118,7 @@ def _decomposition_table(names: list[str], decs: list[Decomposition]) -> Table:
                  column_labels=list(STAT_ORDER[:-1]), cells=cells, best=None, precision=4)
 
 
-def _decimated_max(t, e, buckets: int = 10000):
+def _decimated_max(t: np.ndarray, e: np.ndarray, buckets: int = 10000) -> tuple[np.ndarray, np.ndarray]:
     """At most `buckets` points for a plot, each the largest error of its bucket, so peaks
     survive decimation (statistics always use every pose)."""
     import numpy as np
@@ -118,7 +129,7 @@ def _decimated_max(t, e, buckets: int = 10000):
     return t[starts], np.maximum.reduceat(e, starts)
 
 
-def _path_figure(results: list[ApeResult], title: str):
+def _path_figure(results: Sequence[ApeResult], title: str) -> Figure:
     """Each estimate's aligned path coloured by its APE, the reference dashed beside it (the
     SLAM report's figure); statistics use every pose, the drawing is decimated."""
     from mrnc_eval.reports.figures import draw_error_path, new_figure
@@ -131,7 +142,7 @@ def _path_figure(results: list[ApeResult], title: str):
     return fig
 
 
-def _error_figure(results, title: str):
+def _error_figure(results: Results, title: str) -> Figure:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8, 3.5), layout="constrained")
@@ -146,7 +157,7 @@ def _error_figure(results, title: str):
     return fig
 
 
-def _save_figure(fig, path: Path, force: bool, inputs: list[Path]) -> None:
+def _save_figure(fig: Figure, path: Path, force: bool, inputs: list[Path]) -> None:
     with output_file(path, force=force, inputs=inputs) as tmp:  # atomic: no half-written plot
         fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
 
