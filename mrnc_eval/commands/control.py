@@ -213,6 +213,7 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
     """The --json document: per controller and side (simulate, replay) or per controller (sweep)."""
     if mode == "sweep":
         return {"run_dir": str(run_dir), "mode": mode, "runs": result.extra["runs"], "seed": result.extra["seed"],
+                "supervisor": result.extra.get("supervisor", ""),
                 "labels": result.extra["labels"], "controllers": result.extra["sweep"],
                 "definitions": result.extra["definitions"]}
     body: dict[str, dict[str, Any]] = {}

@@ -22,16 +22,23 @@ def evaluate_trace(tr: ClosedLoopTrace, cfg: ControlConfig) -> dict[str, dict[st
     out: dict[str, dict[str, float]] = {}
     for i, side in enumerate(SIDES):
         s = tr.side(side)
-        m = tracking_metrics(tr.t, s.v_ref, s.v_wheel, s.u, s.funnel, u_max=cfg.actuator.u_max_rpm, slip=s.slip,
-                             cfg=mc, o_floor=cfg.funnel.o_b_mps)
+        stop = min((e["t_s"] for e in tr.events if e.get("side") == side), default=float("inf"))
+        keep = tr.t <= stop  # up to a safety stop: a stopped side's dead error is not tracking
+        if np.count_nonzero(keep) < 3:
+            keep = np.ones(tr.t.size, bool)
+        t = tr.t[keep]
+        m = tracking_metrics(t, s.v_ref[keep], s.v_wheel[keep], s.u[keep], s.funnel[keep],
+                             u_max=cfg.actuator.u_max_rpm, slip=s.slip[keep], cfg=mc, o_floor=cfg.funnel.o_b_mps)
+        m["time_to_stop_s"] = stop if np.isfinite(stop) else float("nan")
         m["safety_stops"] = sum(1 for e in tr.events if e.get("side") == side)
         if tr.full_rate_stats is not None:  # simulated: restarts of the per-step clocks (funnel anchor, FOPTC)
             m["segment_restarts"] = int(tr.full_rate_stats[i, ST_RESTARTS])
         if s.u_fb is not None:  # simulated: the applied feedback is known
-            m["feedback_share_mean"], m["feedback_share_p95"] = feedback_share(s.u, s.u_fb, mc.feedback_share_min_rpm)
+            m["feedback_share_mean"], m["feedback_share_p95"] = feedback_share(s.u[keep], s.u_fb[keep],
+                                                                               mc.feedback_share_min_rpm)
         if s.phi is not None and np.isfinite(s.phi).any():
-            m["phi_hat_final"], m["phi_hat_max"] = float(s.phi[-1]), float(np.nanmax(np.abs(s.phi)))
-        m.update(paper_metrics(tr.t, s.v_ref, s.v_wheel, cfg.paper_metrics))
+            m["phi_hat_final"], m["phi_hat_max"] = float(s.phi[keep][-1]), float(np.nanmax(np.abs(s.phi)))
+        m.update(paper_metrics(t, s.v_ref[keep], s.v_wheel[keep], cfg.paper_metrics))
         out[side] = m
     if tr.waypoints is not None:
         out["path"] = path_metrics(tr.x, tr.y, tr.yaw, tr.waypoints, tr.completion_time_s)

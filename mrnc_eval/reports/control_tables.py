@@ -20,7 +20,7 @@ UNITS = {"settling_time_s": "s", "overshoot_pct": "%", "steady_state_error_mps":
          "iae": "m", "ise": "m^2/s", "itae": "m s", "rms_error_mps": "m/s", "max_abs_error_mps": "m/s",
          "funnel_violations": "samples", "max_e_over_o": "", "saturation_ratio": "", "longest_saturation_s": "s",
          "max_abs_command_rpm": "RPM", "control_effort": "RPM^2 s", "total_variation_rpm": "RPM",
-         "recovery_time_s": "s", "safety_stops": "", "segment_restarts": "", "n_steps": "",
+         "recovery_time_s": "s", "safety_stops": "", "segment_restarts": "", "time_to_stop_s": "s", "n_steps": "",
          "steady_state_bias_mps": "m/s",
 "cross_track_mean_abs_m": "m", "cross_track_rms_m": "m", "cross_track_max_m": "m", "cross_track_p95_m": "m",
          "heading_error_rms_rad": "rad", "completion_time_s": "s", "final_position_error_m": "m",
