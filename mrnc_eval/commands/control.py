@@ -14,12 +14,13 @@ import numpy as np
 from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
+from mrnc_eval.control.margins import loop_summary
 from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.replay import evaluated, replay_roles, replay_trace
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.data import Waypoints
 from mrnc_eval.errors import InputError, UsageError
-from mrnc_eval.evaluation.control_run import evaluate_trace
+from mrnc_eval.evaluation.control_run import evaluate_trace, raid_scale_study
 from mrnc_eval.io.control_recording import read_recording, scenario_from_log
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
@@ -27,7 +28,9 @@ from mrnc_eval.reports.control_tables import (
     UNITS,
     paper_reading_table,
     print_summary,
+    raid_output_table,
     replay_definitions,
+    scale_study_table,
     table_notes,
     table_two,
 )
@@ -117,16 +120,24 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     result.series["funnel_o"] = longest.funnel[:: _decimate(longest.t)]
     for n in names:
         _add_controller(result, n, traces[n], metrics[n])
-    if mode == "simulate":
-        result.tables.append(paper_reading_table(metrics, names, cfg))
-        result.tables.append(table_two(metrics, names, cfg))
     result.extra = {"mode": mode, "controllers": list(names),
                     "labels": {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
                     "seed": cfg.control.seed, "definitions": definitions,
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
+                    "supervisor": cfg.control.supervisor.stop_rule, "step_detector": cfg.control.steps.detector,
+                    "reference_shaping": f"slew {cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2",
                     "curvature": cfg.control.pure_pursuit.curvature,
                     "roles": dict(roles) if mode == "replay" else simulation_topics(roles)}
+    if mode == "simulate":
+        loops = loop_summary(cfg.control, cfg.control.pure_pursuit.desired_speed_mps)
+        result.tables += [paper_reading_table(metrics, names, cfg), table_two(metrics, names, cfg),
+                          raid_output_table(loops)]
+        result.extra["loop"] = loops
+        if "raid" in names and cfg.control.raid.scale_study:
+            study = raid_scale_study(scenario, cfg.control, cfg.robot, tuple(cfg.control.raid.scale_study))
+            result.tables.append(scale_study_table(study, cfg))
+            result.extra["raid_scale_study"] = study
     if replay_kind:
         result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
         result.extra["t0_stamp_s"] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
@@ -211,7 +222,8 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
         for ctrl, summary in result.extra["sweep"].items():
             stats, rest = split_stats(summary)
             items.append(item(ctrl, stats, controller=ctrl, **rest))
-        return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"]},
+        return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"],
+                                                    "supervisor": result.extra.get("supervisor", "")},
                         warnings=result.warnings)
     body: dict[tuple[str, str], dict[str, Any]] = {}
     for m in result.metrics:
@@ -225,6 +237,7 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
             every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
             extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
         items.append(item(f"{ctrl}/{side}", stats, controller=ctrl, side=side, **extra))
-    return document("control", items, meta={**meta, "events": [e.__dict__ for e in result.events]},
+    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study") if k in result.extra}
+    return document("control", items, meta={**meta, **study, "events": [e.__dict__ for e in result.events]},
                     warnings=result.warnings)
 

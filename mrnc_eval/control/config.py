@@ -91,7 +91,15 @@ class RaidConfig:
     gamma: float = param(0.13, "RBF width gamma (paper)")
     centre_seed: int = param(7, "seed of the RBF centres alpha = 2 rand - 1 (recorded in reports)")
     phi0: float = param(0.5, "initial adaptive parameter phi(0) (phi = 0 is a fixed point, so non-zero)")
-    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (paper: 1)", "RPM")
+    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (the paper states no "
+                                      "unit; 1 = the literal reading)", "RPM")
+    output_unit: Literal["rpm_per_unit", "error_over_floor", "feedforward_gain"] = param(
+        "rpm_per_unit", "how the law's output becomes RPM (the paper's law is dimensionally inhomogeneous): "
+        "rpm_per_unit = feedback_scale_rpm RPM per law unit with e in m/s; error_over_floor = e, o, do/dt divided "
+        "by o_b first; feedforward_gain = the output read as m/s x the feed-forward gain (3000 RPM per m/s) x "
+        "feedback_scale_rpm. Reported with the interior gain beside Table II")
+    scale_study: tuple[float, ...] = param((1.0, 10.0, 100.0), "feedback scales RAID is also run at in "
+                                           "control --mode simulate (the scale study table; empty: none)", "RPM")
 
 
 @dataclass(frozen=True)
