@@ -134,6 +134,17 @@ def path_hash(relative: str | Path) -> str:
     return hashlib.sha256(Path(relative).as_posix().encode("utf-8", "surrogateescape")).hexdigest()[:8]
 
 
+def absolute_log_path(path: str | Path) -> str:
+    """The log path as result.json records it: absolute (each file of a split log "a.mcap,b.mcap"),
+    so `export --with-log`, `report` and `table` find the log from any working folder."""
+    from mrnc_eval.io.split_logs import split_log_paths
+
+    parts = split_log_paths(path)
+    if parts is not None:
+        return ",".join(str(p.absolute()) for p in parts)
+    return str(Path(path).absolute())
+
+
 def log_id_for(path: str | Path) -> str:
     """Stable id of a log from its file name (see `stable_id`), without the container suffix."""
     return stable_id(Path(path).name)

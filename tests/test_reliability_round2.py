@@ -153,3 +153,87 @@ def test_02_no_raw_control_byte_from_any_verb(sim_log: Path, tmp_path: Path) -> 
     assert not any(leaks.values()), leaks
     assert runs["slam"].code == 0, runs["slam"].err
     assert "\\x1b" in runs["info"].out  # shown escaped, not dropped
+
+
+# ------------------------------------------------------------------ 4: chunk CRCs
+
+
+def _cloud_chunk(path: Path) -> tuple[int, int]:
+    """(offset, length) of the first chunk record holding a point cloud."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    cloud = next(cid for cid, ch in summary.channels.items() if ch.topic == "/ouster/points")
+    ci = next(ci for ci in sorted(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+              if cloud in ci.message_index_offsets)
+    return ci.chunk_start_offset, ci.chunk_length
+
+
+def _flip(path: Path, at: int) -> None:
+    data = bytearray(path.read_bytes())
+    data[at] ^= 0x10
+    path.write_bytes(bytes(data))
+
+
+def test_04_simulated_logs_carry_chunk_crcs_and_a_flipped_byte_is_found(sim_log: Path, tmp_path: Path) -> None:
+    from mrnc_eval.io.integrity import verify_chunks
+
+    check = verify_chunks(sim_log)
+    assert check.chunks > 1
+    assert check.with_crc == check.chunks  # 0 of them before: rosbags writes none
+    log = tmp_path / "flipped.mcap"
+    shutil.copy(sim_log, log)
+    shutil.copy(sim_log.with_name("s.gt.tum"), tmp_path / "flipped.gt.tum")
+    offset, length = _cloud_chunk(log)
+    _flip(log, offset + length - 200)  # inside the compressed records of a chunk with clouds
+    info = cli("info", log, "--json")
+    damaged = [f for f in json.loads(info.out)["findings"] if "damaged" in f["message"]] if info.code == 0 else []
+    assert damaged or "damaged" in info.err, (info.code, info.err)  # said, as a finding or as the error
+    if damaged:
+        assert damaged[0]["level"] == "error"
+        assert "/ouster/points" in damaged[0]["topic"]
+    slam = cli("slam", log, "--out", tmp_path / "R", "--no-loop")
+    assert slam.code == 4, slam.err
+    assert one_line(slam)
+    assert "damaged" in slam.err
+    assert not run_folders(tmp_path / "R")
+
+
+def test_04_a_log_without_crcs_says_so_in_info_and_the_result(sim_log: Path, tmp_path: Path) -> None:
+    import struct
+
+    from mrnc_eval.io.integrity import _CHUNK, _records
+
+    log = tmp_path / "old.mcap"
+    shutil.copy(sim_log, log)
+    with log.open("r+b") as fh:  # as rosbags writes them: every chunk's CRC 0
+        for offset in [off for op, off, _n in _records(fh) if op == _CHUNK]:
+            fh.seek(offset + 9 + 24)
+            fh.write(struct.pack("<I", 0))
+    findings = json.loads(cli("info", log, "--json").out)["findings"]
+    assert any("carry no CRC" in f["message"] and f["level"] == "warning" for f in findings), findings
+    assert not any("carry no CRC" in f["message"] for f in json.loads(cli("info", sim_log, "--json").out)["findings"])
+    r = cli("slam", log, "--out", tmp_path / "R", "--no-loop")
+    assert r.code == 0, r.err
+    warnings = json.loads((run_folders(tmp_path / "R")[0] / "result.json").read_text())["warnings"]
+    assert any("carry no CRC" in w for w in warnings), warnings
+
+
+# ------------------------------------------------------------------ 14: absolute log paths
+
+
+def test_14_result_json_records_the_absolute_log_path(sim_log: Path, tmp_path: Path, monkeypatch) -> None:
+    work = tmp_path / "work"
+    work.mkdir()
+    shutil.copy(sim_log, work / "s.mcap")
+    shutil.copy(sim_log.with_name("s.gt.tum"), work / "s.gt.tum")
+    monkeypatch.chdir(work)
+    r = cli("control", "s.mcap", "--mode", "replay", "--controllers", "pid", "--out", "R")
+    assert r.code == 0, r.err
+    run = run_folders(work / "R")[0]
+    assert json.loads((run / "result.json").read_text())["log_path"] == str(work / "s.mcap")
+    monkeypatch.chdir(tmp_path)  # another folder: the log is still found
+    e = cli("export", run, "--mcap", tmp_path / "e.mcap", "--with-log")
+    assert e.code == 0, e.err

@@ -42,6 +42,24 @@ class InfoSummary:
 
 
 def run(path: Path, cfg: Config) -> InfoSummary:
+    from mrnc_eval.errors import InputError
+    from mrnc_eval.io.integrity import crc_note, mcap_files, verify_chunks
+
+    damaged = [d for f in mcap_files(Path(path)) for d in verify_chunks(f).damaged]  # every chunk, decompressed
+    try:
+        summary = _summary(path, cfg)
+    except InputError as err:
+        if damaged:  # say which chunks, not only that the read failed
+            raise InputError(path, f"{len(damaged)} damaged chunk(s): {damaged[0].message()}; {err.problem}") from err
+        raise
+    summary.findings[:0] = [Finding("error", ", ".join(d.topics), d.message()) for d in damaged]
+    note = crc_note(Path(path), summary.container)
+    if note:
+        summary.findings.append(Finding("warning" if "MCAP" in note else "ok", "", note))
+    return summary
+
+
+def _summary(path: Path, cfg: Config) -> InfoSummary:
     with open_log(path, cfg.io) as lg:
         topics = lg.topics
         summary = InfoSummary(

@@ -28,6 +28,7 @@ from mrnc_eval.results import (
     Event,
     Metric,
     RunResult,
+    absolute_log_path,
     check_output_root,
     json_safe,
     link_latest,
@@ -70,11 +71,12 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     on one log into `out_dir`; `log_id` names the log in results (default: from its file name;
     the nightly job passes its own, unique within the night)."""
     from mrnc_eval.io import open_log
+    from mrnc_eval.io.integrity import crc_note
 
     cfg = with_method(cfg, method)
     method = cfg.slam.method
     wall_start = time.perf_counter()
-    result = RunResult(kind="slam", log_path=str(log_path), log_id=log_id or log_id_for(log_path),
+    result = RunResult(kind="slam", log_path=absolute_log_path(log_path), log_id=log_id or log_id_for(log_path),
                        config_hash=config_hash(cfg))
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
@@ -84,6 +86,8 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         out = _replay(lg, inputs, cfg, progress)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
+        if (no_crc := crc_note(Path(log_path), lg.container)) is not None:
+            read_notes.append(no_crc)  # damage in this log could not have been detected
     if out.stamps.size < 2:
         why = "; ".join(read_notes) or "no sweep could be registered"
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s) ({why})")
