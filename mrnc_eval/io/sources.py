@@ -93,8 +93,8 @@ class RosbagsSource:
         except Exception as err:
             if not _is_chunk_damage(err):
                 raise
-            raise InputError(",".join(str(p) for p in self.paths), f"a chunk is damaged: {err}; its messages cannot be trusted "
-                             "(mrnc-eval info lists the damaged chunks)") from None
+            raise InputError(",".join(str(p) for p in self.paths), f"a chunk is damaged: {err}; its messages "
+                             "cannot be trusted (mrnc-eval info lists the damaged chunks)") from None
 
     def indexed_overview(self, topics: list[str], wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
         """`messages(topics)` with each message cut to wants[topic] bytes (io/bag_index.py), for
