@@ -237,3 +237,22 @@ def test_14_result_json_records_the_absolute_log_path(sim_log: Path, tmp_path: P
     monkeypatch.chdir(tmp_path)  # another folder: the log is still found
     e = cli("export", run, "--mcap", tmp_path / "e.mcap", "--with-log")
     assert e.code == 0, e.err
+
+
+# ------------------------------------------------------------------ 5: gates on non-numbers
+
+
+@pytest.mark.parametrize("stored", ["0.004", None, "inf"])
+def test_05_a_gate_whose_metric_is_not_a_finite_number_fails(stored: object, slam_run: Path, tmp_path: Path) -> None:
+    run = tmp_path / "run"
+    shutil.copytree(slam_run, run)
+    body = json.loads((run / "result.json").read_text())
+    for m in body["metrics"]:
+        if m["name"] == "ape_rmse_m":
+            m["value"] = stored  # text, null (a NaN), or "inf" (read back as infinity)
+    (run / "result.json").write_text(json.dumps(body))
+    r = cli("report", run, "--out", tmp_path / "rep", "--junit", tmp_path / "gates.xml")
+    assert r.code == 1, r.err  # exit 0 before: the gate was "skipped"
+    assert "APE RMSE" in r.err
+    xml = (tmp_path / "gates.xml").read_text()
+    assert "<skipped" not in xml.split("APE RMSE")[1].split("</testcase>")[0]
