@@ -256,3 +256,30 @@ def test_05_a_gate_whose_metric_is_not_a_finite_number_fails(stored: object, sla
     assert "APE RMSE" in r.err
     xml = (tmp_path / "gates.xml").read_text()
     assert "<skipped" not in xml.split("APE RMSE")[1].split("</testcase>")[0]
+
+
+# ------------------------------------------------------------------ 6: every trajectory validated
+
+
+def test_06_zero_quaternions_in_a_tum_file_or_an_api_trajectory_are_refused(sim_log: Path, tmp_path: Path) -> None:
+    from mrnc_eval import api
+    from mrnc_eval.errors import InputError
+    from mrnc_eval.io.trajectory_files import read_tum
+
+    gt = sim_log.with_name("s.gt.tum")
+    rows = gt.read_text().splitlines()
+    data = [k for k, ln in enumerate(rows) if ln.strip() and not ln.startswith("#")]
+    zero = tmp_path / "zero_q.tum"
+    zero.write_text("\n".join(" ".join([*ln.split()[:4], "0", "0", "0", "0"]) if k in data else ln
+                              for k, ln in enumerate(rows)) + "\n")
+    r = cli("ape", gt, zero, "--relation", "angle_deg")
+    assert r.code == 4, r.out  # exit 0 with 0.000 deg before
+    assert one_line(r)
+    assert "quaternion" in r.err
+    assert f"line {data[0] + 1}" in r.err
+    assert r.out == ""
+    traj = read_tum(gt)
+    traj.quat_xyzw[:] = 0.0
+    with pytest.raises(InputError, match="quaternion"):
+        api.ape(gt, traj, relation="angle_deg")
+    assert api.ape(gt, gt, relation="angle_deg").stats["rmse"] == pytest.approx(0.0, abs=1e-9)  # a valid one passes

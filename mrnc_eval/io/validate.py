@@ -67,6 +67,28 @@ def bad_quaternions(quat_xyzw: npt.ArrayLike, tolerance: float) -> Mask:
         return np.asarray(~np.isfinite(q).all(axis=1) | ~(np.abs(norm - 1.0) <= tolerance), dtype=bool)
 
 
+def bad_poses(stamps: npt.ArrayLike, positions: npt.ArrayLike, quat_xyzw: npt.ArrayLike,
+              tolerance: float | None = None) -> tuple[Mask, str]:
+    """The check every trajectory passes (files, `log:/topic`, API objects): per-pose mask of
+    non-finite stamps or positions and quaternions that are not unit (all-zero ones), and the
+    first problem in words. A log's stream is screened by `screen` (a few dropped); a trajectory
+    file or object is refused whole (its poses are what is evaluated, one by one)."""
+    tolerance = ValidationConfig().quat_norm_tolerance if tolerance is None else tolerance
+    t = np.asarray(stamps, dtype=float).reshape(-1)
+    p = np.asarray(positions, dtype=float).reshape(-1, 3)
+    q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
+    bad_q = bad_quaternions(q, tolerance)
+    bad_tp = ~np.isfinite(t) | ~np.isfinite(p).all(axis=1)
+    bad = bad_q | bad_tp
+    if not bad.any():
+        return bad, ""
+    k = int(np.flatnonzero(bad)[0])
+    with np.errstate(invalid="ignore", over="ignore"):
+        what = ("non-finite stamp or position" if bad_tp[k] else
+                f"quaternion of norm {np.linalg.norm(q[k]):.4g}, not a unit quaternion (|norm - 1| > {tolerance:g})")
+    return bad, what
+
+
 def normalised(quat_xyzw: npt.ArrayLike) -> Floats:
     q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
     return np.asarray(q / np.linalg.norm(q, axis=1, keepdims=True), dtype=float)
