@@ -283,3 +283,33 @@ def test_06_zero_quaternions_in_a_tum_file_or_an_api_trajectory_are_refused(sim_
     with pytest.raises(InputError, match="quaternion"):
         api.ape(gt, traj, relation="angle_deg")
     assert api.ape(gt, gt, relation="angle_deg").stats["rmse"] == pytest.approx(0.0, abs=1e-9)  # a valid one passes
+
+
+# ------------------------------------------------------------------ 7, 8: table rows and "not run"
+
+
+def test_07_08_table_has_one_row_per_log_path_and_says_not_run(sim_log: Path, tmp_path: Path) -> None:
+    logs = []
+    for day in ("day1", "day2"):
+        (tmp_path / day).mkdir()
+        logs.append(shutil.copy(sim_log, tmp_path / day / "run.mcap"))
+        shutil.copy(sim_log.with_name("s.gt.tum"), tmp_path / day / "run.gt.tum")
+    out = tmp_path / "R"
+    r = cli("slam", *logs, "--out", out, "--no-loop")
+    assert r.code == 0, r.err
+    table = json.loads(cli("table", out, "--json").out)
+    assert table["row_labels"] == ["day1/run", "day2/run", "Mean"]  # one merged row before
+    assert all(isinstance(row[0], float) for row in table["cells"][:2])
+    # a second method run on day1 only: day2's cell is "not run", not "Failed"
+    day1 = next(p for p in run_folders(out) if json.loads((p / "result.json").read_text())["log_path"].endswith(
+        "day1/run.mcap"))
+    other = out / "other-run"
+    shutil.copytree(day1, other)
+    body = json.loads((other / "result.json").read_text())
+    body["extra"]["method"] = "other"
+    (other / "result.json").write_text(json.dumps(body))
+    table = json.loads(cli("table", out, "--json").out)
+    col = table["column_labels"].index("other")
+    assert table["cells"][0][col] == pytest.approx(table["cells"][0][table["column_labels"].index("lio")])
+    assert table["cells"][1][col] == "not run"  # "Failed" before
+    assert not any(n.startswith("day2/run / other: Failed") for n in table["notes"])
