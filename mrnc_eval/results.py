@@ -46,14 +46,44 @@ SERIES_FILE = "series.npz"
 CONFIG_FILE = "config.yaml"
 
 
+# Which way is better, per metric name: True lower, False higher. A name not here has no known
+# direction (counts such as matched poses, keyframes, loop closures; settings such as the
+# mapping rate; signed biases): `compare` gives it no verdict.
+_LOWER = ("ape_rmse_m", "ape_online_rmse_m", "ape_gnss_rmse_m", "ape_max_m", "ape_mean_m", "end_drift_m",
+          "end_drift_online_m", "degeneracy_events", "map_entropy", "map_plane_variance_m2", "completion_time_s",
+          "control_effort", "cross_track_max_m", "cross_track_mean_abs_m", "cross_track_p95_m", "cross_track_rms_m",
+          "final_position_error_m", "funnel_violations", "heading_error_rms_rad", "iae", "ise", "itae",
+          "longest_saturation_s", "max_abs_error_mps", "max_e_over_o", "overshoot_pct", "paper_overshoot_pct",
+          "paper_settling_time_s", "paper_steady_state_error_mps", "recovery_time_s", "rise_time_s",
+          "rms_error_mps", "safety_stops", "saturation_ratio", "settling_time_s", "steady_state_error_mps",
+          "total_variation_rpm")
+_HIGHER = ("rtf", "rtf_end_to_end")
+METRIC_DIRECTION: dict[str, bool] = {**dict.fromkeys(_LOWER, True), **dict.fromkeys(_HIGHER, False)}
+
+
+def metric_direction(name: str, stored: bool | None = None) -> bool | None:
+    """True: lower is better, False: higher, None: unknown. The table above first (result files
+    written before it stored True for every metric, counts included); then an explicit stored
+    direction other than that old default (a metric added elsewhere with lower_is_better=False)."""
+    if name.startswith("ms_per_sweep_"):
+        return True
+    if name in METRIC_DIRECTION:
+        return METRIC_DIRECTION[name]
+    return False if stored is False else None
+
+
 @dataclass
 class Metric:
     name: str  # unit-bearing key, e.g. "ape_rmse_m", "settling_time_s"
     value: float | int | None
     unit: str = ""
     group: str = ""  # e.g. "slam", "control/raid/left"
-    lower_is_better: bool = True
+    lower_is_better: bool | None = None  # None: from METRIC_DIRECTION by name (None there: unknown)
     note: str = ""
+
+    def __post_init__(self) -> None:
+        if self.lower_is_better is None:
+            self.lower_is_better = metric_direction(self.name)
 
 
 @dataclass

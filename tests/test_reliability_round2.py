@@ -313,3 +313,57 @@ def test_07_08_table_has_one_row_per_log_path_and_says_not_run(sim_log: Path, tm
     assert table["cells"][0][col] == pytest.approx(table["cells"][0][table["column_labels"].index("lio")])
     assert table["cells"][1][col] == "not run"  # "Failed" before
     assert not any(n.startswith("day2/run / other: Failed") for n in table["notes"])
+
+
+# ------------------------------------------------------------------ 9: compare verdicts
+
+
+def _edited_copy(run: Path, dst: Path, values: dict[str, object], log_path: str | None = None) -> Path:
+    shutil.copytree(run, dst)
+    body = json.loads((dst / "result.json").read_text())
+    for m in body["metrics"]:
+        if m["name"] in values:
+            m["value"] = values[m["name"]]
+    if log_path is not None:
+        body["log_path"] = log_path
+    (dst / "result.json").write_text(json.dumps(body))
+    return dst
+
+
+NO_VERDICT = "\u2013"  # how an empty cell is shown
+
+
+def _verdicts(markdown: str) -> dict[str, str]:
+    rows = [ln.split("|") for ln in markdown.splitlines() if ln.startswith("| slam/")]
+    return {cells[1].strip(): cells[-2].strip() for cells in rows}
+
+
+def test_09_compare_verdicts_only_where_the_direction_is_known(slam_run: Path, tmp_path: Path) -> None:
+    a = _edited_copy(slam_run, tmp_path / "a", {"ape_n": 100, "loop_closures": 2, "ape_rmse_m": 0.01,
+                                                "end_drift_m": "inf", "rtf": 2.0})
+    b = _edited_copy(slam_run, tmp_path / "b", {"ape_n": 150, "loop_closures": 1, "ape_rmse_m": 0.02,
+                                                "end_drift_m": "inf", "rtf": 3.0})
+    r = cli("compare", a, b, "--format", "markdown")
+    assert r.code == 0, r.err
+    verdicts = _verdicts(r.out)
+    assert verdicts["slam/ape/ape_n"] == NO_VERDICT  # more matched poses: "worse" before
+    assert verdicts["slam/loop_closures"] == NO_VERDICT  # fewer loop closures: "better" before
+    assert verdicts["slam/ape/ape_rmse_m"] == "worse"  # the known directions still judged
+    assert verdicts["slam/rtf"] == "better"
+    assert verdicts["slam/ape/end_drift_m"] == "same"  # inf = inf is no change
+    assert "different" not in r.err
+    changed = _verdicts(cli("compare", a, b, "--format", "markdown", "--changed-only").out)
+    assert "slam/ape/end_drift_m" not in changed
+    assert "slam/ape/ape_rmse_m" in changed
+
+
+def test_09_compare_warns_on_different_logs_or_kinds(slam_run: Path, tmp_path: Path) -> None:
+    other = _edited_copy(slam_run, tmp_path / "other", {}, log_path="/data/another.mcap")
+    r = cli("compare", slam_run, other, "--format", "markdown")
+    assert r.code == 0
+    assert "different logs" in r.err
+    assert "different logs" in r.out  # in the table's notes too (--out files keep it)
+    control = tmp_path / "C"
+    assert cli("control", "--mode", "simulate", "--controllers", "pid", "--out", control).code == 0
+    r = cli("compare", slam_run, run_folders(control)[0], "--format", "markdown")
+    assert "different kinds" in r.err
