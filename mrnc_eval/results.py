@@ -56,7 +56,7 @@ _LOWER = ("ape_rmse_m", "ape_online_rmse_m", "ape_gnss_rmse_m", "ape_max_m", "ap
           "longest_saturation_s", "max_abs_error_mps", "max_e_over_o", "overshoot_pct", "paper_overshoot_pct",
           "paper_settling_time_s", "paper_steady_state_error_mps", "recovery_time_s", "rise_time_s",
           "rms_error_mps", "safety_stops", "saturation_ratio", "settling_time_s", "steady_state_error_mps",
-          "total_variation_rpm")
+          "total_variation_rpm", "sweeps_empty", "sweeps_without_imu")
 _HIGHER = ("rtf", "rtf_end_to_end")
 METRIC_DIRECTION: dict[str, bool] = {**dict.fromkeys(_LOWER, True), **dict.fromkeys(_HIGHER, False)}
 

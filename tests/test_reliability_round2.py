@@ -367,3 +367,75 @@ def test_09_compare_warns_on_different_logs_or_kinds(slam_run: Path, tmp_path: P
     assert cli("control", "--mode", "simulate", "--controllers", "pid", "--out", control).code == 0
     r = cli("compare", slam_run, run_folders(control)[0], "--format", "markdown")
     assert "different kinds" in r.err
+
+
+# ------------------------------------------------------------------ 10: dropped inputs counted
+
+
+def _rewrite(src: Path, dst: Path, *, keep=None, edit=None, fmt: str = "mcap") -> Path:
+    """Copy a log message by message, leaving out messages (keep(topic, k) False) or editing them."""
+    from mrnc_eval.io import open_log
+    from mrnc_eval.io.ground_truth import gt_tum_path
+    from mrnc_eval.io.writers import LogWriter
+
+    counts: dict[str, int] = {}
+    with open_log(src) as lg, LogWriter(dst, fmt) as w:  # type: ignore[arg-type]
+        for topic, t_rec, raw in lg._iterate(list(lg._channels)):
+            msgtype = lg._channels[topic].msgtype
+            k = counts.get(topic, 0)
+            counts[topic] = k + 1
+            if keep is not None and not keep(topic, k):
+                continue
+            if edit is not None and topic in edit:
+                raw = w._serialize(edit[topic](lg._decode(raw, topic), k), msgtype)
+            w._writer.write(w._conn(topic, msgtype, latched=topic == "/tf_static"), t_rec, bytes(raw))
+    shutil.copy(gt_tum_path(src), gt_tum_path(dst))
+    return dst
+
+
+def _bad_sweeps(msg, k: int):
+    import numpy as np
+
+    if k == 3:
+        msg.data = np.zeros_like(msg.data)  # all-zero points: none valid
+    if k == 6:
+        msg.data = np.full_like(msg.data, 0xFF)  # all NaN
+    return msg
+
+
+def _slam_result(log: Path, out: Path) -> dict:
+    r = cli("slam", log, "--out", out, "--no-loop")
+    assert r.code == 0, r.err
+    return json.loads((run_folders(out)[0] / "result.json").read_text())
+
+
+def test_10_dropped_sweeps_and_a_slow_imu_are_counted(sim_log: Path, tmp_path: Path) -> None:
+    bad = _slam_result(_rewrite(sim_log, tmp_path / "bad.mcap", edit={"/ouster/points": _bad_sweeps}),
+                       tmp_path / "R1")
+    metrics = {m["name"]: m["value"] for m in bad["metrics"]}
+    assert metrics["sweeps_empty"] == 2  # nothing in the result before
+    assert any("2 of 10 sweep(s) had no valid point" in w for w in bad["warnings"]), bad["warnings"]
+    good = {m["name"]: m["value"] for m in _slam_result(sim_log, tmp_path / "R2")["metrics"]}
+    assert "sweeps_empty" not in good
+    assert good["sweeps_without_imu"] == 0  # negative control: a 100 Hz IMU covers every sweep
+    slow = _slam_result(_rewrite(sim_log, tmp_path / "slow.mcap",
+                                 keep=lambda topic, k: topic != "/ouster/imu" or k % 50 == 0), tmp_path / "R3")
+    metrics = {m["name"]: m["value"] for m in slow["metrics"]}
+    assert metrics["sweeps_without_imu"] >= 4  # a 2 Hz IMU under 5 Hz mapping
+    assert any("no IMU sample since the previous" in w and "2.0 Hz" in w for w in slow["warnings"]), slow["warnings"]
+
+
+def test_10_sqlite_messages_of_a_missing_topic_id_are_counted(sim_log: Path, tmp_path: Path) -> None:
+    import sqlite3
+
+    bag = _rewrite(sim_log, tmp_path / "b.db3", fmt="db3")
+    db = sqlite3.connect(bag)
+    with db:
+        total = db.execute("SELECT COUNT(*) FROM messages").fetchone()[0]
+        lost = db.execute("UPDATE messages SET topic_id = 999 WHERE id % 7 = 0").rowcount
+    db.close()
+    findings = json.loads(cli("info", bag, "--json").out)["findings"]
+    line = f"{lost} of {total} messages"
+    assert any(line in f["message"] and f["level"] == "warning" for f in findings), findings
+    result = _slam_result(bag, tmp_path / "R")
+    assert any(line in w for w in result["warnings"]), result["warnings"]

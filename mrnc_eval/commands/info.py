@@ -43,7 +43,7 @@ class InfoSummary:
 
 def run(path: Path, cfg: Config) -> InfoSummary:
     from mrnc_eval.errors import InputError
-    from mrnc_eval.io.integrity import crc_note, mcap_files, verify_chunks
+    from mrnc_eval.io.integrity import container_notes, mcap_files, verify_chunks
 
     damaged = [d for f in mcap_files(Path(path)) for d in verify_chunks(f).damaged]  # every chunk, decompressed
     try:
@@ -53,9 +53,8 @@ def run(path: Path, cfg: Config) -> InfoSummary:
             raise InputError(path, f"{len(damaged)} damaged chunk(s): {damaged[0].message()}; {err.problem}") from err
         raise
     summary.findings[:0] = [Finding("error", ", ".join(d.topics), d.message()) for d in damaged]
-    note = crc_note(Path(path), summary.container)
-    if note:
-        summary.findings.append(Finding("warning" if "MCAP" in note else "ok", "", note))
+    for note in container_notes(Path(path), summary.container):
+        summary.findings.append(Finding("warning" if "MCAP" in note or "dropped" in note else "ok", "", note))
     return summary
 
 

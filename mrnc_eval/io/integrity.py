@@ -192,3 +192,39 @@ def crc_note(path: Path, container: str) -> str | None:
         return (f"{chunks - with_crc} of {chunks} MCAP chunks carry no CRC: damage inside them cannot be detected "
                 "(logs written before mrnc-eval 0.x, or by a writer without CRCs)")
     return None
+
+
+def orphan_messages(path: Path) -> tuple[int, int]:
+    """(messages whose topic id is not in the topics table, all messages) of a ROS 2 sqlite3 bag:
+    its readers drop such messages without a word."""
+    import sqlite3
+
+    files = sorted(path.glob("*.db3")) if path.is_dir() else [path] if path.suffix.lower() == ".db3" else []
+    orphans = total = 0
+    for f in files:
+        try:
+            db = sqlite3.connect(f"file:{f}?mode=ro", uri=True)
+            try:
+                total += db.execute("SELECT COUNT(*) FROM messages").fetchone()[0]
+                orphans += db.execute("SELECT COUNT(*) FROM messages WHERE topic_id NOT IN "
+                                      "(SELECT id FROM topics)").fetchone()[0]
+            finally:
+                db.close()
+        except sqlite3.Error:
+            continue  # the reader reports an unreadable file itself
+    return orphans, total
+
+
+def container_notes(path: Path, container: str) -> list[str]:
+    """What the container itself says about lost or unverifiable data, for info and results:
+    no checksums (MCAP without CRCs, ROS 1, sqlite3), messages of unknown topic ids (sqlite3)."""
+    notes = []
+    if "sqlite" in container:
+        orphans, total = orphan_messages(path)
+        if orphans:
+            notes.append(f"{orphans} of {total} messages ({100 * orphans / total:.1f} %) have a topic id missing "
+                         "from the bag's topics table: dropped (their topic and type are unknown)")
+    note = crc_note(path, container)
+    if note:
+        notes.append(note)
+    return notes
