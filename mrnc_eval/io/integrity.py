@@ -60,6 +60,7 @@ class _ChunkRecord:
 
 def _records(fh: BinaryIO) -> Iterator[tuple[int, int, int]]:
     """(opcode, record offset, content length) of every record of the data section, in order."""
+    size = fh.seek(0, 2)
     fh.seek(0)
     if fh.read(8) != _MAGIC:
         return
@@ -69,6 +70,8 @@ def _records(fh: BinaryIO) -> Iterator[tuple[int, int, int]]:
         if len(head) < 9:
             return
         opcode, length = struct.unpack("<BQ", head)
+        if length > size - pos - 9:
+            raise ValueError(f"record at byte {pos} runs past the end of the file (truncated or damaged)")
         yield opcode, pos, length
         if opcode == 0x0F:  # data end: the summary follows
             return
@@ -145,13 +148,27 @@ def verify_chunks(path: Path) -> ChunkCheck:
     check = ChunkCheck()
     names = _channel_names(path)
     with path.open("rb") as fh:
-        records = list(_records(fh))
+        records: list[tuple[int, int, int]] = []
+        try:
+            records += _records(fh)
+        except (ValueError, struct.error, OSError) as err:  # the records read so far are still checked
+            check.damaged.append(DamagedChunk(offset=records[-1][1] if records else 8, start_s=0.0, end_s=0.0,
+                                              topics=(), reason=f"unreadable record structure: {err}"))
         for k, (opcode, off, _n) in enumerate(records):
             if opcode != _CHUNK:
                 continue
             check.chunks += 1
-            ch = _chunk(fh, off)
+            try:
+                ch = _chunk(fh, off)
+            except (ValueError, struct.error, OSError) as err:
+                check.damaged.append(DamagedChunk(offset=off, start_s=0.0, end_s=0.0, topics=(),
+                                                  reason=f"unreadable chunk header: {err}"))
+                continue
             check.with_crc += ch.crc != 0
+            if ch.size > 1 << 34 or ch.data_len > 1 << 34:  # 16 GB: a damaged header, not a chunk
+                check.damaged.append(DamagedChunk(offset=off, start_s=0.0, end_s=0.0, topics=(),
+                                                  reason="implausible chunk sizes in its header"))
+                continue
             fh.seek(ch.data_at)
             try:
                 data = _decompress(fh.read(ch.data_len), ch.compression, ch.size)
@@ -184,10 +201,13 @@ def crc_note(path: Path, container: str) -> str | None:
     chunks = with_crc = 0
     for f in files:
         with f.open("rb") as fh:
-            for opcode, off, _n in _records(fh):
-                if opcode == _CHUNK:
-                    chunks += 1
-                    with_crc += _chunk(fh, off).crc != 0
+            try:
+                for opcode, off, _n in _records(fh):
+                    if opcode == _CHUNK:
+                        chunks += 1
+                        with_crc += _chunk(fh, off).crc != 0
+            except (ValueError, struct.error, OSError):
+                continue  # a damaged file: verify_chunks and the reader say what is wrong
     if chunks and with_crc < chunks:
         return (f"{chunks - with_crc} of {chunks} MCAP chunks carry no CRC: damage inside them cannot be detected "
                 "(logs written before mrnc-eval 0.x, or by a writer without CRCs)")
