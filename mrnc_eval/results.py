@@ -27,6 +27,8 @@ import secrets
 import shutil
 import tempfile
 import unicodedata
+import zipfile
+import zlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -347,8 +349,11 @@ def read_result(run_dir: str | Path, *, with_series: bool = True) -> RunResult:
     series: dict[str, np.ndarray] = {}
     npz = run_dir / SERIES_FILE
     if with_series and npz.exists():
-        with np.load(npz, allow_pickle=False) as data:
-            series = {k: data[k] for k in data.files}
+        try:
+            with np.load(npz, allow_pickle=False) as data:
+                series = {k: data[k] for k in data.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:  # truncated, flipped, not a zip
+            raise InputError(npz, f"damaged series file: {err}") from err
     try:
         return RunResult(
             kind=body["kind"],
