@@ -38,6 +38,7 @@ import numpy as np
 from mrnc_eval import __version__
 from mrnc_eval.errors import InputError, OutputError
 from mrnc_eval.io.containers import LOG_SUFFIXES
+from mrnc_eval.outputs import describe
 from mrnc_eval.tables import Table
 
 if TYPE_CHECKING:
@@ -225,13 +226,19 @@ def new_run_dir(root: Path, log_id: str, verb: str) -> Path:
 
 def atomic_write_text(path: Path, text: str) -> None:
     """Write a file under a temporary name and rename it into place (mode from the umask)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as err:
+        raise OutputError(path, f"cannot write here: {describe(err)}") from err
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         follow_umask(Path(tmp))
         os.replace(tmp, path)
+    except OSError as err:  # the target named, not the temporary file
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(path, f"cannot write: {describe(err)}") from err
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -264,8 +271,11 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
     """
     run_dir = Path(run_dir)
     _check_replaceable(run_dir)
-    run_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{run_dir.name}.", suffix=".partial", dir=run_dir.parent))
+    try:
+        run_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{run_dir.name}.", suffix=".partial", dir=run_dir.parent))
+    except OSError as err:
+        raise OutputError(run_dir, f"cannot write here: {describe(err)}") from err
     follow_umask(tmp)
     try:
         body = asdict(result)
@@ -289,6 +299,9 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, run_dir)
+    except OSError as err:  # name the result folder, not the hidden temporary one (no space, permission)
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise OutputError(run_dir, f"cannot write: {describe(err)}") from err
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise

@@ -499,3 +499,75 @@ def test_11_damaged_history_and_series_files_are_input_errors(slam_run: Path, tm
     assert r.code == 4, r.err
     assert "series.npz" in r.err
     assert not (tmp_path / "rep").exists()
+
+
+# ------------------------------------------------------------------ 12: messages
+
+
+def test_12_write_errors_name_the_target_and_the_reason(slam_run: Path, tmp_path: Path) -> None:
+    import errno
+    from unittest import mock
+
+    full = OSError(errno.ENOSPC, "No space left on device")
+    with mock.patch("numpy.savez_compressed", side_effect=full):
+        r = cli("control", "--mode", "simulate", "--controllers", "pid", "--out", tmp_path / "R")
+    assert r.code == 4
+    assert one_line(r)
+    assert "no space left on device" in r.err
+    assert str(tmp_path / "R") in r.err
+    assert ".partial" not in r.err  # the hidden temporary folder, before
+    real_write = Path.write_text
+
+    def write_text(self: Path, *args, **kwargs):
+        if self.name.startswith(".report.html."):
+            raise OSError(errno.ENOSPC, "No space left on device", str(self))
+        return real_write(self, *args, **kwargs)
+
+    with mock.patch.object(Path, "write_text", write_text):
+        r = cli("report", slam_run, "--out", tmp_path / "rep")
+    assert r.code == 4
+    assert f"{tmp_path / 'rep' / 'report.html'}: cannot write: no space left on device" in r.err
+    assert not any(p.name.startswith(".report.html.") for p in (tmp_path / "rep").iterdir())
+
+
+def test_12_sweep_runs_from_the_configuration_is_named_as_such(tmp_path: Path) -> None:
+    from mrnc_eval.commands.control import run_sweep_result
+    from mrnc_eval.config import load_config
+    from mrnc_eval.errors import UsageError
+
+    cfg = tmp_path / "c.yaml"
+    cfg.write_text("control:\n  sweep:\n    runs: 0\n")
+    r = cli("control", "--mode", "sweep", "--config", cfg, "--out", tmp_path / "R")
+    assert r.code == 2
+    assert "control.sweep.runs" in r.err
+    assert "--runs" not in r.err
+    with pytest.raises(UsageError, match="--runs 0"):
+        run_sweep_result(load_config(), ("pid",), tmp_path / "S", runs=0, seed=None)
+
+
+def test_12_a_cut_ros1_bag_gets_the_reindex_hint(sim_log: Path, tmp_path: Path) -> None:
+    bag = _rewrite(sim_log, tmp_path / "b.bag", fmt="bag")
+    data = bag.read_bytes()
+    bag.write_bytes(data[: len(data) - 3000])  # the recorder stopped before writing the index
+    r = cli("info", bag)
+    assert r.code == 4
+    assert one_line(r)
+    assert "rosbag reindex" in r.err
+
+
+def test_12_info_agrees_with_itself_on_duplicate_sweep_stamps(sim_log: Path, tmp_path: Path) -> None:
+    previous: list[tuple[int, int]] = []
+
+    def duplicate(msg, k: int):
+        if k == 4:
+            msg.header.stamp.sec, msg.header.stamp.nanosec = previous[-1]
+        previous.append((msg.header.stamp.sec, msg.header.stamp.nanosec))
+        return msg
+
+    log = _rewrite(sim_log, tmp_path / "dup.mcap", edit={"/ouster/points": duplicate})
+    info = json.loads(cli("info", log, "--json").out)
+    messages = [f["message"] for f in info["findings"] if f["topic"] == "/ouster/points"]
+    assert any("1 duplicate header stamps (dropped" in m for m in messages)
+    assert any(m.startswith("9 sweeps (10 recorded, 1 with a duplicate stamp dropped)") for m in messages), messages
+    assert any("IMU covers 9 of 9 sweeps" in m for m in messages), messages  # "10 sweeps", "10 of 10" before
+    assert info["lidar"]["sweeps"] == 9

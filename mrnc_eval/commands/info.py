@@ -131,9 +131,11 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
     first = next(lg._messages(topic, ("sensor_msgs/msg/PointCloud2",)))  # one cloud is enough for the layout
     fields = [f.name for f in first.fields]
     has_time = any(f in fields for f in ("t", "time", "timestamp"))
+    entry = next(t for t in summary.topics if t["topic"] == topic)
+    # the sweeps a replay reads: duplicate stamps are dropped when read, so they are not counted here either
+    recorded, usable = entry["count"], entry["count"] - entry["duplicates"]
     summary.lidar = {"topic": topic, "fields": fields, "height": int(first.height), "width": int(first.width),
-                     "per_point_time": has_time,
-                     "sweeps": next(t["count"] for t in summary.topics if t["topic"] == topic)}
+                     "per_point_time": has_time, "sweeps": usable, "sweeps_recorded": recorded}
     missing = [f for f in ("x", "y", "z") if f not in fields]
     if missing:
         summary.findings.append(Finding("error", topic, f"PointCloud2 without {'/'.join(missing)}"))
@@ -141,13 +143,14 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
     summary.findings.append(Finding("ok" if has_time else "warning", topic,
                                     "per-point time present" if has_time else
                                     "no per-point time field: sweeps cannot be deskewed"))
-    summary.findings.append(Finding("ok", topic, f"{summary.lidar['sweeps']} sweeps of {first.height} x {first.width}"
+    dropped = f" ({recorded} recorded, {recorded - usable} with a duplicate stamp dropped)" if usable < recorded else ""
+    summary.findings.append(Finding("ok", topic, f"{usable} sweeps{dropped} of {first.height} x {first.width}"
                                     f", fields {', '.join(fields)}"))
     imu_topic = summary.roles.get("imu")
     if imu_topic is None:
         summary.findings.append(Finding("warning", topic, "no IMU: deskew and preintegration unavailable"))
         return
-    sweep_t = np.sort(lg.sweep_stamps(topic))
+    sweep_t = np.unique(lg.sweep_stamps(topic))  # sorted, duplicates once: the sweeps a replay reads
     imu_t = np.sort(lg.stamps(imu_topic))
     from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 

@@ -58,7 +58,14 @@ class RosbagsSource:
         self.ros1 = ros1
         self.paths = paths
         self._reader = AnyReader(paths, default_typestore=default)
-        self._reader.open()
+        try:
+            self._reader.open()
+        except Exception as err:
+            if ros1 and "index" in str(err).lower():  # a recording cut short: its index (written last) is gone
+                raise InputError(",".join(str(p) for p in paths), f"the bag's index is damaged or missing, as when a "
+                                 f"recording is cut short ({err}); rebuild it with `rosbag reindex` (ROS 1) on a "
+                                 "copy, then read the copy") from err
+            raise
         self._add_missing_types(default)
         known = self._reader.typestore.fielddefs
         self._conns: dict[str, list[Any]] = {}
