@@ -571,3 +571,19 @@ def test_12_info_agrees_with_itself_on_duplicate_sweep_stamps(sim_log: Path, tmp
     assert any(m.startswith("9 sweeps (10 recorded, 1 with a duplicate stamp dropped)") for m in messages), messages
     assert any("IMU covers 9 of 9 sweeps" in m for m in messages), messages  # "10 sweeps", "10 of 10" before
     assert info["lidar"]["sweeps"] == 9
+
+
+# ------------------------------------------------------------------ 13: full tables off a terminal
+
+
+def test_13_rich_tables_are_not_cut_off_a_terminal(slam_run: Path, tmp_path: Path, monkeypatch) -> None:
+    monkeypatch.delenv("COLUMNS", raising=False)
+    control = cli("control", "--mode", "simulate", "--controllers", "raid,pid", "--out", tmp_path / "R")
+    assert control.code in (0, 1), control.err
+    assert "…" not in control.out  # "Sett…", "0.0…" at rich's assumed 80 columns, before
+    assert "Settling" in control.out or "settling" in control.out
+    assert max(len(ln) for ln in control.out.splitlines()) > 80  # the table kept its width
+    compare = cli("compare", slam_run, slam_run)
+    assert compare.code == 0
+    assert "…" not in compare.out
+    assert "slam/timing/ms_per_sweep_matching" in compare.out

@@ -78,13 +78,13 @@ def render(tables: list[Table], fmt: str) -> str:
 
 
 def print_rich(tables: list[Table]) -> None:
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table as RichTable
 
     from mrnc_eval.reports.tables import fmt_cell
+    from mrnc_eval.text import console as terminal_console
 
-    console = Console(highlight=False)
+    console = terminal_console(highlight=False)  # full width off a terminal
     for table in tables:
         rt = RichTable(title=escape(table.title), title_justify="left")
         rt.add_column("", no_wrap=True)  # metric keys stay whole; the numbers' columns give way

@@ -183,13 +183,12 @@ def _gnss_findings(lg, summary: InfoSummary) -> None:
 
 
 def print_summary(summary: InfoSummary) -> None:
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
-    console = Console()
-    if not console.is_terminal:  # piped or captured: rich would assume 80 columns and cut type names
-        console = Console(width=160)
+    from mrnc_eval.text import console as terminal_console
+
+    console = terminal_console()  # full width off a terminal
     def shown(text: str) -> str:  # log content: one line, no control characters, no rich markup
         return escape(printable(text))
 
