@@ -38,6 +38,7 @@ from mrnc_eval.results import (
     Event,
     Metric,
     RunResult,
+    absolute_log_path,
     check_output_root,
     link_latest,
     log_id_for,
@@ -110,7 +111,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         definitions = replay_definitions(rec, cfg) + definitions
     else:
         raise UsageError(f"unknown mode {mode!r}: replay, simulate or sweep")
-    result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
+    result = RunResult(kind="control", log_path=absolute_log_path(log_path) if log_path else "paper-scenario",
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all

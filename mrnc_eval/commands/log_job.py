@@ -76,11 +76,11 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
     from mrnc_eval.commands import control, info, slam
     from mrnc_eval.config import config_hash, dump_config
     from mrnc_eval.reports.render import evaluate_gates, write_report
-    from mrnc_eval.results import RunResult, write_result
+    from mrnc_eval.results import RunResult, absolute_log_path, write_result
 
     config_yaml = dump_config(cfg)
     summary = info.run(log_path, cfg).to_json()
-    info_result = RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={"info": summary},
+    info_result = RunResult(kind="info", log_path=absolute_log_path(log_path), log_id=log_id, extra={"info": summary},
                             config_hash=config_hash(cfg))
     write_result(info_result, work_dir / "info", config_yaml)
     results = [info_result, slam.run_log(log_path, cfg, work_dir / "slam", log_id=log_id)]

@@ -29,6 +29,7 @@ from mrnc_eval.results import (
     Event,
     Metric,
     RunResult,
+    absolute_log_path,
     check_output_root,
     json_safe,
     link_latest,
@@ -75,11 +76,12 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     on one log into `out_dir`; `log_id` names the log in results (default: from its file name;
     the nightly job passes its own, unique within the night)."""
     from mrnc_eval.io import open_log
+    from mrnc_eval.io.integrity import container_notes
 
     cfg = with_method(cfg, method)
     method = cfg.slam.method
     wall_start = time.perf_counter()
-    result = RunResult(kind="slam", log_path=str(log_path), log_id=log_id or log_id_for(log_path),
+    result = RunResult(kind="slam", log_path=absolute_log_path(log_path), log_id=log_id or log_id_for(log_path),
                        config_hash=config_hash(cfg))
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
@@ -89,6 +91,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         out = _replay(lg, inputs, cfg, progress)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
+        read_notes += container_notes(Path(log_path), lg.container)  # lost or unverifiable data
     if out.stamps.size < 2:
         why = "; ".join(read_notes) or "no sweep could be registered"
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s) ({why})")
@@ -263,9 +266,34 @@ def _add_events(result: RunResult, out: SlamOutput, inputs: LogInputs) -> None:
     result.warnings += out.warnings
     if inputs.imu is None:
         result.warnings.append("log has no IMU topic")
+    _add_dropped_inputs(result, out, inputs)
     t_start = float(out.stamps[0])
     for e in out.events:
         result.events.append(Event(t_s=e.t - t_start, kind=e.kind, message=e.message, data=e.data))
+
+
+def _add_dropped_inputs(result: RunResult, out: SlamOutput, inputs: LogInputs) -> None:
+    """Every input the replay could not use, counted (metric) and said (warning): sweeps with no
+    valid point, and mapped sweeps with no IMU sample since the previous one (a slow or gappy
+    IMU: those sweeps ran without preintegration or deskew rotation)."""
+    if out.empty_sweeps:
+        result.metrics.append(Metric(name="sweeps_empty", value=out.empty_sweeps, unit="", group="slam",
+                                     note="sweeps with no valid point (empty, all zero or non-finite), not mapped"))
+        result.warnings.append(f"{out.empty_sweeps} of {out.n_sweeps} sweep(s) had no valid point (empty, all zero "
+                               "or non-finite): dropped")
+    if inputs.imu is None or out.stamps.size < 2:
+        return
+    imu_t = np.sort(inputs.imu.stamps)
+    sweeps_t = np.asarray(out.stamps, dtype=float)
+    counts = np.searchsorted(imu_t, sweeps_t[1:], side="right") - np.searchsorted(imu_t, sweeps_t[:-1], side="right")
+    without = int(np.count_nonzero(counts == 0))
+    result.metrics.append(Metric(name="sweeps_without_imu", value=without, unit="", group="slam", lower_is_better=True,
+                                 note="mapped sweeps with no IMU sample since the previous mapped sweep"))
+    if without:
+        span = float(imu_t[-1] - imu_t[0]) if imu_t.size > 1 else 0.0
+        rate = (imu_t.size - 1) / span if span > 0 else 0.0
+        result.warnings.append(f"{without} of {sweeps_t.size - 1} mapped sweeps had no IMU sample since the previous "
+                               f"one (IMU at {rate:.1f} Hz): they ran without IMU preintegration")
 
 
 def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, total_s: float,

@@ -23,6 +23,7 @@ from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import is_number
 from mrnc_eval.results import Metric, RunResult, safe_name
 from mrnc_eval.tables import Cell, Table
+from mrnc_eval.text import printable
 
 TEMPLATES = Path(__file__).parent / "templates"
 MAX_EVENTS = 60  # rows of the events table; the rest is counted
@@ -81,15 +82,20 @@ def css() -> Markup:
 
 
 def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
-    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value)."""
-    def values(kind: str, name: str) -> list[float]:
-        return [m.value for r in results if r.kind == kind for m in r.metrics
-                if m.name == name and is_number(m.value) and (kind != "control" or m.group.split("/")[1:2] in
-                                                            [[d] for d in DEPLOYED])]
+    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value). A gate
+    whose metric is present but not a finite number (text, null from a NaN, inf) fails, naming the
+    value: it is never skipped ("n/a" only when no result has the metric at all)."""
+    def values(kind: str, name: str, method: str | None = None) -> list[Any]:
+        return [m.value for r in results if r.kind == kind and (method is None or r.extra.get("method") == method)
+                for m in r.metrics
+                if m.name == name and (kind != "control" or m.group.split("/")[1:2] in [[d] for d in DEPLOYED])]
 
-    def card(label: str, vals: list[float], limit: float, fmt: str, unit: str = "") -> Gate:
+    def card(label: str, vals: list[Any], limit: float, fmt: str, unit: str = "") -> Gate:
         if not vals:
             return Gate(label, "n/a", f"{limit:g}{unit}", "na")
+        bad = [v for v in vals if not is_number(v)]
+        if bad:
+            return Gate(label, f"not a finite number: {printable(repr(bad[0]))[:40]}", f"{limit:g}{unit}", "fail")
         worst = max(vals)
         return Gate(label, fmt.format(worst) + unit, f"{limit:g}{unit}", "pass" if worst <= limit else "fail")
 
@@ -98,10 +104,8 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
                                      and r.extra.get("method")))
         if len(methods) == 0:
             return [card("APE RMSE", values("slam", "ape_rmse_m"), gates.ape_rmse_max_m, "{:.3f}", " m")]
-        return [card(f"APE RMSE ({method})", [m.value for r in results if r.kind == "slam"
-                                              and r.extra.get("method") == method for m in r.metrics
-                                              if m.name == "ape_rmse_m" and is_number(m.value)],
-                     gates.ape_rmse_max_m, "{:.3f}", " m") for method in methods]
+        return [card(f"APE RMSE ({method})", values("slam", "ape_rmse_m", method), gates.ape_rmse_max_m, "{:.3f}",
+                     " m") for method in methods]
 
     return [*ape_cards(),
             card("Funnel violations", values("control", "funnel_violations"), gates.funnel_violations_max, "{:.0f}"),

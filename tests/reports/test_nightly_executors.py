@@ -248,4 +248,5 @@ def test_gate_cards_judge_the_worst_deployed_value() -> None:
         Metric(name="safety_stops", value=float("nan"), unit="", group="control/raid/left")])
     cards = {g.label: (g.value, g.status) for g in evaluate_gates([slam, control], GatesConfig())}
     assert cards == {"APE RMSE": ("0.120 m", "fail"), "Funnel violations": ("0", "pass"),  # PID is not gated
-                     "Saturation ratio": ("0.300", "fail"), "Safety stops": ("n/a", "na")}
+                     "Saturation ratio": ("0.300", "fail"),
+                     "Safety stops": ("not a finite number: nan", "fail")}  # a NaN never skips (issue 26)
