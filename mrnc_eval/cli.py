@@ -216,20 +216,65 @@ def control(
                          runs=runs, seed=seed, path_file=path)
 
 
-AlignOpt = Annotated[AlignMode, typer.Option(help="Alignment of each estimate to the reference.")]
+AlignOpt = Annotated[AlignMode, typer.Option(
+    "--align", help="Alignment of each estimate to the reference. evo's switches work too: -a (se3), -as (sim3), "
+    "-s (scale), --align_origin (origin).")]
 NAlignOpt = Annotated[
-    int | None, typer.Option("--n-to-align", help="Align on the first N matched poses only (default: all).")
+    int | None, typer.Option("--n-to-align", "--n_to_align",
+                             help="Align on the first N matched poses only (default: all).")
 ]
-RelationOpt = Annotated[
-    Relation, typer.Option(help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m).")
-]
-MaxDiffOpt = Annotated[float, typer.Option("--max-diff", help="Association: maximum stamp difference, s.")]
+
+
+class RelationWord(StrEnum):
+    """--relation's words: ours, then evo's (-r trans_part ...), which mean the same."""
+
+    trans = "trans"
+    rot = "rot"
+    full = "full"
+    angle_deg = "angle_deg"
+    angle_rad = "angle_rad"
+    point = "point"
+    trans_part = "trans_part"
+    rot_part = "rot_part"
+    point_distance = "point_distance"
+
+
+_EVO_RELATION = {"trans_part": Relation.trans, "rot_part": Relation.rot, "point_distance": Relation.point}
+
+
+def _relation(word: RelationWord) -> Relation:
+    return _EVO_RELATION.get(word.value) or Relation(word.value)
+
+
+RelationOpt = Annotated[RelationWord, typer.Option(
+    "--relation", "-r", "--pose_relation",
+    help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m); evo's trans_part, "
+    "rot_part, point_distance alike.")]
+MaxDiffOpt = Annotated[float, typer.Option("--max-diff", "--t_max_diff",
+                                           help="Association: maximum stamp difference, s.")]
 OffsetOpt = Annotated[str, typer.Option(
+    "--offset", "--t_offset",
     help="Added to the estimate's stamps, s; 'auto' estimates it (speed correlation, then least aligned APE).")]
 StrictOpt = Annotated[bool, typer.Option(
     "--strict", help="Refuse repeated or out-of-order stamps (default: pair them as evo does, with a warning).")]
-SyncOpt = Annotated[SyncMethod, typer.Option(
-    help="nearest: closest stamp within --max-diff (evo); interpolate: the reference at each estimate stamp.")]
+
+
+class SyncWord(StrEnum):
+    nearest = "nearest"
+    interpolate = "interpolate"
+    nearest_time = "nearest_time"  # evo's words
+    interpolation = "interpolation"
+
+
+def _sync(word: SyncWord) -> SyncMethod:
+    return {"nearest_time": SyncMethod.nearest, "interpolation": SyncMethod.interpolate}.get(
+        word.value) or SyncMethod(word.value)
+
+
+SyncOpt = Annotated[SyncWord, typer.Option(
+    "--sync", "--sync_method",
+    help="nearest: closest stamp within --max-diff (evo's nearest_time); interpolate: the reference at each "
+    "estimate stamp (evo's interpolation).")]
 MaxGapOpt = Annotated[float, typer.Option(
     "--max-gap", help="--sync interpolate: longest reference gap interpolated across, s.")]
 
@@ -240,75 +285,116 @@ class Plane(StrEnum):
     yz = "yz"
 
 
-PlaneOpt = Annotated[Plane | None, typer.Option(help="Project to a plane before the metric.")]
+class PlotMode(StrEnum):  # evo's --plot_mode: which two axes the path plot shows
+    xy = "xy"
+    xz = "xz"
+    yx = "yx"
+    yz = "yz"
+    zx = "zx"
+    zy = "zy"
+    xyz = "xyz"
+
+
+PlaneOpt = Annotated[Plane | None, typer.Option("--plane", "--project_to_plane",
+                                                help="Project to a plane before the metric.")]
 TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
-PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
+PlotOpt = Annotated[Path | None, typer.Option(
+    "--plot", "--save_plot", help="Write a plot of the error (.svg, .png or .pdf).")]
 ApePlotOpt = Annotated[Path | None, typer.Option(
-    "--plot", help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
+    "--plot", "--save_plot",
+    help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
+PlotModeOpt = Annotated[PlotMode | None, typer.Option(
+    "--plot-mode", "--plot_mode", help="Axes of the path plot (evo's --plot_mode; default xy).")]
+SaveResultsOpt = Annotated[Path | None, typer.Option(
+    "--save-results", "--save_results", metavar="RESULT.zip",
+    help="Also write evo's result zip (evo_res, evo's API and mrnc-eval compare read it); one estimate.")]
+FormatWordNote = ("REF may be preceded by evo's format word (tum, kitti, euroc, bag, bag2, mcap), which is ignored; "
+                  "after bag/bag2/mcap: LOG REF_TOPIC EST_TOPIC...")
 
 
 @app.command()
 def ape(
-    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic. "
+                                       + FormatWordNote)],
     est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
-    align: AlignOpt = AlignMode.se3,
+    align: AlignOpt = AlignMode.none,
     n_to_align: NAlignOpt = None,
-    relation: RelationOpt = Relation.trans,
+    relation: RelationOpt = RelationWord.trans,
     max_diff: MaxDiffOpt = 0.01,
     offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: ApePlotOpt = None,
+    plot_mode: PlotModeOpt = None,
+    save_results: SaveResultsOpt = None,
     strict: StrictOpt = False,
-    sync: SyncOpt = SyncMethod.nearest,
+    sync: SyncOpt = SyncWord.nearest,
     max_gap: MaxGapOpt = 0.2,
     decompose: Annotated[bool, typer.Option(
         "--decompose", help="Also along-track, cross-track, vertical (m) and yaw (deg) error statistics.")] = False,
 ) -> None:
-    """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
+    """Absolute pose error of each estimate against the reference (evo-compatible numbers; evo's
+    command lines work: like evo, nothing is aligned unless asked, and the first line says which
+    alignment was used)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
-        ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
-        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict, sync=sync,
-        max_gap=max_gap, decompose=decompose,
+        ref, est, align=align, n_to_align=n_to_align, relation=_relation(relation), max_diff=max_diff,
+        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict,
+        sync=_sync(sync), max_gap=max_gap, decompose=decompose, plot_mode=_plain(plot_mode),
+        save_results=save_results,
     )
+
+
+class DeltaWord(StrEnum):
+    frames = "frames"
+    m = "m"
+    f = "f"  # evo's -u f
 
 
 @app.command()
 def rpe(
-    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic. "
+                                       + FormatWordNote)],
     est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
-    delta: Annotated[float, typer.Option(help="Pair spacing, in --delta-unit.")] = 1.0,
-    delta_unit: Annotated[DeltaUnit, typer.Option(help="frames or m (distance travelled).")] = DeltaUnit.frames,
-    all_pairs: Annotated[bool, typer.Option("--all-pairs", help="Use all pairs instead of consecutive ones.")] = False,
+    delta: Annotated[float | None, typer.Option("--delta", "-d", help="Pair spacing, in --delta-unit "
+                                                "(default 1).")] = None,
+    delta_unit: Annotated[DeltaWord, typer.Option(
+        "--delta-unit", "-u", "--delta_unit", help="frames (evo's f) or m (distance travelled).")] = DeltaWord.frames,
+    all_pairs: Annotated[bool, typer.Option("--all-pairs", "--all_pairs",
+                                            help="Use all pairs instead of consecutive ones.")] = False,
     align: AlignOpt = AlignMode.none,
     n_to_align: NAlignOpt = None,
-    relation: RelationOpt = Relation.trans,
+    relation: RelationOpt = RelationWord.trans,
     max_diff: MaxDiffOpt = 0.01,
     offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: PlotOpt = None,
+    plot_mode: PlotModeOpt = None,
+    save_results: SaveResultsOpt = None,
     strict: StrictOpt = False,
-    sync: SyncOpt = SyncMethod.nearest,
+    sync: SyncOpt = SyncWord.nearest,
     max_gap: MaxGapOpt = 0.2,
     pairs_from_reference: Annotated[bool, typer.Option(
-        "--pairs-from-reference", help="Choose pairs on the reference path (default: on the estimate, as evo); "
+        "--pairs-from-reference", "--pairs_from_reference",
+        help="Choose pairs on the reference path (default: on the estimate, as evo); "
         "a noisy estimate travels farther than the reference, so metre pairs from it are denser.")] = False,
     drift: Annotated[bool, typer.Option(
         "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, "
         "scaled to short logs).")] = False,
 ) -> None:
-    """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
+    """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers;
+    evo's command lines work)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.rpe_main(
-        ref, est, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
-        n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=_plain(plane),
+        ref, est, delta=delta, delta_unit=DeltaUnit.frames if delta_unit.value == "f" else DeltaUnit(delta_unit.value),
+        all_pairs=all_pairs, align=align,
+        n_to_align=n_to_align, relation=_relation(relation), max_diff=max_diff, offset=offset, plane=_plain(plane),
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
-        strict=strict, sync=sync, max_gap=max_gap,
+        strict=strict, sync=_sync(sync), max_gap=max_gap, plot_mode=_plain(plot_mode), save_results=save_results,
     )
 
 
@@ -516,7 +602,10 @@ def main(argv: list[str] | None = None) -> int:
     stderr (--debug adds the traceback): typed errors with their code, file-system errors
     (exists, permission, no space) with 4, anything else as an internal error with 5."""
     try:
-        result = app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
+        from mrnc_eval.cli_evo import translate
+
+        args = translate(sys.argv[1:] if argv is None else list(argv))
+        result = app(args=args, prog_name="mrnc-eval", standalone_mode=False)
     except typer.Exit as exc:
         return exc.exit_code
     except typer.Abort:
