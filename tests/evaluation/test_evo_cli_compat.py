@@ -153,3 +153,39 @@ def test_save_results_refuses_to_overwrite_and_to_hold_two_estimates(files: Path
 def test_evo_spellings_that_conflict_are_refused(files: Path) -> None:
     assert main(["ape", str(files / "gt.tum"), str(files / "est.tum"), "-a", "--align_origin"]) == 2
     assert main(["ape", str(files / "gt.tum"), str(files / "est.tum"), "-a", "--align", "sim3"]) == 2
+
+
+def test_compare_and_api_read_evo_zips(files: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    from mrnc_eval import api
+
+    evo_a, evo_as = files / "evo_evo_ape_a.zip", files / "evo_evo_ape_as.zip"
+    res = api.load_evo_result(evo_a)
+    assert res.info["label"] == "APE (m)"
+    assert res.arrays["error_array"].shape == (900,)
+    capsys.readouterr()
+    assert main(["compare", str(evo_a), str(evo_as), "--format", "markdown"]) == 0
+    out = capsys.readouterr().out
+    rmse_a, rmse_as = res.stats["rmse"], api.load_evo_result(evo_as).stats["rmse"]
+    assert "APE (m)/rmse" in out
+    assert f"{rmse_a:.4f}" in out
+    assert f"{rmse_as:.4f}" in out
+    assert "Sim(3)" in out  # the titles differ: shown as a differing setting
+
+
+def test_an_evo_zip_is_never_unpickled(files: Path) -> None:
+    """An object array would run code through pickle when loaded naively; it is refused."""
+    import io
+    import zipfile
+
+    from mrnc_eval.errors import InputError
+
+    bad = files / "pickled.zip"
+    buf = io.BytesIO()
+    np.save(buf, np.array([{"x": 1}], dtype=object), allow_pickle=True)
+    with zipfile.ZipFile(bad, "w") as z:
+        z.writestr("info.json", json.dumps({"title": "t", "label": "APE (m)"}))
+        z.writestr("stats.json", json.dumps({"rmse": 1.0}))
+        z.writestr("error_array.npy", buf.getvalue())
+    with pytest.raises(InputError, match="not a plain numeric array"):
+        read_evo_zip(bad)
+    assert main(["compare", str(bad), str(files / "evo_evo_ape_a.zip")]) == 4
