@@ -169,6 +169,11 @@ def slam(
     """Re-run LIO-SAM-style LiDAR-inertial SLAM on recorded logs; write trajectories (TUM), the
     map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth."""
     cfg = _config(config, set_, dump_config)
+    from mrnc_eval.extras import require_extra
+
+    require_extra("slam", "mrnc-eval slam")
+    if (_plain(method) or cfg.slam.method) == "kiss-icp":
+        require_extra("kiss-icp", "mrnc-eval slam --method kiss-icp")
     from mrnc_eval.commands import slam as slam_command
     slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
 
@@ -211,6 +216,9 @@ def control(
     hydraulic drive) and compute Table II metrics (settling time s, overshoot %, steady-state
     error m/s, funnel violations, saturation, safety stops, cross-track error m)."""
     cfg = _config(config, set_, dump_config)
+    from mrnc_eval.extras import require_extra
+
+    require_extra("control", "mrnc-eval control")
     from mrnc_eval.commands import control as control_command
     control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out,
                          runs=runs, seed=seed, path_file=path)
@@ -472,6 +480,13 @@ def nightly(
     """Run slam + control + evaluation on every new log, write per-log reports, a night index and
     trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise."""
     cfg = _config(config, set_, dump_config)
+    from mrnc_eval.extras import require_extra
+
+    require_extra("slam", "mrnc-eval nightly (slam and control on every log)")
+    if pdf:
+        from mrnc_eval.reports.render import pdf_engine
+
+        pdf_engine()  # before the night starts: --no-pdf, or the pdf extra
     from mrnc_eval.commands import nightly as nightly_command
     nightly_command.main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
                               gates=gates, date=date, pdf=pdf, junit=junit, force=force)
@@ -586,6 +601,9 @@ def simulate(
     cfg = _config(config, set_, dump_config)  # --dump-config needs no OUT
     if out is None:
         raise UsageError("simulate needs OUT, the log to write (e.g. sim/yard.mcap); see mrnc-eval simulate --help")
+    from mrnc_eval.extras import require_extra
+
+    require_extra("sim", "mrnc-eval simulate")
     from mrnc_eval.commands import simulate as simulate_command
     simulate_command.main(out, cfg, scene=scene.value, path=path.value, duration=duration, lidar=lidar.value,
                           columns=columns, rate=rate, fmt=_plain(fmt), seed=seed, profile=profile, force=force)

@@ -88,11 +88,11 @@ def _slam_files(run_dir: Path) -> topics.SlamFiles:
 
 
 def _read_map(run_dir: Path) -> np.ndarray | None:
-    for name in ("map.ply", "map.pcd"):
-        if (run_dir / name).is_file():
-            import open3d as o3d
+    """The SLAM map's points from map.ply, read without open3d (export is in the base install)."""
+    from mrnc_eval.io.ply import read_ply_xyz
 
-            return np.asarray(o3d.io.read_point_cloud(run_dir / name).points)
+    if (run_dir / "map.ply").is_file():
+        return read_ply_xyz(run_dir / "map.ply")
     return None
 
 

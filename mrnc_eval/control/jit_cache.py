@@ -15,7 +15,6 @@ from pathlib import Path
 from typing import Any, TypeVar, cast
 
 import numpy as np
-from numba import njit
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
@@ -31,7 +30,16 @@ def pack_slots(values: dict[int, float]) -> list[float]:
 
 def kernel(fn: F) -> F:
     """numba.njit(cache=True) that keeps the function's signature for the type checker (numba
-    ships no type information, so a bare @njit would make every kernel untyped)."""
+    ships no type information, so a bare @njit would make every kernel untyped). numba is imported
+    here, not with the package: the configuration (control.config) loads without it, and a kernel
+    module without numba stops with MissingExtra naming the extra."""
+    try:
+        from numba import njit
+    except ImportError:
+        from mrnc_eval.errors import MissingExtra
+
+        raise MissingExtra("the control chain needs numba: pip install 'mrnc-eval[control]' "
+                           "(or 'mrnc-eval[slam]', which includes it)") from None
     return cast(F, njit(cache=True)(fn))
 
 

@@ -12,7 +12,6 @@ from typing import Any
 
 import numpy as np
 
-from mrnc_eval.control.controllers import LABELS
 from mrnc_eval.data import Trajectory
 from mrnc_eval.export import schemas as S
 from mrnc_eval.export.mcap_file import (
@@ -161,12 +160,13 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
     schema = S.scalars("mrnc_eval.ControlSample", TRACKING_FIELDS)
     s = result.series
     t0 = stamp_ns(t0_s)
+    labels = result.extra.get("labels", {})  # as commands/control labels each controller's events
     for name in result.extra.get("controllers", []):
         if f"{name}_t" not in s:
             continue
         topic = f"{ROOT}/control/{name}"
         stops = np.sort([e.t_s for e in result.events if e.kind == "safety_stop"
-                         and e.message.startswith(f"{LABELS.get(name, name)}:")])  # as commands/control labels them
+                         and e.message.startswith((f"{labels.get(name, name)}:", f"{name}:"))])
         t = s[f"{name}_t"]
         side = {k: {f: s[f"{name}_{k}_{f}"] for f in ("v_ref", "v_meas", "u_rpm")} for k in ("left", "right")}
         o = s[f"{name}_funnel_o"]
