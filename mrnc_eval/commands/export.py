@@ -109,36 +109,60 @@ def _control_t0(result: RunResult, ctx: LogContext | None, summary: ExportSummar
     return 0.0
 
 
-def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContext | None,
-               summary: ExportSummary) -> None:
+BODY_FRAME = "base_link"  # the SLAM's body frame (its trajectories are map -> base_link)
+
+
+def _fixed_frame(ctx: LogContext | None) -> str:
+    """The viewer's fixed frame: the one the ground truth's source declares (the log's `map` in
+    recorded and simulated logs); "map" when the ground truth is a file without frames."""
+    gt = ctx.ground_truth if ctx is not None else None
+    return gt.frame_id if gt is not None and gt.frame_id else "map"
+
+
+def _write_slam_frames(out: JsonMcap, files: topics.SlamFiles, ctx: LogContext | None, *, fixed: str,
+                       frame: str, body: str, summary: ExportSummary) -> None:
+    """fixed -> frame (the alignment to the ground truth, identity without one, at the log's start
+    so every later lookup finds it) and frame -> body (the SLAM pose at each stamp)."""
     from mrnc_eval.evaluation.ape import ape
 
-    gt_written = False
+    t0 = float(files.trajectory.stamps[0])
+    start_ns = stamp_ns(min(t0, ctx.start_s) if ctx is not None else t0)
+    transform = np.eye(4)
+    if ctx is not None and ctx.ground_truth is not None:
+        try:
+            transform = ape(ctx.ground_truth, files.trajectory, align="se3", max_diff=0.02).transform
+        except EvaluationError as err:
+            summary.warnings.append(f"no {fixed} -> {frame} alignment ({err}): identity")
+    else:
+        summary.warnings.append(f"no ground truth: {frame} drawn in {fixed} without alignment (identity)")
+    topics.write_alignment(out, start_ns, transform, parent=fixed, child=frame)
+    topics.write_body_transforms(out, files.trajectory, parent=frame, child=body)
+
+
+def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContext | None,
+               summary: ExportSummary) -> None:
+    fixed = _fixed_frame(ctx)
+    body_taken = False
     for run_dir, result in runs:
         if result.kind == "slam":
             files = _slam_files(run_dir)
-            method = result.extra.get("method", "lio")
-            summary.map_points += topics.write_slam(out, result, files)
-            t0 = float(files.trajectory.stamps[0])
-            topics.write_events(out, result, t0, f"slam/{method}")
-            if ctx is not None and ctx.ground_truth is not None and not gt_written:
-                topics.write_ground_truth(out, ctx.ground_truth)
-                gt_written = True
-                try:
-                    align = ape(ctx.ground_truth, files.trajectory, align="se3", max_diff=0.02)
-                    topics.write_alignment(out, stamp_ns(t0), align.transform)
-                except EvaluationError as err:
-                    summary.warnings.append(f"no world -> map alignment: {err}")
+            method = str(result.extra.get("method", "lio"))
+            frame = f"{method}/map"
+            body = f"{method}/{BODY_FRAME}" if body_taken else BODY_FRAME  # one parent per frame
+            body_taken = True
+            summary.map_points += topics.write_slam(out, result, files, frame=frame)
+            _write_slam_frames(out, files, ctx, fixed=fixed, frame=frame, body=body, summary=summary)
+            topics.write_events(out, result, float(files.trajectory.stamps[0]), f"slam/{method}")
         elif result.kind == "control":
             cfg = _run_config(run_dir).control
             t0 = _control_t0(result, ctx, summary)
             topics.write_control(out, result, t0, u_max_rpm=cfg.actuator.u_max_rpm,
-                                 saturation_tol_rpm=cfg.metrics.saturation_tolerance_rpm)
+                                 saturation_tol_rpm=cfg.metrics.saturation_tolerance_rpm, frame=fixed)
             topics.write_events(out, result, t0, "control")
         elif result.kind == "info" and ctx is not None:
             topics.write_events(out, result, ctx.start_s, "info")
-    if ctx is not None and ctx.ground_truth is not None and not gt_written:
-        topics.write_ground_truth(out, ctx.ground_truth)
+    if ctx is not None and ctx.ground_truth is not None:
+        topics.write_ground_truth(out, ctx.ground_truth, fixed)
 
 
 def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False, force: bool = False
