@@ -5,10 +5,15 @@ Topics live under `/eval/` so they never collide with the original sensor topics
 (the frame its source declares, e.g. the log's `map`; the viewer's fixed frame):
 
     map (ground truth, planned and driven paths, the log's own /ground_truth and /plan)
-     └─ lio/map          the SLAM estimate's frame, namespaced by method; /eval/tf: the SE(3)
-         │               alignment of the estimate to the ground truth (identity without one)
+     └─ lio/map          the SLAM estimate's frame, namespaced by method; /eval/tf: the 4-DoF
+         │               (yaw + translation) alignment of the estimate to the ground truth
+         │               (identity without one)
          └─ base_link    the SLAM pose at each stamp (/eval/tf), so the log's /tf_static chain
              └─ ...      (base_link -> os_sensor, imu, gnss) places its clouds, IMU and GNSS
+
+     └─ odom         the wheel odometry's frame, as SLAM systems publish it (REP 105):
+                     odom in lio/map = P(t) O(t)^-1 at each SLAM stamp, so the log's
+                     /wheel_odom draws where the SLAM puts the robot at that moment
 
 A second SLAM result (another method) hangs its poses on `<method>/base_link`, so no frame has
 two parents."""
@@ -84,6 +89,27 @@ def write_body_transforms(out: JsonMcap, traj: Trajectory, *, parent: str, child
         out.write(f"{ROOT}/tf", S.FRAME_TRANSFORM, t_ns, {
             "timestamp": time_of(t_ns), "parent_frame_id": parent, "child_frame_id": child,
             "translation": ps["position"], "rotation": ps["orientation"]})
+
+
+ODOM_MAX_GAP_S = 0.05  # an odometry pose farther than this from a SLAM stamp places no odom frame there
+
+
+def odometry_frame(slam: Trajectory, odom: Trajectory) -> Trajectory | None:
+    """The odometry frame in the estimate's frame at each SLAM stamp: P(t) O(t)^-1 with O the
+    odometry pose nearest in time (within ODOM_MAX_GAP_S); None when no stamp has one."""
+    from mrnc_eval.geometry import lie
+
+    if len(odom) == 0:
+        return None
+    k = np.searchsorted(odom.stamps, slam.stamps).clip(0, len(odom) - 1)
+    prev = (k - 1).clip(0)
+    k = np.where(np.abs(odom.stamps[prev] - slam.stamps) <= np.abs(odom.stamps[k] - slam.stamps), prev, k)
+    near = np.abs(odom.stamps[k] - slam.stamps) <= ODOM_MAX_GAP_S
+    if not near.any():
+        return None
+    p, o = lie.poses(slam)[near], lie.poses(odom)[k[near]]
+    t = p @ np.linalg.inv(o)
+    return Trajectory(slam.stamps[near], t[:, :3, 3], lie.matrix_to_quat_xyzw(t[:, :3, :3]), name="odom")
 
 
 def downsample(xyz: np.ndarray, max_points: int = MAP_POINTS_MAX) -> np.ndarray:

@@ -60,7 +60,7 @@ def test_schema_names_counts_and_encodings(exported: Path, sim_runs: Runs) -> No
     assert counts["/eval/slam/lio/keyframes"] == len(read_tum(sim_runs.slam / "keyframes.tum"))
     assert counts["/eval/control/recorded/tracking"] == control.series["recorded_t"].size
     assert counts["/eval/control/recorded/planned_path"] == counts["/eval/control/recorded/driven_path"] == 1
-    assert counts["/eval/tf"] == 1 + len(traj)  # the alignment, then the SLAM pose -> base_link at each stamp
+    assert counts["/eval/tf"] == 1 + 2 * len(traj)  # the alignment, then lio/map -> base_link and -> odom per pose
     assert summary.statistics.message_count == len(messages)
 
 
