@@ -83,11 +83,14 @@ def load_evo_result(path: str | Path) -> EvoResult:
 
 
 def save_evo_result(path: str | Path, result: ApeResult | RpeResult, *, ref_name: str = "reference",
-                    est_name: str | None = None) -> None:
-    """`result` as evo's result zip (what `--save_results` writes; evo_res reads it). Never overwrites."""
-    from mrnc_eval.io.evo_results import evo_result, write_evo_zip
+                    est_name: str | None = None, force: bool = False) -> None:
+    """`result` as evo's result zip (what `--save_results` writes; evo_res reads it), under the
+    overwrite rule of every output (an existing file only with force=True, and only one we wrote)."""
+    from mrnc_eval.io.evo_results import evo_result, evo_zip_bytes
+    from mrnc_eval.outputs import write_output
 
-    write_evo_zip(Path(path), evo_result(result, ref_name=ref_name, est_name=est_name or result.name))
+    write_output(Path(path), evo_zip_bytes(evo_result(result, ref_name=ref_name, est_name=est_name or result.name)),
+                 force=force)
 
 
 def rpe(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> RpeResult:
@@ -99,23 +102,28 @@ def rpe(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> RpeResult:
 
 
 def run_slam(log: str | Path, out_dir: str | Path, *, method: str = "lio", cfg: Config | None = None,
-             overrides: Sequence[str] = ()) -> RunResult:
-    """The SLAM replay of `mrnc-eval slam` on one log; writes its result directory to `out_dir`."""
+             overrides: Sequence[str] = (), force: bool = False) -> RunResult:
+    """The SLAM replay of `mrnc-eval slam` on one log; writes its result directory to `out_dir`
+    (an existing result there is replaced only with force=True; anything else never)."""
     from mrnc_eval.commands.slam import run_log
+    from mrnc_eval.results import claim_run_dir
 
+    claim_run_dir(out_dir, force=force)  # before the work
     return run_log(Path(log), _cfg(cfg, overrides), Path(out_dir), method=method)
 
 
 def run_control(log: str | Path | None, out_dir: str | Path, *, mode: str = "replay",
                 controllers: Sequence[str] | None = None, cfg: Config | None = None,
-                overrides: Sequence[str] = (), path: str | Path | None = None) -> RunResult:
+                overrides: Sequence[str] = (), path: str | Path | None = None, force: bool = False) -> RunResult:
     """The control evaluation of `mrnc-eval control` (mode "replay" or "simulate"; log None with
     "simulate": the paper's circle); writes its result directory to `out_dir`. `path`: a TUM or
     CSV waypoint file replacing the log's path topic (`--path`)."""
     from mrnc_eval.commands.control import run_log
     from mrnc_eval.control.controllers import CONTROLLERS
     from mrnc_eval.io.waypoint_files import read_waypoints
+    from mrnc_eval.results import claim_run_dir
 
+    claim_run_dir(out_dir, force=force)  # before the work
     waypoints = read_waypoints(path) if path is not None else None
     return run_log(None if log is None else Path(log), _cfg(cfg, overrides), Path(out_dir), mode=mode,
                    controllers=tuple(controllers) if controllers else CONTROLLERS, path=waypoints,

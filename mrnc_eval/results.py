@@ -252,6 +252,20 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
     return run_dir
 
 
+def claim_run_dir(run_dir: str | Path, *, force: bool = False) -> Path:
+    """The one overwrite rule (mrnc_eval/outputs.py) for a result folder named by the caller (the
+    API's out_dir): a missing or empty folder is written; an existing result is refused unless
+    `force`, and `force` replaces only a result this tool wrote."""
+    run_dir = Path(run_dir)
+    if run_dir.is_dir() and not run_dir.is_symlink() and not any(run_dir.iterdir()):
+        return run_dir
+    if run_dir.exists() or run_dir.is_symlink():
+        if not force:
+            raise OutputError(run_dir, "already exists; not replaced (force=True replaces a result this tool wrote)")
+        _check_replaceable(run_dir)
+    return run_dir
+
+
 def _check_replaceable(run_dir: Path) -> None:
     if not run_dir.exists() and not run_dir.is_symlink():
         return

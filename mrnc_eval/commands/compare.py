@@ -14,8 +14,9 @@ import yaml
 
 from mrnc_eval.config import CONFIG_FILE_NAME
 from mrnc_eval.errors import InputError, UsageError
+from mrnc_eval.outputs import claim_output, write_output
 from mrnc_eval.reports.compare import RunMetrics, config_table, flatten, metrics_table
-from mrnc_eval.results import atomic_write_text, read_result
+from mrnc_eval.results import read_result
 from mrnc_eval.tables import Table
 
 FORMATS = ("terminal", "markdown", "html")
@@ -128,16 +129,17 @@ def compare_tables(runs: list[Path], *, history: Path | None = None, nights: tup
 
 
 def main(runs: list[Path], *, history: Path | None, nights: tuple[str, str] | None, log_id: str | None,
-         fmt: str, out: Path | None, only_changed: bool) -> None:
+         fmt: str, out: Path | None, only_changed: bool, force: bool = False) -> None:
     if fmt not in FORMATS:
         raise UsageError(f"--format {fmt!r}: choose one of {', '.join(FORMATS)}")
     if out is not None:
         fmt = {".md": "markdown", ".html": "html", ".htm": "html"}.get(out.suffix.lower(), "")
         if not fmt:
             raise UsageError(f"--out {out}: use a .md or .html file")
+        claim_output(out, force=force, inputs=runs)
     tables = compare_tables(runs, history=history, nights=nights, log_id=log_id, only_changed=only_changed)
     if out is not None:
-        atomic_write_text(out, render(tables, fmt))
+        write_output(out, render(tables, fmt), force=force, inputs=runs)
         sys.stdout.write(f"{out}\n")
     elif fmt == "terminal":
         print_rich(tables)

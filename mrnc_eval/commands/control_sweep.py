@@ -10,16 +10,19 @@ import os
 from collections.abc import Iterator
 from concurrent.futures import ProcessPoolExecutor
 from dataclasses import asdict, dataclass, replace
+from pathlib import Path
 from typing import Any
 
 import numpy as np
 
-from mrnc_eval.config import Config
-from mrnc_eval.control.closed_loop import ST_FUNNEL, ST_IAE, ST_SATURATED, run_closed_loop
+from mrnc_eval.config import Config, config_hash, dump_config
+from mrnc_eval.control.closed_loop import SIDES, ST_FUNNEL, ST_IAE, ST_SATURATED, run_closed_loop
 from mrnc_eval.control.controllers import LABELS
 from mrnc_eval.control.scenario import paper_circle_scenario
 from mrnc_eval.control.sweep import PlantDraw, draw_plants, mismatch_bins, plant_for, scenario_for
+from mrnc_eval.errors import UsageError
 from mrnc_eval.evaluation.control_metrics import cross_track, paper_metrics
+from mrnc_eval.results import RunResult, write_result
 from mrnc_eval.tables import Table
 
 
@@ -49,8 +52,8 @@ def run_one(draw: PlantDraw, controller: str, cfg: Config, seed: int) -> SweepRu
                          record_every=s.record_every)
     stats = tr.full_rate_stats if tr.full_rate_stats is not None else np.zeros((2, 3))
     n_periods = max(1, int(round(tr.t[-1] * c.rate_hz)) + 1)
-    sse = [paper_metrics(tr.t, getattr(tr, f"v_ref_{side}"), getattr(tr, f"v_wheel_{side}"), c.paper_metrics)
-           ["paper_steady_state_error_mps"] for side in ("left", "right")]
+    sse = [paper_metrics(tr.t, tr.side(side).v_ref, tr.side(side).v_wheel, c.paper_metrics)
+           ["paper_steady_state_error_mps"] for side in SIDES]
     cte, _ = cross_track(tr.x, tr.y, scenario.waypoints_xy)
     return SweepRun(draw=draw.index, controller=controller, gain_mismatch=draw.gain_mismatch,
                     funnel_violation=bool(stats[:, ST_FUNNEL].max() > 0), safety_stop=bool(tr.events),
@@ -159,3 +162,32 @@ def sweep_table(summary: dict[str, dict[str, Any]], cfg: Config, runs: int, seed
 
 def runs_as_rows(runs: list[SweepRun]) -> list[dict[str, Any]]:
     return [asdict(r) for r in runs]
+
+
+def run_sweep_result(cfg: Config, names: tuple[str, ...], out_dir: Path, *, runs: int | None,
+                     seed: int | None) -> RunResult:
+    """The robustness sweep as a result: summary table, per-run rows and violation rate by gain mismatch."""
+    n = cfg.control.sweep.runs if runs is None else runs
+    s = cfg.control.sweep.seed if seed is None else seed
+    if n < 1:
+        raise UsageError("--runs must be at least 1")
+    rows = run_sweep(cfg, names, n, s)
+    summary = summarise(rows, names, cfg)
+    table = sweep_table(summary, cfg, n, s)
+    result = RunResult(kind="control", log_path="paper-scenario (sweep)", log_id="paper-circle",
+                       config_hash=config_hash(cfg), tables=[table])
+    first = next(iter(summary.values()))
+    bins = first["violation_rate_by_gain_mismatch"]
+    assert isinstance(bins, list)
+    result.series["sweep_gain_mismatch_mid"] = np.array([0.5 * (b["gain_mismatch_lo"] + b["gain_mismatch_hi"])
+                                                         for b in bins])
+    for name, smry in summary.items():
+        per_bin = smry["violation_rate_by_gain_mismatch"]
+        assert isinstance(per_bin, list)
+        result.series[f"sweep_{name}_violation_rate"] = np.array([b["funnel_violation_rate"] for b in per_bin])
+    result.extra = {"mode": "sweep", "controllers": list(names), "labels": {n_: LABELS.get(n_, n_) for n_ in names},
+                    "runs": n, "seed": s, "sweep": summary, "sweep_runs": runs_as_rows(rows),
+                    "definitions": table.notes}
+    write_result(result, out_dir, dump_config(cfg))
+    return result
+

@@ -40,6 +40,14 @@ class InfoSummary:
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
+    def json_item(self) -> dict[str, Any]:
+        """This summary as one `results` item of the --json document (commands/output.py)."""
+        from mrnc_eval.commands.output import item
+
+        rest = self.to_json()
+        stats = {k: rest.pop(k) for k in ("duration_s", "start_s", "end_s")}
+        return item(self.path, {**stats, "n_topics": len(self.topics)}, **rest)
+
 
 def run(path: Path, cfg: Config) -> InfoSummary:
     with open_log(path, cfg.io) as lg:
@@ -111,7 +119,7 @@ def _lidar_findings(lg, summary: InfoSummary) -> None:
     if topic is None:
         summary.findings.append(Finding("warning", "", "no LiDAR topic (sensor_msgs/PointCloud2)"))
         return
-    first = next(lg._messages(topic, ("sensor_msgs/msg/PointCloud2",)))  # one cloud is enough for the layout
+    first = next(lg.messages(topic, ("sensor_msgs/msg/PointCloud2",)))  # one cloud is enough for the layout
     fields = [f.name for f in first.fields]
     has_time = any(f in fields for f in ("t", "time", "timestamp"))
     summary.lidar = {"topic": topic, "fields": fields, "height": int(first.height), "width": int(first.width),
@@ -155,7 +163,7 @@ def _gnss_findings(lg, summary: InfoSummary) -> None:
     topic = summary.roles.get("gnss")
     if topic is None:
         return
-    statuses = np.asarray([m.status.status for m in lg._messages(topic, ("sensor_msgs/msg/NavSatFix",))])
+    statuses = np.asarray([m.status.status for m in lg.messages(topic, ("sensor_msgs/msg/NavSatFix",))])
     fix = int(np.count_nonzero(statuses >= 0))
     ratio = fix / statuses.size if statuses.size else 0.0
     summary.findings.append(Finding("ok" if ratio > 0.9 else "warning", topic,

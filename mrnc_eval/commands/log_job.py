@@ -89,7 +89,7 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
         info_result.warnings.append(f"control replay skipped: the log has no {' and no '.join(missing)} topic")
     else:
         results.append(control.run_log(log_path, cfg, work_dir / "control", mode="replay", log_id=log_id))
-    write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf)
+    write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf, force=True)  # its own folder
     metrics = [(f"{m.group}/{m.name}", _finite(m.value), m.unit) for r in results for m in r.metrics]
     return Analysis(metrics, [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"])
 

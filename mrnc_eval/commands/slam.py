@@ -38,6 +38,7 @@ from mrnc_eval.results import (
 )
 from mrnc_eval.slam.output import STAGES, SlamOutput
 from mrnc_eval.slam.wheel_odometry import WheelTrack
+from mrnc_eval.text import printable
 
 log = logging.getLogger(__name__)
 TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
@@ -505,10 +506,14 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
     from mrnc_eval.reports.tables import render_table
 
     if json_out:
-        from mrnc_eval.commands.output import emit_json
+        from mrnc_eval.commands.output import emit_json, item
 
-        emit_json([{"log": r.log_path, "run_dir": str(d), **{m.name: m.value for m in r.metrics}}
-                   for d, r in results])
+        emit_json("slam", [item(r.log_id, {m.name: m.value for m in r.metrics}, log=r.log_path, run_dir=str(d),
+                                method=r.extra.get("method"), units={m.name: m.unit for m in r.metrics},
+                                mapping=mapping_rate(r), warnings=list(r.warnings))
+                           for d, r in results],
+                  meta={"table_trajectory": cfg.slam.table_trajectory},
+                  warnings=[f"{r.log_id}: {w}" for _, r in results for w in r.warnings])
         return
     for d, r in results:
         vals = {m.name: m.value for m in r.metrics}
@@ -516,8 +521,9 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
                                                                     ("smoothed", "ape_rmse_m")) if name in vals]
         ape = ", ".join(apes) if apes else "n/a (no ground truth)"
         used = ", ".join(f"{role} {topic}" for role, topic in r.extra.get("roles", {}).items())
-        sys.stdout.write(f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
-                         f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
+        line = (f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
+                f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}")
+        sys.stdout.write(printable(line) + "\n")  # topic names come from the log
     if len(rows) > 1:
         title = f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"
         sys.stdout.write(render_table(table_one(cells, rows, [cfg.slam.method], title=title),

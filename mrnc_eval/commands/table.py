@@ -28,8 +28,9 @@ from mrnc_eval.evaluation.modes import AlignMode
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import read_trajectory
 from mrnc_eval.io.trajectory_inputs import TrajectorySpec, parse_trajectory_spec
+from mrnc_eval.outputs import claim_output, write_output
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
-from mrnc_eval.results import RESULT_FILE, RunResult, atomic_write_text, read_result
+from mrnc_eval.results import RESULT_FILE, RunResult, read_result
 from mrnc_eval.tables import Table
 
 log = logging.getLogger(__name__)
@@ -203,17 +204,34 @@ def build_table_one(source: Path, cfg: Config | None = None, *, align: AlignMode
     return table
 
 
-def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_out: bool) -> None:
+def table_items(table: Table) -> list[dict[str, Any]]:
+    """One --json `results` item per cell: sequence, method, its number (null when Failed) and
+    why it failed; the mean row is a sequence named "Mean" like in the table."""
+    from mrnc_eval.commands.output import is_stat, item
+
+    out = []
+    for row, cells in zip(table.row_labels, table.cells, strict=True):
+        for column, cell in zip(table.column_labels, cells, strict=True):
+            number = cell if is_stat(cell) else None
+            out.append(item(f"{row}/{column}", {"value": number}, sequence=row, method=column,
+                            failed=None if number is not None else str(cell or "no value")))
+    return out
+
+
+def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_out: bool, force: bool = False
+         ) -> None:
     """The `table` verb: Markdown on stdout, JSON with --json, a file by suffix with --out."""
     from mrnc_eval.commands.output import emit_json
 
     fmt = SUFFIX_FORMAT.get(out.suffix.lower()) if out is not None else "markdown"
     if fmt is None:
         raise UsageError(f"--out {out}: use a .md, .tex, .csv or .html file")
+    if out is not None:
+        claim_output(out, force=force, inputs=[source])
     table = build_table_one(source, cfg, align=align)  # everything computed before anything is written
     if json_out:
-        emit_json(table.__dict__)
+        emit_json("table", table_items(table), meta={"table": table.__dict__})
     elif out is None:
         sys.stdout.write(render_table(table, "markdown"))
     if out is not None:
-        atomic_write_text(out, render_table(table, fmt))
+        write_output(out, render_table(table, fmt), force=force, inputs=[source])

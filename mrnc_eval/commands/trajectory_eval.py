@@ -3,7 +3,6 @@
 from __future__ import annotations
 
 import logging
-import os
 import sys
 from dataclasses import replace
 from pathlib import Path
@@ -18,8 +17,8 @@ from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
 from mrnc_eval.evaluation.relations import TITLES, UNITS
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
 from mrnc_eval.io.trajectory_files import is_kitti_file, read_trajectory
+from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
-from mrnc_eval.results import atomic_write_text
 from mrnc_eval.tables import Cell as CellValue
 from mrnc_eval.tables import Table
 from mrnc_eval.text import printable
@@ -36,8 +35,10 @@ def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
                  unit=results[0].unit, best=None, precision=6)
 
 
-def _check_outputs(table: Path | None, plot: Path | None, save_results: Path | None, n_est: int) -> None:
-    """Before any work: the output names are usable (nothing is half written after an error)."""
+def _claim_outputs(table: Path | None, plot: Path | None, specs: list[str], force: bool,
+                   save_results: Path | None = None) -> list[Path]:
+    """Before any work: the suffixes, and the one overwrite rule for --table, --plot and
+    --save_results (never one of the trajectories read). Returns the input files."""
     if table is not None and SUFFIX_FORMAT.get(table.suffix.lower()) is None:
         raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
     if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
@@ -45,23 +46,26 @@ def _check_outputs(table: Path | None, plot: Path | None, save_results: Path | N
     if save_results is not None:
         if save_results.suffix.lower() != ".zip":
             raise UsageError(f"--save_results {save_results}: evo's result file is a .zip")
-        if n_est != 1:
-            raise UsageError(f"--save_results holds one result (as evo's); got {n_est} estimates")
-        if save_results.exists():
-            from mrnc_eval.errors import OutputError
-
-            raise OutputError(save_results, "exists; not overwritten (remove it or choose another --save_results)")
+        if len(specs) != 2:
+            raise UsageError(f"--save_results holds one result (as evo's); got {len(specs) - 1} estimates")
+    inputs = [Path(s.split(":/", 1)[0]) for s in specs]  # log.bag:/topic reads log.bag
+    for target in (table, plot, save_results):
+        if target is not None:
+            claim_output(target, force=force, inputs=inputs)
+    return inputs
 
 
 def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None,
-          decompositions=None, plot_mode: str | None = None, save_results: Path | None = None,
-          evo_names: tuple[str, str] | None = None, evo_title: dict[str, Any] | None = None) -> None:
+          decompositions=None, force: bool = False, inputs: list[Path] | None = None, plot_mode: str | None = None,
+          save_results: Path | None = None, evo_names: tuple[str, str] | None = None,
+          evo_title: dict[str, Any] | None = None) -> None:
     """Print (JSON or Markdown), then write the table, plot and evo zip files; all computed before."""
     from mrnc_eval.commands.output import emit_json
 
-    _check_outputs(table, plot, save_results, len(results))
+    inputs = inputs or []
     if json_out:
-        emit_json(_summaries(results, drifts, decompositions))
+        emit_json("ape" if isinstance(results[0], ApeResult) else "rpe", _summaries(results, drifts, decompositions),
+                  meta={"title": title})
     else:
         sys.stdout.write(render_table(_results_table(results, title), "markdown"))
         if drifts is not None:
@@ -70,16 +74,18 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
             sys.stdout.write("\n" + render_table(_decomposition_table([r.name for r in results], decompositions),
                                                  "markdown"))
     if table is not None:
-        atomic_write_text(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]))
+        write_output(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]),
+                     force=force, inputs=inputs)
     if plot is not None and isinstance(results[0], ApeResult):
-        _save_figure(_path_figure(results, title, _plot_axes(plot_mode)), plot)
+        _save_figure(_path_figure(results, title, _plot_axes(plot_mode)), plot, force, inputs)
     elif plot is not None:
-        _save_figure(_error_figure(results, title), plot)
+        _save_figure(_error_figure(results, title), plot, force, inputs)
     if save_results is not None:
-        from mrnc_eval.io.evo_results import evo_result, write_evo_zip
+        from mrnc_eval.io.evo_results import evo_result, evo_zip_bytes
 
         ref_name, est_name = evo_names or ("reference", results[0].name)
-        write_evo_zip(save_results, evo_result(results[0], ref_name=ref_name, est_name=est_name, **(evo_title or {})))
+        write_output(save_results, evo_zip_bytes(evo_result(results[0], ref_name=ref_name, est_name=est_name,
+                                                            **(evo_title or {}))), force=force, inputs=inputs)
 
 
 def _plot_axes(plot_mode: str | None) -> str:
@@ -93,7 +99,17 @@ def _plot_axes(plot_mode: str | None) -> str:
 
 
 def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
-    summaries = [{**r.summary(), "alignment": r.alignment_summary()} for r in results]
+    """One `results` item per estimate: the statistics, n and span under `stats`, the matching
+    counts, the alignment used (mode, poses, scale, 4x4), drift and decomposition beside them
+    (commands/output.py)."""
+    from mrnc_eval.commands.output import item, split_stats
+
+    summaries = []
+    for r in results:
+        flat = r.summary()
+        name = str(flat.pop("name"))
+        stats, rest = split_stats(flat)
+        summaries.append(item(name, stats, unit=r.unit, alignment=r.alignment_summary(), **rest))
     for key, extra in (("drift", drifts), ("decomposition", decompositions)):
         if extra is not None:
             for s, x in zip(summaries, extra, strict=True):
@@ -156,14 +172,9 @@ def _error_figure(results, title: str):
     return fig
 
 
-def _save_figure(fig, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")  # atomic: no half-written plot
-    try:
-        fig.savefig(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+def _save_figure(fig, path: Path, force: bool, inputs: list[Path]) -> None:
+    with output_file(path, force=force, inputs=inputs) as tmp:  # atomic: no half-written plot
+        fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
 
 
 def _index_pairing(ref: str, est: str) -> bool:
@@ -264,9 +275,10 @@ def _warn_stamps(ref: str, est: list[str], results: list[ApeResult] | list[RpeRe
 def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | None, relation: Relation, max_diff: float,
              offset: str | float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None,
              strict: bool = False, sync: SyncMethod = SyncMethod.nearest, max_gap: float = 0.2,
-             decompose: bool = False, plot_mode: str | None = None, save_results: Path | None = None) -> None:
+             decompose: bool = False, force: bool = False, plot_mode: str | None = None,
+             save_results: Path | None = None) -> None:
     ref, est = evo_positionals(ref, est)
-    _check_outputs(table, plot, save_results, len(est))
+    inputs = _claim_outputs(table, plot, [ref, *est], force, save_results)
     reference, estimates = _load(ref, est)
     offsets = _offsets(reference, estimates, offset, align)
     results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
@@ -275,8 +287,8 @@ def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | No
     _warn_stamps(ref, est, results)
     decompositions = [r.decompose() for r in results] if decompose else None
     title = f"APE w.r.t. {TITLES[relation]}, {alignment_phrase(results[0].alignment_summary())}"
-    _emit(results, title, json_out, table, plot, decompositions=decompositions, plot_mode=plot_mode,
-          save_results=save_results, evo_names=(ref, est[0]))
+    _emit(results, title, json_out, table, plot, decompositions=decompositions, force=force, inputs=inputs,
+          plot_mode=plot_mode, save_results=save_results, evo_names=(ref, est[0]))
 
 
 def _unit(relation: Relation) -> str:
@@ -299,9 +311,10 @@ def rpe_main(ref: str, est: list[str], *, delta: float | None, delta_unit: Delta
              n_to_align: int | None, relation: Relation, max_diff: float, offset: str | float, plane: str | None,
              json_out: bool, table: Path | None, plot: Path | None, pairs_from: PairsFrom = PairsFrom.estimate,
              drift: bool = False, strict: bool = False, sync: SyncMethod = SyncMethod.nearest,
-             max_gap: float = 0.2, plot_mode: str | None = None, save_results: Path | None = None) -> None:
+             max_gap: float = 0.2, force: bool = False, plot_mode: str | None = None,
+             save_results: Path | None = None) -> None:
     ref, est = evo_positionals(ref, est)
-    _check_outputs(table, plot, save_results, len(est))
+    inputs = _claim_outputs(table, plot, [ref, *est], force, save_results)
     # the delta as evo titles it: frames as an integer, metres as typed (a float: "2.0"), its default the integer 1
     delta_text = "1" if delta is None else str(int(delta)) if delta_unit is DeltaUnit.frames and delta == int(delta) \
         else repr(float(delta))
@@ -322,8 +335,9 @@ def rpe_main(ref: str, est: list[str], *, delta: float | None, delta_unit: Delta
     title = (f"RPE w.r.t. {TITLES[relation]}, delta {delta:g} {delta_unit}"
              f"{', all pairs' if all_pairs else ''} (pairs from the {pairs_from}), "
              f"{alignment_phrase(results[0].alignment_summary())}")
-    _emit(results, title, json_out, table, plot, drifts=drifts, plot_mode=plot_mode, save_results=save_results,
-          evo_names=(ref, est[0]), evo_title={"all_pairs": all_pairs, "delta_text": delta_text})
+    _emit(results, title, json_out, table, plot, drifts=drifts, force=force, inputs=inputs, plot_mode=plot_mode,
+          save_results=save_results, evo_names=(ref, est[0]),
+          evo_title={"all_pairs": all_pairs, "delta_text": delta_text})
 
 
 def _drift_table(names: list[str], drifts: list[DriftResult]) -> Table:

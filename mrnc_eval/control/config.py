@@ -65,6 +65,25 @@ class FunnelConfig:
 
 
 @dataclass(frozen=True)
+class StepDetectorConfig:
+    """When a side's segment clock restarts (the per-step funnel anchor, FOPTC's prescribed-time clock)."""
+
+    detector: Literal["ramp", "per_sample"] = param(
+        "ramp", "ramp: a movement of the reference (|dr/dt| > ramp_rate_mps2) that has changed it by "
+        "restart_step_mps restarts the clock, held at zero until the ramp ends; per_sample: one sample must change "
+        "it by more than control.metrics.step_threshold_mps (never fires under the reference slew; the old rule)")
+    ramp_rate_mps2: float = param(0.05, "the reference is moving where |dr/dt| exceeds this", "m/s^2")
+    restart_step_mps: float = param(0.1, "a movement that changes the reference by this much is a step", "m/s")
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    stop_rule: Literal["raid_only", "all"] = param(
+        "raid_only", "the paper's safety stop (|e| >= o(t) or a non-finite value: command 0 on that side for the "
+        "rest of the run): for RAID alone (paper), or for every law (parity)")
+
+
+@dataclass(frozen=True)
 class RaidConfig:
     beta: float = param(1.2, "beta (paper)")
     kappa: float = param(5.2, "kappa of the adaptive law (paper)")
@@ -262,6 +281,8 @@ class ControlConfig:
     pure_pursuit: PurePursuitConfig = section(PurePursuitConfig, "path following")
     kinematics: KinematicsConfig = section(KinematicsConfig, "inverse kinematics and reference shaping")
     funnel: FunnelConfig = section(FunnelConfig, "RAID prescribed-performance funnel o(t)")
+    steps: StepDetectorConfig = section(StepDetectorConfig, "step detector: restarts of the per-step clocks")
+    supervisor: SupervisorConfig = section(SupervisorConfig, "safety stop on funnel exit")
     raid: RaidConfig = section(RaidConfig, "RAID controller (paper)")
     pid: PidConfig = section(PidConfig, "PID baseline")
     apc: ApcConfig = section(ApcConfig, "APC baseline (stand-in: CFDL-MFAPC)")

@@ -25,8 +25,9 @@ from mrnc_eval.control.jit_cache import FloatArray, kernel, pack_slots
 
 @kernel
 def funnel(t: float, o_ov: float, o_b: float, o_star: float) -> tuple[float, float]:
-    """o(t) (m/s) and do/dt (m/s^2) for t >= 0 in seconds and o* in 1/s."""
-    ex = (o_ov - o_b) * math.exp(-o_star * t)
+    """o(t) (m/s) and do/dt (m/s^2) for t >= 0 in seconds and o* in 1/s. The one funnel of the
+    package: the closed loop calls it per sample, a replay with an array of t (see funnel_series)."""
+    ex = (o_ov - o_b) * np.exp(-o_star * t)
     return ex + o_b, -o_star * ex
 
 
@@ -59,6 +60,13 @@ def raid_step(state: FloatArray, centres: FloatArray, gamma: float, beta: float,
         return 0.0, False
     state[0] = phi_new
     return u, True
+
+
+def funnel_series(t: FloatArray, cfg: ControlConfig) -> FloatArray:
+    """o(t) in m/s at the times t (s after the anchor) by the configured funnel."""
+    f = cfg.funnel
+    o, _ = funnel(np.asarray(t, dtype=np.float64), f.o_ov_mps, f.o_b_mps, f.o_star_per_s)  # type: ignore[arg-type]
+    return np.asarray(o, dtype=np.float64)
 
 
 # slots of RAID's parameters after the common head of the controller vector (controllers.P_LAW)

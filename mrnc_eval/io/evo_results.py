@@ -14,8 +14,6 @@ from __future__ import annotations
 
 import io
 import json
-import os
-import tempfile
 import zipfile
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +21,7 @@ from pathlib import Path
 import numpy as np
 from numpy.typing import NDArray
 
-from mrnc_eval.errors import InputError, OutputError
+from mrnc_eval.errors import InputError
 from mrnc_eval.evaluation.ape import ApeResult, path_lengths
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit
 from mrnc_eval.evaluation.relations import TITLES
@@ -51,33 +49,18 @@ class EvoResult:
         return self.info.get("est_name", "")
 
 
-def write_evo_zip(path: Path, result: EvoResult) -> None:
-    """Write `result` as evo writes it, atomically; an existing file is never replaced."""
-    path = Path(path)
-    if path.exists():
-        raise OutputError(path, "exists; not overwritten (remove it or choose another --save_results)")
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh, zipfile.ZipFile(fh, "w", compression=zipfile.ZIP_STORED) as archive:
-            archive.writestr("info.json", json.dumps(result.info))
-            archive.writestr("stats.json", json.dumps({k: float(v) for k, v in result.stats.items()}))
-            for name, array in result.arrays.items():
-                buf = io.BytesIO()
-                np.save(buf, np.asarray(array, dtype=np.float64), allow_pickle=False)
-                archive.writestr(f"{name}.npy", buf.getvalue())
-        os.chmod(tmp, 0o666 & ~_umask())
-        os.link(tmp, path)  # fails if `path` appeared meanwhile: never replaces
-    except FileExistsError:
-        raise OutputError(path, "exists; not overwritten") from None
-    finally:
-        Path(tmp).unlink(missing_ok=True)
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)
-    os.umask(mask)
-    return mask
+def evo_zip_bytes(result: EvoResult) -> bytes:
+    """`result` as the bytes of evo's zip (ZIP_STORED); the caller writes them under the one
+    overwrite rule (mrnc_eval.outputs)."""
+    buf = io.BytesIO()
+    with zipfile.ZipFile(buf, "w", compression=zipfile.ZIP_STORED) as archive:
+        archive.writestr("info.json", json.dumps(result.info))
+        archive.writestr("stats.json", json.dumps({k: float(v) for k, v in result.stats.items()}))
+        for name, array in result.arrays.items():
+            member = io.BytesIO()
+            np.save(member, np.asarray(array, dtype=np.float64), allow_pickle=False)
+            archive.writestr(f"{name}.npy", member.getvalue())
+    return buf.getvalue()
 
 
 def _json_member(archive: zipfile.ZipFile, name: str, path: Path) -> dict[str, object]:

@@ -19,8 +19,9 @@ from markupsafe import Markup
 
 from mrnc_eval import __version__
 from mrnc_eval.evaluation.config import GatesConfig
+from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import is_number
-from mrnc_eval.results import Metric, RunResult, atomic_write_text, safe_name
+from mrnc_eval.results import Metric, RunResult, safe_name
 from mrnc_eval.tables import Cell, Table
 
 TEMPLATES = Path(__file__).parent / "templates"
@@ -230,18 +231,14 @@ def pdf_engine() -> object:
     return weasyprint
 
 
-def write_pdf(html: str, path: Path) -> str:
-    """PDF via WeasyPrint from the same HTML (print CSS). Returns the engine used; without
-    WeasyPrint (or Pango) MissingExtra, and nothing is written."""
+def write_pdf(html: str, path: Path, *, force: bool = False) -> str:
+    """PDF via WeasyPrint from the same HTML (print CSS), under the overwrite rule. Returns the
+    engine used; without WeasyPrint (or Pango) MissingExtra, and nothing is written."""
     engine: Any = pdf_engine()
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
+    with output_file(path, force=force) as tmp:
         logging.getLogger("weasyprint").setLevel(logging.ERROR)  # SVG CSS properties it does not know
         logging.getLogger("fontTools").setLevel(logging.ERROR)
         engine.HTML(string=html).write_pdf(tmp)
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return "weasyprint"
 
 
@@ -285,21 +282,24 @@ def merge_columns(tables: list[Table]) -> Table:
 
 
 def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig, config_text: str,
-                 pdf: bool = False) -> dict[str, Path]:
-    """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically."""
+                 pdf: bool = False, force: bool = False) -> dict[str, Path]:
+    """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically under
+    the one overwrite rule (mrnc_eval/outputs.py): all claimed before the first is written."""
     from mrnc_eval.reports.tables import render_table
 
     if pdf:
         pdf_engine()  # before anything is written: no report half made when the PDF cannot be
-    out_dir.mkdir(parents=True, exist_ok=True)
     html = render_html(results, gates=gates, config_text=config_text)
-    written = {"html": out_dir / "report.html"}
-    atomic_write_text(written["html"], html)
+    texts = {"html": (out_dir / "report.html", html)}
     for stem, table in table_files(results).items():
         for fmt, suffix in (("csv", ".csv"), ("latex", ".tex")):
-            written[f"{stem}{suffix}"] = out_dir / f"{stem}{suffix}"
-            atomic_write_text(written[f"{stem}{suffix}"], render_table(table, fmt))
+            texts[f"{stem}{suffix}"] = (out_dir / f"{stem}{suffix}", render_table(table, fmt))
+    for path in [p for p, _ in texts.values()] + ([out_dir / "report.pdf"] if pdf else []):
+        claim_output(path, force=force)
+    written = {}
+    for key, (path, text) in texts.items():
+        written[key] = write_output(path, text, force=force)
     if pdf:
         written["pdf"] = out_dir / "report.pdf"
-        write_pdf(html, written["pdf"])
+        write_pdf(html, written["pdf"], force=force)
     return written

@@ -126,8 +126,10 @@ def test_the_default_is_evos_and_a_changed_alignment_changes_the_number(files: P
     assert "not aligned" in first
     assert main(["ape", str(files / "gt.tum"), str(files / "est.tum"), "-as", "--json"]) == 0
     doc = json.loads(capsys.readouterr().out)
-    assert doc[0]["alignment"]["mode"] == "sim3"
-    assert doc[0]["rmse"] == pytest.approx(read_evo_zip(files / "evo_evo_ape_as.zip").stats["rmse"], rel=1e-12)
+    assert doc["results"][0]["alignment"]["mode"] == "sim3"
+    assert "Sim(3)" in doc["meta"]["title"]
+    assert doc["results"][0]["stats"]["rmse"] == pytest.approx(
+        read_evo_zip(files / "evo_evo_ape_as.zip").stats["rmse"], rel=1e-12)
 
 
 def test_evo_res_loads_our_zip_beside_evos(files: Path) -> None:

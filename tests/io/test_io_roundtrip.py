@@ -189,11 +189,11 @@ def test_overview_pass_keeps_small_topics_so_series_do_not_reread_the_file(tmp_p
             assert lg.topics  # the overview pass
             passes: list[list[str]] = []
 
-            def counting(topics, real=lg._iterate, seen=passes):
+            def counting(topics, real=lg.source.iterate, seen=passes):
                 seen.append(topics)
                 return real(topics)
 
-            lg._iterate = counting
+            lg.source.iterate = counting
             series[budget] = (lg.imu(), lg.gnss(), lg.ground_truth(), lg.transform("base_link", "os_imu"))
             reread = [t for t in passes if t != ["/ouster/points"]]
         assert (reread == []) == (budget == 1024.0), (budget, reread)
