@@ -165,6 +165,14 @@ def slam(
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
     no_loop: Annotated[bool, typer.Option("--no-loop", help="No loop closure (sets slam.loop.enabled=false).")] = False,
     no_gps: Annotated[bool, typer.Option("--no-gps", help="No GNSS factors (sets slam.gps.enabled=false).")] = False,
+    topic: Annotated[str | None, typer.Option(
+        "--topic", "-t", help="The LiDAR topic (kiss-icp's --topic; sets io.roles.lidar).")] = None,
+    start: Annotated[float | None, typer.Option(
+        "--start", help="Only sweeps from this many seconds after the log's start.")] = None,
+    end: Annotated[float | None, typer.Option("--end", help="... up to this many seconds after it.")] = None,
+    n_scans: Annotated[int | None, typer.Option(
+        "--n-scans", "-n", help="At most this many sweeps (kiss-icp's --n-scans; lio: after its mapping-interval "
+        "thinning).")] = None,
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
@@ -179,7 +187,9 @@ def slam(
     if (_plain(method) or cfg.slam.method) == "kiss-icp":
         require_extra("kiss-icp", "mrnc-eval slam --method kiss-icp")
     from mrnc_eval.commands import slam as slam_command
-    slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
+    window = slam_command.SweepWindow(start_s=start, end_s=end, n_scans=n_scans)
+    slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out,
+                      topic=topic, window=window)
 
 
 class ControlMode(StrEnum):
