@@ -81,3 +81,10 @@ class GateFailed(MrncError):
     """A metric gate (APE RMSE, funnel violations...) was not met."""
 
     exit_code = 1
+
+
+class MissingExtra(UsageError):
+    """A verb needs an optional part of the installation that is not installed (the message
+    names the extra: pip install 'mrnc-eval[slam]')."""
+
+    exit_code = 2

@@ -194,7 +194,8 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
         from mrnc_eval.reports.junit import write_junit
 
         # a recurring job: each night replaces the XML it wrote the night before (only that, outputs.py)
-        write_junit(junit, night_suites(rows, night_dir, cfg.gates), f"mrnc-eval nightly {night}", force=True)
+        write_junit(junit, night_suites(rows, night_dir, cfg.gates, (cfg.slam.method,)), f"mrnc-eval nightly {night}",
+                    force=True)
     failed = [r for r in rows if r.status != "ok"]
     gate_fail = [r for r in rows if r.gates_failed]
     counts = {kind: sum(v == kind for v in plan.values()) for kind in ("new", "unchanged", "re-run")}

@@ -50,7 +50,7 @@ def main(result_dirs: list[Path], *, out: Path | None, pdf: bool, junit: Path | 
     if junit is not None:
         from mrnc_eval.reports.junit import suite_of_results, write_junit
 
-        suite = suite_of_results(results[0].log_id, results[0].log_path, results, cfg.gates)
+        suite = suite_of_results(results[0].log_id, results[0].log_path, results, cfg.gates, (cfg.slam.method,))
         write_junit(junit, [suite], f"mrnc-eval report {results[0].log_id}", force=force)
         written["junit"] = junit
     for kind, path in written.items():

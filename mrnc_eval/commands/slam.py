@@ -70,11 +70,55 @@ class LogInputs:
     notes: tuple[str, ...] = ()  # why an input was not used (GNSS without a fix)
 
 
+@dataclass(frozen=True, kw_only=True)
+class SweepWindow:
+    """Which sweeps of a log the SLAM reads (kiss-icp's --n-scans, a time window as evo's
+    --t_start/--t_end): seconds after the log's first message, and at most n_scans sweeps
+    (counted after lio's slam.mapping_interval_s thinning)."""
+
+    start_s: float | None = None
+    end_s: float | None = None
+    n_scans: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.start_s is not None and self.start_s < 0:
+            raise UsageError(f"--start {self.start_s}: seconds after the log's start, >= 0")
+        if self.end_s is not None and self.end_s <= (self.start_s or 0.0):
+            raise UsageError(f"--end {self.end_s} must come after --start {self.start_s or 0.0}")
+        if self.n_scans is not None and self.n_scans < 2:
+            raise UsageError(f"--n-scans {self.n_scans}: SLAM needs at least 2 sweeps")
+
+    @property
+    def active(self) -> bool:
+        return (self.start_s, self.end_s, self.n_scans) != (None, None, None)
+
+    def describe(self) -> str:
+        parts = [f"from {self.start_s:g} s" if self.start_s is not None else "",
+                 f"to {self.end_s:g} s" if self.end_s is not None else "",
+                 f"at most {self.n_scans} sweeps" if self.n_scans is not None else ""]
+        return "sweeps " + ", ".join(p for p in parts if p) + " (after the log's start; --start/--end/--n-scans)"
+
+
+def windowed(stream: Iterable[Sweep], window: SweepWindow, t0_s: float) -> Iterator[Sweep]:
+    """The sweeps of `stream` inside `window` (stamps relative to t0_s, the log's start)."""
+    n = 0
+    for sweep in stream:
+        t = sweep.stamp - t0_s
+        if window.start_s is not None and t < window.start_s:
+            continue
+        if window.end_s is not None and t > window.end_s:
+            return
+        yield sweep
+        n += 1
+        if window.n_scans is not None and n >= window.n_scans:
+            return
+
+
 def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = None, progress: bool = False,
-            log_id: str | None = None) -> RunResult:
+            log_id: str | None = None, window: SweepWindow | None = None) -> RunResult:
     """Replay `method` (default: the config's slam.method; given, it is written into the config)
     on one log into `out_dir`; `log_id` names the log in results (default: from its file name;
-    the nightly job passes its own, unique within the night)."""
+    the nightly job passes its own, unique within the night); `window`: only some sweeps."""
     from mrnc_eval.io import open_log
     from mrnc_eval.io.integrity import container_notes
 
@@ -89,7 +133,10 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         inputs = _read_inputs(lg, log_path, cfg)
         result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
         result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
-        out = _replay(lg, inputs, cfg, progress)
+        if window is not None and window.active:
+            result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
+            result.warnings.append(window.describe())
+        out = _replay(lg, inputs, cfg, progress, window)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
         read_notes += container_notes(Path(log_path), lg.container)  # lost or unverifiable data
     if out.stamps.size < 2:
@@ -166,7 +213,8 @@ def _gnss_or_none(lg: LogReader, cfg: Config) -> tuple[GnssSeries | None, str]:
         return None, f"GNSS not used: {err.problem}"
 
 
-def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutput:
+def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, window: SweepWindow | None = None
+            ) -> SlamOutput:
     """Run the configured method over the sweep stream; both methods read the same way (decoding
     runs ahead in a thread; "read" = the time still waited)."""
     from mrnc_eval.slam.replay import run_slam
@@ -176,6 +224,8 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool) -> Sl
         task = b.add_task("SLAM sweeps", total=inputs.n_sweeps) if b else None
         tick = (lambda n: b.update(task, completed=n)) if b and task is not None else None
         stream = lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take) if lio else lg.sweeps()
+        if window is not None and window.active:
+            stream = windowed(stream, window, lg.start_s)
         with Prefetched(stream, depth=4) as sweeps:
             if lio:
                 return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
@@ -510,12 +560,15 @@ def _row_ids(logs: list[Path]) -> dict[Path, str]:
 
 
 def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loop: bool, no_gps: bool,
-         json_out: bool) -> None:
+         json_out: bool, topic: str | None = None, window: SweepWindow | None = None) -> None:
     """The `slam` verb: the CLI flags set config values (slam.method, slam.loop.enabled,
-    slam.gps.enabled), which are then the one source of truth."""
+    slam.gps.enabled, --topic: io.roles.lidar), which are then the one source of truth; `window`
+    limits the sweeps read (recorded in each result's extra and warnings)."""
     from mrnc_eval.errors import SomeInputsFailed
 
     cfg = with_method(cfg, method)
+    if topic is not None:
+        cfg = replace_path(cfg, "io.roles", {**cfg.io.roles, "lidar": topic})
     if no_loop:
         cfg = replace_path(cfg, "slam.loop.enabled", False)
     if no_gps:
@@ -528,7 +581,7 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     for path in logs:
         run_dir = new_run_dir(out, log_id_for(path), f"slam-{cfg.slam.method}")
         try:
-            r = run_log(path, cfg, run_dir, progress=True)
+            r = run_log(path, cfg, run_dir, progress=True, window=window)
         except InputError as err:
             if len(logs) == 1:
                 raise

@@ -217,37 +217,33 @@ def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: st
         sections=[_section(r) for r in results if r.kind in ("slam", "control")], config_text=config_text)
 
 
+def pdf_engine() -> object:
+    """The weasyprint module, or MissingExtra naming the pdf extra (or the Pango libraries) when it
+    cannot load: a PDF is never replaced by a placeholder. Called before anything is written."""
+    from mrnc_eval.errors import MissingExtra
+
+    try:
+        import weasyprint
+    except ImportError as err:
+        raise MissingExtra(f"a PDF needs the pdf extra (WeasyPrint: {err}): pip install 'mrnc-eval[pdf]'; "
+                           "or leave out --pdf (report.html is self-contained)") from None
+    except OSError as err:
+        if err.errno is not None:
+            raise
+        raise MissingExtra(f"WeasyPrint cannot load its libraries ({err}): install Pango (scripts/setup.sh) "
+                           "or leave out --pdf") from None
+    return weasyprint
+
+
 def write_pdf(html: str, path: Path, *, force: bool = False) -> str:
-    """PDF via WeasyPrint from the same HTML (print CSS); a matplotlib PDF that says it is a
-    fallback when WeasyPrint or its Pango libraries are missing. Returns the engine used."""
+    """PDF via WeasyPrint from the same HTML (print CSS), under the overwrite rule. Returns the
+    engine used; without WeasyPrint (or Pango) MissingExtra, and nothing is written."""
+    engine: Any = pdf_engine()
     with output_file(path, force=force) as tmp:
-        try:
-            import weasyprint
-
-            logging.getLogger("weasyprint").setLevel(logging.ERROR)  # SVG CSS properties it does not know
-            logging.getLogger("fontTools").setLevel(logging.ERROR)
-            weasyprint.HTML(string=html).write_pdf(tmp)
-            engine = "weasyprint"
-        except (ImportError, OSError) as err:
-            if isinstance(err, OSError) and err.errno is not None:
-                raise  # a real file-system error (no space, permission), not a missing Pango library
-            fallback_pdf(tmp, f"{type(err).__name__}: {err}")
-            engine = "fallback"
-    return engine
-
-
-def fallback_pdf(path: Path, reason: str) -> None:
-    from matplotlib.backends.backend_pdf import PdfPages
-    from matplotlib.figure import Figure
-
-    with PdfPages(path) as pdf:
-        fig = Figure(figsize=(8.27, 11.69))
-        fig.text(0.08, 0.92, "mrnc-eval report: FALLBACK PDF", fontsize=16, weight="bold")
-        fig.text(0.08, 0.88, "WeasyPrint could not render the report; this page only says so.", fontsize=10)
-        fig.text(0.08, 0.85, f"Reason: {reason[:160]}", fontsize=8)
-        fig.text(0.08, 0.82, "Open report.html (self-contained) for the full report, or install Pango "
-                 "(scripts/setup.sh).", fontsize=10)
-        pdf.savefig(fig)
+        logging.getLogger("weasyprint").setLevel(logging.ERROR)  # SVG CSS properties it does not know
+        logging.getLogger("fontTools").setLevel(logging.ERROR)
+        engine.HTML(string=html).write_pdf(tmp)
+    return "weasyprint"
 
 
 _ROMAN = {"I": 1, "II": 2, "III": 3, "IV": 4, "V": 5}
@@ -295,6 +291,8 @@ def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig,
     the one overwrite rule (mrnc_eval/outputs.py): all claimed before the first is written."""
     from mrnc_eval.reports.tables import render_table
 
+    if pdf:
+        pdf_engine()  # before anything is written: no report half made when the PDF cannot be
     html = render_html(results, gates=gates, config_text=config_text)
     texts = {"html": (out_dir / "report.html", html)}
     for stem, table in table_files(results).items():
@@ -307,6 +305,5 @@ def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig,
         written[key] = write_output(path, text, force=force)
     if pdf:
         written["pdf"] = out_dir / "report.pdf"
-        if write_pdf(html, written["pdf"], force=force) == "fallback":
-            logging.getLogger(__name__).warning("%s: WeasyPrint unavailable, wrote a fallback PDF", written["pdf"])
+        write_pdf(html, written["pdf"], force=force)
     return written
