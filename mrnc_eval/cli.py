@@ -361,10 +361,13 @@ def report(
     out: Annotated[Path | None, typer.Option(help="Output directory (default: next to each result).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
     junit: JunitOpt = None,
+    appendix_config: Annotated[bool, typer.Option(
+        "--appendix-config", help="Add the full effective configuration as an appendix (the report lists the keys "
+        "that differ from the defaults; the full file is config.yaml beside each result).")] = False,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
     from mrnc_eval.commands import report as report_command
-    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit)
+    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit, appendix_config=appendix_config)
 
 
 @app.command()

@@ -84,23 +84,29 @@ def _mark_events(ax, r: RunResult, kinds: tuple[str, ...]) -> list[str]:
     return drawn
 
 
-def slam_figures(r: RunResult) -> list[tuple[str, str]]:
+def slam_figures(r: RunResult, timing: dict[str, dict[str, float]] | None = None) -> list[tuple[str, str]]:
+    """Path coloured by APE, APE over time and per-stage timing (`timing`: the stages to draw,
+    default all in the result). Labels name online and smoothed only where they differ (lio)."""
     s = r.series
+    lio = r.extra.get("method", "lio") == "lio"
     out = []
     if "est_aligned_xyz" in s and "ape_err_m" in s and "ref_xyz" in s:
         fig, ax = new_figure(6.5, 5.0)
         overlays = []
-        if "est_online_aligned_xyz" in s:
+        if "est_online_aligned_xyz" in s and lio:
             overlays.append((s["est_online_aligned_xyz"], "online (as processed, SE(3) aligned)", "tab:red"))
         draw_error_path(fig, ax[0, 0], s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"],
-                        est_label="smoothed (SE(3) aligned)", overlays=overlays)
+                        est_label="smoothed (SE(3) aligned)" if lio else "estimate (SE(3) aligned)",
+                        overlays=overlays)
         out.append(("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
-                    "truth dashed)", svg(fig)))
+                    "truth dashed)" if lio else "Trajectory in the plane (estimate coloured by its APE, ground truth "
+                    "dashed)", svg(fig)))
         fig, ax = new_figure(7.0, 3.0)
         ax = ax[0, 0]
         t, e = decimate(s["ape_t"], s["ape_err_m"])
-        ax.plot(t, e, lw=1.0, color="tab:blue", label="smoothed (re-anchored to the final keyframes)")
-        if "ape_online_t" in s and "ape_online_err_m" in s:
+        ax.plot(t, e, lw=1.0, color="tab:blue",
+                label="smoothed (re-anchored to the final keyframes)" if lio else "estimate")
+        if "ape_online_t" in s and "ape_online_err_m" in s and lio:
             t, e = decimate(s["ape_online_t"], s["ape_online_err_m"])
             ax.plot(t, e, lw=1.0, color="tab:red", label="online (as processed)")
             ax.legend(fontsize="small", loc="upper left")
@@ -108,18 +114,18 @@ def slam_figures(r: RunResult) -> list[tuple[str, str]]:
         ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
                title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
         ax.grid(alpha=0.3)
-        out.append(("APE (translation) over time, online and smoothed", svg(fig)))
+        out.append(("APE (translation) over time" + (", online and smoothed" if lio else ""), svg(fig)))
     elif "est_xyz" in s and len(s["est_xyz"]):
         fig, ax = new_figure(6.5, 5.0)
         xyz, = decimate(s["est_xyz"])
         ax[0, 0].plot(xyz[:, 0], xyz[:, 1], lw=1.0)
-        if "kf_xyz" in s and len(s["kf_xyz"]):
+        if "kf_xyz" in s and len(s["kf_xyz"]) and lio:
             ax[0, 0].plot(s["kf_xyz"][:, 0], s["kf_xyz"][:, 1], "o", ms=3, color="tab:orange", label="keyframes")
             ax[0, 0].legend(fontsize="small")
         ax[0, 0].set_aspect("equal", adjustable="datalim")
         ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="Estimated trajectory (no ground truth: APE not computed)")
         out.append(("Estimated trajectory in the plane", svg(fig)))
-    timing = r.extra.get("timing_ms", {})
+    timing = r.extra.get("timing_ms", {}) if timing is None else timing
     if timing:
         fig, ax = new_figure(6.5, 0.6 + 0.35 * len(timing))
         ax = ax[0, 0]
