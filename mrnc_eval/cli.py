@@ -244,6 +244,9 @@ class Plane(StrEnum):
 PlaneOpt = Annotated[Plane | None, typer.Option(help="Project to a plane before the metric.")]
 TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
 PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
+LabelOpt = Annotated[list[str] | None, typer.Option(
+    "--label", metavar="NAME", help="Name of an estimate in the table, plot and JSON; repeat once per EST, in "
+    "order (default: a slam result's folder name, else the file name).")]
 ApePlotOpt = Annotated[Path | None, typer.Option(
     "--plot", help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
 
@@ -266,13 +269,14 @@ def ape(
     max_gap: MaxGapOpt = 0.2,
     decompose: Annotated[bool, typer.Option(
         "--decompose", help="Also along-track, cross-track, vertical (m) and yaw (deg) error statistics.")] = False,
+    label: LabelOpt = None,
 ) -> None:
     """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
         ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
         offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict, sync=sync,
-        max_gap=max_gap, decompose=decompose,
+        max_gap=max_gap, decompose=decompose, labels=label,
     )
 
 
@@ -301,6 +305,7 @@ def rpe(
     drift: Annotated[bool, typer.Option(
         "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, "
         "scaled to short logs).")] = False,
+    label: LabelOpt = None,
 ) -> None:
     """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
@@ -309,7 +314,7 @@ def rpe(
         n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=_plain(plane),
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
-        strict=strict, sync=sync, max_gap=max_gap,
+        strict=strict, sync=sync, max_gap=max_gap, labels=label,
     )
 
 

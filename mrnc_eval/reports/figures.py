@@ -56,10 +56,11 @@ def decimate(*arrays: np.ndarray) -> list[np.ndarray]:
 def draw_error_path(fig, ax, ref_xyz: np.ndarray, est_xyz: np.ndarray, err: np.ndarray, *, unit: str = "m",
                     est_label: str = "estimate (SE(3) aligned)", ref_label: str = "ground truth",
                     title: str = "Trajectory in the plane, coloured by APE",
-                    overlays: list[tuple[np.ndarray, str, str]] | None = None) -> None:
+                    overlays: list[tuple[np.ndarray, str, str]] | None = None, legend_below: bool = False) -> None:
     """The estimate's path in the x-y plane coloured by its error, the reference dashed beside
     it, `overlays` as plain lines (decimated for drawing). One implementation for SLAM reports
-    and `ape --plot`."""
+    and `ape --plot` (`legend_below`: the legend under the axes, where it covers no path and
+    the constrained layout makes room for it)."""
     ref, est, e = decimate(ref_xyz, est_xyz, err)
     ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=1.0, ls="--", label=ref_label)
     for xyz, label, colour in overlays or ():  # further paths as lines (e.g. the online estimate)
@@ -70,7 +71,56 @@ def draw_error_path(fig, ax, ref_xyz: np.ndarray, est_xyz: np.ndarray, err: np.n
     fig.colorbar(sc, ax=ax, label=f"APE ({unit})" if unit else "APE")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set(xlabel="x (m)", ylabel="y (m)", title=title)
-    ax.legend(loc="best", fontsize="small")
+    if legend_below:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize="small", ncols=3, frameon=False)
+    else:
+        ax.legend(loc="best", fontsize="small")
+
+
+TITLE_CHARS_PER_INCH = 9  # characters of a 12 pt title per inch of axes width (DejaVu Sans, with margin)
+
+
+def wrapped(text: str, width_in: float) -> str:
+    """`text` broken into lines that fit `width_in` inches at title size: after spaces, and
+    inside file names and run folders after / - _; a piece longer than a line is split."""
+    chars = max(12, int(width_in * TITLE_CHARS_PER_INCH))
+    pieces = [p for p in re.split(r"(?<=[/_\- ])", text) if p]
+    lines: list[str] = []
+    line = ""
+    for piece in pieces:
+        while len(piece) > chars:  # one piece wider than a line
+            if line:
+                lines.append(line.rstrip())
+                line = ""
+            lines.append(piece[:chars])
+            piece = piece[chars:]
+        if len(line) + len(piece.rstrip()) > chars and line:
+            lines.append(line.rstrip())
+            line = ""
+        line += piece
+    if line.strip():
+        lines.append(line.rstrip())
+    return "\n".join(lines) or text
+
+
+def ape_path_figure(results, title: str):
+    """`ape --plot`: one panel per estimate (its aligned path coloured by its APE, the reference
+    dashed), titled with its label, wrapped to the panel's width; legends under the panels; two
+    panels per row. Nothing overlaps or leaves the figure (tests/evaluation: text boxes)."""
+    cols = min(2, len(results))
+    rows = -(-len(results) // cols)
+    panel_w, panel_h = 6.0, 5.4
+    fig, axes = new_figure(panel_w * cols, panel_h * rows + 0.4, rows, cols)
+    for k, ax in enumerate(axes.ravel()):
+        if k >= len(results):
+            ax.set_visible(False)
+            continue
+        r = results[k]
+        draw_error_path(fig, ax, r.ref_xyz, r.est_xyz, r.errors, unit=r.unit,
+                        est_label=f"estimate ({r.alignment.mode} aligned)", ref_label="reference",
+                        title=wrapped(r.name, panel_w - 1.6), legend_below=True)
+    fig.suptitle(wrapped(title, panel_w * cols - 0.5))
+    return fig
 
 
 def _mark_events(ax, r: RunResult, kinds: tuple[str, ...]) -> list[str]:
