@@ -7,6 +7,7 @@ command modules, so `mrnc-eval --help` stays instant.
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
 from enum import StrEnum
@@ -18,7 +19,7 @@ from typer.exceptions import TyperException
 
 from mrnc_eval import __version__
 from mrnc_eval.cli_help import PlainGroup
-from mrnc_eval.errors import MrncError, UsageError
+from mrnc_eval.errors import Interrupted, MrncError, UsageError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.text import printable
 
@@ -518,19 +519,63 @@ def simulate(
 
 
 INTERNAL_ERROR = 5  # a bug, not a verdict on the input: never 1 ("a gate failed")
+INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT, as shells report it
+BROKEN_PIPE = 0  # the reader stopped early (`info LOG | head -1`): it took what it wanted
+
+
+def _on_sigint(signum: int, frame: Any) -> None:
+    raise Interrupted()
+
+
+def _stdout_gone() -> int:
+    """stdout's reader closed the pipe: say nothing more to it (the interpreter's last flush
+    would fail again) and exit with BROKEN_PIPE."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return BROKEN_PIPE
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; the single place where errors become exit codes. Every error is one line on
     stderr (--debug adds the traceback): typed errors with their code, file-system errors
-    (exists, permission, no space) with 4, anything else as an internal error with 5."""
+    (exists, permission, no space) with 4, anything else as an internal error with 5; Ctrl-C
+    "interrupted" with 130; a closed stdout pipe (`| head`) 0."""
+    import signal
+    import threading
+
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGINT, _on_sigint)
+    try:
+        return _run(argv)
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run(argv: list[str] | None) -> int:
     try:
         result = app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
     except typer.Exit as exc:
         return exc.exit_code
+    except Interrupted:
+        sys.stderr.write("mrnc-eval: interrupted\n")
+        return INTERRUPTED
+    except BrokenPipeError:
+        return _stdout_gone()
+    except SystemExit as exc:  # click, typer and rich exit 1 on a broken pipe, raised while handling it
+        cause = exc.__context__
+        if isinstance(cause, OSError) and cause.errno == errno.EPIPE:
+            return _stdout_gone()
+        raise
     except typer.Abort:
-        sys.stderr.write("aborted\n")
-        return 130
+        sys.stderr.write("mrnc-eval: aborted\n")
+        return INTERRUPTED
     except TyperException as exc:  # usage errors: missing argument, bad option value
         show = getattr(exc, "show", None)
         if callable(show):
@@ -543,9 +588,9 @@ def main(argv: list[str] | None = None) -> int:
             log.exception("%s", exc)
         sys.stderr.write(f"mrnc-eval: error: {printable(str(exc))}\n")
         return exc.exit_code
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted\n")
-        return 130
+    except KeyboardInterrupt:  # raised where our handler was not installed (not the main thread)
+        sys.stderr.write("mrnc-eval: interrupted\n")
+        return INTERRUPTED
     except OSError as exc:  # a file-system error no layer below turned into a typed one
         from mrnc_eval.results import describe_os_error
 
