@@ -553,6 +553,16 @@ def main(argv: list[str] | None = None) -> int:
         previous = signal.signal(signal.SIGINT, _on_sigint)
     try:
         return _run(argv)
+    except (Interrupted, KeyboardInterrupt):  # KeyboardInterrupt: where the handler is not installed
+        sys.stderr.write("mrnc-eval: interrupted\n")
+        return INTERRUPTED
+    except BrokenPipeError:
+        return _stdout_gone()
+    except SystemExit as exc:  # click, typer and rich exit 1 on a broken pipe, raised while handling it
+        cause = exc.__context__
+        if isinstance(cause, OSError) and cause.errno == errno.EPIPE:
+            return _stdout_gone()
+        raise
     finally:
         if previous is not None:
             signal.signal(signal.SIGINT, previous)
@@ -563,16 +573,6 @@ def _run(argv: list[str] | None) -> int:
         result = app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
     except typer.Exit as exc:
         return exc.exit_code
-    except Interrupted:
-        sys.stderr.write("mrnc-eval: interrupted\n")
-        return INTERRUPTED
-    except BrokenPipeError:
-        return _stdout_gone()
-    except SystemExit as exc:  # click, typer and rich exit 1 on a broken pipe, raised while handling it
-        cause = exc.__context__
-        if isinstance(cause, OSError) and cause.errno == errno.EPIPE:
-            return _stdout_gone()
-        raise
     except typer.Abort:
         sys.stderr.write("mrnc-eval: aborted\n")
         return INTERRUPTED
@@ -588,9 +588,8 @@ def _run(argv: list[str] | None) -> int:
             log.exception("%s", exc)
         sys.stderr.write(f"mrnc-eval: error: {printable(str(exc))}\n")
         return exc.exit_code
-    except KeyboardInterrupt:  # raised where our handler was not installed (not the main thread)
-        sys.stderr.write("mrnc-eval: interrupted\n")
-        return INTERRUPTED
+    except BrokenPipeError:
+        raise  # main() turns it into BROKEN_PIPE
     except OSError as exc:  # a file-system error no layer below turned into a typed one
         from mrnc_eval.results import describe_os_error
 
