@@ -153,7 +153,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     if inputs.ground_truth is not None:
         _add_ape(result, inputs.ground_truth, est, online, method, cfg, float(out.stamps[0]))
     else:
-        result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
+        result.warnings.append(f"no ground truth: APE not computed ({ground_truth_hint(log_path)})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
@@ -161,6 +161,14 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
     return result
+
+
+def ground_truth_hint(log_path: Path) -> str:
+    """How to give a log ground truth: the sidecar file or the topic role."""
+    from mrnc_eval.io.ground_truth import gt_tum_path
+
+    return (f"give one as {gt_tum_path(log_path).name} beside the log (TUM) or --set "
+            "io.roles.ground_truth=TOPIC")
 
 
 def with_method(cfg: Config, method: str | None) -> Config:
@@ -369,9 +377,11 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
     for stage in STAGES:
         result.metrics.append(Metric(name=f"ms_per_sweep_{stage}", value=timing[stage]["mean"], unit="ms",
                                      group="slam/timing"))
-    interval = f", slam.mapping_interval_s = {mapping_interval_s:g} s" if method == "lio" else ""
-    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {out.n_sweeps} sweeps, {rate_hz:.1f} Hz"
-                                    f"{interval}")
+    # of the sweeps in the log (not of those the interval let through): "134 of 236", and why
+    every = (f"every {mapping_interval_s:g} s or more (slam.mapping_interval_s)" if method == "lio"
+             else "every sweep")
+    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
+                                    f"{every}, {rate_hz:.1f} Hz")
     result.extra["deskew"] = out.deskew
     result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
                          "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
@@ -573,6 +583,11 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
         cfg = replace_path(cfg, "slam.loop.enabled", False)
     if no_gps:
         cfg = replace_path(cfg, "slam.gps.enabled", False)
+    from mrnc_eval.io.containers import detect_container
+
+    for path in logs:  # a folder of logs (not a ROS 2 bag) is refused before anything is written
+        if path.is_dir():
+            detect_container([path])
     check_output_root(out, need_bytes=SLAM_OUTPUT_BYTES * len(logs))  # before the long work, not after it
     results: list[tuple[Path, RunResult]] = []
     failed: list[tuple[Path, str]] = []
@@ -616,7 +631,9 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
         vals = {m.name: m.value for m in r.metrics}
         apes = [f"{label} {vals[name]:.4f} m" for label, name in (("online", "ape_online_rmse_m"),
                                                                     ("smoothed", "ape_rmse_m")) if name in vals]
-        ape = ", ".join(apes) if apes else "n/a (no ground truth)"
+        ape = ", ".join(apes) if apes else f"n/a (no ground truth: {ground_truth_hint(Path(r.log_path))})"
+        if not apes and "ape_gnss_rmse_m" in vals:  # the comparison the run could make without ground truth
+            ape += f"; vs GNSS {vals['ape_gnss_rmse_m']:.3f} m (2-D, includes the GNSS error)"
         used = ", ".join(f"{role} {topic}" for role, topic in r.extra.get("roles", {}).items())
         line = (f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
                 f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}")

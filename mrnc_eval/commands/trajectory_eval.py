@@ -157,15 +157,9 @@ def _decimated_max(t: np.ndarray, e: np.ndarray, buckets: int = 10000) -> tuple[
 def _path_figure(results: Sequence[ApeResult], title: str, plot_axes: str = "xy") -> Figure:
     """Each estimate's aligned path coloured by its APE, the reference dashed beside it (the
     SLAM report's figure); statistics use every pose, the drawing is decimated."""
-    from mrnc_eval.reports.figures import draw_error_path, new_figure
+    from mrnc_eval.reports.figures import ape_path_figure
 
-    fig, axes = new_figure(6.0 * len(results), 5.0, 1, len(results))
-    for ax, r in zip(axes[0], results, strict=True):
-        draw_error_path(fig, ax, r.ref_xyz, r.est_xyz, r.errors, unit=r.unit,
-                        est_label=f"{r.name} ({r.alignment.mode} aligned)", ref_label="reference", title=r.name,
-                        axes=plot_axes)
-    fig.suptitle(title)
-    return fig
+    return ape_path_figure(results, title, plot_axes)
 
 
 def _error_figure(results: Results, title: str) -> Figure:
@@ -220,18 +214,37 @@ def evo_positionals(ref: str, est: list[str]) -> tuple[str, list[str]]:
     return est[0], est[1:]
 
 
-def _load(ref: str, est: list[str]) -> tuple[Any, list[tuple[Any, bool]]]:
-    """The reference and each estimate (with its pairing mode), named uniquely. Files are read
-    in parallel threads (pandas' C tokenizer releases the GIL); the first error is raised as is."""
+SLAM_FILES = {"trajectory": "", "trajectory_online": " online"}  # slam's file stems -> label suffix
+
+
+def default_label(spec: str, name: str) -> str:
+    """An estimate's name in tables, plots and JSON: a slam result's folder name (the run) for
+    a result folder or its trajectory files, else the name read_trajectory gave (file stem)."""
+    path = Path(spec.rstrip("/"))
+    if path.is_dir() and (path / "trajectory.tum").is_file():
+        return path.resolve().name
+    if path.is_file() and path.stem in SLAM_FILES:
+        return path.parent.resolve().name + SLAM_FILES[path.stem]
+    return name
+
+
+def _load(ref: str, est: list[str], labels: list[str] | None = None) -> tuple[Any, list[tuple[Any, bool]]]:
+    """The reference and each estimate (with its pairing mode), named by `labels` (one per
+    estimate) or uniquely from their paths. Files are read in parallel threads (pandas' C
+    tokenizer releases the GIL); the first error is raised as is."""
     from concurrent.futures import ThreadPoolExecutor
 
+    if labels and len(labels) != len(est):
+        raise UsageError(f"--label given {len(labels)} time(s) for {len(est)} estimate(s): give one per EST, "
+                         "in the same order")
     pairing = [_index_pairing(ref, e) for e in est]
     with ThreadPoolExecutor(max_workers=min(4, 1 + len(est))) as pool:
         reference, *trajs = list(pool.map(read_trajectory, [ref, *est]))
-    estimates = list(zip(trajs, pairing, strict=True))
+    estimates = [(replace(t, name=labels[k] if labels else default_label(spec, t.name)), by_index)
+                 for k, (t, by_index, spec) in enumerate(zip(trajs, pairing, est, strict=True))]
     names = [t.name for t, _ in estimates]
     for k, ((t, by_index), spec) in enumerate(zip(estimates, est, strict=True)):
-        if names.count(t.name) > 1:  # same file stem in different folders: use the path
+        if names.count(t.name) > 1 and not labels:  # same name from different folders: use the path
             estimates[k] = (replace(t, name=str(spec)), by_index)
     return reference, estimates
 
@@ -287,10 +300,10 @@ def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | No
              offset: str | float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None,
              strict: bool = False, sync: SyncMethod = SyncMethod.nearest, max_gap: float = 0.2,
              decompose: bool = False, force: bool = False, plot_mode: str | None = None,
-             save_results: Path | None = None) -> None:
+             save_results: Path | None = None, labels: list[str] | None = None) -> None:
     ref, est = evo_positionals(ref, est)
     inputs = _claim_outputs(table, plot, [ref, *est], force, save_results)
-    reference, estimates = _load(ref, est)
+    reference, estimates = _load(ref, est, labels)
     offsets = _offsets(reference, estimates, offset, align)
     results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
                    offset=o, plane=plane, by_index=by_index, strict=strict, sync=sync, max_gap=max_gap)
@@ -323,14 +336,14 @@ def rpe_main(ref: str, est: list[str], *, delta: float | None, delta_unit: Delta
              json_out: bool, table: Path | None, plot: Path | None, pairs_from: PairsFrom = PairsFrom.estimate,
              drift: bool = False, strict: bool = False, sync: SyncMethod = SyncMethod.nearest,
              max_gap: float = 0.2, force: bool = False, plot_mode: str | None = None,
-             save_results: Path | None = None) -> None:
+             save_results: Path | None = None, labels: list[str] | None = None) -> None:
     ref, est = evo_positionals(ref, est)
     inputs = _claim_outputs(table, plot, [ref, *est], force, save_results)
     # the delta as evo titles it: frames as an integer, metres as typed (a float: "2.0"), its default the integer 1
     delta_text = "1" if delta is None else str(int(delta)) if delta_unit is DeltaUnit.frames and delta == int(delta) \
         else repr(float(delta))
     delta = 1.0 if delta is None else delta
-    reference, estimates = _load(ref, est)
+    reference, estimates = _load(ref, est, labels)
     offsets = _offsets(reference, estimates, offset, align)
     results = [rpe(reference, e, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
                    n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=o, plane=plane,
