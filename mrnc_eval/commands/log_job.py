@@ -120,7 +120,7 @@ def process_log(job: LogJob) -> LogSummary:
                        gates_failed=tuple(outcome.gates_failed), report=str(report) if report.exists() else "")
     except MrncError as err:
         return replace(partial_summary, error=str(err))
-    except Exception as err:
+    except Exception as err:  # noqa: BLE001 - a bug on one log fails that log (traceback kept), not the night
         return replace(partial_summary, error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc())
     finally:
         shutil.rmtree(partial, ignore_errors=True)
