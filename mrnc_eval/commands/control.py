@@ -34,6 +34,7 @@ from mrnc_eval.results import (
     new_run_dir,
     write_result,
 )
+from mrnc_eval.schema import control as K
 from mrnc_eval.tables import Cell, Table
 
 if TYPE_CHECKING:
@@ -545,25 +546,25 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
-    result.series["t"] = longest.t[:: _decimate(longest.t)]
+    result.series[K.T] = longest.t[:: _decimate(longest.t)]
     if longest.waypoints is not None:
-        result.series["path_xy"] = longest.waypoints
-    result.series["funnel_o"] = longest.funnel[:: _decimate(longest.t)]
+        result.series[K.PATH_XY] = longest.waypoints
+    result.series[K.FUNNEL_O] = longest.funnel[:: _decimate(longest.t)]
     for n in names:
         _add_controller(result, n, traces[n], metrics[n])
     if mode == "simulate":
         result.tables.append(paper_reading_table(metrics, names, cfg))
         result.tables.append(table_two(metrics, names, cfg))
-    result.extra = {"mode": mode, "controllers": list(names),
-                    "labels": {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
+    result.extra = {K.MODE: mode, K.CONTROLLERS: list(names),
+                    K.LABELS: {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
-                    "seed": cfg.control.seed, "definitions": definitions,
-                    "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
-                    "curvature": cfg.control.pure_pursuit.curvature,
-                    "roles": dict(roles) if mode == "replay" else simulation_topics(roles)}
+                    "seed": cfg.control.seed, K.DEFINITIONS: definitions,
+                    K.SATURATION_APPLIES_TO: cfg.control.actuator.saturation_applies_to,
+                    K.CURVATURE: cfg.control.pure_pursuit.curvature,
+                    K.ROLES: dict(roles) if mode == "replay" else simulation_topics(roles)}
     if replay_kind:
-        result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
-        result.extra["t0_stamp_s"] = float(rec.speeds.stamps[_evaluated(rec)][0])  # log time of the series' t = 0
+        result.extra[K.REPLAY] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
+        result.extra[K.T0_STAMP_S] = float(rec.speeds.stamps[_evaluated(rec)][0])  # log time of the series' t = 0
     write_result(result, out_dir, dump_config(cfg))
     return result
 
@@ -571,28 +572,28 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
 def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: dict[str, Any]) -> None:
     """One controller's metrics (per side and path), decimated series and safety stops into `result`."""
     step = _decimate(tr.t)
-    for side in ("left", "right"):
+    for side in K.SIDES:
         group = f"control/{name}/{side}"
         for key, val in metrics[side].items():
             value = val if isinstance(val, int) else float(val)
             result.metrics.append(Metric(name=key, value=value, unit=UNITS.get(key, ""), group=group))
-        result.series[f"{name}_{side}_v_ref"] = getattr(tr, f"v_ref_{side}")[::step]
-        result.series[f"{name}_{side}_v_meas"] = getattr(tr, f"v_wheel_{side}")[::step]
-        result.series[f"{name}_{side}_u_rpm"] = getattr(tr, f"u_{side}")[::step]
-        for key, series in ((f"{name}_{side}_u_fb_rpm", getattr(tr, f"u_fb_{side}")),
-                            (f"{name}_{side}_phi_hat", getattr(tr, f"phi_{side}"))):
+        result.series[K.side_series(name, side, K.V_REF)] = getattr(tr, f"v_ref_{side}")[::step]
+        result.series[K.side_series(name, side, K.V_MEAS)] = getattr(tr, f"v_wheel_{side}")[::step]
+        result.series[K.side_series(name, side, K.U_RPM)] = getattr(tr, f"u_{side}")[::step]
+        for key, series in ((K.side_series(name, side, K.U_FB_RPM), getattr(tr, f"u_fb_{side}")),
+                            (K.side_series(name, side, K.PHI_HAT), getattr(tr, f"phi_{side}"))):
             if series is not None and np.isfinite(series).any():
                 result.series[key] = series[::step]
-    result.series[f"{name}_t"] = tr.t[::step]
+    result.series[K.time(name)] = tr.t[::step]
     if np.isfinite(tr.x).any():  # wheel-speed tracking without a pose topic: nowhere to place the run
-        result.series[f"{name}_xy"] = np.c_[tr.x, tr.y][::step]
+        result.series[K.driven_xy(name)] = np.c_[tr.x, tr.y][::step]
     if "path" in metrics:
         cte = metrics["path"].pop("_cte")
         for key, val in metrics["path"].items():
             result.metrics.append(Metric(name=key, value=float(val), unit=UNITS.get(key, ""),
                                          group=f"control/{name}/path"))
-        result.series[f"{name}_cte_m"] = cte[::step]
-    result.series[f"{name}_funnel_o"] = tr.funnel[::step]
+        result.series[K.cte(name)] = cte[::step]
+    result.series[K.funnel(name)] = tr.funnel[::step]
     result.events += [Event(t_s=e["t_s"], kind="safety_stop", message=f"{LABELS.get(name, name)}: {e['message']}",
                             data={"side": e["side"]}) for e in tr.events]
 
@@ -669,14 +670,14 @@ def run_sweep_result(cfg: Config, names: tuple[str, ...], out_dir: Path, *, runs
     first = next(iter(summary.values()))
     bins = first["violation_rate_by_gain_mismatch"]
     assert isinstance(bins, list)
-    result.series["sweep_gain_mismatch_mid"] = np.array([0.5 * (b["gain_mismatch_lo"] + b["gain_mismatch_hi"])
+    result.series[K.SWEEP_GAIN_MISMATCH_MID] = np.array([0.5 * (b["gain_mismatch_lo"] + b["gain_mismatch_hi"])
                                                          for b in bins])
     for name, smry in summary.items():
         per_bin = smry["violation_rate_by_gain_mismatch"]
         assert isinstance(per_bin, list)
-        result.series[f"sweep_{name}_violation_rate"] = np.array([b["funnel_violation_rate"] for b in per_bin])
-    result.extra = {"mode": "sweep", "controllers": list(names), "labels": {n_: LABELS.get(n_, n_) for n_ in names},
-                    "runs": n, "seed": s, "sweep": summary, "sweep_runs": runs_as_rows(rows),
+        result.series[K.sweep_violation_rate(name)] = np.array([b["funnel_violation_rate"] for b in per_bin])
+    result.extra = {K.MODE: "sweep", K.CONTROLLERS: list(names), K.LABELS: {n_: LABELS.get(n_, n_) for n_ in names},
+                    K.RUNS: n, "seed": s, "sweep": summary, "sweep_runs": runs_as_rows(rows),
                     "definitions": table.notes}
     write_result(result, out_dir, dump_config(cfg))
     return result

@@ -24,6 +24,8 @@ from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.export import topics
 from mrnc_eval.export.mcap_file import JsonMcap, stamp_ns
 from mrnc_eval.results import RunResult, follow_umask, read_result
+from mrnc_eval.schema import control as control_keys
+from mrnc_eval.schema import slam as slam_keys
 from mrnc_eval.text import printable
 
 
@@ -100,10 +102,10 @@ def _read_map(run_dir: Path) -> np.ndarray | None:
 def _control_t0(result: RunResult, ctx: LogContext | None, summary: ExportSummary) -> float:
     """Control series are in seconds since the run's first sample: a replay starts at the first
     wheel-speed stamp (as commands.control.replay uses it), a simulation at the log start."""
-    if "t0_stamp_s" in result.extra:
-        return float(result.extra["t0_stamp_s"])
+    if control_keys.T0_STAMP_S in result.extra:
+        return float(result.extra[control_keys.T0_STAMP_S])
     if ctx is not None:
-        if result.extra.get("mode") == "replay" and ctx.wheel_t0_s is not None:
+        if result.extra.get(control_keys.MODE) == "replay" and ctx.wheel_t0_s is not None:
             return ctx.wheel_t0_s
         return ctx.start_s
     summary.warnings.append(f"{result.log_id}: control result without its log: time starts at 0")
@@ -118,7 +120,7 @@ def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContex
     for run_dir, result in runs:
         if result.kind == "slam":
             files = _slam_files(run_dir)
-            method = result.extra.get("method", "lio")
+            method = result.extra.get(slam_keys.METHOD, "lio")
             summary.map_points += topics.write_slam(out, result, files)
             t0 = float(files.trajectory.stamps[0])
             topics.write_events(out, result, t0, f"slam/{method}")
