@@ -38,6 +38,7 @@ from mrnc_eval.results import (
     stable_id,
     write_result,
 )
+from mrnc_eval.schema import slam as K
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.output import STAGES, SlamOutput
 from mrnc_eval.slam.wheel_odometry import WheelTrack
@@ -131,8 +132,8 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         inputs = _read_inputs(lg, log_path, cfg)
-        result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
-        result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
+        result.extra[K.ROLES] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
+        result.extra[K.GROUND_TRUTH] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         if window is not None and window.active:
             result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
             result.warnings.append(window.describe())
@@ -380,13 +381,13 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
     # of the sweeps in the log (not of those the interval let through): "134 of 236", and why
     every = (f"every {mapping_interval_s:g} s or more (slam.mapping_interval_s)" if method == "lio"
              else "every sweep")
-    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
+    result.extra[K.MAPPING_RATE] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
                                     f"{every}, {rate_hz:.1f} Hz")
     result.extra["deskew"] = out.deskew
-    result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
+    result.extra.update({K.METHOD: method, K.TIMING_MS: timing, K.WALL_S: out.wall_s, K.LOG_DURATION_S: duration,
                          "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
-                         "first_sweep_ms": float(sum(v[0] for v in out.timing_ms.values() if v)),
-                         "warmup_ms": dict(out.warmup_ms), "warmup_total_ms": float(sum(out.warmup_ms.values())),
+                         K.FIRST_SWEEP_MS: float(sum(v[0] for v in out.timing_ms.values() if v)),
+                         "warmup_ms": dict(out.warmup_ms), K.WARMUP_TOTAL_MS: float(sum(out.warmup_ms.values())),
                          "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
                          "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static), "
                                                       "smoothed: each sweep re-anchored to its final keyframe",
@@ -411,10 +412,10 @@ def _stage_timing(out: SlamOutput) -> dict[str, dict[str, float]]:
 
 def _add_trajectory_series(result: RunResult, est: Trajectory, online: Trajectory, keyframes: Trajectory,
                            t_start: float) -> None:
-    result.series["est_t"] = est.stamps - t_start
-    result.series["est_xyz"] = est.positions
-    result.series["est_online_xyz"] = online.positions
-    result.series["kf_xyz"] = keyframes.positions
+    result.series[K.EST_T] = est.stamps - t_start
+    result.series[K.EST_XYZ] = est.positions
+    result.series[K.EST_ONLINE_XYZ] = online.positions
+    result.series[K.KF_XYZ] = keyframes.positions
 
 
 def _end_drift(gt: Trajectory, est: Trajectory, max_diff_s: float) -> float:
@@ -449,9 +450,9 @@ def _ape_online(result: RunResult, gt: Trajectory, online: Trajectory, cfg: Conf
                        Metric(name="end_drift_online_m", value=_end_drift(gt, online, cfg.evaluation.gt_max_diff_s),
                               unit="m", group="slam/ape",
                               note="end drift of the online trajectory")]
-    result.series["ape_online_err_m"] = r.errors
-    result.series["est_online_aligned_xyz"] = r.est_poses[:, :3, 3]
-    result.series["ape_online_t"] = r.stamps - t_start
+    result.series[K.ape_err(K.ONLINE)] = r.errors
+    result.series[K.EST_ONLINE_ALIGNED_XYZ] = r.est_poses[:, :3, 3]
+    result.series[K.ape_t(K.ONLINE)] = r.stamps - t_start
     return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
                  min_span_fraction=cfg.evaluation.failed_min_span_fraction)
 
@@ -470,10 +471,10 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
                                   unit="m", group="slam/ape",
                                   note="position error of the last pose with the first pose aligned to the "
                                        "ground truth: the drift accumulated over the log")]
-        result.series["ape_t"] = r.stamps - t_start
-        result.series["ape_err_m"] = r.errors
-        result.series["ref_xyz"] = r.ref_poses[:, :3, 3]
-        result.series["est_aligned_xyz"] = r.est_poses[:, :3, 3]
+        result.series[K.ape_t(K.SMOOTHED)] = r.stamps - t_start
+        result.series[K.ape_err(K.SMOOTHED)] = r.errors
+        result.series[K.REF_XYZ] = r.ref_poses[:, :3, 3]
+        result.series[K.EST_ALIGNED_XYZ] = r.est_poses[:, :3, 3]
         return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
                      min_span_fraction=cfg.evaluation.failed_min_span_fraction)
     except EvaluationError as err:
