@@ -177,6 +177,7 @@ class ControlMode(StrEnum):
     replay = "replay"
     simulate = "simulate"
     sweep = "sweep"
+    identify = "identify"
 
 
 @app.command()
@@ -188,7 +189,8 @@ def control(
     mode: Annotated[
         ControlMode,
         typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant; "
-                          "sweep: every controller on --runs drawn plants (robustness)."),
+                          "sweep: every controller on --runs drawn plants (robustness); identify: the drive "
+                          "(gain, dead band, lag, delay per side) fitted to the LOG's commands and wheel speeds."),
     ] = ControlMode.replay,
     controllers: Annotated[
         str,

@@ -283,6 +283,19 @@ class SweepConfig:
 
 
 @dataclass(frozen=True)
+class IdentifyConfig:
+    """control --mode identify: the drive model of control.plant fitted to a log's commands and wheel speeds."""
+
+    command_signal: Literal["held", "sampled"] = param(
+        "held", "how the recorded pump command runs between its messages: held (what a pump does with its "
+        "command messages) or sampled (a faster command recorded at a lower rate: linear between samples, as in "
+        "the simulator's logs, whose 1 kHz commands are written at the wheel rate)")
+    max_delay_s: float = param(0.2, "longest transport delay searched", "s")
+    sweep_sigmas: float = param(3.0, "the identified plant's sweep ranges: estimate +/- this many standard "
+                                "deviations (at least 5 % of the estimate; delay at least 5 ms)")
+
+
+@dataclass(frozen=True)
 class ControlConfig:
     rate_hz: float = param(1000.0, "wheel control loop rate of the closed-loop simulation", "Hz")
     seed: int = param(0, "seed of the measurement noise")
@@ -302,3 +315,4 @@ class ControlConfig:
     metrics: MetricsConfig = section(MetricsConfig, "Table II metric definitions (segments: any log)")
     paper_metrics: PaperMetricsConfig = section(PaperMetricsConfig, "Table II as the paper reads it (simulate)")
     sweep: SweepConfig = section(SweepConfig, "robustness sweep over plants")
+    identify: IdentifyConfig = section(IdentifyConfig, "drive identification from a log (control --mode identify)")
