@@ -109,7 +109,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         replay_kind = "path" if rec.waypoints is not None else "wheel_speed"
         definitions = replay_definitions(rec, cfg) + definitions
     else:
-        raise UsageError(f"unknown mode {mode!r}: replay, simulate, sweep or identify")
+        raise UsageError(f"unknown mode {mode!r}: replay, simulate, sweep, identify or tune")
     result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
@@ -191,7 +191,13 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
     waypoints = read_waypoints(path_file) if path_file is not None else None  # a bad file fails before any output
     check_output_root(out, need_bytes=CONTROL_OUTPUT_BYTES)  # before the long work, not after it
     run_dir = new_run_dir(out, log_id_for(log_path) if log_path else "paper-circle", f"control-{mode}")
-    if mode == "identify":
+    if mode == "tune":
+        if log_path is not None:
+            raise UsageError("control --mode tune runs the paper circle's nominal plant; it takes no LOG")
+        from mrnc_eval.commands.control_tune import run_tune
+
+        result = run_tune(cfg, names, run_dir)
+    elif mode == "identify":
         if log_path is None:
             raise UsageError("control --mode identify needs a LOG with pump commands and wheel speeds")
         from mrnc_eval.commands.control_identify import run_identify
@@ -217,6 +223,11 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
 
 def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
     """The --json document: per controller and side (simulate, replay) or per controller (sweep)."""
+    if mode == "tune":
+        return {"run_dir": str(run_dir), "mode": mode, **{k: result.extra[k] for k in (
+            "optimiser", "cost", "budget", "tuning_noise_seed", "report_noise_seed", "tuned", "definitions")},
+            "table": {"rows": result.tables[0].row_labels, "columns": result.tables[0].column_labels,
+                      "cells": result.tables[0].cells}}
     if mode == "identify":
         return {"run_dir": str(run_dir), "mode": mode, "identified": result.extra["identified"],
                 "plant_file": str(run_dir / result.extra["plant_file"]), "topics": result.extra["roles"],

@@ -332,3 +332,39 @@ def scale_study_table(rows: list[dict[str, float]], cfg: Config) -> Table:
                  notes=[f"raid.output_unit = {cfg.control.raid.output_unit}; only raid.feedback_scale_rpm varies. "
                         "The paper states no unit: 1 RPM per law unit is the literal reading, not a sanctioned one. "
                         "Across drawn plants: control --mode sweep --set control.raid.feedback_scale_rpm=S."])
+
+
+TUNE_ROWS = [("Settling time, stepinfo (s)", "paper_stepinfo_settling_time_s"),
+             ("Overshoot, stepinfo (%)", "paper_stepinfo_overshoot_pct"),
+             ("Steady-state error (m/s)", "paper_steady_state_error_mps"),
+             ("Steady offset y_f - r_c (m/s)", "paper_steady_offset_mps"),
+             ("IAE (m)", "iae"), ("Funnel violations (samples)", "funnel_violations"),
+             ("Safety stops", "safety_stops")]
+
+
+def tune_table(metrics: dict[str, dict[str, dict[str, dict[str, float]]]], found: dict[str, Any],
+               cfg: Config) -> Table:
+    """Table II's criteria per law at the paper (configured) gains and at the tuned ones, worst side."""
+    cols = [(law, col) for law in PAPER_ORDER if law in metrics for col in ("paper", "tuned")]
+    cells: list[list[Cell]] = []
+    for _label, key in TUNE_ROWS:
+        row: list[Cell] = []
+        for law, col in cols:
+            vals = [metrics[law][col][s].get(key, float("nan")) for s in ("left", "right")]
+            v = _absmax(vals) if key == "paper_steady_offset_mps" else (
+                float(np.nansum(vals)) if key in ("funnel_violations", "safety_stops") else
+                float("nan") if all(np.isnan(vals)) else float(np.nanmax(vals)))
+            row.append("not settled" if math.isinf(v) else v)
+        cells.append(row)
+    t = cfg.control.tune
+    found_text = "; ".join(f"{LABELS.get(law, law).split(' (')[0]}: " + ", ".join(
+        f"{k} {v:.4g}" for k, v in found[law].params.items()) for law in found)
+    return Table(title="Table II at the paper gains and at equal-effort tuned gains (simulated paper circle)",
+                 row_labels=[r[0] for r in TUNE_ROWS],
+                 column_labels=[f"{LABELS.get(law, law).split(' (')[0]}: {col}" for law, col in cols],
+                 cells=cells, best=None, precision=3,
+                 notes=[f"Tuned with the same optimiser, cost and budget for every law ({t.budget} runs: the "
+                        f"configured gains, then scrambled Halton points in each law's box; cost IAE + "
+                        f"{t.stop_penalty_m:g} m per stopped side + {t.violation_penalty_m:g} m per side leaving the funnel) on noise seed "
+                        f"{cfg.control.seed + t.noise_seed_offset}; reported on seed {cfg.control.seed}.",
+                        f"Found: {found_text}."])
