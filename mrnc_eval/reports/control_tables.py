@@ -365,6 +365,7 @@ def tune_table(metrics: dict[str, dict[str, dict[str, dict[str, float]]]], found
                  cells=cells, best=None, precision=3,
                  notes=[f"Tuned with the same optimiser, cost and budget for every law ({t.budget} runs: the "
                         f"configured gains, then scrambled Halton points in each law's box; cost IAE + "
-                        f"{t.stop_penalty_m:g} m per stopped side + {t.violation_penalty_m:g} m per side leaving the funnel) on noise seed "
+                        f"{t.stop_penalty_m:g} m per stopped side + {t.violation_penalty_m:g} m per side leaving the "
+                        f"funnel) on noise seed "
                         f"{cfg.control.seed + t.noise_seed_offset}; reported on seed {cfg.control.seed}.",
                         f"Found: {found_text}."])
