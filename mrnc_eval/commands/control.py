@@ -13,6 +13,7 @@ import numpy as np
 
 from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
+from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
 from mrnc_eval.control.margins import loop_summary
 from mrnc_eval.control.raid import rbf_centres
@@ -60,7 +61,7 @@ def parse_controllers(text: str) -> tuple[str, ...]:
 def simulate(cfg: Config, names: tuple[str, ...],
              scenario: Scenario) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any]]:
     traces = {n: run_closed_loop(scenario, cfg.control, cfg.robot, n) for n in names}
-    return traces, {n: evaluate_trace(tr, cfg.control) for n, tr in traces.items()}
+    return traces, {n: evaluate_trace(tr, cfg.control, cfg.robot.track_width_m) for n, tr in traces.items()}
 
 
 def simulation_topics(roles: Mapping[str, str]) -> dict[str, str]:
@@ -126,7 +127,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                     "seed": cfg.control.seed, "definitions": definitions,
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
                     "supervisor": cfg.control.supervisor.stop_rule, "step_detector": cfg.control.steps.detector,
-                    "reference_shaping": f"slew {cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2",
+                    "reference_shaping": shaping_text(cfg.control),
                     "curvature": cfg.control.pure_pursuit.curvature,
                     "roles": dict(roles) if mode == "replay" else simulation_topics(roles)}
     if mode == "simulate":
@@ -234,7 +235,7 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
                 "definitions": result.extra["definitions"]}
     if mode == "sweep":
         return {"run_dir": str(run_dir), "mode": mode, "runs": result.extra["runs"], "seed": result.extra["seed"],
-                "supervisor": result.extra.get("supervisor", ""),
+                "supervisor": result.extra.get("supervisor", ""), "reference_shaping": result.extra.get("shaping", ""),
                 "labels": result.extra["labels"], "controllers": result.extra["sweep"],
                 "definitions": result.extra["definitions"]}
     body: dict[str, dict[str, Any]] = {}
@@ -249,6 +250,8 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
                 every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
                 sides[side]["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
     extra: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study") if k in result.extra}
+    extra["reference_shaping"] = result.extra.get("reference_shaping", "")
+    extra["supervisor"] = result.extra.get("supervisor", "")
     return {"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"], "controllers": body, **extra,
             "events": [e.__dict__ for e in result.events], "warnings": result.warnings,
             "definitions": result.extra["definitions"]}

@@ -50,9 +50,31 @@ class PurePursuitConfig:
 
 @dataclass(frozen=True)
 class KinematicsConfig:
+    reference_shaping: Literal["none", "slew", "slew_rate_ff"] = param(
+        "slew", "wheel references: none (the inverse kinematics as issued, as the paper), slew (rate-limited by "
+        "reference_accel_limit_mps2; not in the paper), slew_rate_ff (slewed, and every law's feed-forward adds "
+        "f x rate_feedforward_tau_s x dv_ref/dt, the drive's lag during a ramp)")
     reference_accel_limit_mps2: float = param(
         0.3, "slew limit on each side's reference speed; keeps |e(0)| < o(0) at start-up (not in the paper)", "m/s^2")
+    rate_feedforward_tau_s: float = param(0.4, "assumed drive lag of the rate feed-forward (slew_rate_ff)", "s")
     reference_derivative_tau_s: float = param(0.05, "first-order filter on d(v_ref)/dt used by RAID", "s")
+
+
+def reference_accel_limit(cfg: ControlConfig) -> float:
+    """The slew limit in effect (m/s^2; 0 = none) under control.kinematics.reference_shaping."""
+    k = cfg.kinematics
+    return 0.0 if k.reference_shaping == "none" else k.reference_accel_limit_mps2
+
+
+def shaping_text(cfg: ControlConfig) -> str:
+    """The reference shaping in effect, for every report."""
+    k = cfg.kinematics
+    if k.reference_shaping == "none":
+        return "reference shaping: none (inverse kinematics as issued)"
+    text = f"reference shaping: slew {k.reference_accel_limit_mps2:g} m/s^2 (not in the paper)"
+    if k.reference_shaping == "slew_rate_ff":
+        text += f" with rate feed-forward (lag {k.rate_feedforward_tau_s:g} s)"
+    return text
 
 
 @dataclass(frozen=True)

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from mrnc_eval.config import Config
+from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import LABELS, PAPER_ORDER
 from mrnc_eval.control.replay import WHEEL_SPEED_TRACKING, Recording
 from mrnc_eval.results import RunResult
@@ -20,7 +21,8 @@ UNITS = {"settling_time_s": "s", "overshoot_pct": "%", "steady_state_error_mps":
          "iae": "m", "ise": "m^2/s", "itae": "m s", "rms_error_mps": "m/s", "max_abs_error_mps": "m/s",
          "funnel_violations": "samples", "max_e_over_o": "", "saturation_ratio": "", "longest_saturation_s": "s",
          "max_abs_command_rpm": "RPM", "control_effort": "RPM^2 s", "total_variation_rpm": "RPM",
-         "recovery_time_s": "s", "safety_stops": "", "segment_restarts": "", "time_to_stop_s": "s", "n_steps": "",
+         "recovery_time_s": "s", "safety_stops": "", "segment_restarts": "", "time_to_stop_s": "s",
+         "shaping_share_of_error": "", "n_steps": "",
          "steady_state_bias_mps": "m/s",
 "cross_track_mean_abs_m": "m", "cross_track_rms_m": "m", "cross_track_max_m": "m", "cross_track_p95_m": "m",
          "heading_error_rms_rad": "rad", "completion_time_s": "s", "final_position_error_m": "m",
@@ -44,6 +46,7 @@ TABLE_ROWS = [("Settling time (s)", "settling_time_s", "max"), ("Overshoot (%)",
               ("Max |U*| (RPM)", "max_abs_command_rpm", "max"), ("Saturation ratio", "saturation_ratio", "max"),
               ("Total variation (RPM)", "total_variation_rpm", "max"), ("Safety stops", "safety_stops", "sum"),
               ("Step restarts (funnel / FOPTC clock)", "segment_restarts", "sum"),
+              ("Reference shaping's share of |v - IK target|", "shaping_share_of_error", "max"),
               ("Feedback share |u_fb|/|U|, mean", "feedback_share_mean", "max"),
               ("Feedback share |u_fb|/|U|, p95", "feedback_share_p95", "max"),
               ("Cross-track RMS (m)", "cross_track_rms_m", "path"),
@@ -141,8 +144,7 @@ def paper_reading_notes(cfg: Config) -> list[str]:
         f"y_f - r_c is reported apart.",
         f"RAID output unit: {cfg.control.raid.output_unit}, feedback scale {cfg.control.raid.feedback_scale_rpm:g}; "
         f"supervisor (stop on funnel exit): {cfg.control.supervisor.stop_rule}; step detector: "
-        f"{cfg.control.steps.detector}; reference shaping: slew {cfg.control.kinematics.reference_accel_limit_mps2:g} "
-        f"m/s^2 (not in the paper).",
+        f"{cfg.control.steps.detector}; {shaping_text(cfg.control)}.",
         PAPER_COMPARISON_NOTE,
         "APC and FOPTC are stand-ins (CFDL-MFAPC; prescribed-time gain); FF only is the negative control.",
     ]
@@ -229,11 +231,11 @@ def replay_definitions(rec: Recording, cfg: Config) -> list[str]:
     """What the replay's references are, printed above the metric definitions."""
     if rec.waypoints is not None:
         return [f"Path following: the references pure pursuit (at {cfg.control.pure_pursuit.rate_hz:g} Hz), the "
-                f"inverse kinematics (track {cfg.robot.track_width_m:g} m) and the reference slew "
-                f"({cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2) issue along the recorded pose "
+                f"inverse kinematics (track {cfg.robot.track_width_m:g} m) and the chain's {shaping_text(cfg.control)} "
+                f"issue along the recorded pose "
                 f"({rec.pose_source}), path from {rec.path_source}."]
-    how = ("held between messages and slewed as the chain slews its references "
-           f"({cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2)" if rec.twist_role == "cmd_vel"
+    how = (f"held between messages and shaped as the chain shapes its references ({shaping_text(cfg.control)})"
+           if rec.twist_role == "cmd_vel"
            else "interpolated, not slewed (a measured twist, not a command)")
     return [f"{WHEEL_SPEED_TRACKING.capitalize()}: the log has no planned path, so the "
             f"recorded wheel speeds are compared with the inverse kinematics v -/+ omega Lr / 2 (Lr = "
