@@ -5,6 +5,7 @@ are in control/, the metrics in evaluation/, the tables in reports/control_table
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -39,6 +40,7 @@ from mrnc_eval.results import (
     Event,
     Metric,
     RunResult,
+    absolute_log_path,
     check_output_root,
     link_latest,
     log_id_for,
@@ -86,6 +88,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
             path: Waypoints | None = None, path_source: str = "--path") -> RunResult:
     """`log_id` names the log in results (default: from its file name; the nightly job passes its own);
     `path` (replay: waypoints from --path, named `path_source`) replaces the log's path topic."""
+    wall_start = time.perf_counter()  # the run's real time: JUnit's time of the control gates
     warnings: list[str] = []
     roles: Mapping[str, str] = {}  # of the log, read once with its streams
     replay_kind, definitions = "", table_notes(cfg)
@@ -111,7 +114,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         definitions = replay_definitions(rec, cfg) + definitions
     else:
         raise UsageError(f"unknown mode {mode!r}: replay, simulate, sweep, identify or tune")
-    result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
+    result = RunResult(kind="control", log_path=absolute_log_path(log_path) if log_path else "paper-scenario",
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
@@ -142,6 +145,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     if replay_kind:
         result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
         result.extra["t0_stamp_s"] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
+    result.extra["wall_s"] = time.perf_counter() - wall_start  # real time: JUnit's time of the control gates
     write_result(result, out_dir, dump_config(cfg))
     return result
 
@@ -155,7 +159,7 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
         s = tr.side(side)
         for key, val in metrics[side].items():
             value = val if isinstance(val, int) else float(val)
-            result.metrics.append(Metric(key, value, UNITS.get(key, ""), group))
+            result.metrics.append(Metric(name=key, value=value, unit=UNITS.get(key, ""), group=group))
         result.series[f"{name}_{side}_v_ref"] = s.v_ref[::step]
         result.series[f"{name}_{side}_v_meas"] = s.v_wheel[::step]
         result.series[f"{name}_{side}_u_rpm"] = s.u[::step]
@@ -168,11 +172,12 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
     if "path" in metrics:
         cte = metrics["path"].pop("_cte")
         for key, val in metrics["path"].items():
-            result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{name}/path"))
+            result.metrics.append(Metric(name=key, value=float(val), unit=UNITS.get(key, ""),
+                                         group=f"control/{name}/path"))
         result.series[f"{name}_cte_m"] = cte[::step]
     result.series[f"{name}_funnel_o"] = tr.funnel[::step]
-    result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(name, name)}: {e['message']}",
-                            {"side": e["side"]}) for e in tr.events]
+    result.events += [Event(t_s=e["t_s"], kind="safety_stop", message=f"{LABELS.get(name, name)}: {e['message']}",
+                            data={"side": e["side"]}) for e in tr.events]
 
 
 def _decimate(t: np.ndarray, max_points: int = 20000) -> int:
@@ -215,44 +220,56 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
                          path_source=f"{path_file} (--path)")
     link_latest(run_dir)
     if json_out:
-        from mrnc_eval.commands.output import emit_json
+        from mrnc_eval.commands.output import emit_document
 
-        emit_json(json_body(result, run_dir, mode))
+        emit_document(json_body(result, run_dir, mode))
         return
     print_summary(result, run_dir)
 
 
 def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
-    """The --json document: per controller and side (simulate, replay) or per controller (sweep)."""
-    if mode == "tune":
-        return {"run_dir": str(run_dir), "mode": mode, **{k: result.extra[k] for k in (
-            "optimiser", "cost", "budget", "tuning_noise_seed", "report_noise_seed", "tuned", "definitions")},
-            "table": {"rows": result.tables[0].row_labels, "columns": result.tables[0].column_labels,
-                      "cells": result.tables[0].cells}}
-    if mode == "identify":
-        return {"run_dir": str(run_dir), "mode": mode, "identified": result.extra["identified"],
-                "plant_file": str(run_dir / result.extra["plant_file"]), "topics": result.extra["roles"],
-                "definitions": result.extra["definitions"]}
+    """The --json document (commands/output.py): one `results` item per controller and side
+    (simulate, replay; RAID's phi-hat(t) at about 1 Hz beside its stats) or per controller (sweep)."""
+    from mrnc_eval.commands.output import document, item, split_stats
+
+    meta = {"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"],
+            "definitions": result.extra["definitions"]}
+    if mode == "tune":  # one item per law: the gains found (stats) and where the search started
+        table = result.tables[0]
+        items = [item(law, {**r["params"], "cost": r["cost"], "start_cost": r["start_cost"],
+                            "evaluations": r["evaluations"]}, controller=law, start_params=r["start_params"],
+                      box=r["box"]) for law, r in result.extra["tuned"].items()]
+        return document("control", items, meta={**meta, **{k: result.extra[k] for k in (
+            "optimiser", "cost", "budget", "tuning_noise_seed", "report_noise_seed")},
+            "table": {"rows": table.row_labels, "columns": table.column_labels, "cells": table.cells}},
+            warnings=result.warnings)
+    if mode == "identify":  # one item per side
+        items = [item(side, est, side=side) for side, est in result.extra["identified"].items()]
+        return document("control", items, meta={**meta, "plant_file": str(run_dir / result.extra["plant_file"]),
+                                                "topics": result.extra["roles"]}, warnings=result.warnings)
     if mode == "sweep":
-        return {"run_dir": str(run_dir), "mode": mode, "runs": result.extra["runs"], "seed": result.extra["seed"],
-                "supervisor": result.extra.get("supervisor", ""), "reference_shaping": result.extra.get("shaping", ""),
-                "labels": result.extra["labels"], "controllers": result.extra["sweep"],
-                "definitions": result.extra["definitions"]}
-    body: dict[str, dict[str, Any]] = {}
+        items = []
+        for ctrl, summary in result.extra["sweep"].items():
+            stats, rest = split_stats(summary)
+            items.append(item(ctrl, stats, controller=ctrl, **rest))
+        return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"],
+                                                    "supervisor": result.extra.get("supervisor", ""),
+                                                    "reference_shaping": result.extra.get("shaping", "")},
+                        warnings=result.warnings)
+    body: dict[tuple[str, str], dict[str, Any]] = {}
     for m in result.metrics:
         _, ctrl, side = m.group.split("/")
-        body.setdefault(ctrl, {}).setdefault(side, {})[m.name] = m.value
-    for ctrl, sides in body.items():  # RAID's phi-hat(t), at about 1 Hz
-        t = result.series.get(f"{ctrl}_t")
-        for side in ("left", "right"):
-            phi = result.series.get(f"{ctrl}_{side}_phi_hat")
-            if phi is not None and t is not None:
-                every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
-                sides[side]["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
-    extra: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study") if k in result.extra}
-    extra["reference_shaping"] = result.extra.get("reference_shaping", "")
-    extra["supervisor"] = result.extra.get("supervisor", "")
-    return {"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"], "controllers": body, **extra,
-            "events": [e.__dict__ for e in result.events], "warnings": result.warnings,
-            "definitions": result.extra["definitions"]}
+        body.setdefault((ctrl, side), {})[m.name] = m.value
+    items = []
+    for (ctrl, side), stats in body.items():
+        extra: dict[str, Any] = {}
+        t, phi = result.series.get(f"{ctrl}_t"), result.series.get(f"{ctrl}_{side}_phi_hat")
+        if phi is not None and t is not None:
+            every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
+            extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
+        items.append(item(f"{ctrl}/{side}", stats, controller=ctrl, side=side, **extra))
+    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study", "reference_shaping",
+                                                          "supervisor", "step_detector") if k in result.extra}
+    return document("control", items, meta={**meta, **study, "events": [e.__dict__ for e in result.events]},
+                    warnings=result.warnings)
 

@@ -66,9 +66,12 @@ def run_identify(log_path: Path, cfg: Config, out_dir: Path) -> RunResult:
     for side, e in est.items():
         for _label, key, sd_key in ROWS:
             unit = {"gain_mps_per_rpm": "(m/s)/RPM", "dead_band_rpm": "RPM"}.get(key, "s")
-            result.metrics.append(Metric(key, float(getattr(e, key)), unit, f"control/identified/{side}"))
-            result.metrics.append(Metric(sd_key, float(getattr(e, sd_key)), unit, f"control/identified/{side}"))
-        result.metrics.append(Metric("rms_residual_mps", e.rms_residual_mps, "m/s", f"control/identified/{side}"))
+            result.metrics.append(Metric(name=key, value=float(getattr(e, key)), unit=unit,
+                                         group=f"control/identified/{side}"))
+            result.metrics.append(Metric(name=sd_key, value=float(getattr(e, sd_key)), unit=unit,
+                                         group=f"control/identified/{side}"))
+        result.metrics.append(Metric(name="rms_residual_mps", value=e.rms_residual_mps, unit="m/s",
+                                     group=f"control/identified/{side}"))
     notes = [f"Output-error fit of v <- a v + (1 - a) K deadband(u(t - d)) per side to {topics['wheel_speeds']} "
              f"(wheel speeds) and {topics['commands']} (pump commands, {cfg.control.identify.command_signal} between "
              "messages); +/- 1 sigma from the fit's Jacobian and the delay profile. Slip lowers the apparent gain.",

@@ -37,7 +37,7 @@ from mrnc_eval.results import RunResult, write_result
 from mrnc_eval.tables import Table
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class SweepRun:
     """One controller on one drawn plant (worst side where a metric is per side)."""
 
@@ -249,13 +249,17 @@ def runs_as_rows(runs: list[SweepRun]) -> list[dict[str, Any]]:
     return [asdict(r) for r in runs]
 
 
+MAX_SWEEP_RUNS = 100_000  # as control.sweep.runs declares
+
+
 def run_sweep_result(cfg: Config, names: tuple[str, ...], out_dir: Path, *, runs: int | None,
                      seed: int | None) -> RunResult:
     """The robustness sweep as a result: summary table, per-run rows and violation rate by gain mismatch."""
     n = cfg.control.sweep.runs if runs is None else runs
     s = cfg.control.sweep.seed if seed is None else seed
-    if n < 1:
-        raise UsageError("--runs must be at least 1")
+    if not 1 <= n <= MAX_SWEEP_RUNS:  # name where the number came from: the flag or the configuration
+        where = "--runs" if runs is not None else "control.sweep.runs (configuration)"
+        raise UsageError(f"{where} {n}: must be 1 .. {MAX_SWEEP_RUNS}")
     rows = run_sweep(cfg, names, n, s)
     summary = summarise(rows, names, cfg)
     table = sweep_table(summary, cfg, n, s)

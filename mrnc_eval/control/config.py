@@ -107,7 +107,7 @@ class SupervisorConfig:
 
 @dataclass(frozen=True)
 class RaidConfig:
-    beta: float = param(1.2, "beta (paper)")
+    beta: float = param(1.2, "beta (paper)", gt=0.0)
     kappa: float = param(5.2, "kappa of the adaptive law (paper)")
     n_neurons: int = param(9, "RBF neurons N (paper)")
     gamma: float = param(0.13, "RBF width gamma (paper)")
@@ -287,7 +287,7 @@ class SweepConfig:
     """Robustness sweep (control --mode sweep): N plants drawn uniformly from these ranges; every
     controller runs on the same draws. Gain mismatch m sets K = (1 + m) / feed-forward gain on both sides."""
 
-    runs: int = param(100, "plants drawn")
+    runs: int = param(100, "plants drawn", ge=1, le=100_000)
     seed: int = param(0, "seed of the draws (also the measurement-noise seed of run k is seed + k)")
     gain_mismatch: tuple[float, float] = param((-0.3, 0.3), "relative drive-gain error range")
     dead_band_rpm: tuple[float, float] = param((30.0, 150.0), "dead band range", "RPM")
@@ -295,7 +295,7 @@ class SweepConfig:
     tau_s: tuple[float, float] = param((0.2, 0.8), "drive time constant range", "s")
     slip_scale: tuple[float, float] = param((0.0, 2.0), "slip severity: the scenario's patch slip ratios "
                                             "(0.15, 0.18) times this factor")
-    duration_s: float = param(100.0, "simulated time per run (the paper circle takes ~98 s)", "s")
+    duration_s: float = param(100.0, "simulated time per run (the paper circle takes ~98 s)", "s", gt=0.0, le=86_400.0)
     record_every: int = param(20, "record every n-th control period (20: 50 Hz, the pure pursuit rate) for the "
                               "per-run steady-state error and cross-track RMS; funnel violations, saturation and "
                               "IAE are counted at the full rate")

@@ -246,13 +246,13 @@ def replay_definitions(rec: Recording, cfg: Config) -> list[str]:
 
 def print_summary(result: RunResult, run_dir: Path) -> None:
     """Table II (simulate) or the recorded run's per-side metrics (replay) as rich tables."""
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table as RichTable
 
     from mrnc_eval.reports.tables import best_cells, fmt_cell
+    from mrnc_eval.text import console as terminal_console
 
-    console = Console(highlight=False)
+    console = terminal_console(highlight=False)  # full width off a terminal
     tables = list(result.tables) or [replay_table(result)]
     for table in tables:
         best = best_cells(table)

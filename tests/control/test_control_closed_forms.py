@@ -167,15 +167,19 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
     assert main(["control", "--mode", "simulate", "--controllers", "raid,pid,ff", "--out", str(tmp_path),
                  "--json"]) == 0
     body = json.loads(capsys.readouterr().out)
-    raid = body["controllers"]["raid"]
+    sides: dict[str, dict[str, dict]] = {}
+    for r in body["results"]:
+        sides.setdefault(r["controller"], {})[r["side"]] = {**r["stats"], **({"phi_hat": r["phi_hat"]}
+                                                                            if "phi_hat" in r else {})}
+    raid = sides["raid"]
     assert raid["left"]["funnel_violations"] == 0
     assert raid["right"]["safety_stops"] == 0
-    ff = body["controllers"]["ff"]
+    ff = sides["ff"]
     assert ff["left"]["funnel_violations"] + ff["right"]["funnel_violations"] > 0  # the negative control fails
     assert ff["left"]["feedback_share_mean"] == 0.0
     phi = raid["left"]["phi_hat"]
     assert len(phi["t_s"]) == len(phi["value"]) > 50  # RAID's phi-hat(t) at ~1 Hz
-    assert "phi_hat" not in body["controllers"]["pid"]["left"]
+    assert "phi_hat" not in sides["pid"]["left"]
     for key in ("paper_settling_time_s", "paper_overshoot_pct", "paper_steady_state_error_mps",
                 "feedback_share_p95"):
         assert key in raid["left"]
@@ -193,9 +197,9 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
     # the feed-forward's +4 % offset is overshoot only in the reference-centred reading
     assert raid["left"]["paper_overshoot_pct"] > 3.0 > 1.0 > raid["left"]["paper_stepinfo_overshoot_pct"]
     assert raid["left"]["paper_steady_offset_mps"] > 0.01
-    assert body["loop"]["raid_output_unit"] == "rpm_per_unit"
-    assert 50.0 < body["loop"]["raid_interior_gain_rpm_per_mps"] < 200.0  # literal reading: ~97 RPM per m/s
-    assert [r["scale_rpm_per_unit"] for r in body["raid_scale_study"]] == [1.0, 10.0, 100.0]
+    assert body["meta"]["loop"]["raid_output_unit"] == "rpm_per_unit"
+    assert 50.0 < body["meta"]["loop"]["raid_interior_gain_rpm_per_mps"] < 200.0  # literal reading: ~97 RPM per m/s
+    assert [r["scale_rpm_per_unit"] for r in body["meta"]["raid_scale_study"]] == [1.0, 10.0, 100.0]
     result = read_result(next(tmp_path.iterdir()))
     paper, table = result.tables[:2]
     assert paper.column_labels == ["RAID", "PID", "FF only (negative control)", "paper: RAID", "paper: PID"]

@@ -88,17 +88,20 @@ def test_identify_cli_writes_a_plant_the_simulation_runs_on(runs, tmp_path: Path
     log = _write(tmp_path / "drive.mcap", runs[1])
     assert main(["control", str(log), "--mode", "identify", "--json", "--out", str(tmp_path / "res")]) == 0
     body = json.loads(capsys.readouterr().out)
-    for side in ("left", "right"):
-        e = DriveEstimate(**body["identified"][side])
+    found = {r["side"]: DriveEstimate(**r["stats"]) for r in body["results"]}
+    assert set(found) == {"left", "right"}
+    for e in found.values():
         assert all(_close(e, PLANTS[1]).values()), e
-    cfg = load_config(Path(body["plant_file"]))
+    plant_file = body["meta"]["plant_file"]
+    cfg = load_config(Path(plant_file))
     assert cfg.control.plant.left.dead_band_rpm == pytest.approx(120.0, rel=0.1)
     lo, hi = cfg.control.sweep.gain_mismatch
     assert lo < 0.85 - 1 < hi  # the sweep's ranges cover the identified plant
-    assert main(["control", "--mode", "simulate", "--controllers", "pid", "--config", body["plant_file"],
+    assert main(["control", "--mode", "simulate", "--controllers", "pid", "--config", plant_file,
                  "--json", "--out", str(tmp_path / "sim")]) == 0
     sim = json.loads(capsys.readouterr().out)
-    assert sim["controllers"]["pid"]["left"]["safety_stops"] == 0
+    left = next(r for r in sim["results"] if r["name"] == "pid/left")
+    assert left["stats"]["safety_stops"] == 0
 
 
 def test_identify_without_commands_is_a_clear_error(runs, tmp_path: Path, capsys) -> None:

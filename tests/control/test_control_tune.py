@@ -37,11 +37,14 @@ def test_tune_cli_records_every_law(tmp_path, capsys) -> None:
     assert main(["control", "--mode", "tune", "--controllers", "raid,pid,ff", "--json", "--out", str(tmp_path),
                  "--set", "control.tune.budget=3", "--set", "control.tune.duration_s=15"]) == 0
     body = json.loads(capsys.readouterr().out)
-    assert set(body["tuned"]) == {"raid", "pid"}  # ff has nothing to tune
-    assert body["budget"] == 3
-    assert {v["evaluations"] for v in body["tuned"].values()} == {3}
-    assert "raid.feedback_scale_rpm" in body["tuned"]["raid"]["params"]
-    assert "raid.beta" in body["tuned"]["raid"]["params"]
-    assert body["tuning_noise_seed"] != body["report_noise_seed"]
-    assert body["table"]["columns"] == ["RAID: paper", "RAID: tuned", "PID: paper", "PID: tuned"]
-    assert body["table"]["cells"][0][0] == pytest.approx(2.42, abs=0.1)  # RAID's stepinfo settling at paper gains
+    tuned = {r["controller"]: r for r in body["results"]}
+    meta = body["meta"]
+    assert set(tuned) == {"raid", "pid"}  # ff has nothing to tune
+    assert meta["budget"] == 3
+    assert {r["stats"]["evaluations"] for r in tuned.values()} == {3}
+    assert "raid.feedback_scale_rpm" in tuned["raid"]["stats"]
+    assert "raid.beta" in tuned["raid"]["stats"]
+    assert tuned["raid"]["start_params"]["raid.beta"] == 1.2
+    assert meta["tuning_noise_seed"] != meta["report_noise_seed"]
+    assert meta["table"]["columns"] == ["RAID: paper", "RAID: tuned", "PID: paper", "PID: tuned"]
+    assert meta["table"]["cells"][0][0] == pytest.approx(2.42, abs=0.1)  # RAID's stepinfo settling, paper gains

@@ -173,14 +173,14 @@ def test_path_file_reproduces_the_replay_of_the_log_with_its_plan(run, tmp_path:
     assert main(["control", str(without), "--mode", "replay", "--path", str(tum), "--out", str(tmp_path / "b"),
                  "--json"]) == 0
     body = json.loads(capsys.readouterr().out)
-    got = {(f"control/recorded/{side}", name): float("nan" if value is None else value)  # JSON: inf as "inf"
-           for side, values in body["controllers"]["recorded"].items()
-           for name, value in values.items() if not isinstance(value, dict)}
+    got = {(f"control/recorded/{r['side']}", name): float("nan" if value is None else value)  # inf: null
+           for r in body["results"] if r["controller"] == "recorded" for name, value in r["stats"].items()}
     assert set(got) == set(want)
     assert any(k[0].endswith("/path") for k in want)  # cross-track and completion, as with /plan
-    for key, value in want.items():
+    for key, value in want.items():  # --json stats: NaN and infinity ("not settled") are both null
+        value = value if np.isfinite(value) else float("nan")
         assert got[key] == pytest.approx(value, rel=1e-6, abs=1e-9, nan_ok=True), key
-    saved = json.loads((Path(body["run_dir"]) / "result.json").read_text())
+    saved = json.loads((Path(body["meta"]["run_dir"]) / "result.json").read_text())
     assert saved["extra"]["replay"] == "path"
     assert saved["extra"]["roles"]["path"] == f"{tum} (--path)"
 
