@@ -11,6 +11,7 @@ import numpy as np
 
 from mrnc_eval.control.closed_loop import SIDES, ST_RESTARTS, ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.config import ControlConfig, RobotGeometry
+from mrnc_eval.control.kinematics import inverse_kinematics
 from mrnc_eval.control.raid import interior_gain
 from mrnc_eval.control.scenario import Scenario
 from mrnc_eval.evaluation.control_metrics import feedback_share, paper_metrics, path_metrics, tracking_metrics
@@ -23,8 +24,8 @@ def evaluate_trace(tr: ClosedLoopTrace, cfg: ControlConfig,
     unshaped inverse kinematics of the path follower's command."""
     targets = None
     if track_width_m is not None and np.isfinite(tr.cmd_v).all():
-        half = 0.5 * tr.cmd_omega * track_width_m
-        targets = {"left": tr.cmd_v - half, "right": tr.cmd_v + half}
+        left, right = inverse_kinematics(tr.cmd_v, tr.cmd_omega, track_width_m)  # type: ignore[arg-type]
+        targets = {"left": np.asarray(left), "right": np.asarray(right)}
     mc = cfg.metrics
     out: dict[str, dict[str, float]] = {}
     for i, side in enumerate(SIDES):
