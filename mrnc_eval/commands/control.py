@@ -16,8 +16,8 @@ from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
-from mrnc_eval.control.margins import loop_summary
-from mrnc_eval.control.raid import rbf_centres
+from mrnc_eval.control.margins import bode, loop_summary
+from mrnc_eval.control.raid import interior_gain, rbf_centres
 from mrnc_eval.control.replay import evaluated, replay_roles, replay_trace
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.data import Waypoints
@@ -138,6 +138,12 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         result.tables += [paper_reading_table(metrics, names, cfg), table_two(metrics, names, cfg),
                           raid_output_table(loops)]
         result.extra["loop"] = loops
+        w, loop = bode(cfg.control, interior_gain(cfg.control, v=cfg.control.pure_pursuit.desired_speed_mps,
+                                                  phi=0.0))
+        result.series["bode_w_rad_s"] = w
+        for law, lw in loop.items():
+            result.series[f"bode_{law}_mag_db"] = 20.0 * np.log10(np.abs(lw))
+            result.series[f"bode_{law}_phase_deg"] = np.degrees(np.unwrap(np.angle(lw)))
         if "raid" in names and cfg.control.raid.scale_study:
             study = raid_scale_study(scenario, cfg.control, cfg.robot, tuple(cfg.control.raid.scale_study))
             result.tables.append(scale_study_table(study, cfg))
