@@ -23,11 +23,13 @@ from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.data import Waypoints
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_run import evaluate_trace, raid_scale_study
+from mrnc_eval.evaluation.disturbance import disturbance_study
 from mrnc_eval.io.control_recording import read_recording, scenario_from_log
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
 from mrnc_eval.reports.control_tables import (
     UNITS,
+    disturbance_table,
     paper_reading_table,
     print_summary,
     raid_output_table,
@@ -144,6 +146,9 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         for law, lw in loop.items():
             result.series[f"bode_{law}_mag_db"] = 20.0 * np.log10(np.abs(lw))
             result.series[f"bode_{law}_phase_deg"] = np.degrees(np.unwrap(np.angle(lw)))
+        events = disturbance_study(names, cfg.control, cfg.robot)
+        result.tables.append(disturbance_table(events, cfg))
+        result.extra["disturbance"] = events
         if "raid" in names and cfg.control.raid.scale_study:
             study = raid_scale_study(scenario, cfg.control, cfg.robot, tuple(cfg.control.raid.scale_study))
             result.tables.append(scale_study_table(study, cfg))
@@ -274,8 +279,9 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
             every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
             extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
         items.append(item(f"{ctrl}/{side}", stats, controller=ctrl, side=side, **extra))
-    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study", "reference_shaping",
-                                                          "supervisor", "step_detector") if k in result.extra}
+    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study", "disturbance",
+                                                          "reference_shaping", "supervisor", "step_detector")
+                             if k in result.extra}
     return document("control", items, meta={**meta, **study, "events": [e.__dict__ for e in result.events]},
                     warnings=result.warnings)
 

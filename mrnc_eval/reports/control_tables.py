@@ -371,3 +371,24 @@ def tune_table(metrics: dict[str, dict[str, dict[str, dict[str, float]]]], found
                         f"funnel) on noise seed "
                         f"{cfg.control.seed + t.noise_seed_offset}; reported on seed {cfg.control.seed}.",
                         f"Found: {found_text}."])
+
+
+DISTURBANCE_ROWS = [("Start-up step: settling, stepinfo (s)", "step_settling_stepinfo_s"),
+                    ("Start-up step: overshoot, stepinfo (%)", "step_overshoot_stepinfo_pct"),
+                    ("Recovery after entering the slip patch (s)", "recovery_slip_on_s"),
+                    ("Recovery after leaving it (s)", "recovery_slip_off_s"),
+                    ("Minimum funnel margin 1 - max |e|/o", "min_funnel_margin"), ("Safety stops", "safety_stops")]
+
+
+def disturbance_table(study: dict[str, dict[str, Any]], cfg: Config) -> Table:
+    """Isolated events on a straight line per law (evaluation/disturbance.py)."""
+    cols = [n for n in PAPER_ORDER if n in study] + [n for n in study if n not in PAPER_ORDER]
+    m = cfg.control.metrics
+    cells: list[list[Cell]] = [[("not recovered" if isinstance(v := study[n][key], float) and math.isinf(v) else v)
+                                for n in cols] for _label, key in DISTURBANCE_ROWS]
+    return Table(title="Isolated events on a straight line: start-up step, slip patch entered and left (worst side)",
+                 row_labels=[r[0] for r in DISTURBANCE_ROWS], column_labels=[LABELS.get(n, n) for n in cols],
+                 cells=cells, best=None, precision=3,
+                 notes=[f"30 m straight line at the desired speed; slip 0.15 from x = 11 to 17 m. Recovery: time after "
+                        f"the event until |e| < {m.recovery_band_mps:g} m/s for {m.recovery_hold_s:g} s. No load "
+                        "disturbance: the drive model has no load input (slip is the load-like gain drop)."])
