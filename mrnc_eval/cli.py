@@ -197,6 +197,8 @@ class ControlMode(StrEnum):
     replay = "replay"
     simulate = "simulate"
     sweep = "sweep"
+    identify = "identify"
+    tune = "tune"
 
 
 @app.command()
@@ -208,7 +210,10 @@ def control(
     mode: Annotated[
         ControlMode,
         typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant; "
-                          "sweep: every controller on --runs drawn plants (robustness)."),
+                          "sweep: every controller on --runs drawn plants (robustness); identify: the drive "
+                          "(gain, dead band, lag, delay per side) fitted to the LOG's commands and wheel speeds; "
+                          "tune: every law tuned with the same optimiser, cost and budget, Table II at paper "
+                          "and tuned gains."),
     ] = ControlMode.replay,
     controllers: Annotated[
         str,

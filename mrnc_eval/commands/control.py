@@ -14,19 +14,22 @@ import numpy as np
 
 from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
+from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
-from mrnc_eval.control.margins import loop_summary
-from mrnc_eval.control.raid import rbf_centres
+from mrnc_eval.control.margins import bode, loop_summary
+from mrnc_eval.control.raid import interior_gain, rbf_centres
 from mrnc_eval.control.replay import evaluated, replay_roles, replay_trace
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.data import Waypoints
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_run import evaluate_trace, raid_scale_study
+from mrnc_eval.evaluation.disturbance import disturbance_study
 from mrnc_eval.io.control_recording import read_recording, scenario_from_log
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
 from mrnc_eval.reports.control_tables import (
     UNITS,
+    disturbance_table,
     paper_reading_table,
     print_summary,
     raid_output_table,
@@ -63,7 +66,7 @@ def parse_controllers(text: str) -> tuple[str, ...]:
 def simulate(cfg: Config, names: tuple[str, ...],
              scenario: Scenario) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any]]:
     traces = {n: run_closed_loop(scenario, cfg.control, cfg.robot, n) for n in names}
-    return traces, {n: evaluate_trace(tr, cfg.control) for n, tr in traces.items()}
+    return traces, {n: evaluate_trace(tr, cfg.control, cfg.robot.track_width_m) for n, tr in traces.items()}
 
 
 def simulation_topics(roles: Mapping[str, str]) -> dict[str, str]:
@@ -113,7 +116,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         replay_kind = "path" if rec.waypoints is not None else "wheel_speed"
         definitions = replay_definitions(rec, cfg) + definitions
     else:
-        raise UsageError(f"unknown mode {mode!r}: replay, simulate or sweep")
+        raise UsageError(f"unknown mode {mode!r}: replay, simulate, sweep, identify or tune")
     result = RunResult(kind="control", log_path=absolute_log_path(log_path) if log_path else "paper-scenario",
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
@@ -130,7 +133,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                     "seed": cfg.control.seed, K.DEFINITIONS: definitions,
                     K.SATURATION_APPLIES_TO: cfg.control.actuator.saturation_applies_to,
                     "supervisor": cfg.control.supervisor.stop_rule, "step_detector": cfg.control.steps.detector,
-                    "reference_shaping": f"slew {cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2",
+                    "reference_shaping": shaping_text(cfg.control),
                     K.CURVATURE: cfg.control.pure_pursuit.curvature,
                     K.ROLES: dict(roles) if mode == "replay" else simulation_topics(roles)}
     if mode == "simulate":
@@ -138,6 +141,15 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         result.tables += [paper_reading_table(metrics, names, cfg), table_two(metrics, names, cfg),
                           raid_output_table(loops)]
         result.extra["loop"] = loops
+        w, loop = bode(cfg.control, interior_gain(cfg.control, v=cfg.control.pure_pursuit.desired_speed_mps,
+                                                  phi=0.0))
+        result.series["bode_w_rad_s"] = w
+        for law, lw in loop.items():
+            result.series[f"bode_{law}_mag_db"] = 20.0 * np.log10(np.abs(lw))
+            result.series[f"bode_{law}_phase_deg"] = np.degrees(np.unwrap(np.angle(lw)))
+        events = disturbance_study(names, cfg.control, cfg.robot)
+        result.tables.append(disturbance_table(events, cfg))
+        result.extra["disturbance"] = events
         if "raid" in names and cfg.control.raid.scale_study:
             study = raid_scale_study(scenario, cfg.control, cfg.robot, tuple(cfg.control.raid.scale_study))
             result.tables.append(scale_study_table(study, cfg))
@@ -198,7 +210,19 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
     waypoints = read_waypoints(path_file) if path_file is not None else None  # a bad file fails before any output
     check_output_root(out, need_bytes=CONTROL_OUTPUT_BYTES)  # before the long work, not after it
     run_dir = new_run_dir(out, log_id_for(log_path) if log_path else "paper-circle", f"control-{mode}")
-    if mode == "sweep":
+    if mode == "tune":
+        if log_path is not None:
+            raise UsageError("control --mode tune runs the paper circle's nominal plant; it takes no LOG")
+        from mrnc_eval.commands.control_tune import run_tune
+
+        result = run_tune(cfg, names, run_dir)
+    elif mode == "identify":
+        if log_path is None:
+            raise UsageError("control --mode identify needs a LOG with pump commands and wheel speeds")
+        from mrnc_eval.commands.control_identify import run_identify
+
+        result = run_identify(log_path, cfg, run_dir)
+    elif mode == "sweep":
         if log_path is not None:
             raise UsageError("control --mode sweep runs the paper circle; it takes no LOG")
         from mrnc_eval.commands.control_sweep import run_sweep_result
@@ -223,13 +247,27 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
 
     meta = {"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"],
             "definitions": result.extra["definitions"]}
+    if mode == "tune":  # one item per law: the gains found (stats) and where the search started
+        table = result.tables[0]
+        items = [item(law, {**r["params"], "cost": r["cost"], "start_cost": r["start_cost"],
+                            "evaluations": r["evaluations"]}, controller=law, start_params=r["start_params"],
+                      box=r["box"]) for law, r in result.extra["tuned"].items()]
+        return document("control", items, meta={**meta, **{k: result.extra[k] for k in (
+            "optimiser", "cost", "budget", "tuning_noise_seed", "report_noise_seed")},
+            "table": {"rows": table.row_labels, "columns": table.column_labels, "cells": table.cells}},
+            warnings=result.warnings)
+    if mode == "identify":  # one item per side
+        items = [item(side, est, side=side) for side, est in result.extra["identified"].items()]
+        return document("control", items, meta={**meta, "plant_file": str(run_dir / result.extra["plant_file"]),
+                                                "topics": result.extra["roles"]}, warnings=result.warnings)
     if mode == "sweep":
         items = []
         for ctrl, summary in result.extra["sweep"].items():
             stats, rest = split_stats(summary)
             items.append(item(ctrl, stats, controller=ctrl, **rest))
         return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"],
-                                                    "supervisor": result.extra.get("supervisor", "")},
+                                                    "supervisor": result.extra.get("supervisor", ""),
+                                                    "reference_shaping": result.extra.get("shaping", "")},
                         warnings=result.warnings)
     body: dict[tuple[str, str], dict[str, Any]] = {}
     for m in result.metrics:
@@ -243,7 +281,9 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
             every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
             extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
         items.append(item(f"{ctrl}/{side}", stats, controller=ctrl, side=side, **extra))
-    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study") if k in result.extra}
+    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study", "disturbance",
+                                                          "reference_shaping", "supervisor", "step_detector")
+                             if k in result.extra}
     return document("control", items, meta={**meta, **study, "events": [e.__dict__ for e in result.events]},
                     warnings=result.warnings)
 

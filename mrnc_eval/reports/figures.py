@@ -218,7 +218,30 @@ def control_figures(r: RunResult) -> list[tuple[str, str]]:
             out.append((caption, _feedback(s, ctrl, label, t)))
         if C.driven_xy(ctrl) in s and C.cte(ctrl) in s:
             out.append((f"{label}: driven path and cross-track error", _path(s, ctrl, label, t)))
+    if "bode_w_rad_s" in s:
+        out.append(("Open loop C(jw) K e^{-jwd}/(jw tau + 1) of the linear laws on the left drive (RAID: its "
+                    "interior gain as a P law; dead band and clamp left out)", _bode(s)))
     return out
+
+
+def _bode(s) -> str:
+    fig, axes = new_figure(7.5, 4.6, rows=2, sharex=True)
+    w = s["bode_w_rad_s"]
+    labels = {"raid": "RAID (interior gain)", "pid": "PID", "foptc": "FOPTC (frozen gain)",
+              "foptc_restart": "FOPTC (at a restart)"}
+    for law, label in labels.items():
+        if f"bode_{law}_mag_db" in s:
+            axes[0, 0].semilogx(w, s[f"bode_{law}_mag_db"], lw=1.0, label=label)
+            axes[1, 0].semilogx(w, s[f"bode_{law}_phase_deg"], lw=1.0, label=label)
+    axes[0, 0].axhline(0.0, color="k", lw=0.6)
+    axes[1, 0].axhline(-180.0, color="k", lw=0.6)
+    axes[1, 0].set_ylim(-540.0, 45.0)
+    axes[0, 0].set(ylabel="|L| (dB)", title="Open-loop Bode plot on the drive")
+    axes[1, 0].set(xlabel="frequency (rad/s)", ylabel="phase (deg)")
+    axes[0, 0].legend(fontsize="x-small", loc="lower left")
+    for ax in axes[:, 0]:
+        ax.grid(alpha=0.3, which="both")
+    return svg(fig)
 
 
 def _tracking(s, ctrl: str, label: str, t: np.ndarray, funnel: bool) -> str:
