@@ -587,3 +587,31 @@ def test_13_rich_tables_are_not_cut_off_a_terminal(slam_run: Path, tmp_path: Pat
     assert compare.code == 0
     assert "…" not in compare.out
     assert "slam/timing/ms_per_sweep_matching" in compare.out
+
+
+# ------------------------------------------------------------------ 15: ape on a result folder, -v/-vv
+
+
+def test_15_ape_on_a_result_folder_uses_what_slam_reports_and_says_so(sim_log: Path, slam_run: Path) -> None:
+    result = json.loads((slam_run / "result.json").read_text())
+    online = next(m["value"] for m in result["metrics"] if m["name"] == "ape_online_rmse_m")
+    r = cli("ape", sim_log.with_name("s.gt.tum"), slam_run, "--json", "--max-diff", "0.02")
+    assert r.code == 0, r.err
+    assert json.loads(r.out)[0]["rmse"] == pytest.approx(online, rel=1e-6)  # the smoothed one before
+    assert "trajectory_online.tum" in r.err
+    assert "online" in r.err
+
+
+def test_15_verbose_flags_print_progress(sim_log: Path, tmp_path: Path) -> None:
+    quiet = cli("info", sim_log)
+    assert "INFO" not in quiet.err
+    for argv in (["info", sim_log], ["ape", f"{sim_log}:/ground_truth", f"{sim_log}:/wheel_odom"],
+                 ["slam", sim_log, "--out", tmp_path / "R", "--no-loop"]):
+        r = cli(*argv, "-v")
+        assert r.code == 0, r.err
+        assert any(ln.startswith("INFO mrnc_eval") for ln in r.err.splitlines()), (argv[0], r.err)  # nothing before
+        assert "DEBUG" not in r.err
+    r = cli("slam", sim_log, "--out", tmp_path / "R", "--no-loop", "-vv")
+    debug = [ln for ln in r.err.splitlines() if ln.startswith("DEBUG")]
+    assert debug
+    assert all(ln.startswith("DEBUG mrnc_eval") for ln in debug)  # our stages, not numba's compiler trace
