@@ -615,3 +615,33 @@ def test_15_verbose_flags_print_progress(sim_log: Path, tmp_path: Path) -> None:
     debug = [ln for ln in r.err.splitlines() if ln.startswith("DEBUG")]
     assert debug
     assert all(ln.startswith("DEBUG mrnc_eval") for ln in debug)  # our stages, not numba's compiler trace
+
+
+# ------------------------------------------------------------------ 16: typed API errors
+
+
+def test_16_the_api_raises_the_clis_typed_errors_with_its_messages(sim_log: Path, tmp_path: Path) -> None:
+    from mrnc_eval import api
+    from mrnc_eval.errors import MrncError
+
+    gt = sim_log.with_name("s.gt.tum")
+    zero = tmp_path / "zero.tum"
+    zero.write_text("1.0 0 0 0 0 0 0 0\n2.0 1 0 0 0 0 0 0\n")
+    pairs = [  # (CLI argv, the same request through the API)
+        (["ape", gt, zero], lambda: api.ape(gt, zero)),
+        (["ape", gt, tmp_path / "missing.tum"], lambda: api.ape(gt, tmp_path / "missing.tum")),
+        (["ape", gt, gt, "--offset", "abc"], lambda: api.ape(gt, gt, offset="abc")),
+        (["control", "--mode", "simulate", "--controllers", "nope", "--out", tmp_path / "R"],
+         lambda: api.run_control(None, tmp_path / "A", mode="simulate", controllers=["nope"])),
+        (["config", "--set", "slam.nope=1"], lambda: api.config(None, ["slam.nope=1"])),
+    ]
+    for argv, call in pairs:
+        r = cli(*argv)
+        with pytest.raises(MrncError) as caught:  # ValueError / UFuncTypeError for the last three before
+            call()
+        assert caught.value.exit_code == r.code, (argv, r.err)
+        assert str(caught.value) in r.err, (argv, r.err, str(caught.value))
+    for call in (lambda: api.ape(gt, gt, bogus=1), lambda: api.ape(gt, gt, sync="nope"),
+                 lambda: api.rpe(gt, gt, pairs_from="nope")):
+        with pytest.raises(MrncError):  # TypeError / ValueError before
+            call()
