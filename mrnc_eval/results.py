@@ -75,7 +75,7 @@ def metric_direction(name: str, stored: bool | None = None) -> bool | None:
     return False if stored is False else None
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Metric:
     name: str  # unit-bearing key, e.g. "ape_rmse_m", "settling_time_s"
     value: float | int | None
@@ -89,7 +89,7 @@ class Metric:
             self.lower_is_better = metric_direction(self.name)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Event:
     t_s: float  # seconds since the log start
     kind: str  # "loop_closure", "degeneracy", "safety_stop", "slip", ...
@@ -97,7 +97,7 @@ class Event:
     data: dict[str, Any] = field(default_factory=dict)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class RunResult:
     kind: str  # "slam" | "control" | "info"
     log_path: str

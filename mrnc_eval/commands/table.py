@@ -42,7 +42,7 @@ MANIFEST_HELP = ("sequences: {NAME: {reference: REF, methods: {METHOD: EST, ...}
                  "TUM, KITTI or EuRoC files, slam result folders or log.bag:/topic, relative to the manifest")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Sequence:
     """One row: its reference and each method's estimate (None: the method gave none, Failed; a
     method missing from `methods` was not run on it)."""
@@ -140,7 +140,7 @@ def _from_runs(runs: list[tuple[Path, RunResult]], table_trajectory: str) -> dic
         if reference is None:
             log.warning("%s: the run found no ground truth (no topic, no <log>.gt.tum); left out", run_dir)
             continue
-        sequences.setdefault(labels[key], Sequence(reference, {})).methods[method] = \
+        sequences.setdefault(labels[key], Sequence(reference=reference, methods={})).methods[method] = \
             TrajectorySpec(str(run_dir / RUN_TRAJECTORY[table_trajectory]))
     if not sequences:
         raise InputError(runs[0][0].parent, "no slam run in it found ground truth: nothing to tabulate")
@@ -159,7 +159,7 @@ def _from_sequence_folders(root: Path) -> dict[str, Sequence]:
             continue
         methods: dict[str, TrajectorySpec | None] = {
             p.stem: TrajectorySpec(str(p)) for p in sorted(seq_dir.glob("*.tum")) if p != gt}
-        sequences[seq_dir.name] = Sequence(TrajectorySpec(str(gt)), methods)
+        sequences[seq_dir.name] = Sequence(reference=TrajectorySpec(str(gt)), methods=methods)
     return sequences
 
 
@@ -186,8 +186,9 @@ def _from_manifest(path: Path, table_trajectory: str) -> dict[str, Sequence]:
         methods = entry.get("methods") or {}
         if not isinstance(methods, dict):
             raise InputError(path, f"sequence {name!r}: 'methods' must map method names to trajectories")
-        sequences[str(name)] = Sequence(spec(entry["reference"]),
-                                        {str(m): None if est is None else spec(est) for m, est in methods.items()})
+        sequences[str(name)] = Sequence(reference=spec(entry["reference"]),
+                                        methods={str(m): None if est is None else spec(est)
+                                                 for m, est in methods.items()})
     return sequences
 
 
@@ -234,6 +235,20 @@ def build_table_one(source: Path, cfg: Config | None = None, *, align: AlignMode
     return table
 
 
+def table_items(table: Table) -> list[dict[str, Any]]:
+    """One --json `results` item per cell: sequence, method, its number (null when Failed) and
+    why it failed; the mean row is a sequence named "Mean" like in the table."""
+    from mrnc_eval.commands.output import is_stat, item
+
+    out = []
+    for row, cells in zip(table.row_labels, table.cells, strict=True):
+        for column, cell in zip(table.column_labels, cells, strict=True):
+            number = cell if is_stat(cell) else None
+            out.append(item(f"{row}/{column}", {"value": number}, sequence=row, method=column,
+                            failed=None if number is not None else str(cell or "no value")))
+    return out
+
+
 def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_out: bool, force: bool = False
          ) -> None:
     """The `table` verb: Markdown on stdout, JSON with --json, a file by suffix with --out."""
@@ -246,7 +261,7 @@ def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_
         claim_output(out, force=force, inputs=[source])
     table = build_table_one(source, cfg, align=align)  # everything computed before anything is written
     if json_out:
-        emit_json(table.__dict__)
+        emit_json("table", table_items(table), meta={"table": table.__dict__})
     elif out is None:
         sys.stdout.write(render_table(table, "markdown"))
     if out is not None:

@@ -65,6 +65,25 @@ class FunnelConfig:
 
 
 @dataclass(frozen=True)
+class StepDetectorConfig:
+    """When a side's segment clock restarts (the per-step funnel anchor, FOPTC's prescribed-time clock)."""
+
+    detector: Literal["ramp", "per_sample"] = param(
+        "ramp", "ramp: a movement of the reference (|dr/dt| > ramp_rate_mps2) that has changed it by "
+        "restart_step_mps restarts the clock, held at zero until the ramp ends; per_sample: one sample must change "
+        "it by more than control.metrics.step_threshold_mps (never fires under the reference slew; the old rule)")
+    ramp_rate_mps2: float = param(0.05, "the reference is moving where |dr/dt| exceeds this", "m/s^2")
+    restart_step_mps: float = param(0.1, "a movement that changes the reference by this much is a step", "m/s")
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    stop_rule: Literal["raid_only", "all"] = param(
+        "raid_only", "the paper's safety stop (|e| >= o(t) or a non-finite value: command 0 on that side for the "
+        "rest of the run): for RAID alone (paper), or for every law (parity)")
+
+
+@dataclass(frozen=True)
 class RaidConfig:
     beta: float = param(1.2, "beta (paper)", gt=0.0)
     kappa: float = param(5.2, "kappa of the adaptive law (paper)")
@@ -72,7 +91,15 @@ class RaidConfig:
     gamma: float = param(0.13, "RBF width gamma (paper)")
     centre_seed: int = param(7, "seed of the RBF centres alpha = 2 rand - 1 (recorded in reports)")
     phi0: float = param(0.5, "initial adaptive parameter phi(0) (phi = 0 is a fixed point, so non-zero)")
-    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (paper: 1)", "RPM")
+    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (the paper states no "
+                                      "unit; 1 = the literal reading)", "RPM")
+    output_unit: Literal["rpm_per_unit", "error_over_floor", "feedforward_gain"] = param(
+        "rpm_per_unit", "how the law's output becomes RPM (the paper's law is dimensionally inhomogeneous): "
+        "rpm_per_unit = feedback_scale_rpm RPM per law unit with e in m/s; error_over_floor = e, o, do/dt divided "
+        "by o_b first; feedforward_gain = the output read as m/s x the feed-forward gain (3000 RPM per m/s) x "
+        "feedback_scale_rpm. Reported with the interior gain beside Table II")
+    scale_study: tuple[float, ...] = param((1.0, 10.0, 100.0), "feedback scales RAID is also run at in "
+                                           "control --mode simulate (the scale study table; empty: none)", "RPM")
 
 
 @dataclass(frozen=True)
@@ -262,6 +289,8 @@ class ControlConfig:
     pure_pursuit: PurePursuitConfig = section(PurePursuitConfig, "path following")
     kinematics: KinematicsConfig = section(KinematicsConfig, "inverse kinematics and reference shaping")
     funnel: FunnelConfig = section(FunnelConfig, "RAID prescribed-performance funnel o(t)")
+    steps: StepDetectorConfig = section(StepDetectorConfig, "step detector: restarts of the per-step clocks")
+    supervisor: SupervisorConfig = section(SupervisorConfig, "safety stop on funnel exit")
     raid: RaidConfig = section(RaidConfig, "RAID controller (paper)")
     pid: PidConfig = section(PidConfig, "PID baseline")
     apc: ApcConfig = section(ApcConfig, "APC baseline (stand-in: CFDL-MFAPC)")

@@ -10,6 +10,13 @@ from mrnc_eval.params import param
 @dataclass(frozen=True)
 class EvaluationConfig:
     max_diff_s: float = param(0.01, "association: maximum stamp difference", "s", ge=0.0)
+    gt_max_diff_s: float = param(
+        0.01, "slam and export: maximum stamp difference when pairing the estimate with the ground truth "
+        "(as `mrnc-eval ape`'s --max-diff default, so a result's APE is the one the verb gives on its files)",
+        "s", ge=0.0)
+    gnss_max_diff_s: float = param(
+        0.1, "slam: maximum stamp difference when pairing the antenna track with GNSS fixes (half the period of a "
+        "5 Hz receiver)", "s", ge=0.0)
     offset_s: float = param(0.0, "association: added to the estimate's clock", "s", ge=-86_400.0, le=86_400.0)
     failed_min_span_fraction: float = param(
         0.8, "tables: a method whose matched span is shorter than this fraction of the reference is 'Failed'",
