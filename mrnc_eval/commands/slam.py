@@ -131,7 +131,13 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
+        log.info("%s: %s, %.1f s; roles %s", log_path, lg.container, lg.duration_s,
+                 ", ".join(f"{r} {t}" for r, t in sorted(lg.roles.items())))
         inputs = _read_inputs(lg, log_path, cfg)
+        log.debug("inputs: IMU %s samples, GNSS %s fixes, ground truth %s poses",
+                  None if inputs.imu is None else inputs.imu.stamps.size,
+                  None if inputs.gnss is None else inputs.gnss.stamps.size,
+                  None if inputs.ground_truth is None else len(inputs.ground_truth))
         result.extra[K.ROLES] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
         result.extra[K.GROUND_TRUTH] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         if window is not None and window.active:
@@ -161,6 +167,10 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     _add_map_quality(result, out, cfg)
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
+    log.info("%s: %d of %d sweeps mapped in %.2f s, %d keyframes -> %s", log_path, out.stamps.size, out.n_sweeps,
+             out.wall_s, out.kf_stamps.size, out_dir)
+    for stage, ms in out.timing_ms.items():
+        log.debug("stage %s: %.2f ms per sweep over %d sweeps", stage, float(np.mean(ms)) if ms else 0.0, len(ms))
     return result
 
 
