@@ -58,9 +58,10 @@ def read_log(path: str | Path, cfg: Config | None = None) -> LogReader:
 
 def read_trajectory(spec: TrajectoryLike) -> Trajectory:
     """A trajectory from a TUM/KITTI/EuRoC file or a `log.mcap:/topic` spec (as `mrnc-eval ape` reads)."""
+    from mrnc_eval.io.trajectory_files import check_trajectory
     from mrnc_eval.io.trajectory_files import read_trajectory as read
 
-    return spec if isinstance(spec, Trajectory) else read(spec)
+    return check_trajectory(spec) if isinstance(spec, Trajectory) else read(spec)
 
 
 def ape(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> ApeResult:

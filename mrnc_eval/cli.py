@@ -7,6 +7,7 @@ command modules, so `mrnc-eval --help` stays instant.
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
 from enum import StrEnum
@@ -19,7 +20,7 @@ from typer.exceptions import TyperException
 from mrnc_eval import __version__
 from mrnc_eval.cli_fast import fast_command
 from mrnc_eval.cli_help import PlainGroup
-from mrnc_eval.errors import MrncError, UsageError
+from mrnc_eval.errors import Interrupted, MrncError, UsageError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.text import install_log_format, printable
 
@@ -323,6 +324,9 @@ PlaneOpt = Annotated[Plane | None, typer.Option("--plane", "--project_to_plane",
 TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
 PlotOpt = Annotated[Path | None, typer.Option(
     "--plot", "--save_plot", help="Write a plot of the error (.svg, .png or .pdf).")]
+LabelOpt = Annotated[list[str] | None, typer.Option(
+    "--label", metavar="NAME", help="Name of an estimate in the table, plot and JSON; repeat once per EST, in "
+    "order (default: a slam result's folder name, else the file name).")]
 ApePlotOpt = Annotated[Path | None, typer.Option(
     "--plot", "--save_plot",
     help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
@@ -357,6 +361,7 @@ def ape(
     decompose: Annotated[bool, typer.Option(
         "--decompose", help="Also along-track, cross-track, vertical (m) and yaw (deg) error statistics.")] = False,
     force: ForceOpt = False,
+    label: LabelOpt = None,
 ) -> None:
     """Absolute pose error of each estimate against the reference (evo-compatible numbers; evo's
     command lines work: like evo, nothing is aligned unless asked, and the first line says which
@@ -366,7 +371,7 @@ def ape(
         ref, est, align=align, n_to_align=n_to_align, relation=_relation(relation), max_diff=max_diff,
         offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict,
         sync=_sync(sync), max_gap=max_gap, decompose=decompose, plot_mode=_plain(plot_mode),
-        save_results=save_results, force=force,
+        save_results=save_results, force=force, labels=label,
     )
 
 
@@ -409,6 +414,7 @@ def rpe(
         "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, "
         "scaled to short logs).")] = False,
     force: ForceOpt = False,
+    label: LabelOpt = None,
 ) -> None:
     """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers;
     evo's command lines work)."""
@@ -420,7 +426,7 @@ def rpe(
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
         strict=strict, sync=_sync(sync), max_gap=max_gap, plot_mode=_plain(plot_mode), save_results=save_results,
-        force=force,
+        force=force, labels=label,
     )
 
 
@@ -474,10 +480,13 @@ def report(
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
     junit: JunitOpt = None,
     force: ForceOpt = False,
+    appendix_config: Annotated[bool, typer.Option(
+        "--appendix-config", help="Add the full effective configuration as an appendix (the report lists the keys "
+        "that differ from the defaults; the full file is config.yaml beside each result).")] = False,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
     from mrnc_eval.commands import report as report_command
-    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit, force=force)
+    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit, force=force, appendix_config=appendix_config)
 
 
 @app.command()
@@ -562,7 +571,7 @@ def compare(
                          only_changed=changed_only, force=force)
 
 
-# choices of `simulate` (a test checks they match sim.scene.SCENES, sim.recorder.PATHS and LIDAR_MODELS)
+# choices of `simulate` (a test checks they match sim.scene.SCENES, recording.recorder.PATHS and LIDAR_MODELS)
 class Scene(StrEnum):
     yard = "yard"
     forest = "forest"
@@ -635,9 +644,28 @@ def simulate(
 
 
 INTERNAL_ERROR = 5  # a bug, not a verdict on the input: never 1 ("a gate failed")
+INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT, as shells report it
+BROKEN_PIPE = 0  # the reader stopped early (`info LOG | head -1`): it took what it wanted
 
 
-def _run(argv: list[str] | None) -> Any:
+def _on_sigint(signum: int, frame: Any) -> None:
+    raise Interrupted()
+
+
+def _stdout_gone() -> int:
+    """stdout's reader closed the pipe: say nothing more to it (the interpreter's last flush
+    would fail again) and exit with BROKEN_PIPE."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return BROKEN_PIPE
+
+
+def _dispatch(argv: list[str] | None) -> Any:
     fast = fast_command(sys.argv[1:] if argv is None else argv, {"ape": ape, "rpe": rpe})
     if fast is None:
         return app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
@@ -648,16 +676,41 @@ def _run(argv: list[str] | None) -> Any:
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; the single place where errors become exit codes. Every error is one line on
     stderr (--debug adds the traceback): typed errors with their code, file-system errors
-    (exists, permission, no space) with 4, anything else as an internal error with 5."""
+    (exists, permission, no space) with 4, anything else as an internal error with 5; Ctrl-C
+    "interrupted" with 130; a closed stdout pipe (`| head`) 0."""
+    import signal
+    import threading
+
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGINT, _on_sigint)
+    try:
+        return _run(argv)
+    except (Interrupted, KeyboardInterrupt):  # KeyboardInterrupt: where the handler is not installed
+        sys.stderr.write("mrnc-eval: interrupted\n")
+        return INTERRUPTED
+    except BrokenPipeError:
+        return _stdout_gone()
+    except SystemExit as exc:  # click, typer and rich exit 1 on a broken pipe, raised while handling it
+        cause = exc.__context__
+        if isinstance(cause, OSError) and cause.errno == errno.EPIPE:
+            return _stdout_gone()
+        raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run(argv: list[str] | None) -> int:
     try:
         from mrnc_eval.cli_evo import translate
 
-        result = _run(translate(sys.argv[1:] if argv is None else list(argv)))  # evo's spellings first
+        result = _dispatch(translate(sys.argv[1:] if argv is None else list(argv)))  # evo's spellings first
     except typer.Exit as exc:
         return exc.exit_code
     except typer.Abort:
-        sys.stderr.write("aborted\n")
-        return 130
+        sys.stderr.write("mrnc-eval: aborted\n")
+        return INTERRUPTED
     except TyperException as exc:  # usage errors: missing argument, bad option value
         show = getattr(exc, "show", None)
         if callable(show):
@@ -670,9 +723,8 @@ def main(argv: list[str] | None = None) -> int:
             log.exception("%s", exc)
         sys.stderr.write(f"mrnc-eval: error: {printable(str(exc))}\n")
         return exc.exit_code
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted\n")
-        return 130
+    except BrokenPipeError:
+        raise  # main() turns it into BROKEN_PIPE
     except OSError as exc:  # a file-system error no layer below turned into a typed one
         from mrnc_eval.results import describe_os_error
 

@@ -88,3 +88,11 @@ class MissingExtra(UsageError):
     names the extra: pip install 'mrnc-eval[slam]')."""
 
     exit_code = 2
+
+
+class Interrupted(BaseException):
+    """Ctrl-C (SIGINT), raised by cli.main's handler. A BaseException like KeyboardInterrupt, so
+    no `except Exception` counts it as one more failed log, and not KeyboardInterrupt itself,
+    which typer turns into a silent exit 130. Exit code 130 (128 + SIGINT)."""
+
+    exit_code = 130

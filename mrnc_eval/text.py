@@ -58,3 +58,15 @@ def install_log_format(level: int, stream: Any) -> None:
     handler = logging.StreamHandler(stream)
     handler.setFormatter(PrintableFormatter("%(levelname)s %(name)s: %(message)s"))
     logging.basicConfig(level=level, handlers=[handler], force=True)
+
+
+OFF_TERMINAL_WIDTH = 10_000  # columns: piped or redirected output is never cut (rich would assume 80)
+
+
+def console(**options: Any) -> Any:
+    """The rich Console every verb prints tables with: the terminal's width on a terminal; off a
+    terminal (`> file`, `| cat`) wide enough that no column is cut to `Sett…` or `0.0…`."""
+    from rich.console import Console
+
+    out = Console(**options)
+    return out if out.is_terminal else Console(width=OFF_TERMINAL_WIDTH, **options)

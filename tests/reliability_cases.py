@@ -108,7 +108,7 @@ def rewrite_log(src: Path, dst: Path, edits: dict[str, Callable[[Any, int], Any]
 
 def make_sim_log(folder: Path) -> Path:
     from mrnc_eval.config import Config
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     cfg = Config()
     cfg = replace(cfg, sim=replace(cfg.sim, lidar=replace(cfg.sim.lidar, record_every=2)))

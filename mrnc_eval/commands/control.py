@@ -15,12 +15,13 @@ import numpy as np
 from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
+from mrnc_eval.control.margins import loop_summary
 from mrnc_eval.control.raid import rbf_centres
 from mrnc_eval.control.replay import evaluated, replay_roles, replay_trace
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.data import Waypoints
 from mrnc_eval.errors import InputError, UsageError
-from mrnc_eval.evaluation.control_run import evaluate_trace
+from mrnc_eval.evaluation.control_run import evaluate_trace, raid_scale_study
 from mrnc_eval.io.control_recording import read_recording, scenario_from_log
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
@@ -28,7 +29,9 @@ from mrnc_eval.reports.control_tables import (
     UNITS,
     paper_reading_table,
     print_summary,
+    raid_output_table,
     replay_definitions,
+    scale_study_table,
     table_notes,
     table_two,
 )
@@ -36,6 +39,7 @@ from mrnc_eval.results import (
     Event,
     Metric,
     RunResult,
+    absolute_log_path,
     check_output_root,
     link_latest,
     log_id_for,
@@ -109,7 +113,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         definitions = replay_definitions(rec, cfg) + definitions
     else:
         raise UsageError(f"unknown mode {mode!r}: replay, simulate or sweep")
-    result = RunResult(kind="control", log_path=str(log_path or "paper-scenario"),
+    result = RunResult(kind="control", log_path=absolute_log_path(log_path) if log_path else "paper-scenario",
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
@@ -119,16 +123,24 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     result.series["funnel_o"] = longest.funnel[:: _decimate(longest.t)]
     for n in names:
         _add_controller(result, n, traces[n], metrics[n])
-    if mode == "simulate":
-        result.tables.append(paper_reading_table(metrics, names, cfg))
-        result.tables.append(table_two(metrics, names, cfg))
     result.extra = {"mode": mode, "controllers": list(names),
                     "labels": {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
                     "seed": cfg.control.seed, "definitions": definitions,
                     "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
+                    "supervisor": cfg.control.supervisor.stop_rule, "step_detector": cfg.control.steps.detector,
+                    "reference_shaping": f"slew {cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2",
                     "curvature": cfg.control.pure_pursuit.curvature,
                     "roles": dict(roles) if mode == "replay" else simulation_topics(roles)}
+    if mode == "simulate":
+        loops = loop_summary(cfg.control, cfg.control.pure_pursuit.desired_speed_mps)
+        result.tables += [paper_reading_table(metrics, names, cfg), table_two(metrics, names, cfg),
+                          raid_output_table(loops)]
+        result.extra["loop"] = loops
+        if "raid" in names and cfg.control.raid.scale_study:
+            study = raid_scale_study(scenario, cfg.control, cfg.robot, tuple(cfg.control.raid.scale_study))
+            result.tables.append(scale_study_table(study, cfg))
+            result.extra["raid_scale_study"] = study
     if replay_kind:
         result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
         result.extra["t0_stamp_s"] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
@@ -146,7 +158,7 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
         s = tr.side(side)
         for key, val in metrics[side].items():
             value = val if isinstance(val, int) else float(val)
-            result.metrics.append(Metric(key, value, UNITS.get(key, ""), group))
+            result.metrics.append(Metric(name=key, value=value, unit=UNITS.get(key, ""), group=group))
         result.series[f"{name}_{side}_v_ref"] = s.v_ref[::step]
         result.series[f"{name}_{side}_v_meas"] = s.v_wheel[::step]
         result.series[f"{name}_{side}_u_rpm"] = s.u[::step]
@@ -159,11 +171,12 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
     if "path" in metrics:
         cte = metrics["path"].pop("_cte")
         for key, val in metrics["path"].items():
-            result.metrics.append(Metric(key, float(val), UNITS.get(key, ""), f"control/{name}/path"))
+            result.metrics.append(Metric(name=key, value=float(val), unit=UNITS.get(key, ""),
+                                         group=f"control/{name}/path"))
         result.series[f"{name}_cte_m"] = cte[::step]
     result.series[f"{name}_funnel_o"] = tr.funnel[::step]
-    result.events += [Event(e["t_s"], "safety_stop", f"{LABELS.get(name, name)}: {e['message']}",
-                            {"side": e["side"]}) for e in tr.events]
+    result.events += [Event(t_s=e["t_s"], kind="safety_stop", message=f"{LABELS.get(name, name)}: {e['message']}",
+                            data={"side": e["side"]}) for e in tr.events]
 
 
 def _decimate(t: np.ndarray, max_points: int = 20000) -> int:
@@ -213,7 +226,8 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
         for ctrl, summary in result.extra["sweep"].items():
             stats, rest = split_stats(summary)
             items.append(item(ctrl, stats, controller=ctrl, **rest))
-        return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"]},
+        return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"],
+                                                    "supervisor": result.extra.get("supervisor", "")},
                         warnings=result.warnings)
     body: dict[tuple[str, str], dict[str, Any]] = {}
     for m in result.metrics:
@@ -227,6 +241,7 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
             every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
             extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
         items.append(item(f"{ctrl}/{side}", stats, controller=ctrl, side=side, **extra))
-    return document("control", items, meta={**meta, "events": [e.__dict__ for e in result.events]},
+    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study") if k in result.extra}
+    return document("control", items, meta={**meta, **study, "events": [e.__dict__ for e in result.events]},
                     warnings=result.warnings)
 

@@ -197,7 +197,7 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
         raise UsageError(f"--mcap {out_path}: the file name must end in .mcap")
     runs = load_runs(run_dirs)
     claim_output(out_path, force=force, inputs=run_inputs(runs))
-    summary = ExportSummary(out_path)
+    summary = ExportSummary(path=out_path)
     log_path = next((Path(r.log_path) for _, r in runs if r.log_path != "paper-scenario"), None)
     ctx = None
     if log_path is not None and log_path.exists():

@@ -4,9 +4,10 @@ from __future__ import annotations
 
 import logging
 import sys
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import UsageError
@@ -23,12 +24,18 @@ from mrnc_eval.tables import Cell as CellValue
 from mrnc_eval.tables import Table
 from mrnc_eval.text import printable
 
+if TYPE_CHECKING:
+    import numpy as np
+    from matplotlib.figure import Figure
+
+Results = Sequence[ApeResult] | Sequence[RpeResult]
+
 log = logging.getLogger(__name__)
 STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
 PLOT_SUFFIXES = (".svg", ".png", ".pdf")
 
 
-def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
+def _results_table(results: Results, title: str) -> Table:
     return Table(title=title, row_labels=[printable(r.name) for r in results],  # file names: one line each
                  column_labels=[*STAT_ORDER, "n", "span_s"],
                  cells=[[*(r.stats[k] for k in STAT_ORDER), r.n, round(r.span_s, 3)] for r in results],
@@ -55,8 +62,9 @@ def _claim_outputs(table: Path | None, plot: Path | None, specs: list[str], forc
     return inputs
 
 
-def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None,
-          decompositions=None, force: bool = False, inputs: list[Path] | None = None, plot_mode: str | None = None,
+def _emit(results: Results, title: str, json_out: bool, table: Path | None, plot: Path | None,
+          drifts: list[DriftResult] | None = None, decompositions: list[Decomposition] | None = None,
+          force: bool = False, inputs: list[Path] | None = None, plot_mode: str | None = None,
           save_results: Path | None = None, evo_names: tuple[str, str] | None = None,
           evo_title: dict[str, Any] | None = None) -> None:
     """Print (JSON or Markdown), then write the table, plot and evo zip files; all computed before."""
@@ -76,8 +84,9 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
     if table is not None:
         write_output(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]),
                      force=force, inputs=inputs)
-    if plot is not None and isinstance(results[0], ApeResult):
-        _save_figure(_path_figure(results, title, _plot_axes(plot_mode)), plot, force, inputs)
+    apes = [r for r in results if isinstance(r, ApeResult)]
+    if plot is not None and len(apes) == len(results):
+        _save_figure(_path_figure(apes, title, _plot_axes(plot_mode)), plot, force, inputs)
     elif plot is not None:
         _save_figure(_error_figure(results, title), plot, force, inputs)
     if save_results is not None:
@@ -98,7 +107,8 @@ def _plot_axes(plot_mode: str | None) -> str:
     return plot_mode
 
 
-def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
+def _summaries(results: Results, drifts: list[DriftResult] | None,
+               decompositions: list[Decomposition] | None) -> list[dict[str, Any]]:
     """One `results` item per estimate: the statistics, n and span under `stats`, the matching
     counts, the alignment used (mode, poses, scale, 4x4), drift and decomposition beside them
     (commands/output.py)."""
@@ -110,7 +120,8 @@ def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
         name = str(flat.pop("name"))
         stats, rest = split_stats(flat)
         summaries.append(item(name, stats, unit=r.unit, alignment=r.alignment_summary(), **rest))
-    for key, extra in (("drift", drifts), ("decomposition", decompositions)):
+    extras: dict[str, Sequence[DriftResult | Decomposition] | None] = {"drift": drifts, "decomposition": decompositions}
+    for key, extra in extras.items():
         if extra is not None:
             for s, x in zip(summaries, extra, strict=True):
                 s[key] = x.summary()
@@ -132,7 +143,7 @@ def _decomposition_table(names: list[str], decs: list[Decomposition]) -> Table:
                  column_labels=list(STAT_ORDER[:-1]), cells=cells, best=None, precision=4)
 
 
-def _decimated_max(t, e, buckets: int = 10000):
+def _decimated_max(t: np.ndarray, e: np.ndarray, buckets: int = 10000) -> tuple[np.ndarray, np.ndarray]:
     """At most `buckets` points for a plot, each the largest error of its bucket, so peaks
     survive decimation (statistics always use every pose)."""
     import numpy as np
@@ -143,21 +154,15 @@ def _decimated_max(t, e, buckets: int = 10000):
     return t[starts], np.maximum.reduceat(e, starts)
 
 
-def _path_figure(results: list[ApeResult], title: str, plot_axes: str = "xy"):
+def _path_figure(results: Sequence[ApeResult], title: str, plot_axes: str = "xy") -> Figure:
     """Each estimate's aligned path coloured by its APE, the reference dashed beside it (the
     SLAM report's figure); statistics use every pose, the drawing is decimated."""
-    from mrnc_eval.reports.figures import draw_error_path, new_figure
+    from mrnc_eval.reports.figures import ape_path_figure
 
-    fig, axes = new_figure(6.0 * len(results), 5.0, 1, len(results))
-    for ax, r in zip(axes[0], results, strict=True):
-        draw_error_path(fig, ax, r.ref_xyz, r.est_xyz, r.errors, unit=r.unit,
-                        est_label=f"{r.name} ({r.alignment.mode} aligned)", ref_label="reference", title=r.name,
-                        axes=plot_axes)
-    fig.suptitle(title)
-    return fig
+    return ape_path_figure(results, title, plot_axes)
 
 
-def _error_figure(results, title: str):
+def _error_figure(results: Results, title: str) -> Figure:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8, 3.5), layout="constrained")
@@ -172,7 +177,7 @@ def _error_figure(results, title: str):
     return fig
 
 
-def _save_figure(fig, path: Path, force: bool, inputs: list[Path]) -> None:
+def _save_figure(fig: Figure, path: Path, force: bool, inputs: list[Path]) -> None:
     with output_file(path, force=force, inputs=inputs) as tmp:  # atomic: no half-written plot
         fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
 
@@ -209,18 +214,37 @@ def evo_positionals(ref: str, est: list[str]) -> tuple[str, list[str]]:
     return est[0], est[1:]
 
 
-def _load(ref: str, est: list[str]) -> tuple[Any, list[tuple[Any, bool]]]:
-    """The reference and each estimate (with its pairing mode), named uniquely. Files are read
-    in parallel threads (pandas' C tokenizer releases the GIL); the first error is raised as is."""
+SLAM_FILES = {"trajectory": "", "trajectory_online": " online"}  # slam's file stems -> label suffix
+
+
+def default_label(spec: str, name: str) -> str:
+    """An estimate's name in tables, plots and JSON: a slam result's folder name (the run) for
+    a result folder or its trajectory files, else the name read_trajectory gave (file stem)."""
+    path = Path(spec.rstrip("/"))
+    if path.is_dir() and (path / "trajectory.tum").is_file():
+        return path.resolve().name
+    if path.is_file() and path.stem in SLAM_FILES:
+        return path.parent.resolve().name + SLAM_FILES[path.stem]
+    return name
+
+
+def _load(ref: str, est: list[str], labels: list[str] | None = None) -> tuple[Any, list[tuple[Any, bool]]]:
+    """The reference and each estimate (with its pairing mode), named by `labels` (one per
+    estimate) or uniquely from their paths. Files are read in parallel threads (pandas' C
+    tokenizer releases the GIL); the first error is raised as is."""
     from concurrent.futures import ThreadPoolExecutor
 
+    if labels and len(labels) != len(est):
+        raise UsageError(f"--label given {len(labels)} time(s) for {len(est)} estimate(s): give one per EST, "
+                         "in the same order")
     pairing = [_index_pairing(ref, e) for e in est]
     with ThreadPoolExecutor(max_workers=min(4, 1 + len(est))) as pool:
         reference, *trajs = list(pool.map(read_trajectory, [ref, *est]))
-    estimates = list(zip(trajs, pairing, strict=True))
+    estimates = [(replace(t, name=labels[k] if labels else default_label(spec, t.name)), by_index)
+                 for k, (t, by_index, spec) in enumerate(zip(trajs, pairing, est, strict=True))]
     names = [t.name for t, _ in estimates]
     for k, ((t, by_index), spec) in enumerate(zip(estimates, est, strict=True)):
-        if names.count(t.name) > 1:  # same file stem in different folders: use the path
+        if names.count(t.name) > 1 and not labels:  # same name from different folders: use the path
             estimates[k] = (replace(t, name=str(spec)), by_index)
     return reference, estimates
 
@@ -276,10 +300,10 @@ def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | No
              offset: str | float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None,
              strict: bool = False, sync: SyncMethod = SyncMethod.nearest, max_gap: float = 0.2,
              decompose: bool = False, force: bool = False, plot_mode: str | None = None,
-             save_results: Path | None = None) -> None:
+             save_results: Path | None = None, labels: list[str] | None = None) -> None:
     ref, est = evo_positionals(ref, est)
     inputs = _claim_outputs(table, plot, [ref, *est], force, save_results)
-    reference, estimates = _load(ref, est)
+    reference, estimates = _load(ref, est, labels)
     offsets = _offsets(reference, estimates, offset, align)
     results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
                    offset=o, plane=plane, by_index=by_index, strict=strict, sync=sync, max_gap=max_gap)
@@ -312,14 +336,14 @@ def rpe_main(ref: str, est: list[str], *, delta: float | None, delta_unit: Delta
              json_out: bool, table: Path | None, plot: Path | None, pairs_from: PairsFrom = PairsFrom.estimate,
              drift: bool = False, strict: bool = False, sync: SyncMethod = SyncMethod.nearest,
              max_gap: float = 0.2, force: bool = False, plot_mode: str | None = None,
-             save_results: Path | None = None) -> None:
+             save_results: Path | None = None, labels: list[str] | None = None) -> None:
     ref, est = evo_positionals(ref, est)
     inputs = _claim_outputs(table, plot, [ref, *est], force, save_results)
     # the delta as evo titles it: frames as an integer, metres as typed (a float: "2.0"), its default the integer 1
     delta_text = "1" if delta is None else str(int(delta)) if delta_unit is DeltaUnit.frames and delta == int(delta) \
         else repr(float(delta))
     delta = 1.0 if delta is None else delta
-    reference, estimates = _load(ref, est)
+    reference, estimates = _load(ref, est, labels)
     offsets = _offsets(reference, estimates, offset, align)
     results = [rpe(reference, e, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
                    n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=o, plane=plane,

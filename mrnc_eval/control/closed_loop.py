@@ -37,7 +37,8 @@ from mrnc_eval.control.scenario import Scenario, waypoint_scenario
  CH_SLIP_L, CH_SLIP_R, CH_U_L, CH_U_R, CH_FUNNEL_L, CH_FUNNEL_R, CH_UFB_L, CH_UFB_R, CH_PHI_L, CH_PHI_R) = range(22)
 N_OUT = 22
 
-# Counted at the full control rate (not only on recorded samples), per side: samples with |e| >= o(t),
+# Counted at the full control rate (not only on recorded samples), per side and up to a safety stop:
+# samples with |e| >= o(t),
 # samples with |U| at the limit, IAE (m), and (at the end) the restarts of the segment clock.
 ST_FUNNEL, ST_SATURATED, ST_IAE, ST_RESTARTS = range(4)
 N_STATS = 4
@@ -227,8 +228,11 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
                 stops[1, 0], stops[1, 1], stops[1, 2] = t, status, state_r[S_STOP_E_OVER_O]
         o_l, _ = funnel_at(state_l, p, t)
         o_r = funnel_at(state_r, p, t)[0] if per_step_funnel else o_l  # run-start anchoring: one o(t)
-        _count(stats[0], meas_l - ref_l, o_l, u_l, sat_level, dt)
-        _count(stats[1], meas_r - ref_r, o_r, u_r, sat_level, dt)
+        # counted while the side runs: a stopped side's dead error is not tracking (time to stop is reported)
+        if not stopped_l:
+            _count(stats[0], meas_l - ref_l, o_l, u_l, sat_level, dt)
+        if not stopped_r:
+            _count(stats[1], meas_r - ref_r, o_r, u_r, sat_level, dt)
         # transport delay (ring buffers), dead band, lag, slip
         slot_l, slot_r = k % (delay_l + 1), k % (delay_r + 1)
         ul_del, ur_del = buf_l[slot_l], buf_r[slot_r]

@@ -85,13 +85,21 @@ class SupervisorConfig:
 
 @dataclass(frozen=True)
 class RaidConfig:
-    beta: float = param(1.2, "beta (paper)")
+    beta: float = param(1.2, "beta (paper)", gt=0.0)
     kappa: float = param(5.2, "kappa of the adaptive law (paper)")
     n_neurons: int = param(9, "RBF neurons N (paper)")
     gamma: float = param(0.13, "RBF width gamma (paper)")
     centre_seed: int = param(7, "seed of the RBF centres alpha = 2 rand - 1 (recorded in reports)")
     phi0: float = param(0.5, "initial adaptive parameter phi(0) (phi = 0 is a fixed point, so non-zero)")
-    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (paper: 1)", "RPM")
+    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (the paper states no "
+                                      "unit; 1 = the literal reading)", "RPM")
+    output_unit: Literal["rpm_per_unit", "error_over_floor", "feedforward_gain"] = param(
+        "rpm_per_unit", "how the law's output becomes RPM (the paper's law is dimensionally inhomogeneous): "
+        "rpm_per_unit = feedback_scale_rpm RPM per law unit with e in m/s; error_over_floor = e, o, do/dt divided "
+        "by o_b first; feedforward_gain = the output read as m/s x the feed-forward gain (3000 RPM per m/s) x "
+        "feedback_scale_rpm. Reported with the interior gain beside Table II")
+    scale_study: tuple[float, ...] = param((1.0, 10.0, 100.0), "feedback scales RAID is also run at in "
+                                           "control --mode simulate (the scale study table; empty: none)", "RPM")
 
 
 @dataclass(frozen=True)
@@ -257,7 +265,7 @@ class SweepConfig:
     """Robustness sweep (control --mode sweep): N plants drawn uniformly from these ranges; every
     controller runs on the same draws. Gain mismatch m sets K = (1 + m) / feed-forward gain on both sides."""
 
-    runs: int = param(100, "plants drawn")
+    runs: int = param(100, "plants drawn", ge=1, le=100_000)
     seed: int = param(0, "seed of the draws (also the measurement-noise seed of run k is seed + k)")
     gain_mismatch: tuple[float, float] = param((-0.3, 0.3), "relative drive-gain error range")
     dead_band_rpm: tuple[float, float] = param((30.0, 150.0), "dead band range", "RPM")
@@ -265,7 +273,7 @@ class SweepConfig:
     tau_s: tuple[float, float] = param((0.2, 0.8), "drive time constant range", "s")
     slip_scale: tuple[float, float] = param((0.0, 2.0), "slip severity: the scenario's patch slip ratios "
                                             "(0.15, 0.18) times this factor")
-    duration_s: float = param(100.0, "simulated time per run (the paper circle takes ~98 s)", "s")
+    duration_s: float = param(100.0, "simulated time per run (the paper circle takes ~98 s)", "s", gt=0.0, le=86_400.0)
     record_every: int = param(20, "record every n-th control period (20: 50 Hz, the pure pursuit rate) for the "
                               "per-run steady-state error and cross-track RMS; funnel violations, saturation and "
                               "IAE are counted at the full rate")

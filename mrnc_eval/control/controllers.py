@@ -47,6 +47,7 @@ from mrnc_eval.control.jit_cache import FloatArray, kernel, pack_slots
 from mrnc_eval.control.pid import PID_KD, PID_KI, PID_KP, PID_MODE, PID_TT, pid_params, pid_step
 from mrnc_eval.control.raid import (
     RAID_BETA,
+    RAID_E_UNIT,
     RAID_GAMMA,
     RAID_KAPPA,
     RAID_PHI0,
@@ -200,7 +201,7 @@ def controller_step(cid: int, state: FloatArray, p: FloatArray, centres: FloatAr
         return 0.0, _stop(state, e, o, u_max)
     if cid == 0:
         u_fb, ok = raid_step(state, centres, p[q + RAID_GAMMA], p[q + RAID_BETA], p[q + RAID_KAPPA],
-                             p[q + RAID_SCALE], e, o, odot, vdot_ref, v_meas, dt)
+                             p[q + RAID_SCALE], e, o, odot, vdot_ref, v_meas, dt, p[q + RAID_E_UNIT])
         if not ok:  # the paper's stop rule: at the barrier, or a value became non-finite
             return 0.0, _stop(state, e, o, u_max) if abs(e) >= o else STOP_NON_FINITE
     else:

@@ -13,7 +13,7 @@ Streams are sorted by header stamp; duplicate and out-of-order stamps are counte
 
 from __future__ import annotations
 
-from collections.abc import Iterator
+from collections.abc import Callable, Iterator
 from pathlib import Path
 from typing import Any
 
@@ -177,10 +177,10 @@ class LogReader:
     def wheel_odometry(self, topic: str | None = None) -> Trajectory:
         return self.trajectory(self._topic_for("wheel_odom", topic))
 
-    def sweeps(self, topic: str | None = None, *, min_interval_s: float = 0.0) -> Iterator[Sweep]:
+    def sweeps(self, topic: str | None = None, *, keep: Callable[[float], bool] | None = None) -> Iterator[Sweep]:
         """Decoded sweeps in log order, streamed one at a time; a sweep not after the last one
-        yielded is skipped and noted, one closer than min_interval_s skipped before decoding."""
-        yield from self._series.sweeps(self._topic_for("lidar", topic), min_interval_s=min_interval_s)
+        yielded is skipped and noted, one whose header stamp `keep` refuses skipped before decoding."""
+        yield from self._series.sweeps(self._topic_for("lidar", topic), keep=keep)
 
     def strings(self, topic: str) -> list[str]:
         return self._series.strings(topic)

@@ -9,7 +9,7 @@ log's HealthLedger. Topics come resolved (LogReader maps roles to topics).
 
 from __future__ import annotations
 
-from collections.abc import Iterator, Sequence
+from collections.abc import Callable, Iterator, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -235,11 +235,11 @@ class SeriesReader:
                                                bad_quaternions(q_a, v.quat_norm_tolerance)})
         return np.asarray(t, float)[valid], p_a[valid], normalised(q_a[valid])
 
-    def sweeps(self, topic: str, *, min_interval_s: float = 0.0) -> Iterator[Sweep]:
+    def sweeps(self, topic: str, *, keep: Callable[[float], bool] | None = None) -> Iterator[Sweep]:
         """Decoded sweeps in log order, streamed one at a time. A sweep whose header stamp is not
         after the last one yielded (a duplicate or out-of-order cloud) is skipped and noted in the
-        health. With min_interval_s, a sweep closer than that to the last one yielded is skipped
-        before it is decoded (a mapping rate below the sensor rate)."""
+        health. `keep` is asked with each remaining header stamp before decoding; False skips the
+        sweep undecoded (a mapping rate below the sensor rate: slam/mapping_interval.py)."""
         msgtype = self.src.msgtype(topic)
         if msgtype != "sensor_msgs/msg/PointCloud2":
             raise InputError(self.src.path, f"expected sensor_msgs/msg/PointCloud2, got {msgtype}", topic=topic)
@@ -251,7 +251,7 @@ class SeriesReader:
                 if stamp <= last:
                     skipped += 1
                     continue
-                if stamp - last < min_interval_s:
+                if keep is not None and not keep(stamp):
                     continue
                 m = self.src.decode(raw, topic)
                 try:

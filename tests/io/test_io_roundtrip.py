@@ -15,6 +15,7 @@ from mrnc_eval.errors import InputError
 from mrnc_eval.io import open_log
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.writers import LogWriter
+from mrnc_eval.slam.mapping_interval import MappingInterval
 
 FORMATS = [("mcap", "log.mcap", "ros2-mcap"), ("db3", "log.db3", "ros2-sqlite3"), ("bag", "log.bag", "ros1"),
            ("mcap", "bagdir", "ros2-mcap")]
@@ -173,7 +174,7 @@ def test_failed_write_leaves_nothing(tmp_path: Path) -> None:
 def test_sweeps_skipped_before_decoding_at_a_lower_mapping_rate(tmp_path: Path) -> None:
     write_sample(tmp_path / "a.mcap", "mcap")
     with open_log(tmp_path / "a.mcap") as log:
-        kept = [s.stamp for s in log.sweeps(min_interval_s=0.15)]
+        kept = [s.stamp for s in log.sweeps(keep=MappingInterval(interval_s=0.15).take)]
     assert kept == pytest.approx([100.0, 100.2])
 
 
