@@ -165,7 +165,7 @@ def run_scan_folder(folder: Path, cfg: Config, out_dir: Path, *, method: str | N
     gt = read_tum(gt_file) if gt_file.is_file() else None
     result.extra["ground_truth"] = str(gt_file.resolve()) if gt is not None else None
     result.extra["input"] = f"scan folder: {len(scans.files)} scans ({scans.files[0].suffix}), stamps from the folder"
-    stream: Any = scan_sweeps(scans)
+    stream: Iterator[Sweep] = scan_sweeps(scans)
     if window is not None and window.active:
         result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
         result.warnings.append(window.describe())
@@ -193,7 +193,10 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
     if inputs.ground_truth is not None:
         _add_ape(result, inputs.ground_truth, est, online, method, cfg, float(out.stamps[0]))
     else:
-        result.warnings.append(f"no ground truth: APE not computed ({ground_truth_hint(log_path)})")
+        where = Path(result.log_path)
+        hint = ("put a ground_truth.tum (TUM) in the scan folder" if "input" in result.extra
+                else ground_truth_hint(where))
+        result.warnings.append(f"no ground truth: APE not computed ({hint})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
