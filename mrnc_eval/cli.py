@@ -156,7 +156,8 @@ class SlamMethod(StrEnum):  # a str: passed on as is
 def slam(
     logs: Annotated[
         list[Path],
-        typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout."),
+        typer.Argument(metavar="LOG...", help="One or more logs (or folders of .bin/.pcd scans with "
+                       "timestamps.txt, for --method kiss-icp); several give the Table I layout."),
     ],
     method: Annotated[
         SlamMethod | None,

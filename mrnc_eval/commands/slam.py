@@ -150,6 +150,46 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         why = "; ".join(read_notes) or "no sweep could be registered"
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s) ({why})")
     result.warnings += read_notes
+    return _finish(result, out, inputs, method, cfg, out_dir, wall_start)
+
+
+def run_scan_folder(folder: Path, cfg: Config, out_dir: Path, *, method: str | None = None,
+                    log_id: str | None = None, window: SweepWindow | None = None) -> RunResult:
+    """SLAM on a folder of .bin/.pcd scans with timestamps.txt (io/scan_folder.py), as kiss-icp
+    reads one: LiDAR only, so --method kiss-icp; poses in the sensor frame (no /tf_static). A
+    `ground_truth.tum` in the folder is the reference of the APE."""
+    from mrnc_eval.io.scan_folder import open_scan_folder, scan_sweeps
+    from mrnc_eval.io.trajectory_files import read_tum
+
+    cfg = with_method(cfg, method)
+    if cfg.slam.method != "kiss-icp":
+        raise UsageError(f"{folder}: a folder of scans has no IMU for lio; run it with --method kiss-icp")
+    scans = open_scan_folder(folder)
+    wall_start = time.perf_counter()
+    result = RunResult(kind="slam", log_path=str(folder), log_id=log_id or log_id_for(folder),
+                       config_hash=config_hash(cfg))
+    gt_file = folder / "ground_truth.tum"
+    gt = read_tum(gt_file) if gt_file.is_file() else None
+    result.extra["ground_truth"] = str(gt_file.resolve()) if gt is not None else None
+    result.extra["input"] = f"scan folder: {len(scans.files)} scans ({scans.files[0].suffix}), stamps from the folder"
+    stream: Iterator[Sweep] = scan_sweeps(scans)
+    if window is not None and window.active:
+        result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
+        result.warnings.append(window.describe())
+        stream = windowed(stream, window, float(scans.stamps[0]))
+    with Prefetched(stream, depth=4) as sweeps:
+        out = _kiss_icp(sweeps, cfg, scans.max_gap_s)
+    if out.stamps.size < 2:
+        raise EvaluationError(f"{folder}: SLAM produced {out.stamps.size} pose(s)")
+    inputs = LogInputs(duration_s=scans.duration_s, base_to_sensor=np.eye(4), imu=None, sensor_to_imu=np.eye(4),
+                       gnss=None, ground_truth=gt, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3),
+                       n_sweeps=len(scans.files), max_sweep_gap_s=scans.max_gap_s)
+    return _finish(result, out, inputs, cfg.slam.method, cfg, out_dir, wall_start)
+
+
+def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, cfg: Config, out_dir: Path,
+            wall_start: float) -> RunResult:
+    """Trajectories, metrics, APE and files of a SLAM run (a log's or a scan folder's)."""
     est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, method)
     online = _to_base(out.stamps, out.online_poses if out.online_poses is not None else out.poses,
                       inputs.base_to_sensor, f"{method} online")
@@ -160,7 +200,10 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     if inputs.ground_truth is not None:
         _add_ape(result, inputs.ground_truth, est, online, method, cfg, float(out.stamps[0]))
     else:
-        result.warnings.append(f"no ground truth: APE not computed ({ground_truth_hint(log_path)})")
+        where = Path(result.log_path)
+        hint = ("put a ground_truth.tum (TUM) in the scan folder" if "input" in result.extra
+                else ground_truth_hint(where))
+        result.warnings.append(f"no ground truth: APE not computed ({hint})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
@@ -586,6 +629,7 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     slam.gps.enabled, --topic: io.roles.lidar), which are then the one source of truth; `window`
     limits the sweeps read (recorded in each result's extra and warnings)."""
     from mrnc_eval.errors import SomeInputsFailed
+    from mrnc_eval.io.scan_folder import is_scan_folder
 
     cfg = with_method(cfg, method)
     if topic is not None:
@@ -607,7 +651,10 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     for path in logs:
         run_dir = new_run_dir(out, log_id_for(path), f"slam-{cfg.slam.method}")
         try:
-            r = run_log(path, cfg, run_dir, progress=True, window=window)
+            if is_scan_folder(path):  # kiss-icp's habit: a folder of .bin/.pcd scans with timestamps.txt
+                r = run_scan_folder(path, cfg, run_dir, window=window)
+            else:
+                r = run_log(path, cfg, run_dir, progress=True, window=window)
         except InputError as err:
             if len(logs) == 1:
                 raise
