@@ -599,9 +599,12 @@ def _decimate(t: np.ndarray, max_points: int = 20000) -> int:
 CONTROL_OUTPUT_BYTES = 50_000_000  # free space asked for before a run: result.json, series.npz
 
 
-def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out: Path, json_out: bool,
+def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str | None, out: Path, json_out: bool,
          runs: int | None = None, seed: int | None = None, path_file: Path | None = None) -> None:
-    names = parse_controllers(controllers)
+    if controllers is not None and mode == "replay":  # refused, not silently ignored
+        raise UsageError("--controllers chooses the controllers of --mode simulate and sweep; a replay evaluates "
+                         "the recorded run (the deployed controller)")
+    names = parse_controllers(controllers) if controllers is not None else CONTROLLERS
     if path_file is not None and mode != "replay":
         raise UsageError("--path supplies the path of a replay (--mode replay)")
     if log_path is not None and split_log_paths(log_path) is None and not log_path.exists():  # split: open_log checks
@@ -717,6 +720,16 @@ def print_summary(result: RunResult, run_dir: Path) -> None:
     console.print(f"results: {escape(str(run_dir))}")
 
 
+def _replay_cell(value: float | int | None) -> float | int | str | None:
+    """A replay metric as the legend reads it: infinity (a time that never came) "not settled",
+    NaN (nothing to measure) an empty cell."""
+    if isinstance(value, float) and math.isinf(value):
+        return "not settled"
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    return value
+
+
 def _replay_table(result: RunResult) -> Table:
     """Recorded tracking, one column per side plus the path (when it followed one)."""
     groups = ["left", "right", "path"]
@@ -728,5 +741,6 @@ def _replay_table(result: RunResult) -> Table:
     groups = [g for g in groups if any(m.group.endswith(f"/{g}") for m in result.metrics)]
     return Table(title=title, column_labels=groups,
                  row_labels=[f"{n} ({UNITS[n]})" if UNITS.get(n) else n for n in rows],
-                 cells=[[by[(g, n)].value if (g, n) in by else None for g in groups] for n in rows], best=None,
+                 cells=[[_replay_cell(by[(g, n)].value) if (g, n) in by else None for g in groups] for n in rows],
+                 best=None,
                  precision=4, notes=list(result.extra.get("definitions", [])))

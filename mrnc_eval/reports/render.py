@@ -225,7 +225,8 @@ def _replay_table(r: RunResult) -> Table:
     by: dict[tuple[str, str], Metric] = {(m.group, m.name): m for m in r.metrics}
     rows = [(label, name) for label, name in CONTROL_ROWS if any((g, name) in by for g in groups)]
     values = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
-    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row]
+    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c)  # as the legend says
+                                 else None if isinstance(c, float) and math.isnan(c) else c) for c in row]
                                for row in values]
     what = " (wheel-speed tracking, no path)" if r.extra.get("replay") == "wheel_speed" else ""
     return Table(f"Table II layout: control performance of the recorded run{what}", [label for label, _ in rows],
