@@ -115,3 +115,16 @@ def test_config_differences_list_only_keys_away_from_the_defaults() -> None:
     changed = replace_path(replace_path(Config(), "slam.loop.enabled", False), "slam.mapping_interval_s", 0.3)
     assert config_differences(dump_config(changed)) == [("slam.loop.enabled", "False", "True"),
                                                         ("slam.mapping_interval_s", "0.3", "0.15")]
+
+
+def test_trend_titles_name_metrics_with_units() -> None:
+    from mrnc_eval.reports.night import metric_label, render_trends
+
+    assert metric_label("slam/ape/ape_rmse_m") == "APE RMSE, smoothed (m)"
+    assert metric_label("control/recorded/left/rms_error_mps") == "RMS error (m/s), recorded left"
+    assert metric_label("slam/timing/ms_per_sweep_matching") == "matching time per sweep (ms)"
+    assert metric_label("slam/mapping_rate_hz") == "mapping rate (Hz)"
+    page = render_trends(["2026-11-01", "2026-11-02"], {"slam/ape/ape_rmse_m": {"a": {"2026-11-01": 0.1,
+                                                                                     "2026-11-02": 0.2}}},
+                         {}, 5, 0.2)
+    assert "<figcaption>APE RMSE, smoothed (m) <code>slam/ape/ape_rmse_m</code></figcaption>" in page
