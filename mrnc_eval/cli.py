@@ -34,7 +34,7 @@ app = typer.Typer(
     "Global options (--debug, -v, -q) may also follow the verb.",
     cls=PlainGroup,
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,  # --install-completion, --show-completion (bash, zsh, fish, PowerShell)
     pretty_exceptions_enable=False,
     rich_markup_mode="rich",  # markdown would eat <run>, <date>, <seq>/<method> as HTML tags
     context_settings={"help_option_names": ["-h", "--help"]},
