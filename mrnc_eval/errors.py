@@ -83,6 +83,13 @@ class GateFailed(MrncError):
     exit_code = 1
 
 
+class MissingExtra(UsageError):
+    """A verb needs an optional part of the installation that is not installed (the message
+    names the extra: pip install 'mrnc-eval[slam]')."""
+
+    exit_code = 2
+
+
 class Interrupted(BaseException):
     """Ctrl-C (SIGINT), raised by cli.main's handler. A BaseException like KeyboardInterrupt, so
     no `except Exception` counts it as one more failed log, and not KeyboardInterrupt itself,

@@ -56,21 +56,23 @@ def decimate(*arrays: np.ndarray) -> list[np.ndarray]:
 def draw_error_path(fig, ax, ref_xyz: np.ndarray, est_xyz: np.ndarray, err: np.ndarray, *, unit: str = "m",
                     est_label: str = "estimate (SE(3) aligned)", ref_label: str = "ground truth",
                     title: str = "Trajectory in the plane, coloured by APE",
-                    overlays: list[tuple[np.ndarray, str, str]] | None = None, legend_below: bool = False) -> None:
-    """The estimate's path in the x-y plane coloured by its error, the reference dashed beside
-    it, `overlays` as plain lines (decimated for drawing). One implementation for SLAM reports
-    and `ape --plot` (`legend_below`: the legend under the axes, where it covers no path and
-    the constrained layout makes room for it)."""
+                    overlays: list[tuple[np.ndarray, str, str]] | None = None, axes: str = "xy",
+                    legend_below: bool = False) -> None:
+    """The estimate's path in the plane of `axes` (two of x, y, z: evo's --plot_mode) coloured
+    by its error, the reference dashed beside it, `overlays` as plain lines (decimated for
+    drawing). One implementation for SLAM reports and `ape --plot` (`legend_below`: the legend
+    under the axes, where it covers no path and the constrained layout makes room for it)."""
+    a, b = ("xyz".index(axes[0]), "xyz".index(axes[1]))
     ref, est, e = decimate(ref_xyz, est_xyz, err)
-    ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=1.0, ls="--", label=ref_label)
+    ax.plot(ref[:, a], ref[:, b], color="0.55", lw=1.0, ls="--", label=ref_label)
     for xyz, label, colour in overlays or ():  # further paths as lines (e.g. the online estimate)
         line, = decimate(xyz)
-        ax.plot(line[:, 0], line[:, 1], color=colour, lw=0.8, label=label)
-    sc = ax.scatter(est[:, 0], est[:, 1], c=e, s=6, cmap="viridis", label=est_label)
-    ax.plot(est[:1, 0], est[:1, 1], "k^", ms=7, label="start")
+        ax.plot(line[:, a], line[:, b], color=colour, lw=0.8, label=label)
+    sc = ax.scatter(est[:, a], est[:, b], c=e, s=6, cmap="viridis", label=est_label)
+    ax.plot(est[:1, a], est[:1, b], "k^", ms=7, label="start")
     fig.colorbar(sc, ax=ax, label=f"APE ({unit})" if unit else "APE")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set(xlabel="x (m)", ylabel="y (m)", title=title)
+    ax.set(xlabel=f"{axes[0]} (m)", ylabel=f"{axes[1]} (m)", title=title)
     if legend_below:
         ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize="small", ncols=3, frameon=False)
     else:
@@ -103,7 +105,7 @@ def wrapped(text: str, width_in: float) -> str:
     return "\n".join(lines) or text
 
 
-def ape_path_figure(results, title: str):
+def ape_path_figure(results, title: str, plot_axes: str = "xy"):
     """`ape --plot`: one panel per estimate (its aligned path coloured by its APE, the reference
     dashed), titled with its label, wrapped to the panel's width; legends under the panels; two
     panels per row. Nothing overlaps or leaves the figure (tests/evaluation: text boxes)."""
@@ -118,7 +120,7 @@ def ape_path_figure(results, title: str):
         r = results[k]
         draw_error_path(fig, ax, r.ref_xyz, r.est_xyz, r.errors, unit=r.unit,
                         est_label=f"estimate ({r.alignment.mode} aligned)", ref_label="reference",
-                        title=wrapped(r.name, panel_w - 1.6), legend_below=True)
+                        title=wrapped(r.name, panel_w - 1.6), legend_below=True, axes=plot_axes)
     fig.suptitle(wrapped(title, panel_w * cols - 0.5))
     return fig
 

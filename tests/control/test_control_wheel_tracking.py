@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 from mrnc_eval.cli import main
-from mrnc_eval.commands.control import evaluate_trace, run_log
+from mrnc_eval.commands.control import run_log
 from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.scenario import Scenario, scripted_scenario
 from mrnc_eval.data import Trajectory, Twists, Waypoints
+from mrnc_eval.evaluation.control_run import evaluate_trace
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
 from mrnc_eval.results import RunResult
@@ -85,7 +86,7 @@ def test_without_a_path_the_replay_tracks_wheel_speeds_against_cmd_vel(run, tmp_
     # the references are the simulator's own: the same IK of the same commands, the same slew (the
     # replay steps the slew at 50 Hz, the simulation at 1 kHz: apart by at most one 20 ms step of it)
     slew_step = cfg.control.kinematics.reference_accel_limit_mps2 * 0.02
-    sim = evaluate_trace(tr, cfg)
+    sim = evaluate_trace(tr, cfg.control)
     got = _metrics(result)
     for side in SIDES:
         v_ref = result.series[f"recorded_{side}_v_ref"]
@@ -235,7 +236,7 @@ def test_csv_waypoints_with_or_without_a_header(tmp_path: Path) -> None:
 def test_replay_refuses_controllers_and_prints_not_settled(capsys: pytest.CaptureFixture[str],
                                                           tmp_path: Path) -> None:
     from mrnc_eval.cli import main as cli_main
-    from mrnc_eval.commands.control import _replay_cell
+    from mrnc_eval.reports.control_tables import replay_cell as _replay_cell
 
     assert cli_main(["control", str(tmp_path / "any.mcap"), "--mode", "replay", "--controllers", "pid"]) == 2
     assert "--controllers chooses the controllers of --mode simulate and sweep" in capsys.readouterr().err

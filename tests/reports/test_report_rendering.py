@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from mrnc_eval.cli import main
+from mrnc_eval.outputs import MANIFEST
 
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync"]
@@ -161,7 +162,10 @@ def test_tables_exported_and_report_verb_rerenders_without_recomputing(night: Pa
     assert main(["report", str(tmp_path / "missing")]) == 4
 
 
-def test_pdf_falls_back_to_matplotlib_and_says_so(tmp_path: Path, monkeypatch) -> None:
+def test_pdf_without_weasyprint_is_an_error_naming_the_extra(tmp_path: Path, monkeypatch) -> None:
+    """No placeholder PDF: `report --pdf` without a PDF engine exits 2 naming the pdf extra and writes
+    nothing; without --pdf the same report is written."""
+    from mrnc_eval.errors import MissingExtra
     from mrnc_eval.reports.render import write_pdf
 
     real_import = builtins.__import__
@@ -172,12 +176,9 @@ def test_pdf_falls_back_to_matplotlib_and_says_so(tmp_path: Path, monkeypatch) -
         return real_import(name, *args, **kwargs)
 
     monkeypatch.setattr(builtins, "__import__", no_weasyprint)
-    assert write_pdf("<html><body>x</body></html>", tmp_path / "r.pdf") == "fallback"
-    if shutil.which("pdftotext"):
-        text = subprocess.run(["pdftotext", str(tmp_path / "r.pdf"), "-"], capture_output=True, text=True).stdout
-        assert "FALLBACK PDF" in text
-        assert "libpango" in text
-    assert [p.name for p in tmp_path.iterdir()] == ["r.pdf"]
+    with pytest.raises(MissingExtra, match="Pango"):
+        write_pdf("<html><body>x</body></html>", tmp_path / "r.pdf")
+    assert [p.name for p in tmp_path.iterdir() if p.name != MANIFEST] == []  # nothing written
 
 
 def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_path: Path) -> None:
