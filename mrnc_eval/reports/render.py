@@ -264,7 +264,7 @@ class ConfigDiff:
 
 
 def config_differences(config_text: str) -> list[tuple[str, str, str]]:
-    """(key, value, default) of every key a config.yaml sets away from mrnc-eval's defaults."""
+    """(key, value, default) of every key a config.yaml sets away from this mrnc-eval's defaults."""
     from mrnc_eval.config import Config, as_dict, load_yaml
     from mrnc_eval.reports.compare import flatten
 
@@ -277,9 +277,10 @@ def config_differences(config_text: str) -> list[tuple[str, str, str]]:
     def shown(v: Any) -> str:
         return "(not set)" if v is _UNSET else str(list(v) if isinstance(v, tuple) else v)
 
-    return [(k, shown(given.get(k, _UNSET)), shown(defaults.get(k, _UNSET)))
-            for k in sorted(set(given) | set(defaults))
-            if _comparable(given.get(k, _UNSET)) != _comparable(defaults.get(k, _UNSET))]
+    # keys of the file only: a key the file lacks was added to mrnc-eval after the run (its default
+    # did not exist then), not set by anyone; a key today's defaults lack shows "(not set)" as default
+    return [(k, shown(given[k]), shown(defaults.get(k, _UNSET))) for k in sorted(given)
+            if _comparable(given[k]) != _comparable(defaults.get(k, _UNSET))]
 
 
 _UNSET = object()

@@ -118,6 +118,8 @@ def test_config_differences_list_only_keys_away_from_the_defaults() -> None:
     changed = replace_path(replace_path(Config(), "slam.loop.enabled", False), "slam.mapping_interval_s", 0.3)
     assert config_differences(dump_config(changed)) == [("slam.loop.enabled", "False", "True"),
                                                         ("slam.mapping_interval_s", "0.3", "0.15")]
+    older = "slam:\n  loop:\n    enabled: false\n"  # a config.yaml of a release before most keys existed
+    assert config_differences(older) == [("slam.loop.enabled", "False", "True")]
 
 
 def test_trend_titles_name_metrics_with_units() -> None:
