@@ -200,9 +200,12 @@ def _decimate(t: np.ndarray, max_points: int = 20000) -> int:
 CONTROL_OUTPUT_BYTES = 50_000_000  # free space asked for before a run: result.json, series.npz
 
 
-def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out: Path, json_out: bool,
+def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str | None, out: Path, json_out: bool,
          runs: int | None = None, seed: int | None = None, path_file: Path | None = None) -> None:
-    names = parse_controllers(controllers)
+    if controllers is not None and mode == "replay":  # refused, not silently ignored
+        raise UsageError("--controllers chooses the controllers of --mode simulate and sweep; a replay evaluates "
+                         "the recorded run (the deployed controller)")
+    names = parse_controllers(controllers) if controllers is not None else CONTROLLERS
     if path_file is not None and mode != "replay":
         raise UsageError("--path supplies the path of a replay (--mode replay)")
     if log_path is not None and split_log_paths(log_path) is None and not log_path.exists():  # split: open_log checks

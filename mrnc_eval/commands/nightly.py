@@ -71,6 +71,23 @@ def discover_logs(root: Path, since: dt.date | None = None) -> list[Path]:
     return sorted(found)
 
 
+def hidden_logs(root: Path) -> list[str]:
+    """Logs (by suffix or metadata.yaml) that discovery skipped because a part of their path
+    starts with '.', relative to `root`: said, so an empty night is not a mystery."""
+    if not root.is_dir():
+        return []
+    found = set()
+    for p in root.rglob("*"):
+        rel = p.relative_to(root)
+        if not any(part.startswith(".") for part in rel.parts):
+            continue
+        if p.name == "metadata.yaml":
+            found.add(str(rel.parent))
+        elif p.suffix in LOG_SUFFIXES and p.is_file():
+            found.add(str(rel))
+    return sorted(found)
+
+
 def _unique_ids(logs: list[Path], root: Path) -> dict[Path, str]:
     """Stable log ids from the path relative to LOG_DIR (nested/run.mcap -> nested_run; a slug
     plus a hash of the path for names that are not plain ASCII), so a log keeps its id across
@@ -107,8 +124,15 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     concurrency = 0 if scheduler else max(1, jobs)
     since_date = _since(since)
     logs = discover_logs(log_dir, since_date)
+    hidden = hidden_logs(log_dir)
     if not logs and since_date is None:  # a wrong folder, not a quiet night
-        raise InputError(log_dir, "no logs found (.mcap, .db3 or .bag files, ROS 2 bag folders)")
+        raise InputError(log_dir, "no logs found (.mcap, .db3 or .bag files, ROS 2 bag folders)" + (
+            f"; {len(hidden)} hidden entr{'y' if len(hidden) == 1 else 'ies'} skipped ({', '.join(hidden[:3])}"
+            f"{', ...' if len(hidden) > 3 else ''}: a name starting with '.' is a recorder's partial write; "
+            "rename it to process it)" if hidden else ""))
+    if hidden:
+        log.warning("%s: %d hidden log(s) skipped (names starting with '.'): %s", log_dir, len(hidden),
+                    ", ".join(hidden[:5]))
     check_output_root(out, need_bytes=NIGHTLY_OUTPUT_BYTES * max(1, len(logs)))
     skipped = unreadable_folders(log_dir)
     for folder in skipped:

@@ -232,7 +232,8 @@ def _replay_table(r: RunResult) -> Table:
     by: dict[tuple[str, str], Metric] = {(m.group, m.name): m for m in r.metrics}
     rows = [(label, name) for label, name in CONTROL_ROWS if any((g, name) in by for g in groups)]
     values = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
-    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row]
+    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c)  # as the legend says
+                                 else None if isinstance(c, float) and math.isnan(c) else c) for c in row]
                                for row in values]
     what = " (wheel-speed tracking, no path)" if r.extra.get(C.REPLAY) == "wheel_speed" else ""
     return Table(f"Table II layout: control performance of the recorded run{what}", [label for label, _ in rows],
@@ -266,7 +267,7 @@ class ConfigDiff:
 
 
 def config_differences(config_text: str) -> list[tuple[str, str, str]]:
-    """(key, value, default) of every key a config.yaml sets away from mrnc-eval's defaults."""
+    """(key, value, default) of every key a config.yaml sets away from this mrnc-eval's defaults."""
     from mrnc_eval.config import Config, as_dict, load_yaml
     from mrnc_eval.reports.compare import flatten
 
@@ -279,9 +280,10 @@ def config_differences(config_text: str) -> list[tuple[str, str, str]]:
     def shown(v: Any) -> str:
         return "(not set)" if v is _UNSET else str(list(v) if isinstance(v, tuple) else v)
 
-    return [(k, shown(given.get(k, _UNSET)), shown(defaults.get(k, _UNSET)))
-            for k in sorted(set(given) | set(defaults))
-            if _comparable(given.get(k, _UNSET)) != _comparable(defaults.get(k, _UNSET))]
+    # keys of the file only: a key the file lacks was added to mrnc-eval after the run (its default
+    # did not exist then), not set by anyone; a key today's defaults lack shows "(not set)" as default
+    return [(k, shown(given[k]), shown(defaults.get(k, _UNSET))) for k in sorted(given)
+            if _comparable(given[k]) != _comparable(defaults.get(k, _UNSET))]
 
 
 _UNSET = object()
