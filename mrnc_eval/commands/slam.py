@@ -210,7 +210,7 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
     _add_map_quality(result, out, cfg)
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
-    log.info("%s: %d of %d sweeps mapped in %.2f s, %d keyframes -> %s", log_path, out.stamps.size, out.n_sweeps,
+    log.info("%s: %d of %d sweeps mapped in %.2f s, %d keyframes -> %s", result.log_path, out.stamps.size, out.n_sweeps,
              out.wall_s, out.kf_stamps.size, out_dir)
     for stage, ms in out.timing_ms.items():
         log.debug("stage %s: %.2f ms per sweep over %d sweeps", stage, float(np.mean(ms)) if ms else 0.0, len(ms))
