@@ -16,6 +16,7 @@ from numpy.typing import NDArray
 from mrnc_eval.data import Trajectory
 from mrnc_eval.evaluation.align import (
     Alignment,
+    _kernels,
     align_positions,
     align_rotations,
     check_plane,
@@ -164,6 +165,10 @@ def aligned_distances(pair: AlignedPair) -> NDArray[np.float64]:
         return _distances(pair.est_xyz, pair.ref_xyz)
     p, q = pair.est.positions, pair.ref.positions
     out = np.empty(p.shape[0])
+    a = pair.alignment
+    if _kernels is not None and a.mode is not AlignMode.none:  # one pass in C, the same arithmetic
+        _kernels.aligned_distances(p, q, out, tuple(a.rotation.ravel()), tuple(a.translation), float(a.scale))
+        return out
     for k in range(0, out.size, ANGLE_BLOCK):
         out[k:k + ANGLE_BLOCK] = _distances(align_positions(p[k:k + ANGLE_BLOCK], pair.alignment),
                                             q[k:k + ANGLE_BLOCK])
