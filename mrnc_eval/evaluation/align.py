@@ -8,6 +8,7 @@ gravity-aligned or GNSS references). `n_to_align` uses the first N matched poses
 from __future__ import annotations
 
 from dataclasses import dataclass
+from types import ModuleType
 
 import numpy as np
 from numpy.typing import NDArray
@@ -18,6 +19,7 @@ from mrnc_eval.evaluation import sync
 from mrnc_eval.evaluation.modes import AlignMode, parse_choice
 from mrnc_eval.geometry import lie
 
+_kernels: ModuleType | None
 try:  # the one-pass C loops (evaluation/_kernels.c, built by setup.py); numpy below gives the same bits
     from mrnc_eval.evaluation import _kernels
 except ImportError:  # pragma: no cover - a build without a C compiler

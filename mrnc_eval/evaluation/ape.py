@@ -16,7 +16,6 @@ from numpy.typing import NDArray
 from mrnc_eval.data import Trajectory
 from mrnc_eval.evaluation.align import (
     Alignment,
-    _kernels,
     align_positions,
     align_rotations,
     check_plane,
@@ -24,6 +23,7 @@ from mrnc_eval.evaluation.align import (
     project_positions,
     project_rotations,
 )
+from mrnc_eval.evaluation.align import _kernels as _kernels
 from mrnc_eval.evaluation.decompose import Decomposition, decompose
 from mrnc_eval.evaluation.modes import AlignMode, Relation, SyncMethod
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
