@@ -66,7 +66,7 @@ def _timed(cmd: list[str], home: Path) -> tuple[float, float, float, str]:
 def ours(ref: Path, est: Path, relation: str, home: Path) -> tuple[float, float, float, float]:
     wall, cpu, rss, out = _timed([sys.executable, "-m", "mrnc_eval", "ape", str(ref), str(est), "--align", "se3",
                                   "--relation", relation, "--json"], home)
-    return wall, cpu, rss, float(json.loads(out)[0]["rmse"])
+    return wall, cpu, rss, float(json.loads(out)["results"][0]["stats"]["rmse"])
 
 
 def evo(ref: Path, est: Path, relation: str, home: Path) -> tuple[float, float, float, float]:

@@ -57,9 +57,10 @@ def read_log(path: str | Path, cfg: Config | None = None) -> LogReader:
 
 def read_trajectory(spec: TrajectoryLike) -> Trajectory:
     """A trajectory from a TUM/KITTI/EuRoC file or a `log.mcap:/topic` spec (as `mrnc-eval ape` reads)."""
+    from mrnc_eval.io.trajectory_files import check_trajectory
     from mrnc_eval.io.trajectory_files import read_trajectory as read
 
-    return spec if isinstance(spec, Trajectory) else read(spec)
+    return check_trajectory(spec) if isinstance(spec, Trajectory) else read(spec)
 
 
 def ape(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> ApeResult:
@@ -79,23 +80,28 @@ def rpe(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> RpeResult:
 
 
 def run_slam(log: str | Path, out_dir: str | Path, *, method: str = "lio", cfg: Config | None = None,
-             overrides: Sequence[str] = ()) -> RunResult:
-    """The SLAM replay of `mrnc-eval slam` on one log; writes its result directory to `out_dir`."""
+             overrides: Sequence[str] = (), force: bool = False) -> RunResult:
+    """The SLAM replay of `mrnc-eval slam` on one log; writes its result directory to `out_dir`
+    (an existing result there is replaced only with force=True; anything else never)."""
     from mrnc_eval.commands.slam import run_log
+    from mrnc_eval.results import claim_run_dir
 
+    claim_run_dir(out_dir, force=force)  # before the work
     return run_log(Path(log), _cfg(cfg, overrides), Path(out_dir), method=method)
 
 
 def run_control(log: str | Path | None, out_dir: str | Path, *, mode: str = "replay",
                 controllers: Sequence[str] | None = None, cfg: Config | None = None,
-                overrides: Sequence[str] = (), path: str | Path | None = None) -> RunResult:
+                overrides: Sequence[str] = (), path: str | Path | None = None, force: bool = False) -> RunResult:
     """The control evaluation of `mrnc-eval control` (mode "replay" or "simulate"; log None with
     "simulate": the paper's circle); writes its result directory to `out_dir`. `path`: a TUM or
     CSV waypoint file replacing the log's path topic (`--path`)."""
     from mrnc_eval.commands.control import run_log
     from mrnc_eval.control.controllers import CONTROLLERS
     from mrnc_eval.io.waypoint_files import read_waypoints
+    from mrnc_eval.results import claim_run_dir
 
+    claim_run_dir(out_dir, force=force)  # before the work
     waypoints = read_waypoints(path) if path is not None else None
     return run_log(None if log is None else Path(log), _cfg(cfg, overrides), Path(out_dir), mode=mode,
                    controllers=tuple(controllers) if controllers else CONTROLLERS, path=waypoints,

@@ -21,7 +21,7 @@ from mrnc_eval.cli_fast import fast_command
 from mrnc_eval.cli_help import PlainGroup
 from mrnc_eval.errors import MrncError, UsageError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
-from mrnc_eval.text import printable
+from mrnc_eval.text import install_log_format, printable
 
 __all__ = ["app", "main", "printable"]
 
@@ -57,6 +57,8 @@ DumpOpt = Annotated[
     bool, typer.Option("--dump-config", help="Print the effective configuration as YAML and exit.")
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON to stdout.")]
+ForceOpt = Annotated[bool, typer.Option(
+    "--force", help="Replace an existing output file, only one this tool wrote (never an input).")]
 JunitOpt = Annotated[Path | None, typer.Option(
     help="Also write the metric gates as JUnit XML (one test case per gate per log) for CI.")]
 
@@ -100,7 +102,7 @@ def _main(
 ) -> None:
     chatty = (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose + (1 if debug else 0), 2)]
     level = logging.ERROR if quiet else chatty
-    logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s", force=True)
+    install_log_format(level, sys.stderr)  # every message escaped (text.PrintableFormatter)
     _state["debug"] = debug
 
 
@@ -138,7 +140,8 @@ def info(
     if json_out:
         from mrnc_eval.commands.output import emit_json
 
-        emit_json(summary.to_json())
+        emit_json("info", [summary.json_item()], warnings=[f"{f.topic}: {f.message}" if f.topic else f.message
+                                                           for f in summary.findings if f.level != "ok"])
     else:
         info_command.print_summary(summary)
 
@@ -266,13 +269,14 @@ def ape(
     max_gap: MaxGapOpt = 0.2,
     decompose: Annotated[bool, typer.Option(
         "--decompose", help="Also along-track, cross-track, vertical (m) and yaw (deg) error statistics.")] = False,
+    force: ForceOpt = False,
 ) -> None:
     """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
         ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
         offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict, sync=sync,
-        max_gap=max_gap, decompose=decompose,
+        max_gap=max_gap, decompose=decompose, force=force,
     )
 
 
@@ -301,6 +305,7 @@ def rpe(
     drift: Annotated[bool, typer.Option(
         "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, "
         "scaled to short logs).")] = False,
+    force: ForceOpt = False,
 ) -> None:
     """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
@@ -309,7 +314,7 @@ def rpe(
         n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=_plain(plane),
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
-        strict=strict, sync=sync, max_gap=max_gap,
+        strict=strict, sync=sync, max_gap=max_gap, force=force,
     )
 
 
@@ -334,6 +339,7 @@ def table(
              "(sets evaluation.failed_min_span_fraction).")] = None,
     min_matches: Annotated[int | None, typer.Option(
         help="Fewer matched poses than this is Failed (sets evaluation.failed_min_matches).")] = None,
+    force: ForceOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
@@ -348,7 +354,7 @@ def table(
     cfg = _config(config, [*(set_ or []), *(f"{k}={v}" for k, v in shorthands.items() if v is not None)],
                   dump_config)
     from mrnc_eval.commands import table as table_command
-    table_command.main(source, cfg, out=out, align=align, json_out=json_out)
+    table_command.main(source, cfg, out=out, align=align, json_out=json_out, force=force)
 
 
 @app.command()
@@ -361,10 +367,11 @@ def report(
     out: Annotated[Path | None, typer.Option(help="Output directory (default: next to each result).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
     junit: JunitOpt = None,
+    force: ForceOpt = False,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
     from mrnc_eval.commands import report as report_command
-    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit)
+    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit, force=force)
 
 
 @app.command()
@@ -402,7 +409,8 @@ def export(
     mcap: Annotated[Path, typer.Option(help="Output .mcap file (Foxglove / Lichtblick, JSON + Foxglove schemas).")],
     with_log: Annotated[bool, typer.Option("--with-log", help="Also copy the original log's sensor topics, raw.")]
     = False,
-    force: Annotated[bool, typer.Option("--force", help="Replace an existing output file.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing output file, only an export this "
+                                        "tool wrote (never the log or ground truth a run read).")] = False,
 ) -> None:
     """Write one MCAP on the original log's timeline: trajectories and ground truth as poses, the
     APE (m) over time, the map (downsampled), the keyframe graph with loop closures, control
@@ -432,15 +440,16 @@ def compare(
     out: Annotated[Path | None, typer.Option(help="Write the tables to a .md or .html file instead.")] = None,
     changed_only: Annotated[bool, typer.Option("--changed-only", help="Leave out metrics that did not change.")]
     = False,
+    force: ForceOpt = False,
 ) -> None:
     """The same metrics of two runs (or two nights) side by side with B - A and the relative change,
     and the configuration keys that differ."""
     from mrnc_eval.commands import compare as compare_command
     compare_command.main(runs or [], history=history, nights=nights, log_id=log_id, fmt=fmt.value, out=out,
-                         only_changed=changed_only)
+                         only_changed=changed_only, force=force)
 
 
-# choices of `simulate` (a test checks they match sim.scene.SCENES, sim.recorder.PATHS and LIDAR_MODELS)
+# choices of `simulate` (a test checks they match sim.scene.SCENES, recording.recorder.PATHS and LIDAR_MODELS)
 class Scene(StrEnum):
     yard = "yard"
     forest = "forest"

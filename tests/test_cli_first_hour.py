@@ -69,7 +69,7 @@ def test_choices_are_listed(verb: str, listed: str, capsys: pytest.CaptureFixtur
 
 def test_cli_choices_match_what_the_commands_accept() -> None:
     from mrnc_eval.commands.slam import METHODS
-    from mrnc_eval.sim.recorder import LIDAR_MODELS, PATHS
+    from mrnc_eval.recording.recorder import LIDAR_MODELS, PATHS
     from mrnc_eval.sim.scene import SCENES
 
     assert tuple(cli.SlamMethod) == METHODS

@@ -3,15 +3,13 @@ topics) as one MCAP file for Foxglove / Lichtblick, on the original log's timeli
 
 Reads result directories only (never recomputes a metric); the log itself is read for the
 ground truth, the time origin of a control replay and `--with-log`. The file is written under
-a temporary name beside OUT and renamed into place when complete; an existing OUT is only
-replaced with `--force`."""
+a temporary name beside OUT and renamed into place when complete; an existing OUT follows the
+one overwrite rule (mrnc_eval/outputs.py): refused, `--force` replaces only an export this tool
+wrote, never the log or ground truth a run read."""
 
 from __future__ import annotations
 
-import contextlib
-import os
 import sys
-import tempfile
 from collections import Counter
 from dataclasses import dataclass, field
 from pathlib import Path
@@ -23,7 +21,8 @@ from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, UsageError
 from mrnc_eval.export import topics
 from mrnc_eval.export.mcap_file import JsonMcap, stamp_ns
-from mrnc_eval.results import RunResult, follow_umask, read_result
+from mrnc_eval.outputs import claim_output, output_file
+from mrnc_eval.results import RunResult, read_result
 from mrnc_eval.text import printable
 
 
@@ -141,15 +140,27 @@ def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContex
         topics.write_ground_truth(out, ctx.ground_truth)
 
 
+def run_inputs(runs: list[tuple[Path, RunResult]]) -> list[Path]:
+    """What the runs read and hold: each log (file or ROS 2 bag folder), the ground truth beside
+    it, and the result folders themselves; an export never replaces any of them."""
+    from mrnc_eval.io.ground_truth import gt_tum_path
+
+    found: list[Path] = []
+    for run_dir, r in runs:
+        found.append(run_dir)
+        if r.log_path and r.log_path != "paper-scenario":
+            found += [Path(r.log_path), gt_tum_path(Path(r.log_path))]
+    return found
+
+
 def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False, force: bool = False
                 ) -> ExportSummary:
     """Write the MCAP; see the module docstring."""
     if out_path.suffix.lower() != ".mcap":
         raise UsageError(f"--mcap {out_path}: the file name must end in .mcap")
-    if out_path.exists() and not force:
-        raise UsageError(f"{out_path}: exists; pass --force to replace it")
     runs = load_runs(run_dirs)
-    summary = ExportSummary(out_path)
+    claim_output(out_path, force=force, inputs=run_inputs(runs))
+    summary = ExportSummary(path=out_path)
     log_path = next((Path(r.log_path) for _, r in runs if r.log_path != "paper-scenario"), None)
     ctx = None
     if log_path is not None and log_path.exists():
@@ -158,24 +169,15 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
         raise InputError(log_path or run_dirs[0], "--with-log: the original log is not at its recorded path")
     else:
         summary.warnings.append(f"log {log_path} not found: no ground truth, control time from 0")
-    out_path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{out_path.name}.", suffix=".tmp", dir=out_path.parent)
-    try:
-        with os.fdopen(fd, "wb") as fh:
-            out = JsonMcap(fh)
-            _write_all(out, runs, ctx, summary)
-            summary.counts.update(out.counts)
-            if with_log and ctx is not None:
-                from mrnc_eval.export.log_copy import copy_log
+    with output_file(out_path, force=force, inputs=run_inputs(runs)) as tmp, tmp.open("wb") as fh:
+        out = JsonMcap(fh)
+        _write_all(out, runs, ctx, summary)
+        summary.counts.update(out.counts)
+        if with_log and ctx is not None:
+            from mrnc_eval.export.log_copy import copy_log
 
-                summary.counts.update(copy_log(out.writer, ctx.path, topics.ROOT))
-            out.finish()
-        follow_umask(Path(tmp))  # mkstemp makes 0600; the export is an ordinary file
-        os.replace(tmp, out_path)
-    except BaseException:
-        with contextlib.suppress(OSError):
-            os.unlink(tmp)
-        raise
+            summary.counts.update(copy_log(out.writer, ctx.path, topics.ROOT))
+        out.finish()
     summary.size_bytes = out_path.stat().st_size
     return summary
 
@@ -183,7 +185,7 @@ def export_mcap(run_dirs: list[Path], out_path: Path, *, with_log: bool = False,
 def main(run_dirs: list[Path], *, mcap: Path, with_log: bool, force: bool) -> None:
     summary = export_mcap(run_dirs, mcap, with_log=with_log, force=force)
     for w in summary.warnings:
-        sys.stderr.write(f"warning: {w}\n")
+        sys.stderr.write(f"warning: {printable(w)}\n")
     total = sum(summary.counts.values())
     sys.stdout.write(f"{summary.path}: {summary.size_bytes / 1e6:.2f} MB, {total} messages on "
                      f"{len(summary.counts)} topics, map {summary.map_points} points\n")

@@ -175,7 +175,8 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
     plan = plan_night({ids[p]: stamps[p] for p in logs}, config_hash(cfg), history.last_runs(), night, night_dir,
                       force)
     config_yaml = dump_config(cfg)
-    todo = [LogJob(str(p), ids[p], config_yaml, str(night_dir / "logs" / ids[p]), pdf, analysis) for p in logs
+    todo = [LogJob(log_path=str(p), log_id=ids[p], config_yaml=config_yaml, out_dir=str(night_dir / "logs" / ids[p]),
+                   pdf=pdf, analysis=analysis) for p in logs
             if plan[ids[p]] != "unchanged"]
     log.info("night %s: %d logs, %d to process", night, len(logs), len(todo))
     by_path = {str(p): stamps[p] for p in logs}
@@ -183,7 +184,7 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
         task = bar.add_task(f"night {night}", total=len(todo)) if bar else None
         for summary in executor.run(todo):
             _record(history, night, summary, by_path.get(summary.log_path, ""), concurrency)
-            if bar:
+            if bar and task is not None:
                 bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
     rows = _write_index(history, night, night_dir)
     link_latest(night_dir)
@@ -192,7 +193,8 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
         from mrnc_eval.commands.junit import night_suites
         from mrnc_eval.reports.junit import write_junit
 
-        write_junit(junit, night_suites(rows, night_dir, cfg.gates), f"mrnc-eval nightly {night}")
+        # a recurring job: each night replaces the XML it wrote the night before (only that, outputs.py)
+        write_junit(junit, night_suites(rows, night_dir, cfg.gates), f"mrnc-eval nightly {night}", force=True)
     failed = [r for r in rows if r.status != "ok"]
     gate_fail = [r for r in rows if r.gates_failed]
     counts = {kind: sum(v == kind for v in plan.values()) for kind in ("new", "unchanged", "re-run")}

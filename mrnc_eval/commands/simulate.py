@@ -68,7 +68,7 @@ def main(out: str | Path, cfg: Config, *, scene: str, path: str, duration: float
     """The `simulate` verb: the format from OUT's name and --format (log_target), checked before
     any work; the log and its ground truth written atomically."""
     from mrnc_eval.commands.progress import progress_bar
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log, validate
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log, validate
 
     target, log_format = log_target(out, fmt)
     req = SimRequest(scene=scene, path=path, duration_s=duration, lidar=lidar, columns=columns, rate_hz=rate,

@@ -3,11 +3,11 @@
 from __future__ import annotations
 
 import logging
-import os
 import sys
+from collections.abc import Sequence
 from dataclasses import replace
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING, Any
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import UsageError
@@ -18,35 +18,54 @@ from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation
 from mrnc_eval.evaluation.relations import TITLES
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
 from mrnc_eval.io.trajectory_files import is_kitti_file, read_trajectory
+from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
-from mrnc_eval.results import atomic_write_text
 from mrnc_eval.tables import Cell as CellValue
 from mrnc_eval.tables import Table
 from mrnc_eval.text import printable
+
+if TYPE_CHECKING:
+    import numpy as np
+    from matplotlib.figure import Figure
+
+Results = Sequence[ApeResult] | Sequence[RpeResult]
 
 log = logging.getLogger(__name__)
 STAT_ORDER = ("rmse", "mean", "median", "std", "min", "max", "sse")
 PLOT_SUFFIXES = (".svg", ".png", ".pdf")
 
 
-def _results_table(results: list[ApeResult | RpeResult], title: str) -> Table:
+def _results_table(results: Results, title: str) -> Table:
     return Table(title=title, row_labels=[printable(r.name) for r in results],  # file names: one line each
                  column_labels=[*STAT_ORDER, "n", "span_s"],
                  cells=[[*(r.stats[k] for k in STAT_ORDER), r.n, round(r.span_s, 3)] for r in results],
                  unit=results[0].unit, best=None, precision=6)
 
 
-def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | None, drifts=None,
-          decompositions=None) -> None:
-    """Print (JSON or Markdown), then write the table and plot files; all computed before."""
-    from mrnc_eval.commands.output import emit_json
-
+def _claim_outputs(table: Path | None, plot: Path | None, specs: list[str], force: bool) -> list[Path]:
+    """Before any work: the suffixes, and the one overwrite rule for --table and --plot (never
+    one of the trajectories read). Returns the input files."""
     if table is not None and SUFFIX_FORMAT.get(table.suffix.lower()) is None:
         raise UsageError(f"--table {table}: use a .md, .tex, .csv or .html file")
     if plot is not None and plot.suffix.lower() not in PLOT_SUFFIXES:
         raise UsageError(f"--plot {plot}: use a {', '.join(PLOT_SUFFIXES)} file")
+    inputs = [Path(s.split(":/", 1)[0]) for s in specs]  # log.bag:/topic reads log.bag
+    for target in (table, plot):
+        if target is not None:
+            claim_output(target, force=force, inputs=inputs)
+    return inputs
+
+
+def _emit(results: Results, title: str, json_out: bool, table: Path | None, plot: Path | None,
+          drifts: list[DriftResult] | None = None, decompositions: list[Decomposition] | None = None,
+          force: bool = False, inputs: list[Path] | None = None) -> None:
+    """Print (JSON or Markdown), then write the table and plot files; all computed before."""
+    from mrnc_eval.commands.output import emit_json
+
+    inputs = inputs or []
     if json_out:
-        emit_json(_summaries(results, drifts, decompositions))
+        emit_json("ape" if isinstance(results[0], ApeResult) else "rpe", _summaries(results, drifts, decompositions),
+                  meta={"title": title})
     else:
         sys.stdout.write(render_table(_results_table(results, title), "markdown"))
         if drifts is not None:
@@ -55,16 +74,29 @@ def _emit(results, title: str, json_out: bool, table: Path | None, plot: Path | 
             sys.stdout.write("\n" + render_table(_decomposition_table([r.name for r in results], decompositions),
                                                  "markdown"))
     if table is not None:
-        atomic_write_text(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]))
-    if plot is not None and isinstance(results[0], ApeResult):
-        _save_figure(_path_figure(results, title), plot)
+        write_output(table, render_table(_results_table(results, title), SUFFIX_FORMAT[table.suffix.lower()]),
+                     force=force, inputs=inputs)
+    apes = [r for r in results if isinstance(r, ApeResult)]
+    if plot is not None and len(apes) == len(results):
+        _save_figure(_path_figure(apes, title), plot, force, inputs)
     elif plot is not None:
-        _save_figure(_error_figure(results, title), plot)
+        _save_figure(_error_figure(results, title), plot, force, inputs)
 
 
-def _summaries(results, drifts, decompositions) -> list[dict[str, Any]]:
-    summaries = [r.summary() for r in results]
-    for key, extra in (("drift", drifts), ("decomposition", decompositions)):
+def _summaries(results: Results, drifts: list[DriftResult] | None,
+               decompositions: list[Decomposition] | None) -> list[dict[str, Any]]:
+    """One `results` item per estimate: the statistics, n and span under `stats`, the matching
+    counts, drift and decomposition beside them (commands/output.py)."""
+    from mrnc_eval.commands.output import item, split_stats
+
+    summaries = []
+    for r in results:
+        flat = r.summary()
+        name = str(flat.pop("name"))
+        stats, rest = split_stats(flat)
+        summaries.append(item(name, stats, unit=r.unit, **rest))
+    extras: dict[str, Sequence[DriftResult | Decomposition] | None] = {"drift": drifts, "decomposition": decompositions}
+    for key, extra in extras.items():
         if extra is not None:
             for s, x in zip(summaries, extra, strict=True):
                 s[key] = x.summary()
@@ -86,7 +118,7 @@ def _decomposition_table(names: list[str], decs: list[Decomposition]) -> Table:
                  column_labels=list(STAT_ORDER[:-1]), cells=cells, best=None, precision=4)
 
 
-def _decimated_max(t, e, buckets: int = 10000):
+def _decimated_max(t: np.ndarray, e: np.ndarray, buckets: int = 10000) -> tuple[np.ndarray, np.ndarray]:
     """At most `buckets` points for a plot, each the largest error of its bucket, so peaks
     survive decimation (statistics always use every pose)."""
     import numpy as np
@@ -97,7 +129,7 @@ def _decimated_max(t, e, buckets: int = 10000):
     return t[starts], np.maximum.reduceat(e, starts)
 
 
-def _path_figure(results: list[ApeResult], title: str):
+def _path_figure(results: Sequence[ApeResult], title: str) -> Figure:
     """Each estimate's aligned path coloured by its APE, the reference dashed beside it (the
     SLAM report's figure); statistics use every pose, the drawing is decimated."""
     from mrnc_eval.reports.figures import draw_error_path, new_figure
@@ -110,7 +142,7 @@ def _path_figure(results: list[ApeResult], title: str):
     return fig
 
 
-def _error_figure(results, title: str):
+def _error_figure(results: Results, title: str) -> Figure:
     from matplotlib.figure import Figure
 
     fig = Figure(figsize=(8, 3.5), layout="constrained")
@@ -125,14 +157,9 @@ def _error_figure(results, title: str):
     return fig
 
 
-def _save_figure(fig, path: Path) -> None:
-    path.parent.mkdir(parents=True, exist_ok=True)
-    tmp = path.with_name(f".{path.name}.tmp{path.suffix}")  # atomic: no half-written plot
-    try:
-        fig.savefig(tmp)
-        os.replace(tmp, path)
-    finally:
-        tmp.unlink(missing_ok=True)
+def _save_figure(fig: Figure, path: Path, force: bool, inputs: list[Path]) -> None:
+    with output_file(path, force=force, inputs=inputs) as tmp:  # atomic: no half-written plot
+        fig.savefig(tmp, format=path.suffix.lower().lstrip("."))
 
 
 def _index_pairing(ref: str, est: str) -> bool:
@@ -211,7 +238,8 @@ def _warn_stamps(ref: str, est: list[str], results: list[ApeResult] | list[RpeRe
 def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | None, relation: Relation, max_diff: float,
              offset: str | float, plane: str | None, json_out: bool, table: Path | None, plot: Path | None,
              strict: bool = False, sync: SyncMethod = SyncMethod.nearest, max_gap: float = 0.2,
-             decompose: bool = False) -> None:
+             decompose: bool = False, force: bool = False) -> None:
+    inputs = _claim_outputs(table, plot, [ref, *est], force)
     reference, estimates = _load(ref, est)
     offsets = _offsets(reference, estimates, offset, align)
     results = [ape(reference, e, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
@@ -220,14 +248,15 @@ def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | No
     _warn_stamps(ref, est, results)
     decompositions = [r.decompose() for r in results] if decompose else None
     _emit(results, f"APE w.r.t. {TITLES[relation]} ({align} alignment)", json_out, table, plot,
-          decompositions=decompositions)
+          decompositions=decompositions, force=force, inputs=inputs)
 
 
 def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: DeltaUnit, all_pairs: bool, align: AlignMode,
              n_to_align: int | None, relation: Relation, max_diff: float, offset: str | float, plane: str | None,
              json_out: bool, table: Path | None, plot: Path | None, pairs_from: PairsFrom = PairsFrom.estimate,
              drift: bool = False, strict: bool = False, sync: SyncMethod = SyncMethod.nearest,
-             max_gap: float = 0.2) -> None:
+             max_gap: float = 0.2, force: bool = False) -> None:
+    inputs = _claim_outputs(table, plot, [ref, *est], force)
     reference, estimates = _load(ref, est)
     offsets = _offsets(reference, estimates, offset, align)
     results = [rpe(reference, e, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
@@ -243,7 +272,7 @@ def rpe_main(ref: str, est: list[str], *, delta: float, delta_unit: DeltaUnit, a
                   for (e, by_index), o in zip(estimates, offsets, strict=True)]
     title = (f"RPE w.r.t. {TITLES[relation]}, delta {delta:g} {delta_unit}"
              f"{', all pairs' if all_pairs else ''} (pairs from the {pairs_from})")
-    _emit(results, title, json_out, table, plot, drifts=drifts)
+    _emit(results, title, json_out, table, plot, drifts=drifts, force=force, inputs=inputs)
 
 
 def _drift_table(names: list[str], drifts: list[DriftResult]) -> Table:

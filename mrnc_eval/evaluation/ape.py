@@ -23,13 +23,13 @@ from mrnc_eval.evaluation.align import (
     project_positions,
     project_rotations,
 )
-from mrnc_eval.evaluation.align import _kernels as _kernels
 from mrnc_eval.evaluation.decompose import Decomposition, decompose
 from mrnc_eval.evaluation.modes import AlignMode, Relation, SyncMethod
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
 from mrnc_eval.evaluation.stats import error_stats
 from mrnc_eval.evaluation.sync import Matched, SyncOptions, match
 from mrnc_eval.geometry import lie
+from mrnc_eval.geometry.point_fit import _kernels as _kernels
 
 if TYPE_CHECKING:
     import pandas as pd

@@ -17,8 +17,9 @@ from pathlib import Path
 from typing import Literal
 
 from mrnc_eval.evaluation.config import GatesConfig
+from mrnc_eval.outputs import write_output
 from mrnc_eval.reports.render import Gate, evaluate_gates
-from mrnc_eval.results import RunResult, atomic_write_text
+from mrnc_eval.results import RunResult
 
 Status = Literal["pass", "fail", "skipped", "error"]
 _NOT_XML = re.compile("[^\u0009\u000a\u000d\u0020-\ud7ff\ue000-\ufffd\U00010000-\U0010ffff]")
@@ -105,6 +106,7 @@ def render_junit(suites: Sequence[LogSuite], name: str) -> str:
     return '<?xml version="1.0" encoding="UTF-8"?>\n' + ET.tostring(root, encoding="unicode") + "\n"
 
 
-def write_junit(path: Path, suites: Sequence[LogSuite], name: str) -> None:
-    """The suites as one JUnit XML file, written atomically."""
-    atomic_write_text(path, render_junit(suites, name))
+def write_junit(path: Path, suites: Sequence[LogSuite], name: str, *, force: bool = False) -> None:
+    """The suites as one JUnit XML file, written atomically under the one overwrite rule
+    (mrnc_eval/outputs.py)."""
+    write_output(path, render_junit(suites, name), force=force)

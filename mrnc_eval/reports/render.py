@@ -19,9 +19,11 @@ from markupsafe import Markup
 
 from mrnc_eval import __version__
 from mrnc_eval.evaluation.config import GatesConfig
+from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import is_number
-from mrnc_eval.results import Metric, RunResult, atomic_write_text, safe_name
+from mrnc_eval.results import Metric, RunResult, safe_name
 from mrnc_eval.tables import Cell, Table
+from mrnc_eval.text import printable
 
 TEMPLATES = Path(__file__).parent / "templates"
 MAX_EVENTS = 60  # rows of the events table; the rest is counted
@@ -80,15 +82,20 @@ def css() -> Markup:
 
 
 def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
-    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value)."""
-    def values(kind: str, name: str) -> list[float]:
-        return [m.value for r in results if r.kind == kind for m in r.metrics
-                if m.name == name and is_number(m.value) and (kind != "control" or m.group.split("/")[1:2] in
-                                                            [[d] for d in DEPLOYED])]
+    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value). A gate
+    whose metric is present but not a finite number (text, null from a NaN, inf) fails, naming the
+    value: it is never skipped ("n/a" only when no result has the metric at all)."""
+    def values(kind: str, name: str, method: str | None = None) -> list[Any]:
+        return [m.value for r in results if r.kind == kind and (method is None or r.extra.get("method") == method)
+                for m in r.metrics
+                if m.name == name and (kind != "control" or m.group.split("/")[1:2] in [[d] for d in DEPLOYED])]
 
-    def card(label: str, vals: list[float], limit: float, fmt: str, unit: str = "") -> Gate:
+    def card(label: str, vals: list[Any], limit: float, fmt: str, unit: str = "") -> Gate:
         if not vals:
             return Gate(label, "n/a", f"{limit:g}{unit}", "na")
+        bad = [v for v in vals if not is_number(v)]
+        if bad:
+            return Gate(label, f"not a finite number: {printable(repr(bad[0]))[:40]}", f"{limit:g}{unit}", "fail")
         worst = max(vals)
         return Gate(label, fmt.format(worst) + unit, f"{limit:g}{unit}", "pass" if worst <= limit else "fail")
 
@@ -97,10 +104,8 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
                                      and r.extra.get("method")))
         if len(methods) == 0:
             return [card("APE RMSE", values("slam", "ape_rmse_m"), gates.ape_rmse_max_m, "{:.3f}", " m")]
-        return [card(f"APE RMSE ({method})", [m.value for r in results if r.kind == "slam"
-                                              and r.extra.get("method") == method for m in r.metrics
-                                              if m.name == "ape_rmse_m" and is_number(m.value)],
-                     gates.ape_rmse_max_m, "{:.3f}", " m") for method in methods]
+        return [card(f"APE RMSE ({method})", values("slam", "ape_rmse_m", method), gates.ape_rmse_max_m, "{:.3f}",
+                     " m") for method in methods]
 
     return [*ape_cards(),
             card("Funnel violations", values("control", "funnel_violations"), gates.funnel_violations_max, "{:.0f}"),
@@ -212,11 +217,10 @@ def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: st
         sections=[_section(r) for r in results if r.kind in ("slam", "control")], config_text=config_text)
 
 
-def write_pdf(html: str, path: Path) -> str:
+def write_pdf(html: str, path: Path, *, force: bool = False) -> str:
     """PDF via WeasyPrint from the same HTML (print CSS); a matplotlib PDF that says it is a
     fallback when WeasyPrint or its Pango libraries are missing. Returns the engine used."""
-    tmp = path.with_name(f".{path.name}.tmp")
-    try:
+    with output_file(path, force=force) as tmp:
         try:
             import weasyprint
 
@@ -229,9 +233,6 @@ def write_pdf(html: str, path: Path) -> str:
                 raise  # a real file-system error (no space, permission), not a missing Pango library
             fallback_pdf(tmp, f"{type(err).__name__}: {err}")
             engine = "fallback"
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
     return engine
 
 
@@ -289,20 +290,23 @@ def merge_columns(tables: list[Table]) -> Table:
 
 
 def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig, config_text: str,
-                 pdf: bool = False) -> dict[str, Path]:
-    """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically."""
+                 pdf: bool = False, force: bool = False) -> dict[str, Path]:
+    """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically under
+    the one overwrite rule (mrnc_eval/outputs.py): all claimed before the first is written."""
     from mrnc_eval.reports.tables import render_table
 
-    out_dir.mkdir(parents=True, exist_ok=True)
     html = render_html(results, gates=gates, config_text=config_text)
-    written = {"html": out_dir / "report.html"}
-    atomic_write_text(written["html"], html)
+    texts = {"html": (out_dir / "report.html", html)}
     for stem, table in table_files(results).items():
         for fmt, suffix in (("csv", ".csv"), ("latex", ".tex")):
-            written[f"{stem}{suffix}"] = out_dir / f"{stem}{suffix}"
-            atomic_write_text(written[f"{stem}{suffix}"], render_table(table, fmt))
+            texts[f"{stem}{suffix}"] = (out_dir / f"{stem}{suffix}", render_table(table, fmt))
+    for path in [p for p, _ in texts.values()] + ([out_dir / "report.pdf"] if pdf else []):
+        claim_output(path, force=force)
+    written = {}
+    for key, (path, text) in texts.items():
+        written[key] = write_output(path, text, force=force)
     if pdf:
         written["pdf"] = out_dir / "report.pdf"
-        if write_pdf(html, written["pdf"]) == "fallback":
+        if write_pdf(html, written["pdf"], force=force) == "fallback":
             logging.getLogger(__name__).warning("%s: WeasyPrint unavailable, wrote a fallback PDF", written["pdf"])
     return written

@@ -1,14 +1,14 @@
 """GNSS factors for graph #1. LIO-SAM receives GNSS already in its odom frame (navsat_transform
 with a magnetometer heading); a 6-axis replay has no heading, so the ENU -> map yaw and offset
 are estimated from the first `align_min_travel_m` of keyframes (2-D Umeyama, rotation about z
-plus translation: evaluation.align.yaw_align), then fixes enter as GPS factors under LIO-SAM's gates."""
+plus translation: geometry.point_fit.yaw_align), then fixes enter as GPS factors under LIO-SAM's gates."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
-from mrnc_eval.evaluation.align import yaw_align
+from mrnc_eval.geometry.point_fit import yaw_align
 from mrnc_eval.slam.config import GpsConfig
 from mrnc_eval.slam.graph import KeyframeGraph
 from mrnc_eval.slam.output import SlamEvent
@@ -56,7 +56,8 @@ class GnssAligner:
             if len(self.pairs_map) >= 3 and travel >= g.align_min_travel_m:
                 self.enu_to_map = fit_yaw_translation(np.array(self.pairs_enu), np.array(self.pairs_map))
                 yaw = np.arctan2(self.enu_to_map[0][1, 0], self.enu_to_map[0][0, 0])
-                events.append(SlamEvent(stamp, "gps", f"ENU -> map alignment from {len(self.pairs_map)} fixes: "
+                events.append(SlamEvent(t=stamp, kind="gps",
+                                        message=f"ENU -> map alignment from {len(self.pairs_map)} fixes: "
                                         f"yaw {np.degrees(yaw):.1f} deg"))
             return False
         if len(graph.poses) < 2 or np.linalg.norm(pose[:3, 3] - graph.poses[0][:3, 3]) < g.min_travel_m:
@@ -78,5 +79,5 @@ class GnssAligner:
         if graph.last_gps_xy is not None and np.linalg.norm(p[:2] - graph.last_gps_xy) < spacing:
             return False
         graph.add_gps(len(graph.poses) - 1, p, var, self.lever, floor_m2=0.0 if rtk else 1.0)
-        events.append(SlamEvent(stamp, "gps", f"GNSS factor at keyframe {len(graph.poses) - 1}"))
+        events.append(SlamEvent(t=stamp, kind="gps", message=f"GNSS factor at keyframe {len(graph.poses) - 1}"))
         return True

@@ -66,7 +66,7 @@ def _integrate_gyro(gyro: np.ndarray, dt: np.ndarray) -> np.ndarray:
     return q
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class ImuTrack:
     """IMU samples rotated into the LiDAR frame, with the raw-gyro orientation track
     (LIO-SAM deskews with the raw gyro, no bias)."""
@@ -106,7 +106,7 @@ def imu_track(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, gyro_bias: np.ndarra
         dt = np.diff(stamps)
         stamps = stamps - 0.5 * np.r_[dt[0], dt]
     q = _integrate_gyro(np.ascontiguousarray(gyro), np.r_[np.diff(stamps), 0.0])
-    return ImuTrack(stamps, acc, gyro, q)
+    return ImuTrack(stamps=stamps, acc=acc, gyro=gyro, quat_wxyz=q)
 
 
 def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig, t0: float | None = None) -> Rotation:

@@ -21,6 +21,7 @@ from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
+from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage, project
@@ -50,29 +51,31 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     if wheel is not None and with_wheels:
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
-    n_sweeps = 0
+    interval = MappingInterval(interval_s=cfg.mapping_interval_s)
+    n_sweeps = n_empty = 0
     t_read = time.perf_counter()
     for sweep in sweeps:
         n_sweeps += 1
         if progress is not None:
             progress(n_sweeps)
-        if sweep.stamp - replay.st.last_mapped < cfg.mapping_interval_s or len(sweep) == 0:
+        if len(sweep) == 0:
+            n_empty += 1  # nothing to map: counted, so the result says so
+            continue
+        if not interval.take(sweep.stamp):
             continue  # mappingProcessInterval
-        replay.st.last_mapped = sweep.stamp
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
         replay.map_sweep(sweep)
         t_read = time.perf_counter()
-    return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms)
+    return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class _State:
     """What the replay carries from one mapped sweep to the next."""
 
     pose: np.ndarray | None = None
     t: float = 0.0  # stamp of `pose`, s (meaningful once pose is set)
     velocity: np.ndarray | None = None  # world frame, m/s
-    last_mapped: float = -np.inf
     last_loop_t: float = -np.inf
     loose: np.ndarray | None = None  # directions the latest match left to the IMU ([rot, trans], map axes)
     guess_by_wheels: bool = False  # the current sweep's guess took x, y and yaw from the wheels
@@ -80,7 +83,7 @@ class _State:
     warned: set[str] = field(default_factory=set)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class _Trace:
     """Per mapped sweep: its stamp, the keyframe it hangs from and its pose relative to it (so a
     loop closure that moves the keyframe moves the sweep too), and whether matching was degenerate."""
@@ -93,7 +96,7 @@ class _Trace:
     measured: list[bool] = field(default_factory=list)  # scan-to-map ran and was not degenerate
 
 
-@dataclass
+@dataclass(kw_only=True)
 class _Replay:
     """The replay's components and state; `map_sweep` is one pass of LIO-SAM's mapping."""
 
@@ -125,8 +128,9 @@ class _Replay:
         track, odom, imu = _imu_setup(imu, extr, cfg, warnings)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
-        graph = KeyframeGraph(cfg.graph, anchored=anchored)
-        return cls(cfg, extr, imu, track, odom, graph, aligner, {s: [] for s in STAGES}, warnings)
+        graph = KeyframeGraph(cfg=cfg.graph, anchored=anchored)
+        return cls(cfg=cfg, extr=extr, imu=imu, track=track, odom=odom, graph=graph, aligner=aligner,
+                   timing={s: [] for s in STAGES}, warnings=warnings)
 
     # ---- one mapped sweep
     def map_sweep(self, sweep: Sweep) -> None:
@@ -182,7 +186,7 @@ class _Replay:
         if self.odom is not None:
             why = self.odom.add_lidar_pose(pose, stamp, degenerate or unmatched, self.st.loose)
             if why:
-                self.events.append(SlamEvent(stamp, "warning", why))
+                self.events.append(SlamEvent(t=stamp, kind="warning", message=why))
         return pose, degenerate
 
     def guess_prior(self) -> np.ndarray | None:
@@ -209,8 +213,10 @@ class _Replay:
         turn = np.degrees(se3.delta_angle(se3.inv(guess) @ res.pose))
         if not res.optimised or limit <= 0 or turn <= limit:
             return res
-        self.events.append(SlamEvent(stamp, "warning", f"scan-to-map turned the IMU attitude by {turn:.1f} deg "
-                                     f"(limit {limit:g}): rejected, kept the IMU guess", {"correction_deg": turn}))
+        self.events.append(SlamEvent(t=stamp, kind="warning",
+                                     message=f"scan-to-map turned the IMU attitude by {turn:.1f} deg "
+                                             f"(limit {limit:g}): rejected, kept the IMU guess",
+                                     data={"correction_deg": turn}))
         return replace(res, pose=guess, optimised=False, degenerate=False, degenerate_directions=None)
 
     def guess(self, t: float) -> np.ndarray:
@@ -314,7 +320,7 @@ class _Replay:
         if key not in self.st.warned:
             self.st.warned.add(key)
             self.warnings.append(text)
-            self.events.append(SlamEvent(t, "warning", text))
+            self.events.append(SlamEvent(t=t, kind="warning", message=text))
 
     # ---- the end
     def output(self, n_sweeps: int, wall0: float) -> SlamOutput:
@@ -335,10 +341,12 @@ class _Replay:
         offset = None
         if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
             offset = estimate_imu_time_offset(stamps, online[:, :3, :3], self.track, np.asarray(tr.measured, bool))
-        return SlamOutput(stamps, poses, np.asarray(self.graph.stamps), kf_poses, map_points,
-                          self.timing, self.events, self.warnings, n_sweeps, time.perf_counter() - wall0,
-                          self.odom.bias_vector if self.odom is not None else None,
-                          np.asarray(tr.degenerate, bool), online, offset, quality)
+        return SlamOutput(stamps=stamps, poses=poses, kf_stamps=np.asarray(self.graph.stamps), kf_poses=kf_poses,
+                          map_points=map_points, timing_ms=self.timing, events=self.events, warnings=self.warnings,
+                          n_sweeps=n_sweeps, wall_s=time.perf_counter() - wall0,
+                          imu_bias=self.odom.bias_vector if self.odom is not None else None,
+                          degenerate=np.asarray(tr.degenerate, bool), online_poses=online,
+                          imu_time_offset_s=offset, map_quality=quality)
 
     def map_quality(self, dense: np.ndarray) -> MapQuality | None:
         """Entropy and plane variance of the union of keyframe clouds in their final poses."""
@@ -395,14 +403,16 @@ def _match_events(res: MatchResult, t: float, cfg: SlamConfig) -> list[SlamEvent
     events = []
     if res.degenerate:
         threshold = cfg.matching.degeneracy_eigen_threshold
-        events.append(SlamEvent(t, "degeneracy", f"scan-to-map degenerate: {res.n_degenerate} direction(s) with "
-                                f"eigenvalue < {threshold:g} (min {res.min_eigenvalue:.1f}); "
-                                "updates along them suppressed",
-                                {"min_eigenvalue": res.min_eigenvalue, "directions": res.n_degenerate,
-                                 "weakest_direction": res.weakest_direction}))
+        events.append(SlamEvent(t=t, kind="degeneracy",
+                                message=f"scan-to-map degenerate: {res.n_degenerate} direction(s) with "
+                                        f"eigenvalue < {threshold:g} (min {res.min_eigenvalue:.1f}); "
+                                        "updates along them suppressed",
+                                data={"min_eigenvalue": res.min_eigenvalue, "directions": res.n_degenerate,
+                                      "weakest_direction": res.weakest_direction}))
     if not res.optimised:
-        events.append(SlamEvent(t, "warning", f"too few features ({res.n_edges} edges, {res.n_surfs} planes, "
-                                f"need {cfg.matching.min_edges}/{cfg.matching.min_surfs}): kept the IMU guess"))
+        events.append(SlamEvent(t=t, kind="warning",
+                                message=f"too few features ({res.n_edges} edges, {res.n_surfs} planes, "
+                                        f"need {cfg.matching.min_edges}/{cfg.matching.min_surfs}): kept the IMU guess"))
     return events
 
 
@@ -437,7 +447,7 @@ def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict[int, tup
 def _compact(feats: Features) -> Features:
     """A keyframe's features as kept for the whole run: float32 (LIO-SAM's PCL clouds are float32
     too; 1e-6 m at 10 m), half the memory of every keyframe's feature clouds."""
-    return Features(feats.edges.astype(np.float32), feats.surfs.astype(np.float32))
+    return Features(edges=feats.edges.astype(np.float32), surfs=feats.surfs.astype(np.float32))
 
 
 def _local_keyframes(pos: np.ndarray, t: np.ndarray, cfg: SlamConfig) -> np.ndarray:
@@ -495,20 +505,22 @@ def _try_loop(graph: KeyframeGraph, feats: list[Features], cfg: SlamConfig, even
         return None
     eig = _leaves_a_direction_free(se3.apply(T, src), tgt, (T @ graph.poses[cur])[:3, 3], cfg)
     if eig is not None:
-        events.append(SlamEvent(stamp, "loop_rejected", f"loop closure {cur} -> {prev} rejected: degenerate (smallest "
-                                f"eigenvalue {eig:.1f} < {cfg.loop.min_eigenvalue:g}), fitness {fitness:.3f} m^2",
-                                {"current": cur, "previous": prev, "fitness": fitness, "min_eigenvalue": eig}))
+        events.append(SlamEvent(t=stamp, kind="loop_rejected",
+                                message=f"loop closure {cur} -> {prev} rejected: degenerate (smallest eigenvalue "
+                                        f"{eig:.1f} < {cfg.loop.min_eigenvalue:g}), fitness {fitness:.3f} m^2",
+                                data={"current": cur, "previous": prev, "fitness": fitness, "min_eigenvalue": eig}))
         return None
     relative = se3.inv(graph.poses[prev]) @ (T @ graph.poses[cur])  # corrected current pose, seen from prev
     before = graph.poses[cur][:3, 3].copy()
     try:
         graph.add_loop(cur, prev, relative, fitness)
     except ProcessingError as err:
-        events.append(SlamEvent(stamp, "warning", f"loop closure {cur} -> {prev} rejected by the solver: {err}"))
+        events.append(SlamEvent(t=stamp, kind="warning",
+                                message=f"loop closure {cur} -> {prev} rejected by the solver: {err}"))
         return None
     moved = float(np.linalg.norm(graph.poses[cur][:3, 3] - before))
-    events.append(SlamEvent(stamp, "loop_closure", f"keyframe {cur} -> {prev}, fitness {fitness:.3f} m^2, "
-                            f"moved {moved:.3f} m",
-                            {"current": cur, "previous": prev, "fitness": fitness,
-                             "correction_m": float(np.linalg.norm(T[:3, 3]))}))
+    events.append(SlamEvent(t=stamp, kind="loop_closure",
+                            message=f"keyframe {cur} -> {prev}, fitness {fitness:.3f} m^2, moved {moved:.3f} m",
+                            data={"current": cur, "previous": prev, "fitness": fitness,
+                                  "correction_m": float(np.linalg.norm(T[:3, 3]))}))
     return moved

@@ -1,4 +1,4 @@
-"""evaluation/_kernels.c (APE's alignment sums and aligned distances in one pass) gives the bits of
+"""geometry/_kernels.c (APE's alignment sums and aligned distances in one pass) gives the bits of
 the numpy code it replaces, on any memory layout, for every alignment mode; built here from this
 tree's source (an installed build may be older)."""
 
@@ -15,7 +15,8 @@ import numpy as np
 import pytest
 
 from mrnc_eval.data import Trajectory
-from mrnc_eval.evaluation import align, ape
+from mrnc_eval.evaluation import ape
+from mrnc_eval.geometry import point_fit as align
 from tests.needs import missing
 
 SOURCE = Path(align.__file__).with_name("_kernels.c")
@@ -31,7 +32,7 @@ def kernels(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     # -O3 -march=native: FMA is available to the compiler, so the no-contraction pragma is tested too
     subprocess.run([cc, "-O3", "-march=native", "-shared", "-fPIC", f"-I{include}", str(SOURCE), "-o", str(out)],
                    check=True)
-    spec = importlib.util.spec_from_file_location("mrnc_eval.evaluation._kernels", out)
+    spec = importlib.util.spec_from_file_location("mrnc_eval.geometry._kernels", out)
     assert spec is not None
     assert spec.loader is not None
     module = importlib.util.module_from_spec(spec)

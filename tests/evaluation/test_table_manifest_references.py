@@ -53,7 +53,7 @@ def logged(tmp_path: Path) -> Path:
 def _ape_rmse(ref: str, est: str, capsys: pytest.CaptureFixture[str]) -> float:
     capsys.readouterr()
     assert main(["ape", ref, est, "--json"]) == 0
-    return float(json.loads(capsys.readouterr().out)[0]["rmse"])
+    return float(json.loads(capsys.readouterr().out)["results"][0]["stats"]["rmse"])
 
 
 def test_manifest_log_topics_are_read_as_ape_reads_them(logged: Path, tmp_path: Path,

@@ -168,9 +168,12 @@ def test_never_overwrites_without_force_and_leaves_nothing_on_failure(sim_runs: 
                                                                       capsys) -> None:
     out = tmp_path / "x.mcap"
     out.write_bytes(b"keep me")
-    assert main(["export", str(sim_runs.slam), "--mcap", str(out)]) == 2
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out)]) == 4  # the one overwrite rule: exit 4
     assert out.read_bytes() == b"keep me"
     assert "--force" in capsys.readouterr().err
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 4  # not a file we wrote
+    assert out.read_bytes() == b"keep me"
+    assert "not a file this tool wrote" in capsys.readouterr().err
     broken = tmp_path / "broken"
     broken.mkdir()
     for name in ("result.json", "config.yaml", "series.npz"):
@@ -178,7 +181,9 @@ def test_never_overwrites_without_force_and_leaves_nothing_on_failure(sim_runs: 
     assert main(["export", str(broken), "--mcap", str(tmp_path / "new.mcap")]) == 4
     assert "trajectory.tum" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["broken", "x.mcap"]  # no partial or temporary file
-    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 0
+    out.unlink()
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out)]) == 0
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 0  # our own export: replaced
     assert out.read_bytes()[:8] == b"\x89MCAP0\r\n"
     assert out.stat().st_mode & 0o044 == 0o044 or os.umask(os.umask(0)) & 0o044  # readable as any file is
 

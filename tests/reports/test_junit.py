@@ -27,22 +27,22 @@ def gate_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf:
     ch = config_hash(cfg)
     slam = RunResult(kind="slam", log_path=str(log_path), log_id=log_id, config_hash=ch)
     if log_id in APE_M:
-        slam.metrics.append(Metric("ape_rmse_m", APE_M[log_id], "m", "slam/ape"))
+        slam.metrics.append(Metric(name="ape_rmse_m", value=APE_M[log_id], unit="m", group="slam/ape"))
     else:
         slam.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
     results = [RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={"info": summary},
                          config_hash=ch), slam]
     if log_id == "good":
         results.append(RunResult(kind="control", log_path=str(log_path), log_id=log_id, config_hash=ch, metrics=[
-            Metric("funnel_violations", 3, "", "control/recorded/left"),
-            Metric("saturation_ratio", 0.05, "", "control/recorded/left"),
-            Metric("safety_stops", 0, "", "control/recorded/left")]))
+            Metric(name="funnel_violations", value=3, unit="", group="control/recorded/left"),
+            Metric(name="saturation_ratio", value=0.05, unit="", group="control/recorded/left"),
+            Metric(name="safety_stops", value=0, unit="", group="control/recorded/left")]))
     else:
         results[0].warnings.append("control replay skipped: the log has no path and no wheel_speeds topic")
     for r in results:
         write_result(r, work_dir / r.kind, dump_config(cfg))
-    return Analysis([(f"{m.group}/{m.name}", m.value, m.unit) for r in results for m in r.metrics],
-                    [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"])
+    return Analysis(metrics=[(f"{m.group}/{m.name}", m.value, m.unit) for r in results for m in r.metrics],
+                    gates_failed=[g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"])
 
 
 def run_night_with_junit(tmp_path: Path) -> tuple[int, ET.Element]:

@@ -15,14 +15,16 @@ from mrnc_eval.results import Metric, RunResult, Table
 
 def _slam(method: str, rmse: float) -> RunResult:
     table = Table("APE RMSE (SE(3) aligned)", ["run", "Mean"], [method], [[rmse], [rmse]], unit="m")
-    return RunResult("slam", "run.mcap", "run", metrics=[Metric("ape_rmse_m", rmse, "m", "slam/ape")],
+    return RunResult(kind="slam", log_path="run.mcap", log_id="run",
+                     metrics=[Metric(name="ape_rmse_m", value=rmse, unit="m", group="slam/ape")],
                      tables=[table], extra={"method": method, "roles": {"lidar": "/ouster/points"}})
 
 
 def _control() -> RunResult:
     table = Table("Table II: control performance metrics", ["Settling time (s)", "Overshoot (%)"], ["RAID"],
                   [[9.900000095367432], [1.2345678]])
-    return RunResult("control", "run.mcap", "run", tables=[table], extra={"mode": "simulate", "controllers": []})
+    return RunResult(kind="control", log_path="run.mcap", log_id="run", tables=[table],
+                     extra={"mode": "simulate", "controllers": []})
 
 
 def test_csv_cells_are_rounded_by_unit() -> None:

@@ -14,8 +14,8 @@ from mrnc_eval.config import Config, replace_path
 from mrnc_eval.geometry import se3
 from mrnc_eval.io import open_log
 from mrnc_eval.io.trajectory_files import read_tum
+from mrnc_eval.recording.recorder import SimRequest, simulate_log
 from mrnc_eval.results import read_result
-from mrnc_eval.sim.recorder import SimRequest, simulate_log
 from mrnc_eval.slam.output import SlamOutput
 from mrnc_eval.slam.replay import run_slam
 

@@ -22,7 +22,7 @@ pytestmark = pytest.mark.slow
 
 @pytest.fixture(scope="module")
 def rocking_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     cfg = replace_path(replace_path(Config(), "sim.terrain_amplitude_m", 0.5), "sim.terrain_roughness_m", 0.05)
     return simulate_log(tmp_path_factory.mktemp("rock") / "rock100.mcap", cfg,
@@ -32,12 +32,13 @@ def rocking_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _estimate(log: Path, lag_s: float, applied_s: float = 0.0) -> float:
     from mrnc_eval.io import open_log
+    from mrnc_eval.slam.mapping_interval import MappingInterval
     from mrnc_eval.slam.replay import run_slam
 
     cfg = replace_path(Config(), "slam.imu.time_offset_s", applied_s)
     with open_log(log) as lg:
         imu = lg.imu()
-        out = run_slam(lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s),
+        out = run_slam(lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take),
                        replace(imu, stamps=imu.stamps + lag_s), cfg.slam,
                        sensor_to_imu=lg.transform("os_sensor", "os_imu"))
     assert out.imu_time_offset_s is not None

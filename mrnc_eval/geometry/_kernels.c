@@ -1,5 +1,5 @@
 /* Loops of APE's alignment and translation error over (n, 3) float64 position arrays (any strides),
-   in one pass each, without the GIL: the fast path of evaluation/align.py and evaluation/ape.py.
+   in one pass each, without the GIL: the fast path of geometry/point_fit.py (Umeyama) and evaluation/ape.py.
 
    Every sum and product is done in the order and with the roundings of the numpy code it replaces
    (which holds evo's bits): sums strictly sequential from 0.0; no FMA contraction (-ffp-contract=off
