@@ -91,7 +91,7 @@ def test_ape_1m_poses_vs_evo(tmp_path_factory: pytest.TempPathFactory, relation:
     tmp_path.mkdir(parents=True, exist_ok=True)
     if shutil.which("evo_ape", path=str(Path(sys.executable).parent)) is None:
         pytest.fail("evo is not installed (pip install 'mrnc-eval[test]'): the benchmark has no peer")
-    for ext in ("mrnc_eval.io._numtext", "mrnc_eval.evaluation._kernels"):
+    for ext in ("mrnc_eval.io._numtext", "mrnc_eval.geometry._kernels"):
         if importlib.util.find_spec(ext) is None:
             pytest.fail(f"{ext} is not built (pip install -e .): the benchmark would time the fallback path")
     ref, est = tmp_path / "ref.tum", tmp_path / "est.tum"
