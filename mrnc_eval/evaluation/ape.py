@@ -220,7 +220,8 @@ def ape(ref: Trajectory, est: Trajectory, *, align: AlignMode | str = AlignMode.
         errors = aligned_distances(pair)
     elif relation in (Relation.angle_deg, Relation.angle_rad) and pair.orthonormal and not plane:
         errors = _angles_from_quaternions(pair)
-        errors = np.degrees(errors) if relation is Relation.angle_deg else errors
+        if relation is Relation.angle_deg:  # in place: elementwise, the same bits, 8 MB less for 1e6 poses
+            np.degrees(errors, out=errors)
     else:  # E = P^-1 Q
         rot, trans = lie.relative(pair.est_rot, pair.est_xyz, pair.ref_rot, pair.ref_xyz)
         errors = error_values(rot, trans, relation)

@@ -60,3 +60,11 @@ def test_aligned_distances_without_the_aligned_array() -> None:
         assert got.tobytes() == _distances(pair.est_xyz, pair.ref_xyz).tobytes()
     r = ape(ref, est, align="se3")
     assert r.errors.tobytes() == np.linalg.norm(r.est_xyz - r.ref_xyz, axis=1).tobytes()
+
+
+def test_degrees_in_place_equal_degrees_of_radians() -> None:
+    ref, est = _pair(3)
+    deg = ape(ref, est, relation="angle_deg").errors
+    rad = ape(ref, est, relation="angle_rad").errors
+    assert deg.tobytes() == np.degrees(rad).tobytes()
+    assert not np.shares_memory(deg, rad)
