@@ -96,3 +96,24 @@ def test_fast_path_skips_typers_validators(tmp_path: Path) -> None:
     assert fast.stderr.split()[-2:] == ["0", "False"]
     assert slow.stderr.split()[-2:] == ["0", "True"]
     assert fast.stdout == slow.stdout
+
+
+def test_fast_path_prints_and_warns_as_typer(tmp_path: Path, monkeypatch: pytest.MonkeyPatch,
+                                             capsys: pytest.CaptureFixture[str]) -> None:
+    """The whole run, not just the call: the same stdout and the same warning line (the logging
+    set-up of the global callback) for a file with a repeated stamp."""
+    rows = [f"{k} {k} {k % 3} {k % 5} 0 0 0 1" for k in range(12)]
+    (tmp_path / "ref.tum").write_text("\n".join(rows) + "\n")
+    (tmp_path / "est.tum").write_text("\n".join([rows[0], *rows]) + "\n")  # stamp 0 twice
+    argv = ["ape", str(tmp_path / "ref.tum"), str(tmp_path / "est.tum")]
+    assert fast_command(argv, COMMANDS) is not None
+    outputs = []
+    for fast in (True, False):
+        with monkeypatch.context() as m:
+            if not fast:
+                m.setattr(cli, "fast_command", lambda *a, **k: None)
+            assert cli.main(argv) == 0
+        outputs.append(capsys.readouterr())
+    assert "1 repeated time stamp" in outputs[0].err
+    assert outputs[0].out == outputs[1].out
+    assert outputs[0].err == outputs[1].err

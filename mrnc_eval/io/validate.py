@@ -80,6 +80,23 @@ def bad_poses(stamps: npt.ArrayLike, positions: npt.ArrayLike, quat_xyzw: npt.Ar
     t = np.asarray(stamps, dtype=float).reshape(-1)
     p = np.asarray(positions, dtype=float).reshape(-1, 3)
     q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
+    if not t.shape[0] == p.shape[0] == q.shape[0]:
+        return _bad_poses_rows(t, p, q)  # (raises as before)
+    # Block by block: the same per-row answers, with temporaries of a block instead of ~42 MB for
+    # 1e6 poses (q * q inside the norm), which two files read at once held together (issue 30).
+    bad = np.empty(t.shape[0], dtype=bool)
+    for k in range(0, t.shape[0], _ROWS):
+        bad[k:k + _ROWS] = _bad_poses_rows(t[k:k + _ROWS], p[k:k + _ROWS], q[k:k + _ROWS])[0]
+    if not bad.any():
+        return bad, ""
+    k = int(np.flatnonzero(bad)[0])
+    return bad, _bad_poses_rows(t[k:k + 1], p[k:k + 1], q[k:k + 1])[1]
+
+
+_ROWS = 1 << 13  # poses per block of bad_poses (small: each reading thread keeps its freed blocks)
+
+
+def _bad_poses_rows(t: Floats, p: Floats, q: Floats) -> tuple[Mask, str]:
     bad_tp = ~np.isfinite(t) | ~np.isfinite(p).all(axis=1)
     with np.errstate(invalid="ignore", over="ignore"):
         norm = np.linalg.norm(q, axis=1)
