@@ -79,7 +79,9 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         inputs = _read_inputs(lg, log_path, cfg)
-        result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
+        result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "wheel_odom", "ground_truth")
+                                 if r in lg.roles}
+        result.extra["inputs"] = _inputs_used(lg, inputs, cfg)
         result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         out = _replay(lg, inputs, cfg, progress)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
@@ -172,6 +174,16 @@ def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutp
                                 antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
                                 base_to_sensor=inputs.base_to_sensor, progress=tick)
             return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
+
+
+def _inputs_used(lg: Any, inputs: LogInputs, cfg: Config) -> dict[str, str]:
+    """role -> topic of every topic the run reads as an input (never the ground truth: io/roles.py
+    rule 4)."""
+    lio = cfg.slam.method == "lio"
+    used = {"lidar": True, "imu": lio and inputs.imu is not None,
+            "gnss": lio and inputs.gnss is not None and cfg.slam.gps.enabled,
+            "wheel_odom": lio and cfg.slam.wheel_odom.enabled and lg.has_role("wheel_odom")}
+    return {role: lg.roles[role] for role, yes in used.items() if yes and role in lg.roles}
 
 
 def _wheel_track(lg: Any, cfg: Config) -> WheelTrack | None:

@@ -30,7 +30,7 @@ from mrnc_eval.io.containers import describe_error, detect_container, openable
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.mcap_index import overview as mcap_overview
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
-from mrnc_eval.io.roles import Ambiguity, Candidate, candidates_by_role, choose_roles
+from mrnc_eval.io.roles import Ambiguity, Candidate, TruthExclusion, candidates_by_role, choose_roles
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
 from mrnc_eval.io.split_logs import SplitSource, split_log_paths
 from mrnc_eval.io.validate import Mask, bad_lat_lon, bad_quaternions, beyond, non_finite, normalised, screen
@@ -120,7 +120,7 @@ class LogReader:
         self._stats: dict[str, TopicInfo] | None = None
         self._health: dict[str, StreamHealth] = {}
         self._roles: dict[str, str] | None = None
-        self.role_doubts: list[Ambiguity] = []  # roles chosen among several candidates (io/roles.py's rule)
+        self.role_doubts: list[Ambiguity | TruthExclusion] = []  # io/roles.py rules 3 and 4
         self._stamps: dict[str, np.ndarray] = {}
         self._cache: dict[str, list[tuple[int, bytes]]] = {}  # small topics' raw messages from the overview pass
 

@@ -27,6 +27,7 @@ from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
 from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, OrganisedSweep, ouster_metadata
 from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
 from mrnc_eval.sim.scene import SCENES, Scene, build_scene
+from mrnc_eval.sim.standstill import hold_start
 from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
 from mrnc_eval.sim.wheels import drive_signals
 
@@ -126,7 +127,10 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     frng = np.random.default_rng([seed, FIELD_STREAM])
 
     scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
-    trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
+    still = max(scfg.standstill_s, 0.0)
+    drive_s = None if req.duration_s is None else max(req.duration_s - still, 0.5)
+    trace = hold_start(run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=drive_s, seed=seed),
+                       still)
     centre = tuple(scenario.waypoints_xy.mean(axis=0))
     roughness = scfg.terrain_roughness_m if field is None else field.world.terrain_roughness_m
     scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m, roughness_m=roughness,
