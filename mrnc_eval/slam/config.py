@@ -53,6 +53,19 @@ class ImuConfig:
         "directions", "degenerate scan-to-map: directions = degenerate_pose_sigma only along the projected-out "
         "directions (the IMU carries them, the rest stays measured); all = on all six (LIO-SAM)")
     reset_every: int = param(100, "restart graph #2 every n keys, keeping its velocity and bias estimates")
+    reset_priors: Literal["marginals", "fixed"] = param(
+        "fixed", "priors of graph #2's periodic restart: marginals = the pose, velocity and bias marginal covariances "
+        "at the last key (LIO-SAM); fixed = pose_prior_sigmas, 1 m/s and bias_prior_sigmas around the estimates")
+    noise_from_log: bool = param(False, "preintegration noise densities and the initial gyro bias from the log's "
+                                 "stationary stretches (slam/imu_noise.py; reported either way as imu_noise), and "
+                                 "acc_turn_on_sigma for the initial accelerometer bias; off = the noise sigmas "
+                                 "above and a zero bias held by bias_prior_sigmas")
+    bias_prior_sigmas: tuple[float, float] = param((1e-3, 1e-3), "bias prior sigmas [acc m/s^2, gyro rad/s] at "
+                                                   "each start of graph #2 (LIO-SAM: 1e-3 on both)")
+    acc_turn_on_sigma: float = param(0.1, "with noise_from_log: the initial accelerometer bias prior sigma, the "
+                                     "turn-on bias class of the part (a consumer MEMS: 0.1 m/s^2; a stationary "
+                                     "stretch cannot tell the horizontal bias from a tilt)", "m/s^2")
+    stationary_min_s: float = param(1.5, "shortest stationary stretch the IMU noise is measured from", "s")
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "
                                         "restart in a degenerate stretch costs more than it gains)", "m")
@@ -63,6 +76,12 @@ class ImuConfig:
                                  "else (positive when the IMU stamps are late)", "s")
     estimate_time_offset: bool = param(True, "estimate the remaining IMU-LiDAR offset after the run "
                                        "(imu_time_offset_s in metrics.json)")
+    refine_time_offset_s: float = param(0.0, "with estimate_time_offset: every this much log time, estimate the "
+                                        "offset from the sweeps since the last estimate and apply it to the IMU "
+                                        "stamps from then on. The LiDAR poses keep part of the IMU-driven guess, so "
+                                        "one estimate reads only part of a lag (8 ms -> 2.4-5.5 ms); applied, the "
+                                        "next estimate reads part of what is left; 0 = one estimate after the "
+                                        "run, nothing applied", "s")
     max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
     max_bias: float = param(1.0, "... or above this bias norm")
 

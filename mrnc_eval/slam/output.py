@@ -16,7 +16,7 @@ STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: wa
 @dataclass
 class SlamEvent:
     t: float  # log time, s
-    kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps"
+    kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps", "imu_time_offset"
     message: str
     data: dict[str, Any] = field(default_factory=dict)
 
@@ -41,3 +41,4 @@ class SlamOutput:
     deskew: bool = True  # False when the method ran without deskew (kiss-icp on throttled logs)
     # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
     warmup_ms: dict[str, float] = field(default_factory=dict)
+    imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)

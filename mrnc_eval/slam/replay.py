@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -20,12 +21,13 @@ from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
 from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
+from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage, project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
-from mrnc_eval.slam.time_offset import estimate_imu_time_offset
+from mrnc_eval.slam.time_offset import SEARCH_S, estimate_imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
 from mrnc_eval.slam.wheel_odometry import WheelTrack, base_velocity, blend_planar, relative_motion, wheel_factor
 
@@ -94,6 +96,17 @@ class _Trace:
 
 
 @dataclass
+class _OffsetRefinement:
+    """The IMU-LiDAR offset applied during the run (slam.imu.refine_time_offset_s): `applied` s
+    subtracted from the IMU stamps (on top of slam.imu.time_offset_s) since the sweep `start` of
+    the trace, and each estimate as (stamp, estimate s)."""
+
+    applied: float = 0.0
+    start: int = 0
+    history: list[tuple[float, float]] = field(default_factory=list)
+
+
+@dataclass
 class _Replay:
     """The replay's components and state; `map_sweep` is one pass of LIO-SAM's mapping."""
 
@@ -114,6 +127,9 @@ class _Replay:
     trace: _Trace = field(default_factory=_Trace)
     wheel: WheelTrack | None = None
     base_to_sensor: np.ndarray = field(default_factory=lambda: np.eye(4))
+    gyro_bias: np.ndarray | None = None  # subtracted from the gyro in the track (slam.gyro_bias_init_s), rad/s
+    imu_noise: ImuNoiseEstimate | None = None  # from the log's stationary stretches, IMU axes
+    offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -122,11 +138,17 @@ class _Replay:
         extr = lidar_to_imu(cfg.imu, sensor_to_imu)
         if imu is not None and cfg.imu.time_offset_s != 0.0:  # a known IMU clock lag, before anything else
             imu = replace(imu, stamps=imu.stamps - cfg.imu.time_offset_s)
-        track, odom, imu = _imu_setup(imu, extr, cfg, warnings)
+        noise = None
+        if imu is not None and imu.stamps.size >= 3:
+            clean = clean_imu(imu)
+            noise = estimate_imu_noise(clean.stamps, clean.acc, clean.gyro, gravity=cfg.imu.gravity,
+                                       min_s=cfg.imu.stationary_min_s)
+        track, odom, imu, bias = _imu_setup(imu, extr, cfg, warnings, noise)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
         graph = KeyframeGraph(cfg.graph, anchored=anchored)
-        return cls(cfg, extr, imu, track, odom, graph, aligner, {s: [] for s in STAGES}, warnings)
+        return cls(cfg, extr, imu, track, odom, graph, aligner, {s: [] for s in STAGES}, warnings, gyro_bias=bias,
+                   imu_noise=noise)
 
     # ---- one mapped sweep
     def map_sweep(self, sweep: Sweep) -> None:
@@ -145,6 +167,7 @@ class _Replay:
         clock.lap("graph", minus_ms=loop_ms)
         self.timing["loop"].append(loop_ms)
         self.record(sweep.stamp, pose, degenerate)
+        self.refine_offset(sweep.stamp)
 
     def deskew(self, image: RangeImage, sweep: Sweep) -> np.ndarray:
         """Points at the sweep stamp: rotation from the IMU track, translation at constant velocity."""
@@ -309,6 +332,38 @@ class _Replay:
             st.velocity = (pose[:3, 3] - st.pose[:3, 3]) / (stamp - st.t)
         st.pose, st.t = pose, stamp
 
+    def refine_offset(self, stamp: float) -> None:
+        """Every slam.imu.refine_time_offset_s: estimate the IMU-LiDAR offset from the sweeps since the
+        last estimate and shift the IMU stamps by it from now on. The matched poses keep part of the
+        IMU-driven guess, so one estimate reads only part of a lag; each next one reads part of what is
+        left. An estimate at the search bound is not trusted; without one the stretch grows."""
+        every, tr, off = self.cfg.imu.refine_time_offset_s, self.trace, self.offset
+        if every <= 0 or not self.cfg.imu.estimate_time_offset or self.track is None or self.imu is None \
+                or stamp - tr.stamps[off.start] < every:
+            return
+        est = self.segment_offset()
+        if est is None or abs(est) >= SEARCH_S - 1e-3:
+            return
+        off.history.append((stamp, est))
+        off.applied += est
+        off.start = len(tr.stamps) - 1
+        self.imu = replace(self.imu, stamps=self.imu.stamps - est)
+        self.track = imu_track(self.imu, self.extr[:3, :3], self.gyro_bias, self.cfg.imu.sample_hold)
+        if self.odom is not None:
+            self.odom.track = self.track
+        self.events.append(SlamEvent(stamp, "imu_time_offset", f"IMU-LiDAR offset {est * 1e3:+.1f} ms since the last "
+                                     f"estimate: applied, {off.applied * 1e3:.1f} ms in all",
+                                     {"estimate_s": est, "applied_s": off.applied}))
+
+    def segment_offset(self) -> float | None:
+        """The offset left in the sweeps since the last applied estimate (None: too few or no rotation)."""
+        tr, k = self.trace, self.offset.start
+        if self.track is None or len(tr.stamps) - k < 2:
+            return None
+        online = np.array(tr.online[k:])
+        return estimate_imu_time_offset(np.asarray(tr.stamps[k:]), online[:, :3, :3], self.track,
+                                        np.asarray(tr.measured[k:], bool))
+
     def warn_once(self, t: float, key: str, text: str) -> None:
         """A condition that holds for the whole log: one warning (and one event at its first sweep)."""
         if key not in self.st.warned:
@@ -334,11 +389,26 @@ class _Replay:
         online = np.array(tr.online) if tr.online else np.zeros((0, 4, 4))
         offset = None
         if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
-            offset = estimate_imu_time_offset(stamps, online[:, :3, :3], self.track, np.asarray(tr.measured, bool))
+            left = self.segment_offset()  # what the applied estimates left (all of it when none was applied)
+            if left is not None or self.offset.history:
+                offset = self.offset.applied + (left or 0.0)
         return SlamOutput(stamps, poses, np.asarray(self.graph.stamps), kf_poses, map_points,
                           self.timing, self.events, self.warnings, n_sweeps, time.perf_counter() - wall0,
                           self.odom.bias_vector if self.odom is not None else None,
-                          np.asarray(tr.degenerate, bool), online, offset, quality)
+                          np.asarray(tr.degenerate, bool), online, offset, quality, imu_noise=self.imu_report())
+
+    def imu_report(self) -> dict[str, Any] | None:
+        """The IMU's measured noise and biases (IMU axes), what the preintegration used, and how
+        graph #2 restarted."""
+        if self.track is None:
+            return None
+        out: dict[str, Any] = {"stationary": None if self.imu_noise is None else self.imu_noise.summary()}
+        if self.odom is not None:
+            out.update(used_from_log=bool(self.cfg.imu.noise_from_log and self.imu_noise is not None),
+                       acc_noise_used=self.odom.noise_used[0], gyro_noise_used=self.odom.noise_used[1],
+                       reset_priors=self.cfg.imu.reset_priors, marginal_resets=self.odom.marginal_resets,
+                       failure_resets=self.odom.resets)
+        return out
 
     def map_quality(self, dense: np.ndarray) -> MapQuality | None:
         """Entropy and plane variance of the union of keyframe clouds in their final poses."""
@@ -361,18 +431,19 @@ class _Clock:
         self.t = now
 
 
-def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig,
-               warnings: list[str]) -> tuple[ImuTrack | None, ImuOdometry | None, ImuSeries | None]:
+def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warnings: list[str],
+               noise: ImuNoiseEstimate | None = None
+               ) -> tuple[ImuTrack | None, ImuOdometry | None, ImuSeries | None, np.ndarray | None]:
     if imu is None or imu.stamps.size < 3:
         warnings.append("no IMU: no deskew rotation, no attitude initialisation, constant-velocity guess only")
-        return None, None, None
+        return None, None, None, None
     imu = clean_imu(imu)
     bias = None
     if cfg.gyro_bias_init_s > 0:
         bias = imu.gyro[imu.stamps <= imu.stamps[0] + cfg.gyro_bias_init_s].mean(axis=0)
     track = imu_track(imu, extr[:3, :3], bias, cfg.imu.sample_hold)
-    odom = ImuOdometry(track, cfg.imu, extr) if cfg.imu.use_preintegration_graph else None
-    return track, odom, imu
+    odom = ImuOdometry(track, cfg.imu, extr, noise) if cfg.imu.use_preintegration_graph else None
+    return track, odom, imu, bias
 
 
 def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarray, t: float,
