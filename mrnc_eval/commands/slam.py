@@ -300,6 +300,7 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
                          "first_sweep_ms": float(sum(v[0] for v in out.timing_ms.values() if v)),
                          "warmup_ms": dict(out.warmup_ms), "warmup_total_ms": float(sum(out.warmup_ms.values())),
                          "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
+                         "imu_noise": out.imu_noise,  # the IMU's noise and biases from stationary stretches
                          "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static), "
                                                       "smoothed: each sweep re-anchored to its final keyframe",
                                     "trajectory_online.tum": "the same frames, each sweep's pose as estimated "

@@ -65,6 +65,9 @@ class ImuConfig:
     acc_turn_on_sigma: float = param(0.1, "with noise_from_log: the initial accelerometer bias prior sigma, the "
                                      "turn-on bias class of the part (a consumer MEMS: 0.1 m/s^2; a stationary "
                                      "stretch cannot tell the horizontal bias from a tilt)", "m/s^2")
+    deskew_motion: Literal["predicted", "last"] = param(
+        "last", "translation deskew (slam.deskew_translation): predicted = graph #2's velocity at the sweep's start "
+        "and end (constant acceleration over the sweep); last = the velocity of the last mapped sweep, constant")
     stationary_min_s: float = param(1.5, "shortest stationary stretch the IMU noise is measured from", "s")
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "

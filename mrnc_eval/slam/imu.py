@@ -202,6 +202,17 @@ class ImuOdometry:
         nxt = pim.predict(state, self.bias)
         return np.asarray(nxt.pose().matrix() @ np.linalg.inv(self.lever), np.float64)
 
+    def predict_velocity(self, lidar_pose: np.ndarray, t0: float, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (k, 3, 3) of the LiDAR and velocities (k, 3) m/s (map frame) at times t1 from the
+        pose at t0 with the current velocity and bias estimates."""
+        state = self.g.NavState(self.g.Pose3(lidar_pose @ self.lever), self.velocity)
+        rots, vels = [], []
+        for t in np.atleast_1d(t1):
+            nxt = self._pim(t0, float(t)).predict(state, self.bias)
+            rots.append(nxt.pose().rotation().matrix())
+            vels.append(np.asarray(nxt.velocity(), float))
+        return np.asarray(rots, np.float64), np.asarray(vels, np.float64)
+
     def add_lidar_pose(self, lidar_pose: np.ndarray, t: float, degenerate: bool,
                        directions: np.ndarray | None = None) -> str | None:
         """Correct the states with a scan-to-map pose; returns a warning text after a reset.

@@ -180,10 +180,17 @@ class _Replay:
         if self.track is not None and not self.track.covers(sweep.stamp, t_end):
             self.warn_once(sweep.stamp, "no_cover", f"IMU does not cover the sweep at {sweep.stamp:.3f} s: "
                            "rotation deskew clamped to the IMU span")
-        v_sensor = None
-        if cfg.deskew_translation and st.velocity is not None and st.pose is not None:
+        v_sensor = a_sensor = None
+        odom, track = self.odom, self.track
+        if cfg.deskew_translation and cfg.imu.deskew_motion == "predicted" and odom is not None and track is not None \
+                and odom.can_predict and st.pose is not None and track.covers(st.t, t_end) and t_end > sweep.stamp:
+            # graph #2's velocity at the sweep's start and end (a rocking mast changes it within 0.1 s)
+            rots, vels = odom.predict_velocity(st.pose, st.t, np.array([sweep.stamp, t_end]))
+            v_sensor = rots[0].T @ vels[0]
+            a_sensor = rots[0].T @ (vels[1] - vels[0]) / (t_end - sweep.stamp)
+        elif cfg.deskew_translation and st.velocity is not None and st.pose is not None:
             v_sensor = st.pose[:3, :3].T @ st.velocity
-        return deskew(image.points, image.point_time, sweep.stamp, self.track, v_sensor)
+        return deskew(image.points, image.point_time, sweep.stamp, self.track, v_sensor, a_sensor)
 
     def scan_to_map(self, stamp: float, feats: Features) -> tuple[np.ndarray, bool]:
         """Guess -> match against the local map -> roll/pitch blend -> correct graph #2.
@@ -333,20 +340,21 @@ class _Replay:
         st.pose, st.t = pose, stamp
 
     def refine_offset(self, stamp: float) -> None:
-        """Every slam.imu.refine_time_offset_s: estimate the IMU-LiDAR offset from the sweeps since the
-        last estimate and shift the IMU stamps by it from now on. The matched poses keep part of the
-        IMU-driven guess, so one estimate reads only part of a lag; each next one reads part of what is
-        left. An estimate at the search bound is not trusted; without one the stretch grows."""
+        """Every slam.imu.refine_time_offset_s: estimate the IMU-LiDAR offset left in every sweep so
+        far against the IMU as now stamped, and shift the IMU stamps by it from now on. The matched
+        poses keep part of the IMU-driven guess, so one estimate reads only part of a large lag (30 ms
+        -> 23-28 ms); applied, the poses that follow keep less of it. An estimate at the search
+        bound is not trusted."""
         every, tr, off = self.cfg.imu.refine_time_offset_s, self.trace, self.offset
         if every <= 0 or not self.cfg.imu.estimate_time_offset or self.track is None or self.imu is None \
                 or stamp - tr.stamps[off.start] < every:
             return
-        est = self.segment_offset()
+        off.start = len(tr.stamps) - 1  # the next estimate after another `every` s
+        est = self.segment_offset(0)
         if est is None or abs(est) >= SEARCH_S - 1e-3:
             return
         off.history.append((stamp, est))
         off.applied += est
-        off.start = len(tr.stamps) - 1
         self.imu = replace(self.imu, stamps=self.imu.stamps - est)
         self.track = imu_track(self.imu, self.extr[:3, :3], self.gyro_bias, self.cfg.imu.sample_hold)
         if self.odom is not None:
@@ -355,9 +363,10 @@ class _Replay:
                                      f"estimate: applied, {off.applied * 1e3:.1f} ms in all",
                                      {"estimate_s": est, "applied_s": off.applied}))
 
-    def segment_offset(self) -> float | None:
-        """The offset left in the sweeps since the last applied estimate (None: too few or no rotation)."""
-        tr, k = self.trace, self.offset.start
+    def segment_offset(self, k: int = 0) -> float | None:
+        """The offset left in the sweeps from the k-th on against the IMU as now stamped (None: too few
+        or no rotation)."""
+        tr = self.trace
         if self.track is None or len(tr.stamps) - k < 2:
             return None
         online = np.array(tr.online[k:])
