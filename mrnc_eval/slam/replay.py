@@ -350,7 +350,7 @@ class _Replay:
                 or stamp - tr.stamps[off.start] < every:
             return
         off.start = len(tr.stamps) - 1  # the next estimate after another `every` s
-        est = self.segment_offset(0)
+        est = self.segment_offset()
         if est is None or abs(est) >= SEARCH_S - 1e-3:
             return
         off.history.append((stamp, est))

@@ -4,6 +4,7 @@ not taken for this one, and the moving part of the log would give a wrong bias."
 
 from __future__ import annotations
 
+import re
 from dataclasses import replace
 
 import numpy as np
@@ -96,3 +97,25 @@ def test_hold_start_delays_the_drive_and_holds_the_pose() -> None:
     assert np.all(held.x[before] == trace.x[0])
     np.testing.assert_allclose(held.x[~before], trace.x)
     assert hold_start(trace, 0.0) is trace
+
+
+@pytest.mark.parametrize("standstill_s", [3.0, 0.0])
+def test_info_reports_the_imu_measured_on_a_standstill(standstill_s: float, tmp_path,
+                                                        capsys: pytest.CaptureFixture[str]) -> None:
+    """A 5 s field-profile log standing 3 s before it drives: `info` gives the IMU's noise and
+    biases (vibration: acc density 0.015 against the configured 0.004) and warns; driving from the
+    first sample (the negative control) it says the IMU could not be measured."""
+    from mrnc_eval.cli import main
+    from mrnc_eval.config import Config, replace_path
+    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+
+    cfg = replace_path(Config(), "sim.standstill_s", standstill_s)
+    log = simulate_log(tmp_path / "still.mcap", cfg, SimRequest(duration_s=5.0, lidar="os0-32", columns=512,
+                                                                seed=1, profile="field"))
+    assert main(["info", str(log)]) == 0
+    out = " ".join(capsys.readouterr().out.split())
+    if standstill_s > 0:
+        assert re.search(r"IMU from [23]\.\d s stationary", out)
+        assert "noisier than the preintegration assumes" in out
+    else:
+        assert "no stationary stretch" in out
