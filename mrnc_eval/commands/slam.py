@@ -415,7 +415,12 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
                                  note="IMU clock lag behind the LiDAR's, estimated by correlating the LiDAR "
                                       "odometry's rotation rate with the gyro (positive: IMU stamps late), after "
                                       "applying slam.imu.time_offset_s"))
-    if abs(offset) > IMU_OFFSET_FINDING_S:
+    sigma = out.imu_time_offset_sigma_s
+    if sigma is not None and np.isfinite(sigma):
+        result.metrics.append(Metric("imu_time_offset_sigma_s", sigma, "s", "slam/health",
+                                     note="formal standard error of imu_time_offset_s (rate residuals taken as "
+                                          "independent, so a lower bound; ~1.5 ms on a 40 s log mapped at 5 Hz)"))
+    if abs(offset) > IMU_OFFSET_FINDING_S and (sigma is None or abs(offset) > 2 * sigma):
         text = (f"IMU-LiDAR time offset {offset * 1e3:.1f} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
                 f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
                 f"{cfg.slam.imu.time_offset_s + offset:.4f}")

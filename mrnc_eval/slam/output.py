@@ -42,3 +42,4 @@ class SlamOutput:
     # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
     warmup_ms: dict[str, float] = field(default_factory=dict)
     imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)
+    imu_time_offset_sigma_s: float | None = None  # its formal standard error, s

@@ -27,7 +27,7 @@ from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage, project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
-from mrnc_eval.slam.time_offset import SEARCH_S, estimate_imu_time_offset
+from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
 from mrnc_eval.slam.wheel_odometry import WheelTrack, base_velocity, blend_planar, relative_motion, wheel_factor
 
@@ -350,9 +350,11 @@ class _Replay:
                 or stamp - tr.stamps[off.start] < every:
             return
         off.start = len(tr.stamps) - 1  # the next estimate after another `every` s
-        est = self.segment_offset()
-        if est is None or abs(est) >= SEARCH_S - 1e-3:
+        found = self.segment_offset()
+        # applied only when it stands out of its own noise (2 standard errors) and inside the search
+        if found is None or abs(found.offset_s) >= SEARCH_S - 1e-3 or abs(found.offset_s) < 2 * found.sigma_s:
             return
+        est = found.offset_s
         off.history.append((stamp, est))
         off.applied += est
         self.imu = replace(self.imu, stamps=self.imu.stamps - est)
@@ -363,15 +365,15 @@ class _Replay:
                                      f"estimate: applied, {off.applied * 1e3:.1f} ms in all",
                                      {"estimate_s": est, "applied_s": off.applied}))
 
-    def segment_offset(self, k: int = 0) -> float | None:
+    def segment_offset(self, k: int = 0) -> OffsetEstimate | None:
         """The offset left in the sweeps from the k-th on against the IMU as now stamped (None: too few
         or no rotation)."""
         tr = self.trace
         if self.track is None or len(tr.stamps) - k < 2:
             return None
         online = np.array(tr.online[k:])
-        return estimate_imu_time_offset(np.asarray(tr.stamps[k:]), online[:, :3, :3], self.track,
-                                        np.asarray(tr.measured[k:], bool))
+        return imu_time_offset(np.asarray(tr.stamps[k:]), online[:, :3, :3], self.track,
+                               np.asarray(tr.measured[k:], bool))
 
     def warn_once(self, t: float, key: str, text: str) -> None:
         """A condition that holds for the whole log: one warning (and one event at its first sweep)."""
@@ -396,15 +398,18 @@ class _Replay:
             quality = self.map_quality(dense)
         stamps = np.asarray(tr.stamps)
         online = np.array(tr.online) if tr.online else np.zeros((0, 4, 4))
-        offset = None
+        offset = sigma = None
         if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
             left = self.segment_offset()  # what the applied estimates left (all of it when none was applied)
-            if left is not None or self.offset.history:
-                offset = self.offset.applied + (left or 0.0)
+            if left is not None:
+                offset, sigma = self.offset.applied + left.offset_s, left.sigma_s
+            elif self.offset.history:
+                offset = self.offset.applied
         return SlamOutput(stamps, poses, np.asarray(self.graph.stamps), kf_poses, map_points,
                           self.timing, self.events, self.warnings, n_sweeps, time.perf_counter() - wall0,
                           self.odom.bias_vector if self.odom is not None else None,
-                          np.asarray(tr.degenerate, bool), online, offset, quality, imu_noise=self.imu_report())
+                          np.asarray(tr.degenerate, bool), online, offset, quality, imu_noise=self.imu_report(),
+                          imu_time_offset_sigma_s=sigma)
 
     def imu_report(self) -> dict[str, Any] | None:
         """The IMU's measured noise and biases (IMU axes), what the preintegration used, and how

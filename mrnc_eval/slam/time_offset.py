@@ -5,6 +5,8 @@ t was measured at t - offset)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -47,8 +49,22 @@ def _axis_costs(offset: float, t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray
     return np.asarray(np.mean(diff * diff, axis=0), np.float64)
 
 
+@dataclass(frozen=True, kw_only=True)
+class OffsetEstimate:
+    offset_s: float
+    sigma_s: float  # formal standard error (residuals taken as independent: a lower bound), s
+    intervals: int  # sweep intervals compared
+
+
 def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
                              measured: np.ndarray | None = None, *, axis_weights: bool = True) -> float | None:
+    """The offset (s) of `imu_time_offset`, or None."""
+    est = imu_time_offset(stamps, rotations, track, measured, axis_weights=axis_weights)
+    return None if est is None else est.offset_s
+
+
+def imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
+                    measured: np.ndarray | None = None, *, axis_weights: bool = True) -> OffsetEstimate | None:
     """Offset (s) minimising the rate mismatch on a 0.5 ms grid within +/-0.1 s, refined by a
     parabola through the best grid point and its neighbours. None when fewer than 10 sweep
     intervals lie inside the IMU span, the mapped sweeps are more than MAX_INTERVAL_S apart (a
@@ -76,8 +92,15 @@ def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: I
     # (a roll held by the ground alone scatters more), and an axis that scatters should not set the
     # offset for the others (a maximum-likelihood fit with a noise level per axis)
     floor = max(float(per_axis.min(axis=0).max()) * 1e-3, 1e-12)
-    cost = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor) if axis_weights else np.ones(3))
+    weighted = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor))
+    cost = weighted if axis_weights else per_axis.sum(axis=1)
     k = int(np.argmin(cost))
+    n = int(pair.sum())
     if k == 0 or k == grid.size - 1:
-        return float(grid[k])
-    return float(grid[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S)
+        return OffsetEstimate(offset_s=float(grid[k]), sigma_s=float("inf"), intervals=n)
+    # chi^2(o) = n * weighted(o) with each axis's noise its best mean square: sigma^2 = 2 / chi^2''
+    kw = min(max(int(np.argmin(weighted)), 1), grid.size - 2)
+    curv = (weighted[kw - 1] - 2 * weighted[kw] + weighted[kw + 1]) / STEP_S ** 2
+    sigma = float(np.sqrt(2.0 / (n * curv))) if curv > 0 else float("inf")
+    return OffsetEstimate(offset_s=float(grid[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S),
+                          sigma_s=sigma, intervals=n)

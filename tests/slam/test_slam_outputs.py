@@ -87,6 +87,14 @@ def test_time_offset_estimator_recovers_a_known_lag(lag_s: float) -> None:
     estimate = estimate_imu_time_offset(t_lidar, rotations, track)
     assert estimate is not None
     assert abs(estimate - lag_s) < 1e-3
+    # its standard error: the estimate within 4 of it; a quarter of the log gives about twice as much
+    from mrnc_eval.slam.time_offset import imu_time_offset
+
+    full, short = imu_time_offset(t_lidar, rotations, track), imu_time_offset(t_lidar[:97], rotations[:97], track)
+    assert full is not None
+    assert short is not None
+    assert abs(full.offset_s - lag_s) < 4 * full.sigma_s
+    assert 1.5 < short.sigma_s / full.sigma_s < 3.0
 
 
 @pytest.mark.parametrize("lag_s", [0.0, 0.008, 0.03])
