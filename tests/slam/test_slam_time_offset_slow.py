@@ -3,9 +3,9 @@ circle on rough ground: terrain 0.5 m, roughness 5 cm; ideal sensor profile). Ru
     .venv/bin/python -m pytest -m slow tests/slam/test_slam_time_offset_slow.py -s
 
 The IMU stamps are shifted in the test (the lag a late IMU clock would give). Measured on the
-estimator that weights each axis by its own residual (issue 28): lag 0 -> -1.76 ms (no health
-finding), 8 ms -> 5.14 ms, 30 ms -> 27.66 ms, standard error 0.75-0.82 ms; 8 ms with the known
-offset applied -> -1.76 ms. The estimate sits about 2.5 ms below every lag, about 3 standard
+estimator that weights each axis by its own residual and slam.imu.noise_from_log (issue 28): lag 0
+-> -1.69 ms (no health finding), 8 ms -> 5.53 ms, 30 ms -> 27.69 ms, standard error 0.75-0.82 ms;
+8 ms with the known offset applied -> -1.69 ms (noise_from_log off: -1.76, 5.14, 27.66 ms). The estimate sits about 2.5 ms below every lag, about 3 standard
 errors: the SLAM's poses on rocking axes lag the truth by that much (against the ground truth,
 field yard logs: -1.5 to -4 ms on roll and pitch), a bias of the LiDAR side, not of the estimator
 (on ground-truth rotations it reads 0.06 ms). Applying estimates during the run
