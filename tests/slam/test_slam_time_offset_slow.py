@@ -5,12 +5,13 @@ circle on rough ground: terrain 0.5 m, roughness 5 cm; ideal sensor profile). Ru
 The IMU stamps are shifted in the test (the lag a late IMU clock would give). Measured on the
 estimator that weights each axis by its own residual and slam.imu.noise_from_log (issue 28): lag 0
 -> -1.69 ms (no health finding), 8 ms -> 5.53 ms, 30 ms -> 27.69 ms, standard error 0.75-0.82 ms;
-8 ms with the known offset applied -> -1.69 ms (noise_from_log off: -1.76, 5.14, 27.66 ms). The estimate sits about 2.5 ms below every lag, about 3 standard
-errors: the SLAM's poses on rocking axes lag the truth by that much (against the ground truth,
-field yard logs: -1.5 to -4 ms on roll and pitch), a bias of the LiDAR side, not of the estimator
-(on ground-truth rotations it reads 0.06 ms). Applying estimates during the run
-(slam.imu.refine_time_offset_s = 10) gives 5.31 ms at 8 ms: it takes out the part of a large lag
-the poses keep from the IMU (on 40 s field logs 30 ms -> 23.1 ms became 27.4 ms), not this bias.
+8 ms with the known offset applied -> -1.69 ms (noise_from_log off: -1.76, 5.14, 27.66 ms). The
+estimate sits about 2.5 ms below every lag, about 3 standard errors: the SLAM's poses on rocking
+axes lag the truth by that much (against the ground truth, field yard logs: -1.5 to -4 ms on roll
+and pitch), a bias of the LiDAR side, not of the estimator (on ground-truth rotations it reads
+0.06 ms). Applying estimates during the run (slam.imu.refine_time_offset_s = 10) gives 5.31 ms at
+8 ms and 28.13 ms at 30 ms: it takes out part of what the poses keep of a large lag from the IMU
+(test_slam_time_offset_refine_slow.py), not this bias.
 Before (equal axis weights): lag 0 -> -1.7 ms, 8 ms -> 5.5 ms.
 """
 
