@@ -18,6 +18,9 @@ from mrnc_eval.data import ImuSeries
 from mrnc_eval.slam.config import ImuConfig
 from mrnc_eval.slam.imu_noise import ImuNoiseEstimate
 
+MIN_ACC_DENSITY = 1e-4  # m/s^2/sqrt(Hz): below the best tactical-grade parts
+MIN_GYRO_DENSITY = 1e-6  # rad/s/sqrt(Hz)
+
 
 def clean_imu(imu: ImuSeries) -> ImuSeries:
     """Sorted by stamp, duplicates (same stamp) dropped: gtsam raises on dt <= 0 (LIO-SAM#247)."""
@@ -150,7 +153,9 @@ class ImuOdometry:
         gyro_bias = np.zeros(3)
         self.first_bias_sigmas = np.r_[[cfg.bias_prior_sigmas[0]] * 3, [cfg.bias_prior_sigmas[1]] * 3]
         if cfg.noise_from_log and measured is not None:
-            acc_noise, gyro_noise = measured.acc_noise_density, measured.gyro_noise_density
+            # floored: a quantised IMU standing still can read constant samples (density 0 -> NaN in gtsam)
+            acc_noise = max(measured.acc_noise_density, MIN_ACC_DENSITY)
+            gyro_noise = max(measured.gyro_noise_density, MIN_GYRO_DENSITY)
             gyro_bias = imu_in_lidar[:3, :3] @ measured.gyro_bias  # LiDAR axes, as the track
             self.first_bias_sigmas = np.r_[[cfg.acc_turn_on_sigma] * 3, [max(measured.gyro_bias_sigma, 1e-5)] * 3]
         if min(acc_noise, gyro_noise, cfg.integration_noise) <= 0:

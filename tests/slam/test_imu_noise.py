@@ -159,3 +159,22 @@ def test_a_turn_on_accelerometer_bias_is_learnt_with_the_measured_imu_and_the_ma
     assert fixed.bias_vector[2] < 0.05
     lio_sam = _standing_graph(False, "fixed", 0.1)
     assert abs(lio_sam.bias_vector[2]) < 0.005
+
+
+def test_a_silent_imu_does_not_give_zero_noise_to_gtsam() -> None:
+    """A quantised IMU standing still can read constant samples: the measured densities are 0, which
+    gives NaN in gtsam (LIO-SAM#427); they are floored."""
+    from mrnc_eval.data import ImuSeries
+    from mrnc_eval.slam.config import ImuConfig
+    from mrnc_eval.slam.imu import MIN_ACC_DENSITY, ImuOdometry, imu_track
+
+    t = np.arange(0.0, 5.0, 0.01)
+    acc, gyro = np.tile([0.0, 0.0, G], (t.size, 1)), np.zeros((t.size, 3))
+    est = estimate_imu_noise(t, acc, gyro, gravity=G)
+    assert est is not None
+    assert est.acc_noise_density == 0.0
+    odom = ImuOdometry(imu_track(ImuSeries(t, acc, gyro), np.eye(3)), ImuConfig(), np.eye(4), est)
+    assert odom.noise_used[0] == MIN_ACC_DENSITY
+    for k in range(5):
+        assert odom.add_lidar_pose(np.eye(4), 0.2 * (k + 1), False) is None
+    assert np.all(np.isfinite(odom.bias_vector))
