@@ -138,7 +138,9 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
                   None if inputs.imu is None else inputs.imu.stamps.size,
                   None if inputs.gnss is None else inputs.gnss.stamps.size,
                   None if inputs.ground_truth is None else len(inputs.ground_truth))
-        result.extra[K.ROLES] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
+        result.extra[K.ROLES] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "wheel_odom", "ground_truth")
+                                 if r in lg.roles}
+        result.extra["inputs"] = _inputs_used(lg, inputs, cfg)
         result.extra[K.GROUND_TRUTH] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         if window is not None and window.active:
             result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
@@ -296,6 +298,16 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
             return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
 
 
+def _inputs_used(lg: LogReader, inputs: LogInputs, cfg: Config) -> dict[str, str]:
+    """role -> topic of every topic the run reads as an input (never the ground truth: io/roles.py
+    rule 4)."""
+    lio = cfg.slam.method == "lio"
+    used = {"lidar": True, "imu": lio and inputs.imu is not None,
+            "gnss": lio and inputs.gnss is not None and cfg.slam.gps.enabled,
+            "wheel_odom": lio and cfg.slam.wheel_odom.enabled and lg.has_role("wheel_odom")}
+    return {role: lg.roles[role] for role, yes in used.items() if yes and role in lg.roles}
+
+
 def _wheel_track(lg: LogReader, cfg: Config) -> WheelTrack | None:
     """The wheel odometry (odom -> base_link) when slam.wheel_odom.enabled and the log has it."""
     if not cfg.slam.wheel_odom.enabled or not lg.has_role("wheel_odom"):
@@ -442,6 +454,7 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
                          K.FIRST_SWEEP_MS: float(sum(v[0] for v in out.timing_ms.values() if v)),
                          "warmup_ms": dict(out.warmup_ms), K.WARMUP_TOTAL_MS: float(sum(out.warmup_ms.values())),
                          "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
+                         "imu_noise": out.imu_noise,  # the IMU's noise and biases from stationary stretches
                          "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static), "
                                                       "smoothed: each sweep re-anchored to its final keyframe",
                                     "trajectory_online.tum": "the same frames, each sweep's pose as estimated "
@@ -560,7 +573,12 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
                                  note="IMU clock lag behind the LiDAR's, estimated by correlating the LiDAR "
                                       "odometry's rotation rate with the gyro (positive: IMU stamps late), after "
                                       "applying slam.imu.time_offset_s"))
-    if abs(offset) > IMU_OFFSET_FINDING_S:
+    sigma = out.imu_time_offset_sigma_s
+    if sigma is not None and np.isfinite(sigma):
+        result.metrics.append(Metric(name="imu_time_offset_sigma_s", value=sigma, unit="s", group="slam/health",
+                                     note="formal standard error of imu_time_offset_s (rate residuals taken as "
+                                          "independent, so a lower bound; ~1.5 ms on a 40 s log mapped at 5 Hz)"))
+    if abs(offset) > IMU_OFFSET_FINDING_S and (sigma is None or abs(offset) > 2 * sigma):
         text = (f"IMU-LiDAR time offset {offset * 1e3:.1f} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
                 f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
                 f"{cfg.slam.imu.time_offset_s + offset:.4f}")

@@ -27,6 +27,7 @@ from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
 from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, OrganisedSweep, ouster_metadata
 from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
 from mrnc_eval.sim.scene import SCENES, Scene, build_scene
+from mrnc_eval.sim.standstill import hold_start
 from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
 from mrnc_eval.sim.wheels import drive_signals
 
@@ -183,9 +184,11 @@ def _drive_world(run: _Run, seed: int) -> _World:
     motion over its terrain (stones shake it with the field profile)."""
     cfg, req, scfg, field = run.cfg, run.req, run.cfg.sim, run.field
     scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
-    trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
-    mean_x, mean_y = scenario.waypoints_xy.mean(axis=0)
-    centre = (mean_x, mean_y)
+    still = max(scfg.standstill_s, 0.0)
+    drive_s = None if req.duration_s is None else max(req.duration_s - still, 0.5)
+    trace = hold_start(run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=drive_s, seed=seed),
+                       still)
+    centre = tuple(scenario.waypoints_xy.mean(axis=0))
     roughness = scfg.terrain_roughness_m if field is None else field.world.terrain_roughness_m
     scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m, roughness_m=roughness,
                         centre=centre, keep_clear_xy=_driven_path(trace), clearance_m=cfg.robot.width_m / 2 + 0.5,
