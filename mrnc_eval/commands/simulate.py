@@ -13,7 +13,7 @@ from mrnc_eval.errors import OutputError, UsageError
 from mrnc_eval.io.containers import FORMAT_NAMES, FORMAT_SUFFIX, SUFFIX_FORMAT
 
 if TYPE_CHECKING:
-    from mrnc_eval.sim.recorder import SimRequest
+    from mrnc_eval.recording.recorder import SimRequest
 
 SIM_OUTPUT_BYTES = 100_000_000  # free space asked for before simulating (a minute of OS0-128 is ~50 MB)
 _BAG_FILES = (".mcap", ".db3", ".yaml")  # what a ROS 2 bag folder written by this tool holds

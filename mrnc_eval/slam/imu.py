@@ -233,33 +233,9 @@ class ImuOdometry:
             if why:
                 return why
         if self.key < 0 or self.key + 1 >= self.cfg.reset_every:
-            # (re)start: priors on pose, velocity (loose) and bias, as LIO-SAM does
-            self._start_graph()
-            k = 0
-            graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
-            v_sigma = [1e4] * 3 if self.t_last is None else [1.0] * 3  # m/s: unknown at the start
-            graph.add(g.PriorFactorVector(g.symbol("v", k), self.velocity, self._noise(v_sigma)))
-            bias_sigmas = self.first_bias_sigmas if self.first_start else \
-                np.r_[[self.cfg.bias_prior_sigmas[0]] * 3, [self.cfg.bias_prior_sigmas[1]] * 3]
-            graph.add(g.PriorFactorConstantBias(g.symbol("b", k), self.bias, self._noise(bias_sigmas)))
-            values.insert(g.symbol("x", k), body)
-            values.insert(g.symbol("v", k), self.velocity)
-            values.insert(g.symbol("b", k), self.bias)
+            k = self._first_key(graph, values, body, prior)
         else:
-            k = self.key + 1
-            assert self.t_last is not None  # set with the first key, kept by restart()
-            pim = self._pim(self.t_last, t)
-            dt = max(t - self.t_last, 1e-6)
-            graph.add(g.ImuFactor(g.symbol("x", k - 1), g.symbol("v", k - 1), g.symbol("x", k), g.symbol("v", k),
-                                  g.symbol("b", k - 1), pim))
-            walk = np.sqrt(dt) * np.r_[[self.cfg.acc_bias_noise] * 3, [self.cfg.gyro_bias_noise] * 3]
-            graph.add(g.BetweenFactorConstantBias(g.symbol("b", k - 1), g.symbol("b", k), g.imuBias.ConstantBias(),
-                                                  self._noise(walk)))
-            graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
-            pred = pim.predict(g.NavState(self._last_pose, self.velocity), self.bias)
-            values.insert(g.symbol("x", k), pred.pose())
-            values.insert(g.symbol("v", k), pred.velocity())
-            values.insert(g.symbol("b", k), self.bias)
+            k = self._next_key(graph, values, body, prior, t)
         try:
             self.isam.update(graph, values)
             self.isam.update()
@@ -275,6 +251,42 @@ class ImuOdometry:
         if np.linalg.norm(self.velocity) > self.cfg.max_velocity_mps or np.linalg.norm(bias_vec) > self.cfg.max_bias:
             return self._reset(t, body, "Large velocity/bias, reset IMU-preintegration")
         return None
+
+    def _first_key(self, graph: Any, values: Any, body: Any, prior: Any) -> int:
+        """(Re)start: priors on pose, velocity (loose) and bias, as LIO-SAM does; returns key 0."""
+        g = self.g
+        self._start_graph()
+        k = 0
+        graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
+        v_sigma = [1e4] * 3 if self.t_last is None else [1.0] * 3  # m/s: unknown at the start
+        graph.add(g.PriorFactorVector(g.symbol("v", k), self.velocity, self._noise(v_sigma)))
+        bias_sigmas = self.first_bias_sigmas if self.first_start else \
+            np.r_[[self.cfg.bias_prior_sigmas[0]] * 3, [self.cfg.bias_prior_sigmas[1]] * 3]
+        graph.add(g.PriorFactorConstantBias(g.symbol("b", k), self.bias, self._noise(bias_sigmas)))
+        values.insert(g.symbol("x", k), body)
+        values.insert(g.symbol("v", k), self.velocity)
+        values.insert(g.symbol("b", k), self.bias)
+        return k
+
+    def _next_key(self, graph: Any, values: Any, body: Any, prior: Any, t: float) -> int:
+        """The IMU factor from the last key to `t`, the bias random walk and the scan-to-map pose
+        prior; the new key's initial values predicted by the preintegration. Returns the key."""
+        g = self.g
+        k = self.key + 1
+        assert self.t_last is not None  # set with the first key, kept by restart()
+        pim = self._pim(self.t_last, t)
+        dt = max(t - self.t_last, 1e-6)
+        graph.add(g.ImuFactor(g.symbol("x", k - 1), g.symbol("v", k - 1), g.symbol("x", k), g.symbol("v", k),
+                              g.symbol("b", k - 1), pim))
+        walk = np.sqrt(dt) * np.r_[[self.cfg.acc_bias_noise] * 3, [self.cfg.gyro_bias_noise] * 3]
+        graph.add(g.BetweenFactorConstantBias(g.symbol("b", k - 1), g.symbol("b", k), g.imuBias.ConstantBias(),
+                                              self._noise(walk)))
+        graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
+        pred = pim.predict(g.NavState(self._last_pose, self.velocity), self.bias)
+        values.insert(g.symbol("x", k), pred.pose())
+        values.insert(g.symbol("v", k), pred.velocity())
+        values.insert(g.symbol("b", k), self.bias)
+        return k
 
     def _restart_from_marginals(self, t: float, body: Any) -> str | None:
         """LIO-SAM's periodic reset: a new graph whose first key is the last key's state, held by its

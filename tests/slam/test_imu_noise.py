@@ -105,10 +105,9 @@ def test_info_reports_the_imu_measured_on_a_standstill(standstill_s: float, tmp_
     """A 5 s field-profile log standing 3 s before it drives: `info` gives the IMU's noise and
     biases (vibration: acc density 0.015 against the configured 0.004) and warns; driving from the
     first sample (the negative control) it says the IMU could not be measured."""
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
-
     from mrnc_eval.cli import main
     from mrnc_eval.config import Config, replace_path
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     cfg = replace_path(Config(), "sim.standstill_s", standstill_s)
     log = simulate_log(tmp_path / "still.mcap", cfg, SimRequest(duration_s=5.0, lidar="os0-32", columns=512,

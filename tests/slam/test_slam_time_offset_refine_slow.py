@@ -28,7 +28,7 @@ ONCE_MIN_S = 0.005  # measured error 6.4-7.3 ms
 
 @pytest.fixture(scope="module")
 def yard_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     cfg = replace_path(replace_path(Config(), "sim.standstill_s", 3.0), "sim.lidar.packet_profile", "RNG15_RFL8_NIR8")
     return simulate_log(tmp_path_factory.mktemp("yard") / "yard_s3.mcap", cfg,
