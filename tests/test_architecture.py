@@ -19,12 +19,13 @@ PACKAGE = Path(__file__).resolve().parents[1] / "mrnc_eval"
 # Highest layer first: each top-level folder and module of the package, by name. A new folder or
 # module must be placed here (test_every_folder_has_a_layer).
 LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
-    ("cli", frozenset({"cli", "__main__", "cli_help"})),
+    ("cli", frozenset({"cli", "__main__", "cli_help", "cli_fast", "cli_evo"})),
     ("commands", frozenset({"commands", "api"})),
-    ("edges", frozenset({"io", "reports", "results", "export", "history", "config", "recording"})),
+    ("edges", frozenset({"io", "reports", "results", "export", "history", "config", "recording", "outputs"})),
     ("pure", frozenset({"slam", "control", "evaluation", "sim"})),
     ("geometry", frozenset({"geometry"})),  # SE(3), quaternions, resampling, point fits: below slam, io, evaluation
     ("base", frozenset({"__init__", "data", "errors", "params", "geodesy", "tables", "text", "spelling", "peaks",
+                        "extras",
                         "schema"})),  # schema: the names inside a result folder, shared by writers and readers
 )
 PURE = "pure"  # packages of this layer import only themselves and the layers below
@@ -35,6 +36,14 @@ KNOWN_WRONG_WAY: dict[tuple[str, str], str] = {}
 KNOWN_SIDEWAYS: dict[tuple[str, str], str] = {
     ("mrnc_eval.evaluation.control_metrics", "mrnc_eval.control.config"):
         "Table II metrics take control's MetricsConfig sections; they move with the control issue",
+    # merged from main (control issue 25's replay glue): control and evaluation import each other
+    ("mrnc_eval.control.replay", "mrnc_eval.evaluation.control_metrics"):
+        "the replay evaluates its trace; evaluation of a run belongs above both (control issue)",
+    ("mrnc_eval.evaluation.control_run", "mrnc_eval.control.closed_loop"):
+        "runs the closed loop to evaluate it: an orchestration, not a metric (control issue)",
+    ("mrnc_eval.evaluation.control_run", "mrnc_eval.control.config"): "as above (control issue)",
+    ("mrnc_eval.evaluation.control_run", "mrnc_eval.control.raid"): "as above (control issue)",
+    ("mrnc_eval.evaluation.control_run", "mrnc_eval.control.scenario"): "as above (control issue)",
 }
 KNOWN_CYCLES: dict[frozenset[str], str] = {}
 

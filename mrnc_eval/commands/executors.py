@@ -42,8 +42,14 @@ class LocalPool:
         self.workers = max(1, workers)
 
     def _pool(self, workers: int) -> ProcessPoolExecutor:
+        import logging
+
+        from mrnc_eval.text import install_log_format
+
+        # a spawned worker starts without our log handler: give it the same escaping formatter
         return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
-                                   max_tasks_per_child=1)
+                                   max_tasks_per_child=1, initializer=install_log_format,
+                                   initargs=(logging.getLogger().getEffectiveLevel(), None))
 
     def run(self, jobs: Iterable[LogJob]) -> Iterator[LogSummary]:
         queue = deque(jobs)

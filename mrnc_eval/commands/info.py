@@ -44,8 +44,34 @@ class InfoSummary:
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
 
+    def json_item(self) -> dict[str, Any]:
+        """This summary as one `results` item of the --json document (commands/output.py)."""
+        from mrnc_eval.commands.output import item
+
+        rest = self.to_json()
+        stats = {k: rest.pop(k) for k in ("duration_s", "start_s", "end_s")}
+        return item(self.path, {**stats, "n_topics": len(self.topics)}, **rest)
+
 
 def run(path: Path, cfg: Config) -> InfoSummary:
+    from mrnc_eval.errors import InputError
+    from mrnc_eval.io.integrity import container_notes, mcap_files, verify_chunks
+
+    damaged = [d for f in mcap_files(Path(path)) for d in verify_chunks(f).damaged]  # every chunk, decompressed
+    try:
+        summary = _summary(path, cfg)
+    except InputError as err:
+        if damaged:  # say which chunks, not only that the read failed
+            raise InputError(path, f"{len(damaged)} damaged chunk(s): {damaged[0].message()}; {err.problem}") from err
+        raise
+    summary.findings[:0] = [Finding(level="error", topic=", ".join(d.topics), message=d.message()) for d in damaged]
+    for note in container_notes(Path(path), summary.container):
+        summary.findings.append(Finding(level="warning" if "MCAP" in note or "dropped" in note else "ok", topic="",
+                                        message=note))
+    return summary
+
+
+def _summary(path: Path, cfg: Config) -> InfoSummary:
     with open_log(path, cfg.io) as lg:
         topics = lg.topics
         summary = InfoSummary(
@@ -122,9 +148,11 @@ def _lidar_findings(lg: LogReader, summary: InfoSummary) -> None:
     first = next(lg.messages(topic, ("sensor_msgs/msg/PointCloud2",)))  # one cloud is enough for the layout
     fields = [f.name for f in first.fields]
     has_time = any(f in fields for f in ("t", "time", "timestamp"))
+    entry = next(t for t in summary.topics if t["topic"] == topic)
+    # the sweeps a replay reads: duplicate stamps are dropped when read, so they are not counted here either
+    recorded, usable = entry["count"], entry["count"] - entry["duplicates"]
     summary.lidar = {"topic": topic, "fields": fields, "height": int(first.height), "width": int(first.width),
-                     "per_point_time": has_time,
-                     "sweeps": next(t["count"] for t in summary.topics if t["topic"] == topic)}
+                     "per_point_time": has_time, "sweeps": usable, "sweeps_recorded": recorded}
     missing = [f for f in ("x", "y", "z") if f not in fields]
     if missing:
         summary.findings.append(Finding(level="error", topic=topic, message=f"PointCloud2 without {'/'.join(missing)}"))
@@ -132,15 +160,16 @@ def _lidar_findings(lg: LogReader, summary: InfoSummary) -> None:
     summary.findings.append(Finding(level="ok" if has_time else "warning", topic=topic,
                                     message="per-point time present" if has_time else
                                     "no per-point time field: sweeps cannot be deskewed"))
+    dropped = f" ({recorded} recorded, {recorded - usable} with a duplicate stamp dropped)" if usable < recorded else ""
     summary.findings.append(Finding(level="ok", topic=topic,
-                                    message=f"{summary.lidar['sweeps']} sweeps of {first.height} x {first.width}"
+                                    message=f"{usable} sweeps{dropped} of {first.height} x {first.width}"
                                     f", fields {', '.join(fields)}"))
     imu_topic = summary.roles.get("imu")
     if imu_topic is None:
         summary.findings.append(Finding(level="warning", topic=topic,
                                         message="no IMU: deskew and preintegration unavailable"))
         return
-    sweep_t = np.sort(lg.sweep_stamps(topic))
+    sweep_t = np.unique(lg.sweep_stamps(topic))  # sorted, duplicates once: the sweeps a replay reads
     imu_t = np.sort(lg.stamps(imu_topic))
     from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
 
@@ -174,13 +203,12 @@ def _gnss_findings(lg: LogReader, summary: InfoSummary) -> None:
 
 
 def print_summary(summary: InfoSummary) -> None:
-    from rich.console import Console
     from rich.markup import escape
     from rich.table import Table
 
-    console = Console()
-    if not console.is_terminal:  # piped or captured: rich would assume 80 columns and cut type names
-        console = Console(width=160)
+    from mrnc_eval.text import console as terminal_console
+
+    console = terminal_console()  # full width off a terminal
     def shown(text: str) -> str:  # log content: one line, no control characters, no rich markup
         return escape(printable(text))
 

@@ -77,12 +77,12 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
     from mrnc_eval.commands import control, info, slam
     from mrnc_eval.config import config_hash, dump_config
     from mrnc_eval.reports.render import evaluate_gates, write_report
-    from mrnc_eval.results import RunResult, write_result
+    from mrnc_eval.results import RunResult, absolute_log_path, write_result
     from mrnc_eval.schema.info import INFO
 
     config_yaml = dump_config(cfg)
     summary = info.run(log_path, cfg).to_json()
-    info_result = RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={INFO: summary},
+    info_result = RunResult(kind="info", log_path=absolute_log_path(log_path), log_id=log_id, extra={INFO: summary},
                             config_hash=config_hash(cfg))
     write_result(info_result, work_dir / "info", config_yaml)
     results = [info_result, slam.run_log(log_path, cfg, work_dir / "slam", log_id=log_id)]
@@ -91,7 +91,7 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
         info_result.warnings.append(f"control replay skipped: the log has no {' and no '.join(missing)} topic")
     else:
         results.append(control.run_log(log_path, cfg, work_dir / "control", mode="replay", log_id=log_id))
-    write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf)
+    write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf, force=True)  # its own folder
     metrics = [(f"{m.group}/{m.name}", _finite(m.value), m.unit) for r in results for m in r.metrics]
     failed = [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"]
     return Analysis(metrics=metrics, gates_failed=failed)

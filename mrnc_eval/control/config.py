@@ -65,14 +65,41 @@ class FunnelConfig:
 
 
 @dataclass(frozen=True)
+class StepDetectorConfig:
+    """When a side's segment clock restarts (the per-step funnel anchor, FOPTC's prescribed-time clock)."""
+
+    detector: Literal["ramp", "per_sample"] = param(
+        "ramp", "ramp: a movement of the reference (|dr/dt| > ramp_rate_mps2) that has changed it by "
+        "restart_step_mps restarts the clock, held at zero until the ramp ends; per_sample: one sample must change "
+        "it by more than control.metrics.step_threshold_mps (never fires under the reference slew; the old rule)")
+    ramp_rate_mps2: float = param(0.05, "the reference is moving where |dr/dt| exceeds this", "m/s^2")
+    restart_step_mps: float = param(0.1, "a movement that changes the reference by this much is a step", "m/s")
+
+
+@dataclass(frozen=True)
+class SupervisorConfig:
+    stop_rule: Literal["raid_only", "all"] = param(
+        "raid_only", "the paper's safety stop (|e| >= o(t) or a non-finite value: command 0 on that side for the "
+        "rest of the run): for RAID alone (paper), or for every law (parity)")
+
+
+@dataclass(frozen=True)
 class RaidConfig:
-    beta: float = param(1.2, "beta (paper)")
+    beta: float = param(1.2, "beta (paper)", gt=0.0)
     kappa: float = param(5.2, "kappa of the adaptive law (paper)")
     n_neurons: int = param(9, "RBF neurons N (paper)")
     gamma: float = param(0.13, "RBF width gamma (paper)")
     centre_seed: int = param(7, "seed of the RBF centres alpha = 2 rand - 1 (recorded in reports)")
     phi0: float = param(0.5, "initial adaptive parameter phi(0) (phi = 0 is a fixed point, so non-zero)")
-    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (paper: 1)", "RPM")
+    feedback_scale_rpm: float = param(1.0, "scale of the RAID feedback in RPM per law unit (the paper states no "
+                                      "unit; 1 = the literal reading)", "RPM")
+    output_unit: Literal["rpm_per_unit", "error_over_floor", "feedforward_gain"] = param(
+        "rpm_per_unit", "how the law's output becomes RPM (the paper's law is dimensionally inhomogeneous): "
+        "rpm_per_unit = feedback_scale_rpm RPM per law unit with e in m/s; error_over_floor = e, o, do/dt divided "
+        "by o_b first; feedforward_gain = the output read as m/s x the feed-forward gain (3000 RPM per m/s) x "
+        "feedback_scale_rpm. Reported with the interior gain beside Table II")
+    scale_study: tuple[float, ...] = param((1.0, 10.0, 100.0), "feedback scales RAID is also run at in "
+                                           "control --mode simulate (the scale study table; empty: none)", "RPM")
 
 
 @dataclass(frozen=True)
@@ -238,7 +265,7 @@ class SweepConfig:
     """Robustness sweep (control --mode sweep): N plants drawn uniformly from these ranges; every
     controller runs on the same draws. Gain mismatch m sets K = (1 + m) / feed-forward gain on both sides."""
 
-    runs: int = param(100, "plants drawn")
+    runs: int = param(100, "plants drawn", ge=1, le=100_000)
     seed: int = param(0, "seed of the draws (also the measurement-noise seed of run k is seed + k)")
     gain_mismatch: tuple[float, float] = param((-0.3, 0.3), "relative drive-gain error range")
     dead_band_rpm: tuple[float, float] = param((30.0, 150.0), "dead band range", "RPM")
@@ -246,7 +273,7 @@ class SweepConfig:
     tau_s: tuple[float, float] = param((0.2, 0.8), "drive time constant range", "s")
     slip_scale: tuple[float, float] = param((0.0, 2.0), "slip severity: the scenario's patch slip ratios "
                                             "(0.15, 0.18) times this factor")
-    duration_s: float = param(100.0, "simulated time per run (the paper circle takes ~98 s)", "s")
+    duration_s: float = param(100.0, "simulated time per run (the paper circle takes ~98 s)", "s", gt=0.0, le=86_400.0)
     record_every: int = param(20, "record every n-th control period (20: 50 Hz, the pure pursuit rate) for the "
                               "per-run steady-state error and cross-track RMS; funnel violations, saturation and "
                               "IAE are counted at the full rate")
@@ -262,6 +289,8 @@ class ControlConfig:
     pure_pursuit: PurePursuitConfig = section(PurePursuitConfig, "path following")
     kinematics: KinematicsConfig = section(KinematicsConfig, "inverse kinematics and reference shaping")
     funnel: FunnelConfig = section(FunnelConfig, "RAID prescribed-performance funnel o(t)")
+    steps: StepDetectorConfig = section(StepDetectorConfig, "step detector: restarts of the per-step clocks")
+    supervisor: SupervisorConfig = section(SupervisorConfig, "safety stop on funnel exit")
     raid: RaidConfig = section(RaidConfig, "RAID controller (paper)")
     pid: PidConfig = section(PidConfig, "PID baseline")
     apc: ApcConfig = section(ApcConfig, "APC baseline (stand-in: CFDL-MFAPC)")

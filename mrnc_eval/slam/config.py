@@ -24,11 +24,14 @@ class SensorConfig:
 class ImuConfig:
     """IMU noise model, extrinsics and the preintegration graph (graph #2)."""
 
-    acc_noise: float = param(3.9939570888238808e-03, "accelerometer white noise sigma (imuAccNoise)", "m/s^2")
-    gyro_noise: float = param(1.5636343949698187e-03, "gyroscope white noise sigma (imuGyrNoise)", "rad/s")
-    acc_bias_noise: float = param(6.4356659353532566e-05, "accelerometer bias random walk (imuAccBiasN)", "m/s^3")
-    gyro_bias_noise: float = param(3.5640318696367613e-05, "gyroscope bias random walk (imuGyrBiasN)", "rad/s^2")
-    integration_noise: float = param(1e-4, "integration noise sigma of the preintegration")
+    acc_noise: float = param(3.9939570888238808e-03, "accelerometer white noise sigma (imuAccNoise)", "m/s^2",
+                             gt=0.0)
+    gyro_noise: float = param(1.5636343949698187e-03, "gyroscope white noise sigma (imuGyrNoise)", "rad/s", gt=0.0)
+    acc_bias_noise: float = param(6.4356659353532566e-05, "accelerometer bias random walk (imuAccBiasN)", "m/s^3",
+                                  gt=0.0)
+    gyro_bias_noise: float = param(3.5640318696367613e-05, "gyroscope bias random walk (imuGyrBiasN)", "rad/s^2",
+                                   gt=0.0)
+    integration_noise: float = param(1e-4, "integration noise sigma of the preintegration", gt=0.0)
     gravity: float = param(9.80511, "gravity magnitude (imuGravity)", "m/s^2")
     rpy_weight: float = param(0.01, "slerp weight pulling the matched roll/pitch towards the IMU's orientation "
                               "(imuRPYWeight); 9-axis IMUs only: a 6-axis IMU has no orientation, the blend is off")
@@ -98,7 +101,7 @@ class MatchingConfig:
     map_radius_m: float = param(50.0, "keyframes within this of the last one form the local map "
                                 "(surroundingKeyframeSearchRadius)", "m")
     map_recent_s: float = param(10.0, "plus every keyframe of the last seconds", "s")
-    max_iterations: int = param(30, "Gauss-Newton iterations")
+    max_iterations: int = param(30, "Gauss-Newton iterations", ge=1, le=1000)
     min_edges: int = param(10, "optimise only with at least this many edge features (edgeFeatureMinValidNum)")
     min_surfs: int = param(100, "... and planar features (surfFeatureMinValidNum)")
     match_without_edges: bool = param(True, "with too few edges, still match the planes (LIO-SAM keeps the IMU guess "

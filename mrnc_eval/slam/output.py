@@ -41,3 +41,4 @@ class SlamOutput:
     deskew: bool = True  # False when the method ran without deskew (kiss-icp on throttled logs)
     # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
     warmup_ms: dict[str, float] = field(default_factory=dict)
+    empty_sweeps: int = 0  # sweeps with no valid point (empty, all zero or non-finite): not mapped, counted

@@ -52,18 +52,21 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
     interval = MappingInterval(interval_s=cfg.mapping_interval_s)
-    n_sweeps = 0
+    n_sweeps = n_empty = 0
     t_read = time.perf_counter()
     for sweep in sweeps:
         n_sweeps += 1
         if progress is not None:
             progress(n_sweeps)
-        if not interval.take(sweep.stamp) or len(sweep) == 0:
+        if len(sweep) == 0:
+            n_empty += 1  # nothing to map: counted, so the result says so
+            continue
+        if not interval.take(sweep.stamp):
             continue  # mappingProcessInterval
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
         replay.map_sweep(sweep)
         t_read = time.perf_counter()
-    return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms)
+    return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty)
 
 
 @dataclass(kw_only=True)

@@ -17,7 +17,7 @@ from tests.io.test_io_roundtrip import H, W, _cloud, write_sample
 
 def _info(path: Path, capsys: pytest.CaptureFixture[str]) -> dict:
     assert main(["info", str(path), "--json"]) == 0
-    return json.loads(capsys.readouterr().out)
+    return json.loads(capsys.readouterr().out)["results"][0]
 
 
 def _messages(info: dict, topic: str) -> list[tuple[str, str]]:
@@ -42,7 +42,7 @@ def test_info_reports_duplicates_fix_ratio_and_coverage(tmp_path: Path, capsys: 
     assert info["lidar"]["width"] == W
     assert info["roles"]["commands"] == "/pump_cmd"
     assert info["roles"]["tf_static"] == "/tf_static"
-    assert info["duration_s"] == pytest.approx(0.49)
+    assert info["stats"]["duration_s"] == pytest.approx(0.49)
 
 
 def test_info_flags_sweeps_the_imu_does_not_cover(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:

@@ -221,6 +221,7 @@ def test_a_second_nightly_on_the_same_root_is_refused(imu_logs: Path, tmp_path: 
             run_night(imu_logs, out, night="2026-11-06")
     assert not (out / "history.sqlite").exists()
     assert run_night(imu_logs, out, night="2026-11-06") == 0  # released: runs
+    assert not (out / ".nightly.lock").exists()  # removed after the run, not left in the report root
 
 
 def test_a_failed_gate_exits_1_and_is_named_in_the_index_and_history(imu_logs: Path, tmp_path: Path) -> None:
@@ -248,4 +249,5 @@ def test_gate_cards_judge_the_worst_deployed_value() -> None:
         Metric(name="safety_stops", value=float("nan"), unit="", group="control/raid/left")])
     cards = {g.label: (g.value, g.status) for g in evaluate_gates([slam, control], GatesConfig())}
     assert cards == {"APE RMSE": ("0.120 m", "fail"), "Funnel violations": ("0", "pass"),  # PID is not gated
-                     "Saturation ratio": ("0.300", "fail"), "Safety stops": ("n/a", "na")}
+                     "Saturation ratio": ("0.300", "fail"),
+                     "Safety stops": ("not a finite number: nan", "fail")}  # a NaN never skips (issue 26)
