@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from mrnc_eval.config import Config, config_hash, dump_config
-from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
+from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
 from mrnc_eval.control.margins import bode, loop_summary
@@ -166,7 +166,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
 def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: dict[str, Any]) -> None:
     """One controller's metrics (per side and path), decimated series and safety stops into `result`."""
     step = _decimate(tr.t)
-    for side in K.SIDES:
+    for side in SIDES:
         group = f"control/{name}/{side}"
         s = tr.side(side)
         for key, val in metrics[side].items():

@@ -218,7 +218,7 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
     labels = result.extra.get(control_keys.LABELS, {})  # as commands/control labels each controller's events
     for name in result.extra.get(control_keys.CONTROLLERS, []):
         missing = [k for k in (control_keys.time(name), control_keys.funnel(name),
-                               *(control_keys.side_series(name, side, q) for side in control_keys.SIDES
+                               *(control_keys.side_series(name, side, q) for side in ("left", "right")
                                  for q in (control_keys.V_REF, control_keys.V_MEAS, control_keys.U_RPM)))
                    if k not in s]
         if missing:  # a renamed series must not drop a controller from the export unseen
@@ -229,7 +229,7 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
         t = s[control_keys.time(name)]
         side = {k: {f: s[control_keys.side_series(name, k, f)]
                     for f in (control_keys.V_REF, control_keys.V_MEAS, control_keys.U_RPM)}
-                for k in control_keys.SIDES}
+                for k in ("left", "right")}
         o = s[control_keys.funnel(name)]
         cte = s.get(control_keys.cte(name))  # None: wheel-speed tracking, no path to measure against
         for i in range(t.size):

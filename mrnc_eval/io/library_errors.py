@@ -21,7 +21,7 @@ _PARSING = (struct.error, EOFError, OSError, ValueError, KeyError, IndexError, O
 
 
 @functools.cache
-def data_errors() -> tuple[type[BaseException], ...]:
+def data_errors() -> tuple[type[Exception], ...]:
     """The exception types a log library raises for bad data (imported on first use: the
     libraries are heavy and only needed when a log is read)."""
     from mcap.exceptions import McapError
@@ -31,7 +31,7 @@ def data_errors() -> tuple[type[BaseException], ...]:
     from rosbags.serde import SerdeError
     from rosbags.typesys import TypesysError
 
-    found: list[type[BaseException]] = [McapError, AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError,
+    found: list[type[Exception]] = [McapError, AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError,
                                         TypesysError, sqlite3.Error, *_PARSING]
     for module in ("zstandard", "backports.zstd", "compression.zstd"):  # mcap's, rosbags' (py < 3.14, >= 3.14)
         with contextlib.suppress(ImportError, AttributeError):  # not installed: that library refuses zstd itself

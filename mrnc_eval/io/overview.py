@@ -57,7 +57,7 @@ def scan(src: LogSource, health: HealthLedger, cache_mb: float) -> tuple[dict[st
                      if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
     keep = {t for t, ch in src.channels.items() if ch.msgtype not in _BULK_TYPES and not ch.problem}
     wants = {t: WHOLE if t in keep else _HEADER_BYTES if t in header_topics else 0 for t in src.channels}
-    no_index: tuple[type[BaseException], ...] = (IndexUnusable, InputError, *data_errors())  # or a broken log
+    no_index: tuple[type[Exception], ...] = (IndexUnusable, InputError, *data_errors())  # or a broken log
     try:  # MCAP, ROS 1: from the indexes, the clouds left compressed (io/chunk_prefix.py)
         stamps, cache = _collect(src, _indexed_overview(src, wants), header_topics, keep, cache_mb)
     except no_index:  # the full read, and its own error

@@ -2,15 +2,13 @@
 
 from __future__ import annotations
 
-SIDES = ("left", "right")
-
 # series.npz, per controller (or "recorded" for a replay) and side
 V_REF, V_MEAS, U_RPM = "v_ref", "v_meas", "u_rpm"  # wheel-speed reference and measured (m/s), command (RPM)
 U_FB_RPM, PHI_HAT = "u_fb_rpm", "phi_hat"  # feedback part of the command; RAID's adaptive parameter
 
 
 def side_series(controller: str, side: str, quantity: str) -> str:
-    """One side's V_REF, V_MEAS, U_RPM, U_FB_RPM or PHI_HAT."""
+    """One side's ("left" or "right", control.closed_loop.SIDES) V_REF, V_MEAS, U_RPM, U_FB_RPM or PHI_HAT."""
     return f"{controller}_{side}_{quantity}"
 
 
