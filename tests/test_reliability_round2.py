@@ -147,6 +147,7 @@ def test_02_no_raw_control_byte_from_any_verb(sim_log: Path, tmp_path: Path) -> 
         "slam": cli("slam", log, "--out", out, "--no-loop", "-v"),
         "control": cli("control", log, "--mode", "replay", "--out", out, "-v"),
         "ape": cli("ape", f"{log}:/ground_truth", f"{log}:/odom{HOSTILE}", "-v"),
+        "rpe": cli("rpe", f"{log}:/ground_truth", f"{log}:/odom{HOSTILE}", "-v"),
     }
     run_dirs = run_folders(out)
     slam_dir = next(p for p in run_dirs if "slam" in p.name)
