@@ -24,7 +24,8 @@ LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
     ("edges", frozenset({"io", "reports", "results", "export", "history", "config", "recording"})),
     ("pure", frozenset({"slam", "control", "evaluation", "sim"})),
     ("geometry", frozenset({"geometry"})),  # SE(3), quaternions, resampling, point fits: below slam, io, evaluation
-    ("base", frozenset({"__init__", "data", "errors", "params", "geodesy", "tables", "text", "spelling", "peaks"})),
+    ("base", frozenset({"__init__", "data", "errors", "params", "geodesy", "tables", "text", "spelling", "peaks",
+                        "schema"})),  # schema: the names inside a result folder, shared by writers and readers
 )
 PURE = "pure"  # packages of this layer import only themselves and the layers below
 
