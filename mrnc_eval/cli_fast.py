@@ -70,7 +70,7 @@ def _option_spellings(param: _Param, info: OptionInfo) -> dict[str, tuple[_Param
         decls.insert(0, str(info.default))
     dashed = param.name.replace("_", "-")
     if param.is_list:
-        return None  # repeatable options (--set) are typer's
+        return {}  # repeatable options (--set, --label): unknown here, so a line that gives one is typer's
     if param.kind is not bool:
         return None if any("/" in d for d in decls) else {d: (param, None) for d in decls or [f"--{dashed}"]}
     spellings: dict[str, tuple[_Param, bool | None]] = {}

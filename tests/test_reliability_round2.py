@@ -237,7 +237,7 @@ def test_14_result_json_records_the_absolute_log_path(sim_log: Path, tmp_path: P
     shutil.copy(sim_log, work / "s.mcap")
     shutil.copy(sim_log.with_name("s.gt.tum"), work / "s.gt.tum")
     monkeypatch.chdir(work)
-    r = cli("control", "s.mcap", "--mode", "replay", "--controllers", "pid", "--out", "R")
+    r = cli("control", "s.mcap", "--mode", "replay", "--out", "R")
     assert r.code == 0, r.err
     run = run_folders(work / "R")[0]
     assert json.loads((run / "result.json").read_text())["log_path"] == str(work / "s.mcap")

@@ -143,10 +143,10 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         result.extra["loop"] = loops
         w, loop = bode(cfg.control, interior_gain(cfg.control, v=cfg.control.pure_pursuit.desired_speed_mps,
                                                   phi=0.0))
-        result.series["bode_w_rad_s"] = w
+        result.series[K.BODE_W] = w
         for law, lw in loop.items():
-            result.series[f"bode_{law}_mag_db"] = 20.0 * np.log10(np.abs(lw))
-            result.series[f"bode_{law}_phase_deg"] = np.degrees(np.unwrap(np.angle(lw)))
+            result.series[K.bode_magnitude(law)] = 20.0 * np.log10(np.abs(lw))
+            result.series[K.bode_phase(law)] = np.degrees(np.unwrap(np.angle(lw)))
         events = disturbance_study(names, cfg.control, cfg.robot)
         result.tables.append(disturbance_table(events, cfg))
         result.extra["disturbance"] = events

@@ -28,7 +28,7 @@ from mrnc_eval.schema import slam as slam_keys
 from mrnc_eval.text import printable
 
 
-@dataclass
+@dataclass(kw_only=True)
 class ExportSummary:
     path: Path
     size_bytes: int = 0
@@ -37,7 +37,7 @@ class ExportSummary:
     warnings: list[str] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LogContext:
     """What the export needs from the original log (None when the log is not at its recorded path)."""
 
@@ -74,8 +74,9 @@ def read_log_context(log_path: Path, cfg: Config) -> LogContext:
         gt = ground_truth_of(lg, log_path)
         wheel = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m) if lg.has_role("wheel_speeds") else None
         odom = lg.wheel_odometry() if lg.has_role("wheel_odom") else None
-    return LogContext(log_path, start, end, gt, float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size
-                      else None, odom)
+    return LogContext(path=log_path, start_s=start, end_s=end, ground_truth=gt,
+                      wheel_t0_s=float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size else None,
+                      odometry=odom)
 
 
 def _slam_files(run_dir: Path) -> topics.SlamFiles:

@@ -436,7 +436,7 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
              else "every sweep")
     result.extra[K.MAPPING_RATE] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
                                     f"{every}, {rate_hz:.1f} Hz")
-    result.extra["deskew"] = out.deskew
+    result.extra[K.DESKEW] = out.deskew
     result.extra.update({K.METHOD: method, K.TIMING_MS: timing, K.WALL_S: out.wall_s, K.LOG_DURATION_S: duration,
                          "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
                          K.FIRST_SWEEP_MS: float(sum(v[0] for v in out.timing_ms.values() if v)),

@@ -142,55 +142,71 @@ def slam_figures(r: RunResult, timing: dict[str, dict[str, float]] | None = None
     """Path coloured by APE, APE over time and per-stage timing (`timing`: the stages to draw,
     default all in the result). Labels name online and smoothed only where they differ (lio)."""
     s = r.series
-    lio = r.extra.get("method", "lio") == "lio"
+    lio = r.extra.get(S.METHOD, "lio") == "lio"
     out = []
     if S.EST_ALIGNED_XYZ in s and S.ape_err() in s and S.REF_XYZ in s:
-        fig, ax = new_figure(6.5, 5.0)
-        overlays = []
-        if S.EST_ONLINE_ALIGNED_XYZ in s and lio:
-            overlays.append((s[S.EST_ONLINE_ALIGNED_XYZ], "online (as processed, SE(3) aligned)", "tab:red"))
-        draw_error_path(fig, ax[0, 0], s[S.REF_XYZ], s[S.EST_ALIGNED_XYZ], s[S.ape_err()],
-                        est_label="smoothed (SE(3) aligned)" if lio else "estimate (SE(3) aligned)",
-                        overlays=overlays)
-        out.append(("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
-                    "truth dashed)" if lio else "Trajectory in the plane (estimate coloured by its APE, ground truth "
-                    "dashed)", svg(fig)))
-        fig, ax = new_figure(7.0, 3.0)
-        ax = ax[0, 0]
-        t, e = decimate(s[S.ape_t()], s[S.ape_err()])
-        ax.plot(t, e, lw=1.0, color="tab:blue",
-                label="smoothed (re-anchored to the final keyframes)" if lio else "estimate")
-        if S.ape_t(S.ONLINE) in s and S.ape_err(S.ONLINE) in s and lio:
-            t, e = decimate(s[S.ape_t(S.ONLINE)], s[S.ape_err(S.ONLINE)])
-            ax.plot(t, e, lw=1.0, color="tab:red", label="online (as processed)")
-            ax.legend(fontsize="small", loc="upper left")
-        marks = _mark_events(ax, r, ("loop_closure", "degeneracy"))
-        ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
-               title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
-        ax.grid(alpha=0.3)
-        out.append(("APE (translation) over time" + (", online and smoothed" if lio else ""), svg(fig)))
+        out += [_ape_path(s, lio), _ape_over_time(r, lio)]
     elif S.EST_XYZ in s and len(s[S.EST_XYZ]):
-        fig, ax = new_figure(6.5, 5.0)
-        xyz, = decimate(s[S.EST_XYZ])
-        ax[0, 0].plot(xyz[:, 0], xyz[:, 1], lw=1.0)
-        if S.KF_XYZ in s and len(s[S.KF_XYZ]) and lio:
-            ax[0, 0].plot(s[S.KF_XYZ][:, 0], s[S.KF_XYZ][:, 1], "o", ms=3, color="tab:orange", label="keyframes")
-            ax[0, 0].legend(fontsize="small")
-        ax[0, 0].set_aspect("equal", adjustable="datalim")
-        ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="Estimated trajectory (no ground truth: APE not computed)")
-        out.append(("Estimated trajectory in the plane", svg(fig)))
+        out.append(_estimate_path(s, lio))
     timing = r.extra.get(S.TIMING_MS, {}) if timing is None else timing
     if timing:
-        fig, ax = new_figure(6.5, 0.6 + 0.35 * len(timing))
-        ax = ax[0, 0]
-        names = list(timing)[::-1]  # first stage on top
-        ax.barh(names, [timing[n].get("mean", np.nan) for n in names], color="tab:blue", label="mean")
-        ax.scatter([timing[n].get("p95", np.nan) for n in names], names, color="tab:red", zorder=3, label="p95")
-        ax.set(xlabel="ms per processed sweep", title="Per-stage timing")
-        ax.legend(fontsize="small", loc="lower right")
-        ax.grid(axis="x", alpha=0.3)
-        out.append(("Per-stage timing (bars: mean, dots: 95th percentile)", svg(fig)))
+        out.append(_stage_timing(timing))
     return out
+
+
+def _ape_path(s: dict[str, np.ndarray], lio: bool) -> tuple[str, str]:
+    fig, ax = new_figure(6.5, 5.0)
+    overlays = []
+    if S.EST_ONLINE_ALIGNED_XYZ in s and lio:
+        overlays.append((s[S.EST_ONLINE_ALIGNED_XYZ], "online (as processed, SE(3) aligned)", "tab:red"))
+    draw_error_path(fig, ax[0, 0], s[S.REF_XYZ], s[S.EST_ALIGNED_XYZ], s[S.ape_err()],
+                    est_label="smoothed (SE(3) aligned)" if lio else "estimate (SE(3) aligned)",
+                    overlays=overlays)
+    return ("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
+            "truth dashed)" if lio else "Trajectory in the plane (estimate coloured by its APE, ground truth "
+            "dashed)", svg(fig))
+
+
+def _ape_over_time(r: RunResult, lio: bool) -> tuple[str, str]:
+    s = r.series
+    fig, axes = new_figure(7.0, 3.0)
+    ax = axes[0, 0]
+    t, e = decimate(s[S.ape_t()], s[S.ape_err()])
+    ax.plot(t, e, lw=1.0, color="tab:blue",
+            label="smoothed (re-anchored to the final keyframes)" if lio else "estimate")
+    if S.ape_t(S.ONLINE) in s and S.ape_err(S.ONLINE) in s and lio:
+        t, e = decimate(s[S.ape_t(S.ONLINE)], s[S.ape_err(S.ONLINE)])
+        ax.plot(t, e, lw=1.0, color="tab:red", label="online (as processed)")
+        ax.legend(fontsize="small", loc="upper left")
+    marks = _mark_events(ax, r, ("loop_closure", "degeneracy"))
+    ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
+           title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
+    ax.grid(alpha=0.3)
+    return ("APE (translation) over time" + (", online and smoothed" if lio else ""), svg(fig))
+
+
+def _estimate_path(s: dict[str, np.ndarray], lio: bool) -> tuple[str, str]:
+    fig, ax = new_figure(6.5, 5.0)
+    xyz, = decimate(s[S.EST_XYZ])
+    ax[0, 0].plot(xyz[:, 0], xyz[:, 1], lw=1.0)
+    if S.KF_XYZ in s and len(s[S.KF_XYZ]) and lio:
+        ax[0, 0].plot(s[S.KF_XYZ][:, 0], s[S.KF_XYZ][:, 1], "o", ms=3, color="tab:orange", label="keyframes")
+        ax[0, 0].legend(fontsize="small")
+    ax[0, 0].set_aspect("equal", adjustable="datalim")
+    ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="Estimated trajectory (no ground truth: APE not computed)")
+    return ("Estimated trajectory in the plane", svg(fig))
+
+
+def _stage_timing(timing: dict[str, dict[str, float]]) -> tuple[str, str]:
+    fig, axes = new_figure(6.5, 0.6 + 0.35 * len(timing))
+    ax = axes[0, 0]
+    names = list(timing)[::-1]  # first stage on top
+    ax.barh(names, [timing[n].get("mean", np.nan) for n in names], color="tab:blue", label="mean")
+    ax.scatter([timing[n].get("p95", np.nan) for n in names], names, color="tab:red", zorder=3, label="p95")
+    ax.set(xlabel="ms per processed sweep", title="Per-stage timing")
+    ax.legend(fontsize="small", loc="lower right")
+    ax.grid(axis="x", alpha=0.3)
+    return ("Per-stage timing (bars: mean, dots: 95th percentile)", svg(fig))
 
 
 def control_figures(r: RunResult) -> list[tuple[str, str]]:
@@ -218,7 +234,7 @@ def control_figures(r: RunResult) -> list[tuple[str, str]]:
             out.append((caption, _feedback(s, ctrl, label, t)))
         if C.driven_xy(ctrl) in s and C.cte(ctrl) in s:
             out.append((f"{label}: driven path and cross-track error", _path(s, ctrl, label, t)))
-    if "bode_w_rad_s" in s:
+    if C.BODE_W in s:
         out.append(("Open loop C(jw) K e^{-jwd}/(jw tau + 1) of the linear laws on the left drive (RAID: its "
                     "interior gain as a P law; dead band and clamp left out)", _bode(s)))
     return out
@@ -226,13 +242,13 @@ def control_figures(r: RunResult) -> list[tuple[str, str]]:
 
 def _bode(s) -> str:
     fig, axes = new_figure(7.5, 4.6, rows=2, sharex=True)
-    w = s["bode_w_rad_s"]
+    w = s[C.BODE_W]
     labels = {"raid": "RAID (interior gain)", "pid": "PID", "foptc": "FOPTC (frozen gain)",
               "foptc_restart": "FOPTC (at a restart)"}
     for law, label in labels.items():
-        if f"bode_{law}_mag_db" in s:
-            axes[0, 0].semilogx(w, s[f"bode_{law}_mag_db"], lw=1.0, label=label)
-            axes[1, 0].semilogx(w, s[f"bode_{law}_phase_deg"], lw=1.0, label=label)
+        if C.bode_magnitude(law) in s:
+            axes[0, 0].semilogx(w, s[C.bode_magnitude(law)], lw=1.0, label=label)
+            axes[1, 0].semilogx(w, s[C.bode_phase(law)], lw=1.0, label=label)
     axes[0, 0].axhline(0.0, color="k", lw=0.6)
     axes[1, 0].axhline(-180.0, color="k", lw=0.6)
     axes[1, 0].set_ylim(-540.0, 45.0)

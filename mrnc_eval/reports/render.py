@@ -100,7 +100,7 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
     whose metric is present but not a finite number (text, null from a NaN, inf) fails, naming the
     value: it is never skipped ("n/a" only when no result has the metric at all)."""
     def values(kind: str, name: str, method: str | None = None) -> list[Any]:
-        return [m.value for r in results if r.kind == kind and (method is None or r.extra.get("method") == method)
+        return [m.value for r in results if r.kind == kind and (method is None or r.extra.get(S.METHOD) == method)
                 for m in r.metrics
                 if m.name == name and (kind != "control" or m.group.split("/")[1:2] in [[d] for d in DEPLOYED])]
 
@@ -165,11 +165,11 @@ def _warmup_text(r: RunResult) -> str:
 def slam_definitions(r: RunResult) -> list[str]:
     """The definitions a SLAM section needs: only of the numbers it shows, and the peer's own
     (kiss-icp has no keyframes, loop closure or IMU, so no LIO text in its section)."""
-    method = str(r.extra.get("method", "lio"))
+    method = str(r.extra.get(S.METHOD, "lio"))
     shown = {m.name for m in r.metrics}
     out = []
     if method != "lio":
-        deskew = r.extra.get("deskew")
+        deskew = r.extra.get(S.DESKEW)
         out.append(PEER_DEFINITION.format(deskew="on" if deskew else "off" if deskew is not None else "unknown"))
     for name, text in SLAM_DEFINITIONS.items():
         if name in shown and (method == "lio" or name != "ape_online_rmse_m"):
@@ -180,7 +180,7 @@ def slam_definitions(r: RunResult) -> list[str]:
 def _slam_section(r: RunResult) -> dict[str, Any]:
     from mrnc_eval.reports.figures import slam_figures
 
-    method = str(r.extra.get("method", "lio"))
+    method = str(r.extra.get(S.METHOD, "lio"))
     vals = {m.name: m.value for m in r.metrics}
     if method == "lio":
         keys = [(label, vals[name]) for label, name in SLAM_KEYS if name in vals]
@@ -304,7 +304,7 @@ def _config_diffs(results: list[RunResult], configs: Mapping[str, str]) -> list[
 
 def _run_label(r: RunResult) -> str:
     """"SLAM lio", "control replay": which run of the report a configuration belongs to."""
-    what = r.extra.get("method") if r.kind == "slam" else r.extra.get("mode")
+    what = r.extra.get(S.METHOD) if r.kind == "slam" else r.extra.get(C.MODE)
     return f"{'SLAM' if r.kind == 'slam' else r.kind} {what}" if what else r.kind
 
 

@@ -40,6 +40,19 @@ def sweep_violation_rate(controller: str) -> str:
 
 
 T = "t"  # the longest run's time base (s)
+BODE_W = "bode_w_rad_s"  # frequencies of the loop responses, rad/s
+
+
+def bode_magnitude(law: str) -> str:
+    """|L(jw)| of the law's linear loop on the nominal plant, dB, at BODE_W."""
+    return f"bode_{law}_mag_db"
+
+
+def bode_phase(law: str) -> str:
+    """arg L(jw), deg (unwrapped), at BODE_W."""
+    return f"bode_{law}_phase_deg"
+
+
 PATH_XY = "path_xy"  # (N, 2) planned path, m
 FUNNEL_O = "funnel_o"  # o(t) on T
 SWEEP_GAIN_MISMATCH_MID = "sweep_gain_mismatch_mid"  # bin centres of the sweep's gain mismatch

@@ -25,6 +25,7 @@ def ape_err(trajectory: str = SMOOTHED) -> str:
 
 # result.json extra
 METHOD = "method"  # lio | kiss-icp
+DESKEW = "deskew"  # how the sweeps were deskewed (kiss-icp on throttled logs: not at all)
 TIMING_MS = "timing_ms"  # stage -> {mean, p95, max} ms per processed sweep
 WALL_S = "wall_s"
 LOG_DURATION_S = "log_duration_s"
