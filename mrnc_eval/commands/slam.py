@@ -658,8 +658,8 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
         cfg = replace_path(cfg, "slam.gps.enabled", False)
     from mrnc_eval.io.containers import detect_container
 
-    for path in logs:  # a folder of logs (not a ROS 2 bag) is refused before anything is written
-        if path.is_dir():
+    for path in logs:  # a folder of logs (not a ROS 2 bag, not scans) is refused before anything is written
+        if path.is_dir() and not is_scan_folder(path):
             detect_container([path])
     check_output_root(out, need_bytes=SLAM_OUTPUT_BYTES * len(logs))  # before the long work, not after it
     results: list[tuple[Path, RunResult]] = []
