@@ -189,7 +189,8 @@ def test_04_simulated_logs_carry_chunk_crcs_and_a_flipped_byte_is_found(sim_log:
     offset, length = _cloud_chunk(log)
     _flip(log, offset + length - 200)  # inside the compressed records of a chunk with clouds
     info = cli("info", log, "--json")
-    damaged = [f for f in json.loads(info.out)["findings"] if "damaged" in f["message"]] if info.code == 0 else []
+    found = json.loads(info.out)["results"][0]["findings"] if info.code == 0 else []
+    damaged = [f for f in found if "damaged" in f["message"]]
     assert damaged or "damaged" in info.err, (info.code, info.err)  # said, as a finding or as the error
     if damaged:
         assert damaged[0]["level"] == "error"
@@ -212,9 +213,10 @@ def test_04_a_log_without_crcs_says_so_in_info_and_the_result(sim_log: Path, tmp
         for offset in [off for op, off, _n in _records(fh) if op == _CHUNK]:
             fh.seek(offset + 9 + 24)
             fh.write(struct.pack("<I", 0))
-    findings = json.loads(cli("info", log, "--json").out)["findings"]
+    findings = json.loads(cli("info", log, "--json").out)["results"][0]["findings"]
     assert any("carry no CRC" in f["message"] and f["level"] == "warning" for f in findings), findings
-    assert not any("carry no CRC" in f["message"] for f in json.loads(cli("info", sim_log, "--json").out)["findings"])
+    clean = json.loads(cli("info", sim_log, "--json").out)["results"][0]["findings"]
+    assert not any("carry no CRC" in f["message"] for f in clean)
     r = cli("slam", log, "--out", tmp_path / "R", "--no-loop")
     assert r.code == 0, r.err
     warnings = json.loads((run_folders(tmp_path / "R")[0] / "result.json").read_text())["warnings"]
@@ -230,7 +232,7 @@ def test_14_result_json_records_the_absolute_log_path(sim_log: Path, tmp_path: P
     shutil.copy(sim_log, work / "s.mcap")
     shutil.copy(sim_log.with_name("s.gt.tum"), work / "s.gt.tum")
     monkeypatch.chdir(work)
-    r = cli("control", "s.mcap", "--mode", "replay", "--controllers", "pid", "--out", "R")
+    r = cli("control", "s.mcap", "--mode", "replay", "--out", "R")
     assert r.code == 0, r.err
     run = run_folders(work / "R")[0]
     assert json.loads((run / "result.json").read_text())["log_path"] == str(work / "s.mcap")
@@ -297,7 +299,7 @@ def test_07_08_table_has_one_row_per_log_path_and_says_not_run(sim_log: Path, tm
     out = tmp_path / "R"
     r = cli("slam", *logs, "--out", out, "--no-loop")
     assert r.code == 0, r.err
-    table = json.loads(cli("table", out, "--json").out)
+    table = json.loads(cli("table", out, "--json").out)["meta"]["table"]
     assert table["row_labels"] == ["day1/run", "day2/run", "Mean"]  # one merged row before
     assert all(isinstance(row[0], float) for row in table["cells"][:2])
     # a second method run on day1 only: day2's cell is "not run", not "Failed"
@@ -308,7 +310,7 @@ def test_07_08_table_has_one_row_per_log_path_and_says_not_run(sim_log: Path, tm
     body = json.loads((other / "result.json").read_text())
     body["extra"]["method"] = "other"
     (other / "result.json").write_text(json.dumps(body))
-    table = json.loads(cli("table", out, "--json").out)
+    table = json.loads(cli("table", out, "--json").out)["meta"]["table"]
     col = table["column_labels"].index("other")
     assert table["cells"][0][col] == pytest.approx(table["cells"][0][table["column_labels"].index("lio")])
     assert table["cells"][1][col] == "not run"  # "Failed" before
@@ -380,14 +382,14 @@ def _rewrite(src: Path, dst: Path, *, keep=None, edit=None, fmt: str = "mcap") -
 
     counts: dict[str, int] = {}
     with open_log(src) as lg, LogWriter(dst, fmt) as w:  # type: ignore[arg-type]
-        for topic, t_rec, raw in lg._iterate(list(lg._channels)):
-            msgtype = lg._channels[topic].msgtype
+        for topic, t_rec, raw in lg.source.iterate(list(lg.source.channels)):
+            msgtype = lg.source.channels[topic].msgtype
             k = counts.get(topic, 0)
             counts[topic] = k + 1
             if keep is not None and not keep(topic, k):
                 continue
             if edit is not None and topic in edit:
-                raw = w._serialize(edit[topic](lg._decode(raw, topic), k), msgtype)
+                raw = w._serialize(edit[topic](lg.source.decode(raw, topic), k), msgtype)
             w._writer.write(w._conn(topic, msgtype, latched=topic == "/tf_static"), t_rec, bytes(raw))
     shutil.copy(gt_tum_path(src), gt_tum_path(dst))
     return dst
@@ -434,7 +436,7 @@ def test_10_sqlite_messages_of_a_missing_topic_id_are_counted(sim_log: Path, tmp
         total = db.execute("SELECT COUNT(*) FROM messages").fetchone()[0]
         lost = db.execute("UPDATE messages SET topic_id = 999 WHERE id % 7 = 0").rowcount
     db.close()
-    findings = json.loads(cli("info", bag, "--json").out)["findings"]
+    findings = json.loads(cli("info", bag, "--json").out)["results"][0]["findings"]
     line = f"{lost} of {total} messages"
     assert any(line in f["message"] and f["level"] == "warning" for f in findings), findings
     result = _slam_result(bag, tmp_path / "R")
@@ -531,7 +533,7 @@ def test_12_write_errors_name_the_target_and_the_reason(slam_run: Path, tmp_path
 
 
 def test_12_sweep_runs_from_the_configuration_is_named_as_such(tmp_path: Path) -> None:
-    from mrnc_eval.commands.control import run_sweep_result
+    from mrnc_eval.commands.control_sweep import run_sweep_result
     from mrnc_eval.config import load_config
     from mrnc_eval.errors import UsageError
 
@@ -565,7 +567,7 @@ def test_12_info_agrees_with_itself_on_duplicate_sweep_stamps(sim_log: Path, tmp
         return msg
 
     log = _rewrite(sim_log, tmp_path / "dup.mcap", edit={"/ouster/points": duplicate})
-    info = json.loads(cli("info", log, "--json").out)
+    info = json.loads(cli("info", log, "--json").out)["results"][0]
     messages = [f["message"] for f in info["findings"] if f["topic"] == "/ouster/points"]
     assert any("1 duplicate header stamps (dropped" in m for m in messages)
     assert any(m.startswith("9 sweeps (10 recorded, 1 with a duplicate stamp dropped)") for m in messages), messages
