@@ -69,8 +69,8 @@ def _option_spellings(param: _Param, info: OptionInfo) -> dict[str, tuple[_Param
     if info.default is not ...:  # in Annotated, Option("--json") names the option
         decls.insert(0, str(info.default))
     dashed = param.name.replace("_", "-")
-    if param.is_list:
-        return None  # repeatable options (--set) are typer's
+    if param.is_list:  # repeatable options (--label, --set): a line that uses one is typer's (_read_options)
+        return None if any("/" in d for d in decls) else {d: (param, None) for d in decls or [f"--{dashed}"]}
     if param.kind is not bool:
         return None if any("/" in d for d in decls) else {d: (param, None) for d in decls or [f"--{dashed}"]}
     spellings: dict[str, tuple[_Param, bool | None]] = {}
@@ -141,6 +141,8 @@ def _read_options(tokens: list[str], options: dict[str, tuple[_Param, bool | Non
         if name not in options or token == "--":
             raise ValueError(token)
         param, flag = options[name]
+        if param.is_list:
+            raise ValueError(token)  # given: typer collects the repeats
         if param.name in values:
             raise ValueError(token)  # repeated: typer's rules
         if flag is not None:
