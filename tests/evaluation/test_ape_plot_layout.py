@@ -110,5 +110,5 @@ def test_the_fast_ape_path_stays_fast_without_label_and_leaves_label_to_typer() 
     commands = {"ape": cli.ape, "rpe": cli.rpe}
     plain = fast_command(["ape", "ref.tum", "est.tum"], commands)
     assert plain is not None
-    assert plain[1]["label"] is None
+    assert plain[1].get("label") is None  # not given: the function default
     assert fast_command(["ape", "ref.tum", "a.tum", "b.tum", "--label", "A", "--label", "B"], commands) is None
