@@ -157,7 +157,8 @@ class SlamMethod(StrEnum):  # a str: passed on as is
 def slam(
     logs: Annotated[
         list[Path] | None,
-        typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout. "
+        typer.Argument(metavar="LOG...", help="One or more logs (or folders of .bin/.pcd scans with "
+                       "timestamps.txt, for --method kiss-icp); several give the Table I layout. "
                        "Not needed with --dump-config.", show_default=False),
     ] = None,
     method: Annotated[
@@ -204,6 +205,8 @@ class ControlMode(StrEnum):
     replay = "replay"
     simulate = "simulate"
     sweep = "sweep"
+    identify = "identify"
+    tune = "tune"
 
 
 @app.command()
@@ -215,7 +218,10 @@ def control(
     mode: Annotated[
         ControlMode,
         typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant; "
-                          "sweep: every controller on --runs drawn plants (robustness)."),
+                          "sweep: every controller on --runs drawn plants (robustness); identify: the drive "
+                          "(gain, dead band, lag, delay per side) fitted to the LOG's commands and wheel speeds; "
+                          "tune: every law tuned with the same optimiser, cost and budget, Table II at paper "
+                          "and tuned gains."),
     ] = ControlMode.replay,
     controllers: Annotated[
         str | None,

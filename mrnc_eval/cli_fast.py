@@ -69,8 +69,8 @@ def _option_spellings(param: _Param, info: OptionInfo) -> dict[str, tuple[_Param
     if info.default is not ...:  # in Annotated, Option("--json") names the option
         decls.insert(0, str(info.default))
     dashed = param.name.replace("_", "-")
-    if param.is_list:  # repeatable options (--label, --set): a line that uses one is typer's (_read_options)
-        return None if any("/" in d for d in decls) else {d: (param, None) for d in decls or [f"--{dashed}"]}
+    if param.is_list:
+        return {}  # repeatable options (--set, --label): unknown here, so a line that gives one is typer's
     if param.kind is not bool:
         return None if any("/" in d for d in decls) else {d: (param, None) for d in decls or [f"--{dashed}"]}
     spellings: dict[str, tuple[_Param, bool | None]] = {}
@@ -141,8 +141,6 @@ def _read_options(tokens: list[str], options: dict[str, tuple[_Param, bool | Non
         if name not in options or token == "--":
             raise ValueError(token)
         param, flag = options[name]
-        if param.is_list:
-            raise ValueError(token)  # given: typer collects the repeats
         if param.name in values:
             raise ValueError(token)  # repeated: typer's rules
         if flag is not None:
@@ -167,7 +165,7 @@ def fast_command(argv: Sequence[str], commands: dict[str, Callable[..., Any]]
     func = commands[argv[0]]
     try:
         sig = _signature(func)
-    except Exception:  # an annotation this parser cannot resolve: typer's business
+    except (NameError, TypeError, AttributeError, ValueError):  # an annotation it cannot resolve: typer's
         return None
     if sig is None:
         return None

@@ -78,7 +78,9 @@ def run(path: Path, cfg: Config) -> InfoSummary:
 
 
 def _summary(path: Path, cfg: Config) -> InfoSummary:
+    log.info("%s: reading the overview (topics, stamps, roles)", path)
     with open_log(path, cfg.io) as lg:
+        log.info("%s: %s, %d topics, %.1f s", path, lg.container, len(lg.topics), lg.duration_s)
         topics = lg.topics
         summary = InfoSummary(
             path=str(path), container=lg.container, start_s=lg.start_s, end_s=lg.end_s, duration_s=lg.duration_s,

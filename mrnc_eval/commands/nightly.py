@@ -101,12 +101,13 @@ def _unique_ids(logs: list[Path], root: Path) -> dict[Path, str]:
 def _night(date: str | None) -> str:
     if date is None:
         return dt.date.today().isoformat()
+    wrong = UsageError(f"--date {shorten(date)}: expected a calendar date YYYY-MM-DD")
+    if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
+        raise wrong
     try:
-        if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
-            raise ValueError
         return dt.date.fromisoformat(date).isoformat()  # a real calendar date: 2026-13-45 is not one
     except ValueError:
-        raise UsageError(f"--date {shorten(date)}: expected a calendar date YYYY-MM-DD") from None
+        raise wrong from None
 
 
 def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | None, since: str | None,
@@ -253,7 +254,7 @@ def _close_interrupted_night(history: History, night: str, night_dir: Path, nigh
             shutil.rmtree(night_dir, ignore_errors=True)
         elif night_dir.is_dir():
             _write_index(history, night, night_dir)
-    except Exception as err:  # already stopping: say it, keep the original exception
+    except Exception as err:  # noqa: BLE001 - already stopping: say it, keep the original exception
         log.error("%s: could not close the interrupted night: %s", night_dir, err)
 
 
@@ -263,7 +264,7 @@ def _with_gates(cfg: Config, gates: Path | None) -> Config:
     try:
         data = load_yaml_file(gates, "gates") or {}
         if not isinstance(data, dict):
-            raise TypeError("expected a mapping of gate names to limits")
+            raise ConfigError("expected a mapping of gate names to limits")
         return build(Config, {**as_dict(cfg), "gates": {**as_dict(cfg.gates), **data}})
     except (OSError, yaml.YAMLError, ConfigError, TypeError) as err:
         raise ConfigError(f"{gates}: invalid gates file: {err}") from err

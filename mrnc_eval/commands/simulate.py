@@ -77,10 +77,7 @@ def main(out: str | Path, cfg: Config, *, scene: str, path: str, duration: float
     target, log_format = log_target(out, fmt)
     req = SimRequest(scene=scene, path=path, duration_s=duration, lidar=lidar, columns=columns, rate_hz=rate,
                      fmt=log_format, seed=seed, profile=profile)
-    try:
-        validate(req)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
+    validate(req)  # a UsageError naming every unsupported choice, before any work
     check_target(target, force=force)
     with progress_bar(total=1) as bar:  # the sweep count is known once the mission has been driven
         if bar is None:

@@ -8,6 +8,7 @@ from typing import TYPE_CHECKING
 from markupsafe import Markup
 
 from mrnc_eval import __version__
+from mrnc_eval.history import RunStatus
 from mrnc_eval.reports.figures import new_figure, svg
 from mrnc_eval.reports.render import css, environment
 
@@ -23,7 +24,7 @@ class IndexRow:
 
     log_id: str
     log_path: str
-    status: str  # "ok" | "failed"
+    status: RunStatus
     error: str
     cells: tuple[str, ...]  # formatted; an en dash when not measured
     report: str  # relative link to the HTML report, "" when none
