@@ -263,7 +263,7 @@ class ConfigDiff:
     config_hash: str
     used_by: list[str]
     changed: list[tuple[str, str, str]]
-    text: str  # the full YAML, shown only in the appendix
+    text: str  # the full YAML, shown only in the appendix; "" when no config.yaml was found
 
 
 def config_differences(config_text: str) -> list[tuple[str, str, str]]:

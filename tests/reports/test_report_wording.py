@@ -104,6 +104,12 @@ def test_two_slam_runs_show_no_control_cards_own_definitions_and_both_config_has
     assert "<code>slam.method</code></td><td>kiss-icp</td><td>lio</td>" in html  # the one key that differs
 
 
+def test_a_result_without_config_yaml_does_not_claim_the_defaults() -> None:
+    html = render_html([_slam_run("lio", "aaaa1111")], gates=GatesConfig(), config_text="")
+    assert "Configuration <code>aaaa1111</code>: no config.yaml beside the result" in html
+    assert "the defaults." not in html
+
+
 def test_control_cards_come_with_a_control_run() -> None:
     html = render_html([_slam_run("lio", "aaaa1111"), _control()], gates=GatesConfig(), config_text="")
     cards = re.findall(r'<div class="l">([^<]+)</div><div class="v">', html)
