@@ -24,13 +24,14 @@ from mrnc_eval.data import Trajectory
 from mrnc_eval.evaluation.ape import ApeResult
 from mrnc_eval.evaluation.rpe import RpeResult
 from mrnc_eval.io import LogReader
+from mrnc_eval.io.evo_results import EvoResult
 from mrnc_eval.results import RunResult
 
 if TYPE_CHECKING:
     import pandas as pd
 
-__all__ = ["ape", "config", "load_history", "load_result", "read_log", "read_trajectory", "rpe", "run_control",
-           "run_slam"]
+__all__ = ["ape", "config", "load_evo_result", "load_history", "load_result", "read_log", "read_trajectory", "rpe",
+           "run_control", "run_slam", "save_evo_result"]
 
 TrajectoryLike = Trajectory | str | Path  # a trajectory, a file (TUM, KITTI, EuRoC) or "log.mcap:/topic"
 
@@ -64,11 +65,33 @@ def read_trajectory(spec: TrajectoryLike) -> Trajectory:
 
 
 def ape(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> ApeResult:
-    """Absolute pose error (evo-compatible); options as `mrnc-eval ape`: align="se3", relation="trans",
-    max_diff=0.01, offset=0.0, n_to_align=None, plane=None."""
+    """Absolute pose error (evo-compatible); options as `mrnc-eval ape`: align="none" (evo's default;
+    "se3", "sim3", "scale", "origin", "yaw"), relation="trans", max_diff=0.01, offset=0.0,
+    n_to_align=None, plane=None."""
     from mrnc_eval.evaluation.ape import ape as compute
 
+    options.setdefault("align", "none")
     return compute(read_trajectory(ref), read_trajectory(est), **options)
+
+
+def load_evo_result(path: str | Path) -> EvoResult:
+    """An evo result zip (`evo_ape/evo_rpe --save_results`, or ours): info (title, names, label),
+    stats and the arrays (error_array, timestamps, seconds_from_start, distances...). Arrays are read
+    with allow_pickle=False: a zip is never unpickled."""
+    from mrnc_eval.io.evo_results import read_evo_zip
+
+    return read_evo_zip(path)
+
+
+def save_evo_result(path: str | Path, result: ApeResult | RpeResult, *, ref_name: str = "reference",
+                    est_name: str | None = None, force: bool = False) -> None:
+    """`result` as evo's result zip (what `--save_results` writes; evo_res reads it), under the
+    overwrite rule of every output (an existing file only with force=True, and only one we wrote)."""
+    from mrnc_eval.io.evo_results import evo_result, evo_zip_bytes
+    from mrnc_eval.outputs import write_output
+
+    write_output(Path(path), evo_zip_bytes(evo_result(result, ref_name=ref_name, est_name=est_name or result.name)),
+                 force=force)
 
 
 def rpe(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> RpeResult:

@@ -7,6 +7,7 @@ command modules, so `mrnc-eval --help` stays instant.
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
 from enum import StrEnum
@@ -19,7 +20,7 @@ from typer.exceptions import TyperException
 from mrnc_eval import __version__
 from mrnc_eval.cli_fast import fast_command
 from mrnc_eval.cli_help import PlainGroup
-from mrnc_eval.errors import MrncError, UsageError
+from mrnc_eval.errors import Interrupted, MrncError, UsageError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.text import install_log_format, printable
 
@@ -165,6 +166,14 @@ def slam(
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
     no_loop: Annotated[bool, typer.Option("--no-loop", help="No loop closure (sets slam.loop.enabled=false).")] = False,
     no_gps: Annotated[bool, typer.Option("--no-gps", help="No GNSS factors (sets slam.gps.enabled=false).")] = False,
+    topic: Annotated[str | None, typer.Option(
+        "--topic", "-t", help="The LiDAR topic (kiss-icp's --topic; sets io.roles.lidar).")] = None,
+    start: Annotated[float | None, typer.Option(
+        "--start", help="Only sweeps from this many seconds after the log's start.")] = None,
+    end: Annotated[float | None, typer.Option("--end", help="... up to this many seconds after it.")] = None,
+    n_scans: Annotated[int | None, typer.Option(
+        "--n-scans", "-n", help="At most this many sweeps (kiss-icp's --n-scans; lio: after its mapping-interval "
+        "thinning).")] = None,
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
@@ -173,8 +182,15 @@ def slam(
     """Re-run LIO-SAM-style LiDAR-inertial SLAM on recorded logs; write trajectories (TUM), the
     map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth."""
     cfg = _config(config, set_, dump_config)
+    from mrnc_eval.extras import require_extra
+
+    require_extra("slam", "mrnc-eval slam")
+    if (_plain(method) or cfg.slam.method) == "kiss-icp":
+        require_extra("kiss-icp", "mrnc-eval slam --method kiss-icp")
     from mrnc_eval.commands import slam as slam_command
-    slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
+    window = slam_command.SweepWindow(start_s=start, end_s=end, n_scans=n_scans)
+    slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out,
+                      topic=topic, window=window)
 
 
 class ControlMode(StrEnum):
@@ -215,25 +231,73 @@ def control(
     hydraulic drive) and compute Table II metrics (settling time s, overshoot %, steady-state
     error m/s, funnel violations, saturation, safety stops, cross-track error m)."""
     cfg = _config(config, set_, dump_config)
+    from mrnc_eval.extras import require_extra
+
+    require_extra("control", "mrnc-eval control")
     from mrnc_eval.commands import control as control_command
     control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out,
                          runs=runs, seed=seed, path_file=path)
 
 
-AlignOpt = Annotated[AlignMode, typer.Option(help="Alignment of each estimate to the reference.")]
+AlignOpt = Annotated[AlignMode, typer.Option(
+    "--align", help="Alignment of each estimate to the reference. evo's switches work too: -a (se3), -as (sim3), "
+    "-s (scale), --align_origin (origin).")]
 NAlignOpt = Annotated[
-    int | None, typer.Option("--n-to-align", help="Align on the first N matched poses only (default: all).")
+    int | None, typer.Option("--n-to-align", "--n_to_align",
+                             help="Align on the first N matched poses only (default: all).")
 ]
-RelationOpt = Annotated[
-    Relation, typer.Option(help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m).")
-]
-MaxDiffOpt = Annotated[float, typer.Option("--max-diff", help="Association: maximum stamp difference, s.")]
+
+
+class RelationWord(StrEnum):
+    """--relation's words: ours, then evo's (-r trans_part ...), which mean the same."""
+
+    trans = "trans"
+    rot = "rot"
+    full = "full"
+    angle_deg = "angle_deg"
+    angle_rad = "angle_rad"
+    point = "point"
+    trans_part = "trans_part"
+    rot_part = "rot_part"
+    point_distance = "point_distance"
+
+
+_EVO_RELATION = {"trans_part": Relation.trans, "rot_part": Relation.rot, "point_distance": Relation.point}
+
+
+def _relation(word: RelationWord) -> Relation:
+    return _EVO_RELATION.get(word.value) or Relation(word.value)
+
+
+RelationOpt = Annotated[RelationWord, typer.Option(
+    "--relation", "-r", "--pose_relation",
+    help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m); evo's trans_part, "
+    "rot_part, point_distance alike.")]
+MaxDiffOpt = Annotated[float, typer.Option("--max-diff", "--t_max_diff",
+                                           help="Association: maximum stamp difference, s.")]
 OffsetOpt = Annotated[str, typer.Option(
+    "--offset", "--t_offset",
     help="Added to the estimate's stamps, s; 'auto' estimates it (speed correlation, then least aligned APE).")]
 StrictOpt = Annotated[bool, typer.Option(
     "--strict", help="Refuse repeated or out-of-order stamps (default: pair them as evo does, with a warning).")]
-SyncOpt = Annotated[SyncMethod, typer.Option(
-    help="nearest: closest stamp within --max-diff (evo); interpolate: the reference at each estimate stamp.")]
+
+
+class SyncWord(StrEnum):
+    nearest = "nearest"
+    interpolate = "interpolate"
+    nearest_time = "nearest_time"  # evo's words
+    interpolation = "interpolation"
+
+
+def _sync(word: SyncWord) -> SyncMethod:
+    return {"nearest_time": SyncMethod.nearest, "interpolation": SyncMethod.interpolate}.get(
+        word.value) or SyncMethod(word.value)
+
+
+SyncOpt = Annotated[SyncWord, typer.Option(
+    "--sync", "--sync_method",
+    help="nearest: closest stamp within --max-diff (evo's nearest_time); interpolate: the reference at each "
+    "estimate stamp (evo's interpolation).")]
 MaxGapOpt = Annotated[float, typer.Option(
     "--max-gap", help="--sync interpolate: longest reference gap interpolated across, s.")]
 
@@ -244,77 +308,124 @@ class Plane(StrEnum):
     yz = "yz"
 
 
-PlaneOpt = Annotated[Plane | None, typer.Option(help="Project to a plane before the metric.")]
+class PlotMode(StrEnum):  # evo's --plot_mode: which two axes the path plot shows
+    xy = "xy"
+    xz = "xz"
+    yx = "yx"
+    yz = "yz"
+    zx = "zx"
+    zy = "zy"
+    xyz = "xyz"
+
+
+PlaneOpt = Annotated[Plane | None, typer.Option("--plane", "--project_to_plane",
+                                                help="Project to a plane before the metric.")]
 TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
-PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
+PlotOpt = Annotated[Path | None, typer.Option(
+    "--plot", "--save_plot", help="Write a plot of the error (.svg, .png or .pdf).")]
+LabelOpt = Annotated[list[str] | None, typer.Option(
+    "--label", metavar="NAME", help="Name of an estimate in the table, plot and JSON; repeat once per EST, in "
+    "order (default: a slam result's folder name, else the file name).")]
 ApePlotOpt = Annotated[Path | None, typer.Option(
-    "--plot", help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
+    "--plot", "--save_plot",
+    help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
+PlotModeOpt = Annotated[PlotMode | None, typer.Option(
+    "--plot-mode", "--plot_mode", help="Axes of the path plot (evo's --plot_mode; default xy).")]
+SaveResultsOpt = Annotated[Path | None, typer.Option(
+    "--save-results", "--save_results", metavar="RESULT.zip",
+    help="Also write evo's result zip (evo_res, evo's API and mrnc-eval compare read it); one estimate.")]
+FormatWordNote = ("REF may be preceded by evo's format word (tum, kitti, euroc, bag, bag2, mcap), which is ignored; "
+                  "after bag/bag2/mcap: LOG REF_TOPIC EST_TOPIC...")
 
 
 @app.command()
 def ape(
-    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic. "
+                                       + FormatWordNote)],
     est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
-    align: AlignOpt = AlignMode.se3,
+    align: AlignOpt = AlignMode.none,
     n_to_align: NAlignOpt = None,
-    relation: RelationOpt = Relation.trans,
+    relation: RelationOpt = RelationWord.trans,
     max_diff: MaxDiffOpt = 0.01,
     offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: ApePlotOpt = None,
+    plot_mode: PlotModeOpt = None,
+    save_results: SaveResultsOpt = None,
     strict: StrictOpt = False,
-    sync: SyncOpt = SyncMethod.nearest,
+    sync: SyncOpt = SyncWord.nearest,
     max_gap: MaxGapOpt = 0.2,
     decompose: Annotated[bool, typer.Option(
         "--decompose", help="Also along-track, cross-track, vertical (m) and yaw (deg) error statistics.")] = False,
     force: ForceOpt = False,
+    label: LabelOpt = None,
 ) -> None:
-    """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
+    """Absolute pose error of each estimate against the reference (evo-compatible numbers; evo's
+    command lines work: like evo, nothing is aligned unless asked, and the first line says which
+    alignment was used)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
-        ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
-        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict, sync=sync,
-        max_gap=max_gap, decompose=decompose, force=force,
+        ref, est, align=align, n_to_align=n_to_align, relation=_relation(relation), max_diff=max_diff,
+        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict,
+        sync=_sync(sync), max_gap=max_gap, decompose=decompose, plot_mode=_plain(plot_mode),
+        save_results=save_results, force=force, labels=label,
     )
+
+
+class DeltaWord(StrEnum):
+    frames = "frames"
+    m = "m"
+    f = "f"  # evo's -u f
 
 
 @app.command()
 def rpe(
-    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic. "
+                                       + FormatWordNote)],
     est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
-    delta: Annotated[float, typer.Option(help="Pair spacing, in --delta-unit.")] = 1.0,
-    delta_unit: Annotated[DeltaUnit, typer.Option(help="frames or m (distance travelled).")] = DeltaUnit.frames,
-    all_pairs: Annotated[bool, typer.Option("--all-pairs", help="Use all pairs instead of consecutive ones.")] = False,
+    delta: Annotated[float | None, typer.Option("--delta", "-d", help="Pair spacing, in --delta-unit "
+                                                "(default 1).")] = None,
+    delta_unit: Annotated[DeltaWord, typer.Option(
+        "--delta-unit", "-u", "--delta_unit", help="frames (evo's f) or m (distance travelled).")] = DeltaWord.frames,
+    all_pairs: Annotated[bool, typer.Option("--all-pairs", "--all_pairs",
+                                            help="Use all pairs instead of consecutive ones.")] = False,
     align: AlignOpt = AlignMode.none,
     n_to_align: NAlignOpt = None,
-    relation: RelationOpt = Relation.trans,
+    relation: RelationOpt = RelationWord.trans,
     max_diff: MaxDiffOpt = 0.01,
     offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: PlotOpt = None,
+    plot_mode: PlotModeOpt = None,
+    save_results: SaveResultsOpt = None,
     strict: StrictOpt = False,
-    sync: SyncOpt = SyncMethod.nearest,
+    sync: SyncOpt = SyncWord.nearest,
     max_gap: MaxGapOpt = 0.2,
     pairs_from_reference: Annotated[bool, typer.Option(
-        "--pairs-from-reference", help="Choose pairs on the reference path (default: on the estimate, as evo); "
+        "--pairs-from-reference", "--pairs_from_reference",
+        help="Choose pairs on the reference path (default: on the estimate, as evo); "
         "a noisy estimate travels farther than the reference, so metre pairs from it are denser.")] = False,
     drift: Annotated[bool, typer.Option(
         "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, "
         "scaled to short logs).")] = False,
     force: ForceOpt = False,
+    label: LabelOpt = None,
 ) -> None:
-    """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
+    """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers;
+    evo's command lines work)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.rpe_main(
-        ref, est, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
-        n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=_plain(plane),
+        ref, est, delta=delta, delta_unit=DeltaUnit.frames if delta_unit.value == "f" else DeltaUnit(delta_unit.value),
+        all_pairs=all_pairs, align=align,
+        n_to_align=n_to_align, relation=_relation(relation), max_diff=max_diff, offset=offset, plane=_plain(plane),
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
-        strict=strict, sync=sync, max_gap=max_gap, force=force,
+        strict=strict, sync=_sync(sync), max_gap=max_gap, plot_mode=_plain(plot_mode), save_results=save_results,
+        force=force, labels=label,
     )
 
 
@@ -368,10 +479,13 @@ def report(
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
     junit: JunitOpt = None,
     force: ForceOpt = False,
+    appendix_config: Annotated[bool, typer.Option(
+        "--appendix-config", help="Add the full effective configuration as an appendix (the report lists the keys "
+        "that differ from the defaults; the full file is config.yaml beside each result).")] = False,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
     from mrnc_eval.commands import report as report_command
-    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit, force=force)
+    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit, force=force, appendix_config=appendix_config)
 
 
 @app.command()
@@ -394,6 +508,13 @@ def nightly(
     """Run slam + control + evaluation on every new log, write per-log reports, a night index and
     trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise."""
     cfg = _config(config, set_, dump_config)
+    from mrnc_eval.extras import require_extra
+
+    require_extra("slam", "mrnc-eval nightly (slam and control on every log)")
+    if pdf:
+        from mrnc_eval.reports.render import pdf_engine
+
+        pdf_engine()  # before the night starts: --no-pdf, or the pdf extra
     from mrnc_eval.commands import nightly as nightly_command
     nightly_command.main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
                               gates=gates, date=date, pdf=pdf, junit=junit, force=force)
@@ -510,6 +631,9 @@ def simulate(
     cfg = _config(config, set_, dump_config)  # --dump-config needs no OUT
     if out is None:
         raise UsageError("simulate needs OUT, the log to write (e.g. sim/yard.mcap); see mrnc-eval simulate --help")
+    from mrnc_eval.extras import require_extra
+
+    require_extra("sim", "mrnc-eval simulate")
     from mrnc_eval.commands import simulate as simulate_command
     simulate_command.main(out, cfg, scene=scene.value, path=path.value, duration=duration, lidar=lidar.value,
                           columns=columns, rate=rate, fmt=_plain(fmt), seed=seed, profile=profile, force=force)
@@ -519,9 +643,28 @@ def simulate(
 
 
 INTERNAL_ERROR = 5  # a bug, not a verdict on the input: never 1 ("a gate failed")
+INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT, as shells report it
+BROKEN_PIPE = 0  # the reader stopped early (`info LOG | head -1`): it took what it wanted
 
 
-def _run(argv: list[str] | None) -> Any:
+def _on_sigint(signum: int, frame: Any) -> None:
+    raise Interrupted()
+
+
+def _stdout_gone() -> int:
+    """stdout's reader closed the pipe: say nothing more to it (the interpreter's last flush
+    would fail again) and exit with BROKEN_PIPE."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return BROKEN_PIPE
+
+
+def _dispatch(argv: list[str] | None) -> Any:
     fast = fast_command(sys.argv[1:] if argv is None else argv, {"ape": ape, "rpe": rpe})
     if fast is None:
         return app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
@@ -532,14 +675,41 @@ def _run(argv: list[str] | None) -> Any:
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; the single place where errors become exit codes. Every error is one line on
     stderr (--debug adds the traceback): typed errors with their code, file-system errors
-    (exists, permission, no space) with 4, anything else as an internal error with 5."""
+    (exists, permission, no space) with 4, anything else as an internal error with 5; Ctrl-C
+    "interrupted" with 130; a closed stdout pipe (`| head`) 0."""
+    import signal
+    import threading
+
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGINT, _on_sigint)
     try:
-        result = _run(argv)
+        return _run(argv)
+    except (Interrupted, KeyboardInterrupt):  # KeyboardInterrupt: where the handler is not installed
+        sys.stderr.write("mrnc-eval: interrupted\n")
+        return INTERRUPTED
+    except BrokenPipeError:
+        return _stdout_gone()
+    except SystemExit as exc:  # click, typer and rich exit 1 on a broken pipe, raised while handling it
+        cause = exc.__context__
+        if isinstance(cause, OSError) and cause.errno == errno.EPIPE:
+            return _stdout_gone()
+        raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run(argv: list[str] | None) -> int:
+    try:
+        from mrnc_eval.cli_evo import translate
+
+        result = _dispatch(translate(sys.argv[1:] if argv is None else list(argv)))  # evo's spellings first
     except typer.Exit as exc:
         return exc.exit_code
     except typer.Abort:
-        sys.stderr.write("aborted\n")
-        return 130
+        sys.stderr.write("mrnc-eval: aborted\n")
+        return INTERRUPTED
     except TyperException as exc:  # usage errors: missing argument, bad option value
         show = getattr(exc, "show", None)
         if callable(show):
@@ -552,9 +722,8 @@ def main(argv: list[str] | None = None) -> int:
             log.exception("%s", exc)
         sys.stderr.write(f"mrnc-eval: error: {printable(str(exc))}\n")
         return exc.exit_code
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted\n")
-        return 130
+    except BrokenPipeError:
+        raise  # main() turns it into BROKEN_PIPE
     except OSError as exc:  # a file-system error no layer below turned into a typed one
         from mrnc_eval.results import describe_os_error
 

@@ -173,8 +173,8 @@ def build(cls: type[T], data: dict[str, Any], where: str = "") -> T:
     unknown = sorted(str(k) for k in set(data) - set(by_name))
     if unknown:
         prefix = f"{where}." if where else ""
-        named = (prefix + k + did_you_mean(k, by_name, prefix) for k in unknown)
-        raise ConfigError(f"unknown config key(s): {shorten(', '.join(named))}")
+        named = (shorten(prefix + k) + did_you_mean(k, by_name, prefix) for k in unknown)  # quote the key only
+        raise ConfigError(f"unknown config key(s): {', '.join(named)}")
     kwargs = {}
     for key, value in data.items():
         dotted = f"{where}.{key}" if where else key

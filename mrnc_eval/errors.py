@@ -81,3 +81,18 @@ class GateFailed(MrncError):
     """A metric gate (APE RMSE, funnel violations...) was not met."""
 
     exit_code = 1
+
+
+class MissingExtra(UsageError):
+    """A verb needs an optional part of the installation that is not installed (the message
+    names the extra: pip install 'mrnc-eval[slam]')."""
+
+    exit_code = 2
+
+
+class Interrupted(BaseException):
+    """Ctrl-C (SIGINT), raised by cli.main's handler. A BaseException like KeyboardInterrupt, so
+    no `except Exception` counts it as one more failed log, and not KeyboardInterrupt itself,
+    which typer turns into a silent exit 130. Exit code 130 (128 + SIGINT)."""
+
+    exit_code = 130

@@ -1,6 +1,7 @@
-"""`mrnc-eval compare RUN_A RUN_B` and `compare --history ROOT --nights D1 D2`: the same metrics
-side by side with their difference and the configuration keys that differ, as a table for the
-terminal, Markdown or HTML. Reads result directories or the nightly history; never recomputes."""
+"""`mrnc-eval compare RUN_A RUN_B` (result directories or evo result zips) and
+`compare --history ROOT --nights D1 D2`: the same metrics side by side with their difference and
+the configuration keys that differ, as a table for the terminal, Markdown or HTML. Reads result
+directories or the nightly history; never recomputes."""
 
 from __future__ import annotations
 
@@ -32,9 +33,29 @@ def _config_of(path: Path) -> dict[str, Any] | None:
         raise InputError(path, f"unreadable configuration: {err}") from err
 
 
+def evo_metrics(path: Path, label: str) -> RunMetrics:
+    """The statistics of an evo result zip (evo_ape/evo_rpe/mrnc-eval --save_results), keyed by
+    its label and title's first line ("APE (m)/rmse"), so two evo zips line up; read without pickle."""
+    from mrnc_eval.io.evo_results import read_evo_zip
+
+    res = read_evo_zip(path)
+    kind = res.info.get("label", "result")
+    unit = kind[kind.find("(") + 1:kind.rfind(")")] if "(" in kind else ""
+    unit = "" if unit == "unit-less" else unit
+    metrics: dict[str, tuple[float | None, str]] = {f"{kind}/{k}": (v, unit) for k, v in res.stats.items()}
+    config = {"evo.title": res.title.replace("\n", " "), "evo.ref_name": res.info.get("ref_name", ""),
+              "evo.est_name": res.est_name}
+    return RunMetrics(label, metrics, config, {k: True for k in metrics})
+
+
 def run_metrics(run: Path, label: str) -> RunMetrics:
-    """The metrics of a result directory, or of the result directories in a folder (one log's)."""
+    """The metrics of a result directory, of the result directories in a folder (one log's), or
+    of an evo result zip."""
     from mrnc_eval.commands.report import result_dirs_of
+    from mrnc_eval.io.evo_results import is_evo_zip
+
+    if is_evo_zip(run) or Path(run).suffix.lower() == ".zip":
+        return evo_metrics(run, label)
 
     dirs = result_dirs_of([run])
     results = [read_result(d) for d in dirs]

@@ -5,6 +5,7 @@ are in control/, the metrics in evaluation/, the tables in reports/control_table
 from __future__ import annotations
 
 import logging
+import time
 from collections.abc import Mapping
 from pathlib import Path
 from typing import Any
@@ -86,6 +87,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
             path: Waypoints | None = None, path_source: str = "--path") -> RunResult:
     """`log_id` names the log in results (default: from its file name; the nightly job passes its own);
     `path` (replay: waypoints from --path, named `path_source`) replaces the log's path topic."""
+    wall_start = time.perf_counter()  # the run's real time: JUnit's time of the control gates
     warnings: list[str] = []
     roles: Mapping[str, str] = {}  # of the log, read once with its streams
     replay_kind, definitions = "", table_notes(cfg)
@@ -142,6 +144,7 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     if replay_kind:
         result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
         result.extra["t0_stamp_s"] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
+    result.extra["wall_s"] = time.perf_counter() - wall_start  # real time: JUnit's time of the control gates
     write_result(result, out_dir, dump_config(cfg))
     return result
 

@@ -141,7 +141,10 @@ def _exclusive(lock_path: Path) -> Iterator[None]:
             fcntl.flock(fh, fcntl.LOCK_EX | fcntl.LOCK_NB)
         except BlockingIOError as err:
             raise UsageError(f"{lock_path.parent}: another nightly job is writing this report root") from err
-        yield
+        try:
+            yield
+        finally:  # removed while still held: no lock file left behind in the report root
+            lock_path.unlink(missing_ok=True)
 
 
 def log_stamp(path: Path) -> str:
@@ -180,12 +183,17 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
             if plan[ids[p]] != "unchanged"]
     log.info("night %s: %d logs, %d to process", night, len(logs), len(todo))
     by_path = {str(p): stamps[p] for p in logs}
-    with progress_bar(len(todo)) as bar:
-        task = bar.add_task(f"night {night}", total=len(todo)) if bar else None
-        for summary in executor.run(todo):
-            _record(history, night, summary, by_path.get(summary.log_path, ""), concurrency)
-            if bar and task is not None:
-                bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
+    night_existed = night_dir.exists()
+    try:
+        with progress_bar(len(todo)) as bar:
+            task = bar.add_task(f"night {night}", total=len(todo)) if bar else None
+            for summary in executor.run(todo):
+                _record(history, night, summary, by_path.get(summary.log_path, ""), concurrency)
+                if bar and task is not None:
+                    bar.update(task, advance=1, description=f"night {night}: {summary.log_id} {summary.status}")
+    except BaseException:  # Ctrl-C (errors.Interrupted), a crash: leave no half-written night folder
+        _close_interrupted_night(history, night, night_dir, night_existed)
+        raise
     rows = _write_index(history, night, night_dir)
     link_latest(night_dir)
     regressions = _write_trends(history, out)
@@ -194,7 +202,8 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
         from mrnc_eval.reports.junit import write_junit
 
         # a recurring job: each night replaces the XML it wrote the night before (only that, outputs.py)
-        write_junit(junit, night_suites(rows, night_dir, cfg.gates), f"mrnc-eval nightly {night}", force=True)
+        write_junit(junit, night_suites(rows, night_dir, cfg.gates, (cfg.slam.method,)), f"mrnc-eval nightly {night}",
+                    force=True)
     failed = [r for r in rows if r.status != "ok"]
     gate_fail = [r for r in rows if r.gates_failed]
     counts = {kind: sum(v == kind for v in plan.values()) for kind in ("new", "unchanged", "re-run")}
@@ -207,6 +216,21 @@ def _run_night(logs: list[Path], log_dir: Path, cfg: Config, out: Path, night: s
     if gate_fail:
         raise GateFailed("gates failed: " + "; ".join(f"{r.log_id}: {', '.join(r.gates_failed)}"
                                                       for r in gate_fail))
+
+
+def _close_interrupted_night(history: History, night: str, night_dir: Path, night_existed: bool) -> None:
+    """A night stopped part-way: a night folder this run created with no finished log in it is
+    removed; otherwise its index is written over what finished (the next run resumes the rest).
+    Per-log folders are only moved into place when complete, so none is half-written."""
+    import shutil
+
+    try:
+        if not night_existed and not history.runs(night):
+            shutil.rmtree(night_dir, ignore_errors=True)
+        elif night_dir.is_dir():
+            _write_index(history, night, night_dir)
+    except Exception as err:  # already stopping: say it, keep the original exception
+        log.error("%s: could not close the interrupted night: %s", night_dir, err)
 
 
 def _with_gates(cfg: Config, gates: Path | None) -> Config:

@@ -70,11 +70,55 @@ class LogInputs:
     notes: tuple[str, ...] = ()  # why an input was not used (GNSS without a fix)
 
 
+@dataclass(frozen=True, kw_only=True)
+class SweepWindow:
+    """Which sweeps of a log the SLAM reads (kiss-icp's --n-scans, a time window as evo's
+    --t_start/--t_end): seconds after the log's first message, and at most n_scans sweeps
+    (counted after lio's slam.mapping_interval_s thinning)."""
+
+    start_s: float | None = None
+    end_s: float | None = None
+    n_scans: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.start_s is not None and self.start_s < 0:
+            raise UsageError(f"--start {self.start_s}: seconds after the log's start, >= 0")
+        if self.end_s is not None and self.end_s <= (self.start_s or 0.0):
+            raise UsageError(f"--end {self.end_s} must come after --start {self.start_s or 0.0}")
+        if self.n_scans is not None and self.n_scans < 2:
+            raise UsageError(f"--n-scans {self.n_scans}: SLAM needs at least 2 sweeps")
+
+    @property
+    def active(self) -> bool:
+        return (self.start_s, self.end_s, self.n_scans) != (None, None, None)
+
+    def describe(self) -> str:
+        parts = [f"from {self.start_s:g} s" if self.start_s is not None else "",
+                 f"to {self.end_s:g} s" if self.end_s is not None else "",
+                 f"at most {self.n_scans} sweeps" if self.n_scans is not None else ""]
+        return "sweeps " + ", ".join(p for p in parts if p) + " (after the log's start; --start/--end/--n-scans)"
+
+
+def windowed(stream: Iterable[Sweep], window: SweepWindow, t0_s: float) -> Iterator[Sweep]:
+    """The sweeps of `stream` inside `window` (stamps relative to t0_s, the log's start)."""
+    n = 0
+    for sweep in stream:
+        t = sweep.stamp - t0_s
+        if window.start_s is not None and t < window.start_s:
+            continue
+        if window.end_s is not None and t > window.end_s:
+            return
+        yield sweep
+        n += 1
+        if window.n_scans is not None and n >= window.n_scans:
+            return
+
+
 def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = None, progress: bool = False,
-            log_id: str | None = None) -> RunResult:
+            log_id: str | None = None, window: SweepWindow | None = None) -> RunResult:
     """Replay `method` (default: the config's slam.method; given, it is written into the config)
     on one log into `out_dir`; `log_id` names the log in results (default: from its file name;
-    the nightly job passes its own, unique within the night)."""
+    the nightly job passes its own, unique within the night); `window`: only some sweeps."""
     from mrnc_eval.io import open_log
     from mrnc_eval.io.integrity import container_notes
 
@@ -89,7 +133,10 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         inputs = _read_inputs(lg, log_path, cfg)
         result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
         result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
-        out = _replay(lg, inputs, cfg, progress)
+        if window is not None and window.active:
+            result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
+            result.warnings.append(window.describe())
+        out = _replay(lg, inputs, cfg, progress, window)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
         read_notes += container_notes(Path(log_path), lg.container)  # lost or unverifiable data
     if out.stamps.size < 2:
@@ -106,7 +153,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     if inputs.ground_truth is not None:
         _add_ape(result, inputs.ground_truth, est, online, method, cfg, float(out.stamps[0]))
     else:
-        result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
+        result.warnings.append(f"no ground truth: APE not computed ({ground_truth_hint(log_path)})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
@@ -114,6 +161,14 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
     return result
+
+
+def ground_truth_hint(log_path: Path) -> str:
+    """How to give a log ground truth: the sidecar file or the topic role."""
+    from mrnc_eval.io.ground_truth import gt_tum_path
+
+    return (f"give one as {gt_tum_path(log_path).name} beside the log (TUM) or --set "
+            "io.roles.ground_truth=TOPIC")
 
 
 def with_method(cfg: Config, method: str | None) -> Config:
@@ -166,7 +221,8 @@ def _gnss_or_none(lg: LogReader, cfg: Config) -> tuple[GnssSeries | None, str]:
         return None, f"GNSS not used: {err.problem}"
 
 
-def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutput:
+def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, window: SweepWindow | None = None
+            ) -> SlamOutput:
     """Run the configured method over the sweep stream; both methods read the same way (decoding
     runs ahead in a thread; "read" = the time still waited)."""
     from mrnc_eval.slam.replay import run_slam
@@ -176,6 +232,8 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool) -> Sl
         task = b.add_task("SLAM sweeps", total=inputs.n_sweeps) if b else None
         tick = (lambda n: b.update(task, completed=n)) if b and task is not None else None
         stream = lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take) if lio else lg.sweeps()
+        if window is not None and window.active:
+            stream = windowed(stream, window, lg.start_s)
         with Prefetched(stream, depth=4) as sweeps:
             if lio:
                 return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
@@ -319,9 +377,11 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
     for stage in STAGES:
         result.metrics.append(Metric(name=f"ms_per_sweep_{stage}", value=timing[stage]["mean"], unit="ms",
                                      group="slam/timing"))
-    interval = f", slam.mapping_interval_s = {mapping_interval_s:g} s" if method == "lio" else ""
-    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {out.n_sweeps} sweeps, {rate_hz:.1f} Hz"
-                                    f"{interval}")
+    # of the sweeps in the log (not of those the interval let through): "134 of 236", and why
+    every = (f"every {mapping_interval_s:g} s or more (slam.mapping_interval_s)" if method == "lio"
+             else "every sweep")
+    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
+                                    f"{every}, {rate_hz:.1f} Hz")
     result.extra["deskew"] = out.deskew
     result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
                          "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
@@ -510,16 +570,24 @@ def _row_ids(logs: list[Path]) -> dict[Path, str]:
 
 
 def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loop: bool, no_gps: bool,
-         json_out: bool) -> None:
+         json_out: bool, topic: str | None = None, window: SweepWindow | None = None) -> None:
     """The `slam` verb: the CLI flags set config values (slam.method, slam.loop.enabled,
-    slam.gps.enabled), which are then the one source of truth."""
+    slam.gps.enabled, --topic: io.roles.lidar), which are then the one source of truth; `window`
+    limits the sweeps read (recorded in each result's extra and warnings)."""
     from mrnc_eval.errors import SomeInputsFailed
 
     cfg = with_method(cfg, method)
+    if topic is not None:
+        cfg = replace_path(cfg, "io.roles", {**cfg.io.roles, "lidar": topic})
     if no_loop:
         cfg = replace_path(cfg, "slam.loop.enabled", False)
     if no_gps:
         cfg = replace_path(cfg, "slam.gps.enabled", False)
+    from mrnc_eval.io.containers import detect_container
+
+    for path in logs:  # a folder of logs (not a ROS 2 bag) is refused before anything is written
+        if path.is_dir():
+            detect_container([path])
     check_output_root(out, need_bytes=SLAM_OUTPUT_BYTES * len(logs))  # before the long work, not after it
     results: list[tuple[Path, RunResult]] = []
     failed: list[tuple[Path, str]] = []
@@ -528,7 +596,7 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     for path in logs:
         run_dir = new_run_dir(out, log_id_for(path), f"slam-{cfg.slam.method}")
         try:
-            r = run_log(path, cfg, run_dir, progress=True)
+            r = run_log(path, cfg, run_dir, progress=True, window=window)
         except InputError as err:
             if len(logs) == 1:
                 raise
@@ -563,7 +631,9 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
         vals = {m.name: m.value for m in r.metrics}
         apes = [f"{label} {vals[name]:.4f} m" for label, name in (("online", "ape_online_rmse_m"),
                                                                     ("smoothed", "ape_rmse_m")) if name in vals]
-        ape = ", ".join(apes) if apes else "n/a (no ground truth)"
+        ape = ", ".join(apes) if apes else f"n/a (no ground truth: {ground_truth_hint(Path(r.log_path))})"
+        if not apes and "ape_gnss_rmse_m" in vals:  # the comparison the run could make without ground truth
+            ape += f"; vs GNSS {vals['ape_gnss_rmse_m']:.3f} m (2-D, includes the GNSS error)"
         used = ", ".join(f"{role} {topic}" for role, topic in r.extra.get("roles", {}).items())
         line = (f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
                 f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}")

@@ -28,6 +28,12 @@ class Alignment:
     rotation: NDArray[np.float64]  # (3, 3)
     translation: NDArray[np.float64]  # (3,)
     scale: float
+    n_to_align: int | None = None  # the first N matched poses were used (None: all)
+
+    def summary(self) -> dict[str, object]:
+        """What a reader needs to reproduce the numbers: mode, poses used, scale, the 4x4 applied."""
+        return {"mode": str(self.mode), "n_to_align": self.n_to_align, "scale": self.scale,
+                "transform": self.sim3().tolist()}
 
     def sim3(self) -> NDArray[np.float64]:
         """4x4 with c R in the rotation block (evo's alignment_transformation_sim3)."""
@@ -55,13 +61,13 @@ def estimate_alignment(ref: Trajectory, est: Trajectory, mode: AlignMode | str,
         if n < 2:
             raise EvaluationError("yaw alignment needs at least 2 matched poses")
         r, t = yaw_align(x, y)
-        return Alignment(mode, r, t, 1.0)
+        return Alignment(mode, r, t, 1.0, n_to_align)
     if n < 3:
         raise EvaluationError(f"{mode} alignment needs at least 3 matched poses, got {n}")
     r, t, c = umeyama(x, y, with_scale=mode in (AlignMode.sim3, AlignMode.scale))
     if mode is AlignMode.scale:
-        return Alignment(mode, np.eye(3), np.zeros(3), c)
-    return Alignment(mode, r, t, c)
+        return Alignment(mode, np.eye(3), np.zeros(3), c, n_to_align)
+    return Alignment(mode, r, t, c, n_to_align)
 
 
 def align_positions(xyz: NDArray[np.float64], a: Alignment) -> NDArray[np.float64]:

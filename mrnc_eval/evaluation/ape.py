@@ -129,22 +129,40 @@ class ApeResult:
     def summary(self) -> dict[str, object]:
         return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s, **self.matching.summary()}
 
+    def alignment_summary(self) -> dict[str, object]:
+        return self.alignment.summary()
+
     def decompose(self) -> Decomposition:
         """Signed along-track, cross-track, vertical and yaw errors of the aligned estimate."""
         return decompose(self.pair.ref_xyz, self.pair.est_xyz, self.pair.ref_rot, self.pair.est_rot)
 
-    def to_dataframe(self) -> pd.DataFrame:
-        """One row per matched pose: t_s (the estimate's stamp), the error (column "error_<unit>"),
-        the aligned estimate and the reference positions (m); the statistics in `.attrs`."""
+    def to_dataframe(self, *, time_index: bool = False) -> pd.DataFrame:
+        """One row per matched pose: t_s (the estimate's stamp), seconds_from_start,
+        distance_from_start_m (along the reference, as evo's distances_from_start), the error
+        (column "error_<unit>"), the aligned estimate and the reference positions (m); the
+        statistics and the alignment in `.attrs`. `time_index`: indexed by t_s (a float index,
+        for `.loc[t0:t1]` and resampling), else by row number."""
         import pandas as pd
 
-        columns = {"t_s": self.stamps, f"error_{self.unit or 'unitless'}": self.errors}
+        columns = {"t_s": self.stamps, "seconds_from_start": self.stamps - self.stamps[0],
+                   "distance_from_start_m": path_lengths(self.ref_xyz),
+                   f"error_{self.unit or 'unitless'}": self.errors}
         for k, axis in enumerate("xyz"):
             columns[f"est_{axis}"] = self.est_xyz[:, k]
             columns[f"ref_{axis}"] = self.ref_xyz[:, k]
         frame = pd.DataFrame(columns)
+        if time_index:
+            frame = frame.set_index("t_s", drop=False).rename_axis("time_s")
         frame.attrs.update(self.summary())
+        frame.attrs["alignment"] = self.alignment_summary()
         return frame
+
+
+def path_lengths(xyz: NDArray[np.float64]) -> NDArray[np.float64]:
+    """Cumulative path length at each pose, m, from 0 (evo's `distances`)."""
+    if xyz.shape[0] == 0:
+        return np.zeros(0)
+    return np.concatenate([[0.0], np.cumsum(np.linalg.norm(np.diff(xyz, axis=0), axis=1))])
 
 
 ANGLE_BLOCK = 1 << 16  # poses per block of the quaternion angle route

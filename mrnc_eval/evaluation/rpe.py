@@ -10,8 +10,8 @@ from numpy.typing import NDArray
 
 from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import EvaluationError
-from mrnc_eval.evaluation.align import align_rotations, project_rotations
-from mrnc_eval.evaluation.ape import AlignedPair, aligned_pair
+from mrnc_eval.evaluation.align import Alignment, align_rotations, project_rotations
+from mrnc_eval.evaluation.ape import AlignedPair, aligned_pair, path_lengths
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod, parse_choice
 from mrnc_eval.evaluation.pairs import pairs_by_distance, pairs_by_frames
 from mrnc_eval.evaluation.relations import UNITS, check_relation, error_values
@@ -37,18 +37,33 @@ class RpeResult:
     errors: NDArray[np.float64]
     stamps: NDArray[np.float64]  # estimate stamps at the pair ends j
     matching: Matched = field(repr=False)
+    alignment: Alignment | None = field(default=None, repr=False)
+    pair: AlignedPair | None = field(default=None, repr=False)
+    pair_ends: NDArray[np.int64] | None = field(default=None, repr=False)  # j of each pair, into the matched poses
+
+    def alignment_summary(self) -> dict[str, object]:
+        return self.alignment.summary() if self.alignment is not None else {"mode": "none", "n_to_align": None,
+                                                                            "scale": 1.0, "transform": None}
 
     def summary(self) -> dict[str, object]:
         return {"name": self.name, **self.stats, "n": self.n, "span_s": self.span_s, **self.matching.summary()}
 
-    def to_dataframe(self) -> pd.DataFrame:
-        """One row per pair: t_s (the estimate's stamp at the pair's end), the error (column
-        "error_<unit>"); the statistics in `.attrs`."""
+    def to_dataframe(self, *, time_index: bool = False) -> pd.DataFrame:
+        """One row per pair: t_s (the estimate's stamp at the pair's end), seconds_from_start (from
+        the first matched pose), distance_from_start_m (along the reference to the pair's end), the
+        error (column "error_<unit>"); the statistics and alignment in `.attrs`. `time_index`:
+        indexed by t_s."""
         import pandas as pd
 
-        columns = {"t_s": self.stamps, f"error_{self.unit or 'unitless'}": self.errors}
+        columns = {"t_s": self.stamps, "seconds_from_start": self.stamps - self.matching.est.stamps[0],
+                   f"error_{self.unit or 'unitless'}": self.errors}
+        if self.pair is not None and self.pair_ends is not None:  # along the reference, to each pair's end
+            columns["distance_from_start_m"] = path_lengths(self.pair.ref_xyz)[self.pair_ends]
         frame = pd.DataFrame(columns)
+        if time_index:
+            frame = frame.set_index("t_s", drop=False).rename_axis("time_s")
         frame.attrs.update(self.summary())
+        frame.attrs["alignment"] = self.alignment_summary()
         return frame
 
 
@@ -129,4 +144,5 @@ def rpe(ref: Trajectory, est: Trajectory, *, delta: float = 1.0, delta_unit: Del
         name=est.name, relation=relation, unit=UNITS[relation], delta=float(delta), delta_unit=delta_unit,
         pairs_from=pairs_from, stats=error_stats(errors), n=int(errors.size),
         span_s=float(np.ptp(est_m.stamps)), errors=errors, stamps=est_m.stamps[j], matching=m,
+        alignment=pair.alignment, pair=pair, pair_ends=j,
     )

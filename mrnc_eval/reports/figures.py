@@ -56,21 +56,73 @@ def decimate(*arrays: np.ndarray) -> list[np.ndarray]:
 def draw_error_path(fig, ax, ref_xyz: np.ndarray, est_xyz: np.ndarray, err: np.ndarray, *, unit: str = "m",
                     est_label: str = "estimate (SE(3) aligned)", ref_label: str = "ground truth",
                     title: str = "Trajectory in the plane, coloured by APE",
-                    overlays: list[tuple[np.ndarray, str, str]] | None = None) -> None:
-    """The estimate's path in the x-y plane coloured by its error, the reference dashed beside
-    it, `overlays` as plain lines (decimated for drawing). One implementation for SLAM reports
-    and `ape --plot`."""
+                    overlays: list[tuple[np.ndarray, str, str]] | None = None, axes: str = "xy",
+                    legend_below: bool = False) -> None:
+    """The estimate's path in the plane of `axes` (two of x, y, z: evo's --plot_mode) coloured
+    by its error, the reference dashed beside it, `overlays` as plain lines (decimated for
+    drawing). One implementation for SLAM reports and `ape --plot` (`legend_below`: the legend
+    under the axes, where it covers no path and the constrained layout makes room for it)."""
+    a, b = ("xyz".index(axes[0]), "xyz".index(axes[1]))
     ref, est, e = decimate(ref_xyz, est_xyz, err)
-    ax.plot(ref[:, 0], ref[:, 1], color="0.55", lw=1.0, ls="--", label=ref_label)
+    ax.plot(ref[:, a], ref[:, b], color="0.55", lw=1.0, ls="--", label=ref_label)
     for xyz, label, colour in overlays or ():  # further paths as lines (e.g. the online estimate)
         line, = decimate(xyz)
-        ax.plot(line[:, 0], line[:, 1], color=colour, lw=0.8, label=label)
-    sc = ax.scatter(est[:, 0], est[:, 1], c=e, s=6, cmap="viridis", label=est_label)
-    ax.plot(est[:1, 0], est[:1, 1], "k^", ms=7, label="start")
+        ax.plot(line[:, a], line[:, b], color=colour, lw=0.8, label=label)
+    sc = ax.scatter(est[:, a], est[:, b], c=e, s=6, cmap="viridis", label=est_label)
+    ax.plot(est[:1, a], est[:1, b], "k^", ms=7, label="start")
     fig.colorbar(sc, ax=ax, label=f"APE ({unit})" if unit else "APE")
     ax.set_aspect("equal", adjustable="datalim")
-    ax.set(xlabel="x (m)", ylabel="y (m)", title=title)
-    ax.legend(loc="best", fontsize="small")
+    ax.set(xlabel=f"{axes[0]} (m)", ylabel=f"{axes[1]} (m)", title=title)
+    if legend_below:
+        ax.legend(loc="upper center", bbox_to_anchor=(0.5, -0.13), fontsize="small", ncols=3, frameon=False)
+    else:
+        ax.legend(loc="best", fontsize="small")
+
+
+TITLE_CHARS_PER_INCH = 9  # characters of a 12 pt title per inch of axes width (DejaVu Sans, with margin)
+
+
+def wrapped(text: str, width_in: float) -> str:
+    """`text` broken into lines that fit `width_in` inches at title size: after spaces, and
+    inside file names and run folders after / - _; a piece longer than a line is split."""
+    chars = max(12, int(width_in * TITLE_CHARS_PER_INCH))
+    pieces = [p for p in re.split(r"(?<=[/_\- ])", text) if p]
+    lines: list[str] = []
+    line = ""
+    for piece in pieces:
+        while len(piece) > chars:  # one piece wider than a line
+            if line:
+                lines.append(line.rstrip())
+                line = ""
+            lines.append(piece[:chars])
+            piece = piece[chars:]
+        if len(line) + len(piece.rstrip()) > chars and line:
+            lines.append(line.rstrip())
+            line = ""
+        line += piece
+    if line.strip():
+        lines.append(line.rstrip())
+    return "\n".join(lines) or text
+
+
+def ape_path_figure(results, title: str, plot_axes: str = "xy"):
+    """`ape --plot`: one panel per estimate (its aligned path coloured by its APE, the reference
+    dashed), titled with its label, wrapped to the panel's width; legends under the panels; two
+    panels per row. Nothing overlaps or leaves the figure (tests/evaluation: text boxes)."""
+    cols = min(2, len(results))
+    rows = -(-len(results) // cols)
+    panel_w, panel_h = 6.0, 5.4
+    fig, axes = new_figure(panel_w * cols, panel_h * rows + 0.4, rows, cols)
+    for k, ax in enumerate(axes.ravel()):
+        if k >= len(results):
+            ax.set_visible(False)
+            continue
+        r = results[k]
+        draw_error_path(fig, ax, r.ref_xyz, r.est_xyz, r.errors, unit=r.unit,
+                        est_label=f"estimate ({r.alignment.mode} aligned)", ref_label="reference",
+                        title=wrapped(r.name, panel_w - 1.6), legend_below=True, axes=plot_axes)
+    fig.suptitle(wrapped(title, panel_w * cols - 0.5))
+    return fig
 
 
 def _mark_events(ax, r: RunResult, kinds: tuple[str, ...]) -> list[str]:
@@ -84,23 +136,29 @@ def _mark_events(ax, r: RunResult, kinds: tuple[str, ...]) -> list[str]:
     return drawn
 
 
-def slam_figures(r: RunResult) -> list[tuple[str, str]]:
+def slam_figures(r: RunResult, timing: dict[str, dict[str, float]] | None = None) -> list[tuple[str, str]]:
+    """Path coloured by APE, APE over time and per-stage timing (`timing`: the stages to draw,
+    default all in the result). Labels name online and smoothed only where they differ (lio)."""
     s = r.series
+    lio = r.extra.get("method", "lio") == "lio"
     out = []
     if "est_aligned_xyz" in s and "ape_err_m" in s and "ref_xyz" in s:
         fig, ax = new_figure(6.5, 5.0)
         overlays = []
-        if "est_online_aligned_xyz" in s:
+        if "est_online_aligned_xyz" in s and lio:
             overlays.append((s["est_online_aligned_xyz"], "online (as processed, SE(3) aligned)", "tab:red"))
         draw_error_path(fig, ax[0, 0], s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"],
-                        est_label="smoothed (SE(3) aligned)", overlays=overlays)
+                        est_label="smoothed (SE(3) aligned)" if lio else "estimate (SE(3) aligned)",
+                        overlays=overlays)
         out.append(("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
-                    "truth dashed)", svg(fig)))
+                    "truth dashed)" if lio else "Trajectory in the plane (estimate coloured by its APE, ground truth "
+                    "dashed)", svg(fig)))
         fig, ax = new_figure(7.0, 3.0)
         ax = ax[0, 0]
         t, e = decimate(s["ape_t"], s["ape_err_m"])
-        ax.plot(t, e, lw=1.0, color="tab:blue", label="smoothed (re-anchored to the final keyframes)")
-        if "ape_online_t" in s and "ape_online_err_m" in s:
+        ax.plot(t, e, lw=1.0, color="tab:blue",
+                label="smoothed (re-anchored to the final keyframes)" if lio else "estimate")
+        if "ape_online_t" in s and "ape_online_err_m" in s and lio:
             t, e = decimate(s["ape_online_t"], s["ape_online_err_m"])
             ax.plot(t, e, lw=1.0, color="tab:red", label="online (as processed)")
             ax.legend(fontsize="small", loc="upper left")
@@ -108,18 +166,18 @@ def slam_figures(r: RunResult) -> list[tuple[str, str]]:
         ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
                title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
         ax.grid(alpha=0.3)
-        out.append(("APE (translation) over time, online and smoothed", svg(fig)))
+        out.append(("APE (translation) over time" + (", online and smoothed" if lio else ""), svg(fig)))
     elif "est_xyz" in s and len(s["est_xyz"]):
         fig, ax = new_figure(6.5, 5.0)
         xyz, = decimate(s["est_xyz"])
         ax[0, 0].plot(xyz[:, 0], xyz[:, 1], lw=1.0)
-        if "kf_xyz" in s and len(s["kf_xyz"]):
+        if "kf_xyz" in s and len(s["kf_xyz"]) and lio:
             ax[0, 0].plot(s["kf_xyz"][:, 0], s["kf_xyz"][:, 1], "o", ms=3, color="tab:orange", label="keyframes")
             ax[0, 0].legend(fontsize="small")
         ax[0, 0].set_aspect("equal", adjustable="datalim")
         ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="Estimated trajectory (no ground truth: APE not computed)")
         out.append(("Estimated trajectory in the plane", svg(fig)))
-    timing = r.extra.get("timing_ms", {})
+    timing = r.extra.get("timing_ms", {}) if timing is None else timing
     if timing:
         fig, ax = new_figure(6.5, 0.6 + 0.35 * len(timing))
         ax = ax[0, 0]

@@ -79,7 +79,8 @@ def test_table_reads_slam_result_folders(sim_runs: Runs, results_root: Path, tmp
         own = run.metric(lio_metric)
         assert own is not None
         assert lio_cell == pytest.approx(own.value, rel=1e-6), setting  # the run's own APE
-        ape = _json(["ape", f"{sim_runs.log}:/ground_truth", str(kiss / kiss_file), "--max-diff", "0.02", "--json"],
+        ape = _json(["ape", f"{sim_runs.log}:/ground_truth", str(kiss / kiss_file), "--max-diff", "0.02", "--json",
+                     "-a"],
                     capsys)
         assert kiss_cell == pytest.approx(ape["results"][0]["stats"]["rmse"], rel=1e-9), setting
     assert not any("yard-slam-lio-old" in n for n in table["notes"])

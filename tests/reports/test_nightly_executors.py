@@ -221,6 +221,7 @@ def test_a_second_nightly_on_the_same_root_is_refused(imu_logs: Path, tmp_path: 
             run_night(imu_logs, out, night="2026-11-06")
     assert not (out / "history.sqlite").exists()
     assert run_night(imu_logs, out, night="2026-11-06") == 0  # released: runs
+    assert not (out / ".nightly.lock").exists()  # removed after the run, not left in the report root
 
 
 def test_a_failed_gate_exits_1_and_is_named_in_the_index_and_history(imu_logs: Path, tmp_path: Path) -> None:
