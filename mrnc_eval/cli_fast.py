@@ -69,8 +69,8 @@ def _option_spellings(param: _Param, info: OptionInfo) -> dict[str, tuple[_Param
     if info.default is not ...:  # in Annotated, Option("--json") names the option
         decls.insert(0, str(info.default))
     dashed = param.name.replace("_", "-")
-    if param.is_list:
-        return {}  # repeatable options (--set, --label): unknown here, so a line that gives one is typer's
+    if param.is_list and param.kind is bool:
+        return None
     if param.kind is not bool:
         return None if any("/" in d for d in decls) else {d: (param, None) for d in decls or [f"--{dashed}"]}
     spellings: dict[str, tuple[_Param, bool | None]] = {}
@@ -141,7 +141,7 @@ def _read_options(tokens: list[str], options: dict[str, tuple[_Param, bool | Non
         if name not in options or token == "--":
             raise ValueError(token)
         param, flag = options[name]
-        if param.name in values:
+        if param.name in values and not param.is_list:
             raise ValueError(token)  # repeated: typer's rules
         if flag is not None:
             if eq or (rest and rest[0].lower() in _TRUTH_WORDS):
@@ -152,7 +152,10 @@ def _read_options(tokens: list[str], options: dict[str, tuple[_Param, bool | Non
             if not rest:
                 raise ValueError(token)
             inline = rest.pop(0)
-        values[param.name] = _convert(param, inline)
+        if param.is_list:  # a repeatable option (--label A --label B): the values in order
+            values.setdefault(param.name, []).append(_convert(param, inline))
+        else:
+            values[param.name] = _convert(param, inline)
     return values, positional
 
 

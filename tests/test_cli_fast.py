@@ -24,6 +24,7 @@ PLAIN = [
      "--offset", "0.25", "--strict", "--sync", "interpolate", "--max-gap", "1e-1", "--decompose",
      "--table", "out.md", "--plot", "p.svg"],
     ["rpe", "ref.tum", "est.tum"],
+    ["ape", "ref.tum", "a.tum", "b.tum", "--label", "first", "--label", "second"],  # a repeatable option
     ["rpe", "ref.tum", "est.tum", "--delta", "10", "--delta-unit", "m", "--all-pairs", "--relation", "rot",
      "--pairs-from-reference", "--drift", "--align", "se3", "--json", "--offset", "auto"],
 ]
