@@ -380,14 +380,14 @@ def _rewrite(src: Path, dst: Path, *, keep=None, edit=None, fmt: str = "mcap") -
 
     counts: dict[str, int] = {}
     with open_log(src) as lg, LogWriter(dst, fmt) as w:  # type: ignore[arg-type]
-        for topic, t_rec, raw in lg._iterate(list(lg._channels)):
-            msgtype = lg._channels[topic].msgtype
+        for topic, t_rec, raw in lg.source.iterate(list(lg.source.channels)):
+            msgtype = lg.source.channels[topic].msgtype
             k = counts.get(topic, 0)
             counts[topic] = k + 1
             if keep is not None and not keep(topic, k):
                 continue
             if edit is not None and topic in edit:
-                raw = w._serialize(edit[topic](lg._decode(raw, topic), k), msgtype)
+                raw = w._serialize(edit[topic](lg.source.decode(raw, topic), k), msgtype)
             w._writer.write(w._conn(topic, msgtype, latched=topic == "/tf_static"), t_rec, bytes(raw))
     shutil.copy(gt_tum_path(src), gt_tum_path(dst))
     return dst

@@ -75,12 +75,13 @@ def _slam_run(method: str, config_hash: str) -> RunResult:
     """A SLAM result as the slam verb writes it (the metrics each method has)."""
     names = ["ape_rmse_m", "ape_online_rmse_m", "end_drift_m", "end_drift_online_m", "keyframes", "loop_closures"]
     names += ["imu_time_offset_s", "map_entropy"] if method == "lio" else []  # the peer writes no map
-    metrics = [Metric(n, 0.02, "m", "slam/ape") for n in names]
+    metrics = [Metric(name=n, value=0.02, unit="m", group="slam/ape") for n in names]
     timing = {st: {"mean": 1.0 if method == "lio" or st in ("read", "matching") else 0.0, "p95": 0.0, "max": 0.0}
               for st in ("read", "deskew", "features", "matching", "graph", "loop")}
     extra = {"method": method, "timing_ms": timing, "deskew": False,
              "warmup_total_ms": 7000.0 if method == "lio" else 0.0}
-    return RunResult("slam", "run.mcap", "run", config_hash=config_hash, metrics=metrics, extra=extra)
+    return RunResult(kind="slam", log_path="run.mcap", log_id="run", config_hash=config_hash, metrics=metrics,
+                     extra=extra)
 
 
 LIO_ONLY_TEXT = ("re-anchored", "numba", "IMU time offset", ">keyframes<", ">loop closures<", ", online (m)<")
