@@ -22,9 +22,10 @@ def _inputs(n_sweeps: int) -> LogInputs:
 
 def _output(mapped: int, decoded: int) -> SlamOutput:
     poses = np.tile(np.eye(4), (mapped, 1, 1))
-    return SlamOutput(stamps=np.arange(mapped) * 0.39, poses=poses, kf_stamps=np.zeros(0), kf_poses=np.zeros((0, 4, 4)),
-                      map_points=np.zeros((0, 3)), timing_ms={st: [1.0] * mapped for st in STAGES}, events=[],
-                      warnings=[], n_sweeps=decoded, wall_s=19.4)
+    return SlamOutput(stamps=np.arange(mapped) * 0.39, poses=poses, kf_stamps=np.zeros(0),
+                      kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)),
+                      timing_ms={st: [1.0] * mapped for st in STAGES}, events=[], warnings=[], n_sweeps=decoded,
+                      wall_s=19.4)
 
 
 @pytest.mark.parametrize(("method", "every"), [("lio", "every 0.15 s or more (slam.mapping_interval_s)"),
@@ -45,8 +46,9 @@ def _printed(r: RunResult, capsys: pytest.CaptureFixture[str]) -> str:
 
 
 def _run(*extra: Metric) -> RunResult:
-    base = [Metric(name="rtf", value=2.7, group="slam"), Metric(name="keyframes", value=26, group="slam"),
-            Metric(name="loop_closures", value=12, group="slam")]
+    base = [Metric(name="rtf", value=2.7, unit="", group="slam"),
+            Metric(name="keyframes", value=26, unit="", group="slam"),
+            Metric(name="loop_closures", value=12, unit="", group="slam")]
     r = RunResult(kind="slam", log_path="logs/loop_forest.bag", log_id="loop_forest", metrics=[*base, *extra])
     r.extra["mapping_rate"] = "mapping 134 of 236 sweeps, every 0.15 s or more (slam.mapping_interval_s), 2.6 Hz"
     return r
