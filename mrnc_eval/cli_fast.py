@@ -70,7 +70,7 @@ def _option_spellings(param: _Param, info: OptionInfo) -> dict[str, tuple[_Param
         decls.insert(0, str(info.default))
     dashed = param.name.replace("_", "-")
     if param.is_list:
-        return None  # repeatable options (--set) are typer's
+        return {}  # repeatable options (--set, --label): unknown here, so a line that gives one is typer's
     if param.kind is not bool:
         return None if any("/" in d for d in decls) else {d: (param, None) for d in decls or [f"--{dashed}"]}
     spellings: dict[str, tuple[_Param, bool | None]] = {}
@@ -165,7 +165,7 @@ def fast_command(argv: Sequence[str], commands: dict[str, Callable[..., Any]]
     func = commands[argv[0]]
     try:
         sig = _signature(func)
-    except Exception:  # an annotation this parser cannot resolve: typer's business
+    except (NameError, TypeError, AttributeError, ValueError):  # an annotation it cannot resolve: typer's
         return None
     if sig is None:
         return None

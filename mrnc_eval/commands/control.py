@@ -13,7 +13,7 @@ from typing import Any
 import numpy as np
 
 from mrnc_eval.config import Config, config_hash, dump_config
-from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
+from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
 from mrnc_eval.control.margins import bode, loop_summary
@@ -49,6 +49,7 @@ from mrnc_eval.results import (
     new_run_dir,
     write_result,
 )
+from mrnc_eval.schema import control as K
 
 log = logging.getLogger(__name__)
 
@@ -120,21 +121,21 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
-    result.series["t"] = longest.t[:: _decimate(longest.t)]
+    result.series[K.T] = longest.t[:: _decimate(longest.t)]
     if longest.waypoints is not None:
-        result.series["path_xy"] = longest.waypoints
-    result.series["funnel_o"] = longest.funnel[:: _decimate(longest.t)]
+        result.series[K.PATH_XY] = longest.waypoints
+    result.series[K.FUNNEL_O] = longest.funnel[:: _decimate(longest.t)]
     for n in names:
         _add_controller(result, n, traces[n], metrics[n])
-    result.extra = {"mode": mode, "controllers": list(names),
-                    "labels": {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
+    result.extra = {K.MODE: mode, K.CONTROLLERS: list(names),
+                    K.LABELS: {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
-                    "seed": cfg.control.seed, "definitions": definitions,
-                    "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
+                    "seed": cfg.control.seed, K.DEFINITIONS: definitions,
+                    K.SATURATION_APPLIES_TO: cfg.control.actuator.saturation_applies_to,
                     "supervisor": cfg.control.supervisor.stop_rule, "step_detector": cfg.control.steps.detector,
                     "reference_shaping": shaping_text(cfg.control),
-                    "curvature": cfg.control.pure_pursuit.curvature,
-                    "roles": dict(roles) if mode == "replay" else simulation_topics(roles)}
+                    K.CURVATURE: cfg.control.pure_pursuit.curvature,
+                    K.ROLES: dict(roles) if mode == "replay" else simulation_topics(roles)}
     if mode == "simulate":
         loops = loop_summary(cfg.control, cfg.control.pure_pursuit.desired_speed_mps)
         result.tables += [paper_reading_table(metrics, names, cfg), table_two(metrics, names, cfg),
@@ -142,10 +143,10 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         result.extra["loop"] = loops
         w, loop = bode(cfg.control, interior_gain(cfg.control, v=cfg.control.pure_pursuit.desired_speed_mps,
                                                   phi=0.0))
-        result.series["bode_w_rad_s"] = w
+        result.series[K.BODE_W] = w
         for law, lw in loop.items():
-            result.series[f"bode_{law}_mag_db"] = 20.0 * np.log10(np.abs(lw))
-            result.series[f"bode_{law}_phase_deg"] = np.degrees(np.unwrap(np.angle(lw)))
+            result.series[K.bode_magnitude(law)] = 20.0 * np.log10(np.abs(lw))
+            result.series[K.bode_phase(law)] = np.degrees(np.unwrap(np.angle(lw)))
         events = disturbance_study(names, cfg.control, cfg.robot)
         result.tables.append(disturbance_table(events, cfg))
         result.extra["disturbance"] = events
@@ -154,8 +155,8 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
             result.tables.append(scale_study_table(study, cfg))
             result.extra["raid_scale_study"] = study
     if replay_kind:
-        result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
-        result.extra["t0_stamp_s"] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
+        result.extra[K.REPLAY] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
+        result.extra[K.T0_STAMP_S] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
     result.extra["wall_s"] = time.perf_counter() - wall_start  # real time: JUnit's time of the control gates
     write_result(result, out_dir, dump_config(cfg))
     return result
@@ -165,28 +166,29 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
 def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: dict[str, Any]) -> None:
     """One controller's metrics (per side and path), decimated series and safety stops into `result`."""
     step = _decimate(tr.t)
-    for side in SIDES:
+    for side in K.SIDES:
         group = f"control/{name}/{side}"
         s = tr.side(side)
         for key, val in metrics[side].items():
             value = val if isinstance(val, int) else float(val)
             result.metrics.append(Metric(name=key, value=value, unit=UNITS.get(key, ""), group=group))
-        result.series[f"{name}_{side}_v_ref"] = s.v_ref[::step]
-        result.series[f"{name}_{side}_v_meas"] = s.v_wheel[::step]
-        result.series[f"{name}_{side}_u_rpm"] = s.u[::step]
-        for key, series in ((f"{name}_{side}_u_fb_rpm", s.u_fb), (f"{name}_{side}_phi_hat", s.phi)):
+        result.series[K.side_series(name, side, K.V_REF)] = s.v_ref[::step]
+        result.series[K.side_series(name, side, K.V_MEAS)] = s.v_wheel[::step]
+        result.series[K.side_series(name, side, K.U_RPM)] = s.u[::step]
+        for key, series in ((K.side_series(name, side, K.U_FB_RPM), s.u_fb),
+                            (K.side_series(name, side, K.PHI_HAT), s.phi)):
             if series is not None and np.isfinite(series).any():
                 result.series[key] = series[::step]
-    result.series[f"{name}_t"] = tr.t[::step]
+    result.series[K.time(name)] = tr.t[::step]
     if np.isfinite(tr.x).any():  # wheel-speed tracking without a pose topic: nowhere to place the run
-        result.series[f"{name}_xy"] = np.c_[tr.x, tr.y][::step]
+        result.series[K.driven_xy(name)] = np.c_[tr.x, tr.y][::step]
     if "path" in metrics:
         cte = metrics["path"].pop("_cte")
         for key, val in metrics["path"].items():
             result.metrics.append(Metric(name=key, value=float(val), unit=UNITS.get(key, ""),
                                          group=f"control/{name}/path"))
-        result.series[f"{name}_cte_m"] = cte[::step]
-    result.series[f"{name}_funnel_o"] = tr.funnel[::step]
+        result.series[K.cte(name)] = cte[::step]
+    result.series[K.funnel(name)] = tr.funnel[::step]
     result.events += [Event(t_s=e["t_s"], kind="safety_stop", message=f"{LABELS.get(name, name)}: {e['message']}",
                             data={"side": e["side"]}) for e in tr.events]
 
@@ -198,9 +200,12 @@ def _decimate(t: np.ndarray, max_points: int = 20000) -> int:
 CONTROL_OUTPUT_BYTES = 50_000_000  # free space asked for before a run: result.json, series.npz
 
 
-def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out: Path, json_out: bool,
+def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str | None, out: Path, json_out: bool,
          runs: int | None = None, seed: int | None = None, path_file: Path | None = None) -> None:
-    names = parse_controllers(controllers)
+    if controllers is not None and mode == "replay":  # refused, not silently ignored
+        raise UsageError("--controllers chooses the controllers of --mode simulate and sweep; a replay evaluates "
+                         "the recorded run (the deployed controller)")
+    names = parse_controllers(controllers) if controllers is not None else CONTROLLERS
     if path_file is not None and mode != "replay":
         raise UsageError("--path supplies the path of a replay (--mode replay)")
     if log_path is not None and split_log_paths(log_path) is None and not log_path.exists():  # split: open_log checks

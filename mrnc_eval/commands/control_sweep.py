@@ -34,6 +34,7 @@ from mrnc_eval.control.sweep import (
 from mrnc_eval.errors import UsageError
 from mrnc_eval.evaluation.control_metrics import cross_track, paper_metrics
 from mrnc_eval.results import RunResult, write_result
+from mrnc_eval.schema import control as K
 from mrnc_eval.tables import Table
 
 
@@ -268,16 +269,16 @@ def run_sweep_result(cfg: Config, names: tuple[str, ...], out_dir: Path, *, runs
     first = next(iter(summary.values()))
     bins = first["violation_rate_by_gain_mismatch"]
     assert isinstance(bins, list)
-    result.series["sweep_gain_mismatch_mid"] = np.array([0.5 * (b["gain_mismatch_lo"] + b["gain_mismatch_hi"])
+    result.series[K.SWEEP_GAIN_MISMATCH_MID] = np.array([0.5 * (b["gain_mismatch_lo"] + b["gain_mismatch_hi"])
                                                          for b in bins])
     for name, smry in summary.items():
         per_bin = smry["violation_rate_by_gain_mismatch"]
         assert isinstance(per_bin, list)
-        result.series[f"sweep_{name}_violation_rate"] = np.array([b["funnel_violation_rate"] for b in per_bin])
-    result.extra = {"mode": "sweep", "controllers": list(names), "labels": {n_: LABELS.get(n_, n_) for n_ in names},
-                    "runs": n, "seed": s, "sweep": summary, "sweep_runs": runs_as_rows(rows),
+        result.series[K.sweep_violation_rate(name)] = np.array([b["funnel_violation_rate"] for b in per_bin])
+    result.extra = {K.MODE: "sweep", K.CONTROLLERS: list(names), K.LABELS: {n_: LABELS.get(n_, n_) for n_ in names},
+                    K.RUNS: n, "seed": s, "sweep": summary, "sweep_runs": runs_as_rows(rows),
                     "supervisor": cfg.control.supervisor.stop_rule, "shaping": shaping_text(cfg.control),
-                    "definitions": table.notes}
+                    K.DEFINITIONS: table.notes}
     write_result(result, out_dir, dump_config(cfg))
     return result
 

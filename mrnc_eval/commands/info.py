@@ -53,6 +53,12 @@ class InfoSummary:
         return item(self.path, {**stats, "n_topics": len(self.topics)}, **rest)
 
 
+def type_name(msgtype: str, container: str) -> str:
+    """A message type as the log's ROS version writes it: sensor_msgs/Imu in a ROS 1 bag (the
+    reader's type store names every type the ROS 2 way, sensor_msgs/msg/Imu)."""
+    return msgtype.replace("/msg/", "/", 1) if container == "ros1" else msgtype
+
+
 def run(path: Path, cfg: Config) -> InfoSummary:
     from mrnc_eval.errors import InputError
     from mrnc_eval.io.integrity import container_notes, mcap_files, verify_chunks
@@ -72,11 +78,13 @@ def run(path: Path, cfg: Config) -> InfoSummary:
 
 
 def _summary(path: Path, cfg: Config) -> InfoSummary:
+    log.info("%s: reading the overview (topics, stamps, roles)", path)
     with open_log(path, cfg.io) as lg:
+        log.info("%s: %s, %d topics, %.1f s", path, lg.container, len(lg.topics), lg.duration_s)
         topics = lg.topics
         summary = InfoSummary(
             path=str(path), container=lg.container, start_s=lg.start_s, end_s=lg.end_s, duration_s=lg.duration_s,
-            topics=[{"topic": t.topic, "msgtype": t.msgtype, "count": t.count, "role": t.role,
+            topics=[{"topic": t.topic, "msgtype": type_name(t.msgtype, lg.container), "count": t.count, "role": t.role,
                      "rate_hz": round(t.rate_hz, 3), "max_gap_s": round(t.max_gap_s, 6),
                      "duplicates": t.duplicates, "out_of_order": t.out_of_order, "problem": t.problem}
                     for t in topics],

@@ -17,7 +17,7 @@ from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.scenario import Scenario, scripted_scenario
 from mrnc_eval.data import ImuSeries, Trajectory, Waypoints
-from mrnc_eval.errors import ConfigError
+from mrnc_eval.errors import ConfigError, UsageError
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import Format, LogWriter
@@ -97,7 +97,7 @@ def validate(req: SimRequest) -> None:
     if req.duration_s is not None and req.duration_s <= 0.5:
         problems.append(f"duration {req.duration_s:g} s (must exceed 0.5 s)")
     if problems:
-        raise ValueError("unsupported simulation request: " + "; ".join(problems))
+        raise UsageError("unsupported simulation request: " + "; ".join(problems))
 
 
 def _driven_path(trace: ClosedLoopTrace) -> np.ndarray:

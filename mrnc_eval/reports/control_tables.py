@@ -287,8 +287,18 @@ def replay_table(result: RunResult) -> Table:
     groups = [g for g in groups if any(m.group.endswith(f"/{g}") for m in result.metrics)]
     return Table(title=title, column_labels=groups,
                  row_labels=[f"{n} ({UNITS[n]})" if UNITS.get(n) else n for n in rows],
-                 cells=[[by[(g, n)].value if (g, n) in by else None for g in groups] for n in rows], best=None,
-                 precision=4, notes=list(result.extra.get("definitions", [])))
+                 cells=[[replay_cell(by[(g, n)].value) if (g, n) in by else None for g in groups] for n in rows],
+                 best=None, precision=4, notes=list(result.extra.get("definitions", [])))
+
+
+def replay_cell(value: float | int | None) -> float | int | str | None:
+    """A replay metric as the legend reads it: infinity (a time that never came) "not settled",
+    NaN (nothing to measure) an empty cell."""
+    if isinstance(value, float) and math.isinf(value):
+        return "not settled"
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    return value
 
 
 def raid_output_table(summary: dict[str, Any]) -> Table:
