@@ -123,7 +123,8 @@ class RaidConfig:
         "by o_b first; feedforward_gain = the output read as m/s x the feed-forward gain (3000 RPM per m/s) x "
         "feedback_scale_rpm. Reported with the interior gain beside Table II")
     scale_study: tuple[float, ...] = param((1.0, 10.0, 100.0), "feedback scales RAID is also run at in "
-                                           "control --mode simulate (the scale study table; empty: none)", "RPM")
+                                           "control --mode simulate (the scale study table; empty: none)", "RPM",
+                                           gt=0.0, interval=False)
 
 
 @dataclass(frozen=True)
