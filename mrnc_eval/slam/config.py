@@ -70,11 +70,12 @@ class ImuConfig:
                                                    "each start of graph #2 (LIO-SAM: 1e-3 on both)")
     acc_turn_on_sigma: float = param(0.1, "with noise_from_log: the initial accelerometer bias prior sigma, the "
                                      "turn-on bias class of the part (a consumer MEMS: 0.1 m/s^2; a stationary "
-                                     "stretch cannot tell the horizontal bias from a tilt)", "m/s^2")
+                                     "stretch cannot tell the horizontal bias from a tilt)", "m/s^2", gt=0.0, le=10.0)
     deskew_motion: Literal["predicted", "last"] = param(
         "last", "translation deskew (slam.deskew_translation): predicted = graph #2's velocity at the sweep's start "
         "and end (constant acceleration over the sweep); last = the velocity of the last mapped sweep, constant")
-    stationary_min_s: float = param(1.5, "shortest stationary stretch the IMU noise is measured from", "s")
+    stationary_min_s: float = param(1.5, "shortest stationary stretch the IMU noise is measured from", "s",
+                                    gt=0.0, le=3600.0)
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "
                                         "restart in a degenerate stretch costs more than it gains)", "m")
@@ -90,7 +91,7 @@ class ImuConfig:
                                         "error, apply it to the IMU stamps from then on. The LiDAR poses keep part "
                                         "of the IMU-driven guess, so one estimate after the run reads only part of "
                                         "a large lag (30 ms -> 23-28 ms); 0 = one estimate after the run, nothing "
-                                        "applied", "s")
+                                        "applied", "s", ge=0.0, le=86_400.0)
     max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
     max_bias: float = param(1.0, "... or above this bias norm")
 
