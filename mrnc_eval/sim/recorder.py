@@ -4,11 +4,12 @@ Deterministic: one seeded generator, consumed in a fixed order, and a fixed log 
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal, cast
+from typing import Any, Literal, cast
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -28,17 +29,19 @@ from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, OrganisedSw
 from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
 from mrnc_eval.sim.scene import SCENES, Scene, build_scene
 from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
-from mrnc_eval.sim.wheels import drive_signals
+from mrnc_eval.sim.wheels import WheelErrors, draw_wheel_errors, drive_signals
 
 LOG_EPOCH_S = 1_763_800_000.0  # sensor-clock time of every simulated log's t = 0, s
 LIDAR_MODELS = {"os0-128": 128, "os0-64": 64, "os0-32": 32}
 PATHS = ("circle", "figure8", "loop", "line")
 Profile = Literal["ideal", "field"]
 PROFILES: tuple[Profile, ...] = ("ideal", "field")
+WHEEL_STREAM, GNSS_STREAM = 17, 19  # the wheel errors and a forced GNSS mode draw from streams of their own
 FIELD_STREAM = 13  # the field profile draws from default_rng([seed, FIELD_STREAM]): ideal draws stay as they were
 TOPICS = {"lidar": "/ouster/points", "metadata": "/ouster/metadata", "imu": "/ouster/imu",
           "chassis_imu": "/chassis/imu", "gnss": "/gnss/fix", "wheels": "/wheel_speeds", "pumps": "/pump_cmd",
-          "cmd_vel": "/cmd_vel", "wheel_odom": "/wheel_odom", "plan": "/plan", "ground_truth": "/ground_truth"}
+          "cmd_vel": "/cmd_vel", "wheel_odom": "/wheel_odom", "plan": "/plan", "ground_truth": "/ground_truth",
+          "sim_errors": "/sim/errors_drawn"}
 
 
 @dataclass(frozen=True)
@@ -177,15 +180,21 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
             chassis = simulate_imu(traj, stamps(scfg.imu.chassis_rate_hz), base_to_chassis, chassis_noise, rng,
                                    "chassis_imu")
             _write_imu(writer, TOPICS["chassis_imu"], chassis, chassis_noise, t0)
-        if field is None:
+        if field is None and scfg.gnss.mode == "profile":
             fixes = simulate_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, rng)
             gnss_stamps = fixes.stamps
-        else:
-            fixes = simulate_field_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, field.gnss,
-                                        _structures_xy(scene), frng)
-            gnss_stamps = host_stamps(fixes.stamps + field.clock.gnss_latency_s)
+        else:  # a forced fix type in the ideal profile draws from its own stream, the ideal draws stay
+            grng = frng if field is not None else np.random.default_rng([seed, GNSS_STREAM])
+            fixes = simulate_field_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, scfg.field.gnss,
+                                        _structures_xy(scene), grng)
+            gnss_stamps = fixes.stamps if field is None else host_stamps(fixes.stamps + field.clock.gnss_latency_s)
         writer.write_navsatfix(TOPICS["gnss"], gnss_stamps + t0, fixes.lla, fixes.covariance, fixes.status)
-        _write_drive(writer, trace, stamps(scfg.wheel_rate_hz), cfg, t0, host_stamps)
+        errors_on = scfg.wheels.model == "errors" or (scfg.wheels.model == "profile" and field is not None)
+        wheel_errors = draw_wheel_errors(scfg.wheels, errors_on, np.random.default_rng([seed, WHEEL_STREAM]))
+        _write_drive(writer, trace, stamps(scfg.wheel_rate_hz), cfg, t0, host_stamps, wheel_errors,
+                     np.random.default_rng([seed, WHEEL_STREAM, 1]))
+        writer.write_strings(TOPICS["sim_errors"], np.array([t0]),
+                             [json.dumps(_errors_drawn(cfg, wheel_errors, fixes), sort_keys=True)])
         gt = _write_ground_truth(writer, traj, stamps(scfg.ground_truth_rate_hz), t0)
 
         body = _body_box(cfg) if lcfg.self_occlusion or (field is not None and field.lidar.body_in_cloud) else None
@@ -203,6 +212,8 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         writer.abort()
         raise
     write_tum(gt_tum_path(path), gt)
+    errors_json_path(path).write_text(json.dumps(_errors_drawn(cfg, wheel_errors, fixes), indent=2, sort_keys=True),
+                                      encoding="utf-8")
     return path
 
 
@@ -266,10 +277,26 @@ def _write_imu(writer: LogWriter, topic: str, imu, noise: ImuNoise, t0: float) -
     writer.write_imu(topic, replace(imu, stamps=imu.stamps + t0), acc_var=acc_var, gyro_var=gyro_var)
 
 
+def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes) -> dict[str, Any]:
+    """What the log's sensors got wrong on purpose, for tests and benchmarks (the /sim/errors_drawn
+    topic, a std_msgs/String of JSON, and <log>.errors.json beside the log)."""
+    status, counts = np.unique(np.asarray(fixes.status), return_counts=True)
+    return {"profile": cfg.sim.profile, "wheels": wheels.as_dict(), "track_width_m": cfg.robot.track_width_m,
+            "gnss": {"mode": cfg.sim.gnss.mode, "outages_s": [list(o) for o in cfg.sim.gnss.outages_s],
+                     "status_counts": {str(int(s)): int(c) for s, c in zip(status, counts, strict=True)}}}
+
+
+def errors_json_path(log_path: Path) -> Path:
+    """`<log name without suffix>.errors.json` beside the log (next to the .gt.tum)."""
+    gt = gt_tum_path(log_path)
+    return gt.with_name(gt.name.removesuffix(".gt.tum") + ".errors.json")
+
+
 def _write_drive(writer: LogWriter, trace, times: np.ndarray, cfg: Config, t0: float,
-                 stamp: Callable[[np.ndarray], np.ndarray]) -> None:
+                 stamp: Callable[[np.ndarray], np.ndarray], errors: WheelErrors | None = None,
+                 rng: np.random.Generator | None = None) -> None:
     """Drive-train topics; `stamp` maps true times to header stamps (the identity when ideal)."""
-    d = drive_signals(trace, times, cfg.robot.wheel_radius_m, cfg.robot.track_width_m)
+    d = drive_signals(trace, times, cfg.robot.wheel_radius_m, cfg.robot.track_width_m, errors, rng)
     header = stamp(d.stamps) + t0
     writer.write_joint_state(TOPICS["wheels"], header, ["left_wheel", "right_wheel"], d.wheel_rad_s)
     writer.write_joint_state(TOPICS["pumps"], header, ["left_pump", "right_pump"], d.pump_rpm)

@@ -10,6 +10,7 @@ import numpy as np
 from mrnc_eval.data import GnssSeries
 from mrnc_eval.evaluation.align import yaw_align
 from mrnc_eval.slam.config import GpsConfig
+from mrnc_eval.slam.gnss_gate import gate
 from mrnc_eval.slam.graph import KeyframeGraph
 from mrnc_eval.slam.output import SlamEvent
 
@@ -33,6 +34,7 @@ class GnssAligner:
         self.enu_to_map: tuple[np.ndarray, np.ndarray] | None = None  # 2x2 rotation, translation (m)
         self.pairs_map: list[np.ndarray] = []
         self.pairs_enu: list[np.ndarray] = []
+        self.velocity_error: np.ndarray | None = None  # (2,) m/s map frame, of the latest residual-gate factor
 
     def _fix_near(self, t: float) -> int | None:
         i = int(np.argmin(np.abs(self.gnss.stamps - t)))
@@ -44,6 +46,8 @@ class GnssAligner:
 
     def maybe_add(self, graph: KeyframeGraph, stamp: float, events: list[SlamEvent]) -> bool:
         """Called at each new keyframe; returns True when a GNSS factor was added."""
+        if self.cfg.gate == "residual":
+            return self.maybe_add_residual(graph, stamp, events)
         g = self.cfg
         i = self._fix_near(stamp)
         pose = graph.poses[-1]
@@ -79,4 +83,32 @@ class GnssAligner:
             return False
         graph.add_gps(len(graph.poses) - 1, p, var, self.lever, floor_m2=0.0 if rtk else 1.0)
         events.append(SlamEvent(stamp, "gps", f"GNSS factor at keyframe {len(graph.poses) - 1}"))
+        return True
+
+    def maybe_add_residual(self, graph: KeyframeGraph, stamp: float, events: list[SlamEvent]) -> bool:
+        """slam/gnss_gate.py: a factor when the recent fixes' median residual says the chain drifted."""
+        g = self.cfg
+        var = np.diagonal(self.gnss.covariance, axis1=1, axis2=2)
+        usable = np.all(var[:, :2] <= g.gps_cov_threshold_m2, axis=1) & np.all(np.isfinite(self.gnss.enu), axis=1)
+        decision, align = gate(self.gnss, usable, np.asarray(graph.stamps), np.asarray(graph.poses), self.lever, g)
+        if align is not None and self.enu_to_map is None:
+            yaw = np.arctan2(align[0][1, 0], align[0][0, 0])
+            events.append(SlamEvent(stamp, "gps", f"ENU -> map alignment (re-fitted at every keyframe) from the fixes "
+                                    f"so far: yaw {np.degrees(yaw):.1f} deg"))
+        if align is not None:
+            self.enu_to_map = align
+        if decision is None or decision.position is None:
+            return False
+        if graph.last_gps_xy is not None and np.linalg.norm(decision.position[:2] - graph.last_gps_xy) \
+                < g.residual_min_spacing_m:
+            return False
+        assert decision.variance is not None
+        self.velocity_error = decision.velocity_error
+        graph.add_gps(len(graph.poses) - 1, decision.position, decision.variance, self.lever, floor_m2=0.0,
+                      huber_k=g.residual_huber_k)
+        events.append(SlamEvent(stamp, "gps", f"GNSS factor at keyframe {len(graph.poses) - 1}: the chain is "
+                                f"{np.linalg.norm(decision.residual_m):.2f} m +- {decision.sigma_m:.2f} m off the "
+                                f"fixes ({decision.inliers} inliers, {decision.outliers} outliers)",
+                                {"residual_m": float(np.linalg.norm(decision.residual_m)), "sigma_m": decision.sigma_m,
+                                 "inliers": decision.inliers, "outliers": decision.outliers}))
         return True

@@ -41,3 +41,4 @@ class SlamOutput:
     deskew: bool = True  # False when the method ran without deskew (kiss-icp on throttled logs)
     # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
     warmup_ms: dict[str, float] = field(default_factory=dict)
+    wheel_health: dict[str, Any] | None = None  # slam/wheel_health.py: online wheel calibration and verdict
