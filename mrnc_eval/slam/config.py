@@ -201,6 +201,9 @@ class GpsConfig:
         "drifted), whatever the chain's own covariance says, with or without wheels; multipath outliers are dropped "
         "against the window's median (slam/gnss_gate.py). lio_sam: LIO-SAM's gate on the pose covariance "
         "(pose_cov_threshold_m2, min_spacing_m, the 1 m^2 floor) with the alignment fitted once")
+    align_max_travel_m: float = param(0.0, "residual gate: the alignment is re-fitted on the fixes of the first this "
+                                      "many metres of travel (the chain there as corrected so far); 0 = on every "
+                                      "fix so far", "m")
     residual_window_s: float = param(6.0, "residual gate: the fixes of this long before the keyframe: a robust line "
                                      "through their residuals gives the chain's offset now and its drift rate", "s")
     residual_min_fixes: int = param(5, "residual gate: at least this many inlier fixes in the window")
@@ -212,6 +215,8 @@ class GpsConfig:
     residual_floor_m: float = param(0.05, "residual gate: sigma floor of a factor (fix biases that do not average)",
                                     "m")
     residual_min_spacing_m: float = param(1.0, "residual gate: distance between GNSS factors", "m")
+    residual_velocity_correction: bool = param(True, "residual gate, without wheels: when a factor moved the keyframe, "
+                                               "graph #2 restarts with the fixes' drift rate removed from its velocity")
     residual_huber_k: float = param(1.345, "residual gate: Huber kernel width of the factors (sigmas; 0 = none)")
 
 

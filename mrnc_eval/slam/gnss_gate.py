@@ -66,7 +66,9 @@ def gate(gnss: GnssSeries, usable: np.ndarray, kf_stamps: np.ndarray, kf_poses: 
     if np.linalg.norm(ant[-1, :2] - ant[0, :2]) < cfg.align_min_travel_m:
         return None, None
     enu = gnss.enu[sel, :2]
-    rot, t = fit_alignment(enu, ant[:, :2])
+    travel = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(ant[:, :2], axis=0), axis=1))]
+    early = travel <= cfg.align_max_travel_m if cfg.align_max_travel_m > 0 else np.ones(travel.size, bool)
+    rot, t = fit_alignment(enu[early], ant[early, :2])
     recent = gnss.stamps[sel] >= t_now - cfg.residual_window_s
     res = (enu[recent] @ rot.T + t) - ant[recent, :2]
     sig = np.sqrt(np.max(np.diagonal(gnss.covariance[sel][recent], axis1=1, axis2=2)[:, :2], axis=1))

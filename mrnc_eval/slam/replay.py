@@ -297,7 +297,8 @@ class _Replay:
             if self.odom is not None and (self.cfg.gps.rtk_max_variance_m2 > 0 or self.cfg.gps.gate == "residual") \
                     and moved > self.cfg.imu.restart_after_loop_m:
                 self.odom.restart()  # RTK fixes move the pose by decimetres: graph #2 restarts as after a loop
-                if self.aligner.velocity_error is not None and self.wheel is None:  # the fixes' drift rate
+                if self.aligner.velocity_error is not None and self.wheel is None \
+                        and self.cfg.gps.residual_velocity_correction:  # the fixes' drift rate
                     self.odom.velocity = self.odom.velocity + np.r_[self.aligner.velocity_error, 0.0]
         loop_ms = 0.0
         if self.cfg.loop.enabled and stamp - self.st.last_loop_t >= self.cfg.loop.interval_s:
