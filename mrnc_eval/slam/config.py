@@ -245,6 +245,9 @@ class WheelCalibrationConfig:
                                                      "the offset is the gyro's bias left after the standing start)")
     yaw_rate_sigma_rad_s: float = param(0.01, "reference sigma of a bin's wheel-minus-model yaw rate (good wheels "
                                         "and the gyro); the yaw hold is scaled by (this / measured)^2", "rad/s")
+    gyro_yaw_rate_sigma_rad_s: float = param(0.002, "sigma of the gyro's bin yaw rate (bias left after the standing "
+                                             "start and the fit, vibration) when it is blended with the calibrated "
+                                             "wheels' by inverse variance; 0 = the wheels' yaw alone", "rad/s")
     gate_chi2: float = param(9.0, "reject a bin whose normalised innovation squared exceeds this (1 dof; 9 = 3 "
                              "sigma); its yaw comes from the gyro")
     warmup_bins: int = param(25, "bins before the gate and the yaw-hold scaling act")

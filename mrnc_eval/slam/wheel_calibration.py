@@ -110,6 +110,7 @@ class WheelCalibrator:
     bins: tuple[np.ndarray, np.ndarray] = (np.zeros(0, int), np.zeros(0, int))
     bin_yaw_gyro: np.ndarray = field(default_factory=lambda: np.zeros(0))
     sigma2: float = 0.0  # running residual variance, (rad/s)^2
+    standing_start: bool = False  # the gyro bias was measured over a standing start
 
     @classmethod
     def build(cls, track: WheelTrack, imu: ImuSeries | None, imu_in_base: np.ndarray | None,
@@ -120,6 +121,7 @@ class WheelCalibrator:
         gt, gw = gyro_yaw_rate(imu, imu_in_base)
         bias = stationary_gyro_bias(gt, gw, inc, cfg.stationary_speed_mps)
         cal = cls(cfg, inc, gt, gw, 0.0 if bias is None else bias, cfg.track_width_m)
+        cal.standing_start = bias is not None
         cal.info = np.diag(1.0 / np.square(cfg.prior_sigmas))
         cal.vec = cal.info @ np.array([1.0, 0.0, 0.0])
         cal.sigma2 = cfg.yaw_rate_sigma_rad_s ** 2
@@ -187,7 +189,7 @@ class WheelCalibrator:
         self.vec += w * x * ww
         self.theta = np.linalg.solve(self.info, self.vec)
         # residual variance: exponential average of accepted innovations, floored at the configured sigma
-        self.sigma2 = max(0.95 * self.sigma2 + 0.05 * e * e, 0.25 * self.cfg.yaw_rate_sigma_rad_s ** 2)
+        self.sigma2 = max(0.95 * self.sigma2 + 0.05 * e * e, (0.1 * self.cfg.yaw_rate_sigma_rad_s) ** 2)
 
     def add_distance(self, wheel_m: float, lidar_m: float) -> None:
         """A stretch where the LiDAR odometry pinned the forward direction: wheel vs LiDAR distance."""
@@ -198,16 +200,30 @@ class WheelCalibrator:
         self.scale_vec += lidar_m * wheel_m / var
 
     def track(self) -> WheelTrack:
-        """The wheel track with the current calibration; rejected bins take the gyro's yaw."""
+        """The wheel track with the current calibration. Each consumed bin's yaw is the
+        inverse-variance mean of the calibrated wheels' yaw and the gyro's (its bias measured over the
+        standing start; without one the wheels' alone), with the measured residual variance for the
+        wheels and gyro_yaw_rate_sigma_rad_s for the gyro: noisy speed pickups random-walk the wheel
+        heading, exact ones keep it. (The fitted offset c is not added to the gyro: on a straight
+        drive it trades off against the L/R term.) Rejected bins take the gyro's yaw."""
         f, a, c = self.theta
         f = f if abs(f) > 0.2 else 1.0
         dt = np.diff(self.inc.stamps)
         fwd = self.inc.forward_m / self.scale
         yaw = (self.inc.yaw_rad - a * self.inc.forward_m - c * dt) / f
-        for k in self.rejected_bins:
+        w_gyro = 0.0
+        if self.n_bins >= self.cfg.warmup_bins and self.cfg.gyro_yaw_rate_sigma_rad_s > 0 and self.standing_start:
+            var_w = max(self.sigma2, 1e-12) / f ** 2
+            w_gyro = var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2)
+        rejected = set(self.rejected_bins)
+        for k in range(self.next_bin):
             i0, i1 = self.bins[0][k], self.bins[1][k]
-            yaw[i0:i1] = self.bin_yaw_gyro[k] * dt[i0:i1] / max(dt[i0:i1].sum(), 1e-9)
+            span = max(dt[i0:i1].sum(), 1e-9)
+            gyro = self.bin_yaw_gyro[k] * dt[i0:i1] / span
+            weight = 1.0 if k in rejected else w_gyro
+            yaw[i0:i1] = (1.0 - weight) * yaw[i0:i1] + weight * gyro
         return integrate(self.inc, fwd, yaw)
+
 
     def yaw_quality(self) -> float:
         """Weight (0-1] for the yaw hold: the reference yaw-rate sigma over the measured residual
