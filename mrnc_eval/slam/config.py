@@ -215,6 +215,12 @@ class GpsConfig:
     residual_floor_m: float = param(0.05, "residual gate: sigma floor of a factor (fix biases that do not average)",
                                     "m")
     residual_min_spacing_m: float = param(1.0, "residual gate: distance between GNSS factors", "m")
+    residual_gate_chi2: float = param(9.0, "residual gate, with wheels: an offset beyond this chi-square of (its "
+                                      "sigma^2 + the chain's real drift sigma^2) is held multipath, not drift")
+    residual_chain_drift_fraction: float = param(0.03, "residual gate, with wheels: the chain's real drift sigma per "
+                                                 "metre since the last GNSS factor (calibrated wheels and the gyro)",
+                                                 "m/m")
+    residual_chain_floor_m: float = param(0.3, "... plus this", "m")
     residual_velocity_correction: bool = param(True, "residual gate, without wheels: when a factor moved the keyframe, "
                                                "graph #2 restarts with the fixes' drift rate removed from its velocity")
     residual_huber_k: float = param(1.345, "residual gate: Huber kernel width of the factors (sigmas; 0 = none)")

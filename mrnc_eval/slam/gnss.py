@@ -35,6 +35,8 @@ class GnssAligner:
         self.pairs_map: list[np.ndarray] = []
         self.pairs_enu: list[np.ndarray] = []
         self.velocity_error: np.ndarray | None = None  # (2,) m/s map frame, of the latest residual-gate factor
+        self.wheels = False  # wheel factors bound the chain's drift (residual gate's chain sigma)
+        self.last_factor_kf = 0  # keyframe of the latest residual-gate factor
 
     def _fix_near(self, t: float) -> int | None:
         i = int(np.argmin(np.abs(self.gnss.stamps - t)))
@@ -90,7 +92,13 @@ class GnssAligner:
         g = self.cfg
         var = np.diagonal(self.gnss.covariance, axis1=1, axis2=2)
         usable = np.all(var[:, :2] <= g.gps_cov_threshold_m2, axis=1) & np.all(np.isfinite(self.gnss.enu), axis=1)
-        decision, align = gate(self.gnss, usable, np.asarray(graph.stamps), np.asarray(graph.poses), self.lever, g)
+        chain_sigma = None
+        if self.wheels:  # the wheels bound the drift: a fraction of the distance since the last factor
+            since = np.asarray([p[:3, 3] for p in graph.poses[self.last_factor_kf:]])
+            travel = float(np.linalg.norm(np.diff(since, axis=0), axis=1).sum()) if len(since) > 1 else 0.0
+            chain_sigma = g.residual_chain_floor_m + g.residual_chain_drift_fraction * travel
+        decision, align = gate(self.gnss, usable, np.asarray(graph.stamps), np.asarray(graph.poses), self.lever, g,
+                               chain_sigma)
         if align is not None and self.enu_to_map is None:
             yaw = np.arctan2(align[0][1, 0], align[0][0, 0])
             events.append(SlamEvent(stamp, "gps", f"ENU -> map alignment (re-fitted at every keyframe) from the fixes "
@@ -104,6 +112,7 @@ class GnssAligner:
             return False
         assert decision.variance is not None
         self.velocity_error = decision.velocity_error
+        self.last_factor_kf = len(graph.poses) - 1
         graph.add_gps(len(graph.poses) - 1, decision.position, decision.variance, self.lever, floor_m2=0.0,
                       huber_k=g.residual_huber_k)
         events.append(SlamEvent(stamp, "gps", f"GNSS factor at keyframe {len(graph.poses) - 1}: the chain is "

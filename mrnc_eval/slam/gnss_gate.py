@@ -56,8 +56,11 @@ def fit_alignment(enu_xy: np.ndarray, map_xy: np.ndarray) -> tuple[np.ndarray, n
 
 
 def gate(gnss: GnssSeries, usable: np.ndarray, kf_stamps: np.ndarray, kf_poses: np.ndarray, lever: np.ndarray,
-         cfg: GpsConfig) -> tuple[GateDecision | None, tuple[np.ndarray, np.ndarray] | None]:
-    """The decision at the newest keyframe and the alignment used (None before align_min_travel_m)."""
+         cfg: GpsConfig, chain_sigma_m: float | None = None) -> tuple[GateDecision | None,
+                                                                     tuple[np.ndarray, np.ndarray] | None]:
+    """The decision at the newest keyframe and the alignment used (None before align_min_travel_m).
+    `chain_sigma_m`: how far the chain can really have drifted since the last factor (1 sigma, m;
+    None = unbounded): an offset beyond chi-square of it and the offset's own sigma is rejected."""
     t_now = float(kf_stamps[-1])
     sel = usable & (gnss.stamps >= kf_stamps[0]) & (gnss.stamps <= t_now)
     if sel.sum() < 3:
@@ -99,6 +102,8 @@ def gate(gnss: GnssSeries, usable: np.ndarray, kf_stamps: np.ndarray, kf_poses: 
     size = float(np.linalg.norm(med))
     if size < max(cfg.residual_drift_sigmas * sigma, cfg.residual_min_correction_m):
         return decision, (rot, t)
+    if chain_sigma_m is not None and size ** 2 > cfg.residual_gate_chi2 * (sigma ** 2 + chain_sigma_m ** 2):
+        return decision, (rot, t)  # more than the chain can have drifted: multipath held over the window
     ant_now = kf_poses[-1, :3, :3] @ lever + kf_poses[-1, :3, 3]
     position = np.r_[ant_now[:2] + med, ant_now[2]]
     return GateDecision(residual_m=med, sigma_m=sigma, inliers=n, outliers=decision.outliers, position=position,

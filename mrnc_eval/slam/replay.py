@@ -54,6 +54,8 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     if wheel is not None and with_wheels:
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
+        if replay.aligner is not None:
+            replay.aligner.wheels = True
         if cfg.wheel_odom.calibration.enabled:
             replay.wheel_cal = WheelCalibrator.build(wheel, replay.imu, replay.base_to_sensor @ replay.extr,
                                                      cfg.wheel_odom.calibration)
