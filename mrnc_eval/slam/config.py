@@ -262,6 +262,8 @@ class WheelCalibrationConfig:
                                         "gyro's mean there is its bias)", "m/s")
     scale_prior_sigma: float = param(0.05, "prior sigma of the scale error (around 0)")
     scale_distance_sigma_m: float = param(0.02, "sigma of a LiDAR keyframe distance for the scale fit", "m")
+    scale_max_turn_rad: float = param(0.02, "keyframe steps turning more than this do not enter the scale fit "
+                                      "(tracks slip in turns: the ideal yard circle's wheels over-read by 6 %)", "rad")
     scale_min_distance_m: float = param(0.5, "keyframe steps shorter than this do not enter the scale fit", "m")
     track_width_m: float = param(1.6, "the track width the odometry node divides by (robot.track_width_m): turns "
                                  "the fitted L/R term into a radius mismatch", "m")

@@ -313,12 +313,15 @@ class _Replay:
 
     def fit_wheel_scale(self, pose: np.ndarray, stamp: float) -> None:
         """Wheel vs LiDAR distance since the last keyframe, when every sweep since it was matched
-        without a degenerate direction (the LiDAR pinned the forward motion)."""
+        without a degenerate direction (the LiDAR pinned the forward motion) and the base drove
+        straight (the rolling radius, not the slip of a turn)."""
         cal, tr, t0 = self.wheel_cal, self.trace, self.graph.stamps[-1]
         since = [m for t, m in zip(tr.stamps, tr.measured, strict=False) if t > t0]
         if cal is None or not since or not all(since) or not tr.measured[-1]:
             return
         rel_base = self.base_to_sensor @ se3.inv(self.graph.poses[-1]) @ pose @ se3.inv(self.base_to_sensor)
+        if abs(se3.rpy(rel_base)[2]) > cal.cfg.scale_max_turn_rad:
+            return  # turning: a skid-steer's tracks slip and over-read (the ideal yard circle: +6 %)
         lidar = float(np.linalg.norm(rel_base[:2, 3]))
         i0, i1 = np.searchsorted(cal.inc.stamps, [t0, stamp])
         cal.add_distance(float(np.abs(cal.inc.forward_m[i0:i1]).sum()), lidar)
