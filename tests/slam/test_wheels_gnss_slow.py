@@ -26,7 +26,7 @@ DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
          "sim.wheels.track_factor": 1.6}
 BEFORE = {"slam.wheel_odom.calibration.enabled": False, "slam.gps.gate": "lio_sam"}
 # measured by benchmarks/wheel_gnss_matrix.py (46fc1c5), seed 3, combined + float: online APE 0.312 m, end drift
-# 1.45 m; limits ~2x. Before (seed 0, calibration off, LIO-SAM's gate): 0.647 m, 8.86 m drift
+# 1.45 m (this test: the same); limits ~2x. Before (calibration off, LIO-SAM's gate): 0.547 m, 5.84 m drift
 APE_LIMIT_M, DRIFT_LIMIT_M = 0.6, 3.0
 
 
