@@ -83,7 +83,7 @@ def bench_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     given = os.environ.get("MRNC_BENCH_SLAM_LOG")
     if given:
         return Path(given)
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     seconds = float(os.environ.get("MRNC_BENCH_SLAM_SECONDS", "30"))
     return simulate_log(tmp_path_factory.mktemp("bench") / f"forest{seconds:.0f}.mcap", Config(),
@@ -153,7 +153,7 @@ def growth_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     if given:
         return Path(given)
     from mrnc_eval.config import replace_path
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     cfg = replace_path(replace_path(replace_path(Config(), "sim.lidar.record_every", 10), "sim.path_size_m", 80.0),
                        "sim.scene_scale", 4.0)

@@ -7,6 +7,7 @@ command modules, so `mrnc-eval --help` stays instant.
 
 from __future__ import annotations
 
+import errno
 import logging
 import sys
 from enum import StrEnum
@@ -17,10 +18,11 @@ import typer
 from typer.exceptions import TyperException
 
 from mrnc_eval import __version__
+from mrnc_eval.cli_fast import fast_command
 from mrnc_eval.cli_help import PlainGroup
-from mrnc_eval.errors import MrncError, UsageError
+from mrnc_eval.errors import Interrupted, MrncError, UsageError
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
-from mrnc_eval.text import printable
+from mrnc_eval.text import install_log_format, printable
 
 __all__ = ["app", "main", "printable"]
 
@@ -33,7 +35,7 @@ app = typer.Typer(
     "Global options (--debug, -v, -q) may also follow the verb.",
     cls=PlainGroup,
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,  # --install-completion, --show-completion (bash, zsh, fish, PowerShell)
     pretty_exceptions_enable=False,
     rich_markup_mode="rich",  # markdown would eat <run>, <date>, <seq>/<method> as HTML tags
     context_settings={"help_option_names": ["-h", "--help"]},
@@ -56,6 +58,8 @@ DumpOpt = Annotated[
     bool, typer.Option("--dump-config", help="Print the effective configuration as YAML and exit.")
 ]
 JsonOpt = Annotated[bool, typer.Option("--json", help="Print machine-readable JSON to stdout.")]
+ForceOpt = Annotated[bool, typer.Option(
+    "--force", help="Replace an existing output file, only one this tool wrote (never an input).")]
 JunitOpt = Annotated[Path | None, typer.Option(
     help="Also write the metric gates as JUnit XML (one test case per gate per log) for CI.")]
 
@@ -99,7 +103,7 @@ def _main(
 ) -> None:
     chatty = (logging.WARNING, logging.INFO, logging.DEBUG)[min(verbose + (1 if debug else 0), 2)]
     level = logging.ERROR if quiet else chatty
-    logging.basicConfig(level=level, stream=sys.stderr, format="%(levelname)s %(name)s: %(message)s", force=True)
+    install_log_format(level, sys.stderr)  # every message escaped (text.PrintableFormatter)
     _state["debug"] = debug
 
 
@@ -129,7 +133,8 @@ def info(
     set_: SetOpt = None,
 ) -> None:
     """Summarise a log: container, duration, topics with type, count, rate and gaps, detected
-    roles, and health findings (IMU rate and gaps, LiDAR fields, per-point time, IMU coverage
+    roles (--set io.roles.ROLE=TOPIC picks another topic for a role), and health findings (IMU
+    rate and gaps, LiDAR fields, per-point time, IMU coverage
     of each sweep, GNSS fix ratio, duplicate or out-of-order stamps)."""
     cfg = _config(config, set_)
     from mrnc_eval.commands import info as info_command
@@ -137,7 +142,8 @@ def info(
     if json_out:
         from mrnc_eval.commands.output import emit_json
 
-        emit_json(summary.to_json())
+        emit_json("info", [summary.json_item()], warnings=[f"{f.topic}: {f.message}" if f.topic else f.message
+                                                           for f in summary.findings if f.level != "ok"])
     else:
         info_command.print_summary(summary)
 
@@ -150,9 +156,11 @@ class SlamMethod(StrEnum):  # a str: passed on as is
 @app.command()
 def slam(
     logs: Annotated[
-        list[Path],
-        typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout."),
-    ],
+        list[Path] | None,
+        typer.Argument(metavar="LOG...", help="One or more logs (or folders of .bin/.pcd scans with "
+                       "timestamps.txt, for --method kiss-icp); several give the Table I layout. "
+                       "Not needed with --dump-config.", show_default=False),
+    ] = None,
     method: Annotated[
         SlamMethod | None,
         typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra); "
@@ -161,22 +169,44 @@ def slam(
     out: Annotated[Path, typer.Option(help="Output root; results go to OUT/<run>/.")] = Path("results"),
     no_loop: Annotated[bool, typer.Option("--no-loop", help="No loop closure (sets slam.loop.enabled=false).")] = False,
     no_gps: Annotated[bool, typer.Option("--no-gps", help="No GNSS factors (sets slam.gps.enabled=false).")] = False,
+    topic: Annotated[str | None, typer.Option(
+        "--topic", "-t", help="The LiDAR topic (kiss-icp's --topic; sets io.roles.lidar).")] = None,
+    start: Annotated[float | None, typer.Option(
+        "--start", help="Only sweeps from this many seconds after the log's start.")] = None,
+    end: Annotated[float | None, typer.Option("--end", help="... up to this many seconds after it.")] = None,
+    n_scans: Annotated[int | None, typer.Option(
+        "--n-scans", "-n", help="At most this many sweeps (kiss-icp's --n-scans; lio: after its mapping-interval "
+        "thinning).")] = None,
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
 ) -> None:
     """Re-run LIO-SAM-style LiDAR-inertial SLAM on recorded logs; write trajectories (TUM), the
-    map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth."""
-    cfg = _config(config, set_, dump_config)
+    map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth.
+    Ground truth: a pose topic (Odometry, PoseStamped, ...) named like ground_truth or gt, or the one
+    --set io.roles.ground_truth=TOPIC names (io.roles.ROLE=TOPIC picks the topic of any role), else
+    <log>.gt.tum beside the log (TUM)."""
+    cfg = _config(config, set_, dump_config)  # --dump-config needs no LOG
+    if not logs:
+        raise UsageError("slam needs LOG... (one or more logs; a folder of logs: mrnc-eval nightly FOLDER --out ROOT)")
+    from mrnc_eval.extras import require_extra
+
+    require_extra("slam", "mrnc-eval slam")
+    if (_plain(method) or cfg.slam.method) == "kiss-icp":
+        require_extra("kiss-icp", "mrnc-eval slam --method kiss-icp")
     from mrnc_eval.commands import slam as slam_command
-    slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out)
+    window = slam_command.SweepWindow(start_s=start, end_s=end, n_scans=n_scans)
+    slam_command.main(logs, cfg, method=_plain(method), out=out, no_loop=no_loop, no_gps=no_gps, json_out=json_out,
+                      topic=topic, window=window)
 
 
 class ControlMode(StrEnum):
     replay = "replay"
     simulate = "simulate"
     sweep = "sweep"
+    identify = "identify"
+    tune = "tune"
 
 
 @app.command()
@@ -188,13 +218,17 @@ def control(
     mode: Annotated[
         ControlMode,
         typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant; "
-                          "sweep: every controller on --runs drawn plants (robustness)."),
+                          "sweep: every controller on --runs drawn plants (robustness); identify: the drive "
+                          "(gain, dead band, lag, delay per side) fitted to the LOG's commands and wheel speeds; "
+                          "tune: every law tuned with the same optimiser, cost and budget, Table II at paper "
+                          "and tuned gains."),
     ] = ControlMode.replay,
     controllers: Annotated[
-        str,
-        typer.Option(help="Comma-separated: raid,pid,apc,foptc,ff (apc and foptc are labelled stand-ins; "
-                          "ff is the feed-forward alone, the negative control)."),
-    ] = "raid,pid,apc,foptc,ff",
+        str | None,
+        typer.Option(help="simulate, sweep: comma-separated raid,pid,apc,foptc,ff (apc and foptc are labelled "
+                          "stand-ins; ff is the feed-forward alone, the negative control). Default: all.",
+                     show_default=False),
+    ] = None,
     runs: Annotated[int | None, typer.Option(help="sweep: plants drawn (default control.sweep.runs).")] = None,
     seed: Annotated[int | None, typer.Option(help="sweep: seed of the draws (default control.sweep.seed).")] = None,
     path: Annotated[Path | None, typer.Option(
@@ -211,25 +245,73 @@ def control(
     hydraulic drive) and compute Table II metrics (settling time s, overshoot %, steady-state
     error m/s, funnel violations, saturation, safety stops, cross-track error m)."""
     cfg = _config(config, set_, dump_config)
+    from mrnc_eval.extras import require_extra
+
+    require_extra("control", "mrnc-eval control")
     from mrnc_eval.commands import control as control_command
     control_command.main(log_path, cfg, mode=mode.value, controllers=controllers, out=out, json_out=json_out,
                          runs=runs, seed=seed, path_file=path)
 
 
-AlignOpt = Annotated[AlignMode, typer.Option(help="Alignment of each estimate to the reference.")]
+AlignOpt = Annotated[AlignMode, typer.Option(
+    "--align", help="Alignment of each estimate to the reference. evo's switches work too: -a (se3), -as (sim3), "
+    "-s (scale), --align_origin (origin).")]
 NAlignOpt = Annotated[
-    int | None, typer.Option("--n-to-align", help="Align on the first N matched poses only (default: all).")
+    int | None, typer.Option("--n-to-align", "--n_to_align",
+                             help="Align on the first N matched poses only (default: all).")
 ]
-RelationOpt = Annotated[
-    Relation, typer.Option(help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m).")
-]
-MaxDiffOpt = Annotated[float, typer.Option("--max-diff", help="Association: maximum stamp difference, s.")]
+
+
+class RelationWord(StrEnum):
+    """--relation's words: ours, then evo's (-r trans_part ...), which mean the same."""
+
+    trans = "trans"
+    rot = "rot"
+    full = "full"
+    angle_deg = "angle_deg"
+    angle_rad = "angle_rad"
+    point = "point"
+    trans_part = "trans_part"
+    rot_part = "rot_part"
+    point_distance = "point_distance"
+
+
+_EVO_RELATION = {"trans_part": Relation.trans, "rot_part": Relation.rot, "point_distance": Relation.point}
+
+
+def _relation(word: RelationWord) -> Relation:
+    return _EVO_RELATION.get(word.value) or Relation(word.value)
+
+
+RelationOpt = Annotated[RelationWord, typer.Option(
+    "--relation", "-r", "--pose_relation",
+    help="Pose relation: trans (m), rot (unitless), full, angle_deg, angle_rad, point (m); evo's trans_part, "
+    "rot_part, point_distance alike.")]
+MaxDiffOpt = Annotated[float, typer.Option("--max-diff", "--t_max_diff",
+                                           help="Association: maximum stamp difference, s.")]
 OffsetOpt = Annotated[str, typer.Option(
+    "--offset", "--t_offset",
     help="Added to the estimate's stamps, s; 'auto' estimates it (speed correlation, then least aligned APE).")]
 StrictOpt = Annotated[bool, typer.Option(
     "--strict", help="Refuse repeated or out-of-order stamps (default: pair them as evo does, with a warning).")]
-SyncOpt = Annotated[SyncMethod, typer.Option(
-    help="nearest: closest stamp within --max-diff (evo); interpolate: the reference at each estimate stamp.")]
+
+
+class SyncWord(StrEnum):
+    nearest = "nearest"
+    interpolate = "interpolate"
+    nearest_time = "nearest_time"  # evo's words
+    interpolation = "interpolation"
+
+
+def _sync(word: SyncWord) -> SyncMethod:
+    return {"nearest_time": SyncMethod.nearest, "interpolation": SyncMethod.interpolate}.get(
+        word.value) or SyncMethod(word.value)
+
+
+SyncOpt = Annotated[SyncWord, typer.Option(
+    "--sync", "--sync_method",
+    help="nearest: closest stamp within --max-diff (evo's nearest_time); interpolate: the reference at each "
+    "estimate stamp (evo's interpolation).")]
 MaxGapOpt = Annotated[float, typer.Option(
     "--max-gap", help="--sync interpolate: longest reference gap interpolated across, s.")]
 
@@ -240,86 +322,136 @@ class Plane(StrEnum):
     yz = "yz"
 
 
-PlaneOpt = Annotated[Plane | None, typer.Option(help="Project to a plane before the metric.")]
+class PlotMode(StrEnum):  # evo's --plot_mode: which two axes the path plot shows
+    xy = "xy"
+    xz = "xz"
+    yx = "yx"
+    yz = "yz"
+    zx = "zx"
+    zy = "zy"
+    xyz = "xyz"
+
+
+PlaneOpt = Annotated[Plane | None, typer.Option("--plane", "--project_to_plane",
+                                                help="Project to a plane before the metric.")]
 TableOpt = Annotated[Path | None, typer.Option(help="Write the results table (.md, .tex, .csv or .html by suffix).")]
-PlotOpt = Annotated[Path | None, typer.Option(help="Write a plot of the error (.svg, .png or .pdf).")]
+PlotOpt = Annotated[Path | None, typer.Option(
+    "--plot", "--save_plot", help="Write a plot of the error (.svg, .png or .pdf).")]
+LabelOpt = Annotated[list[str] | None, typer.Option(
+    "--label", metavar="NAME", help="Name of an estimate in the table, plot and JSON; repeat once per EST, in "
+    "order (default: a slam result's folder name, else the file name).")]
 ApePlotOpt = Annotated[Path | None, typer.Option(
-    "--plot", help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
+    "--plot", "--save_plot",
+    help="Write the aligned path coloured by its error, the reference beside it (.svg, .png or .pdf).")]
+PlotModeOpt = Annotated[PlotMode | None, typer.Option(
+    "--plot-mode", "--plot_mode", help="Axes of the path plot (evo's --plot_mode; default xy).")]
+SaveResultsOpt = Annotated[Path | None, typer.Option(
+    "--save-results", "--save_results", metavar="RESULT.zip",
+    help="Also write evo's result zip (evo_res, evo's API and mrnc-eval compare read it); one estimate.")]
+FormatWordNote = ("REF may be preceded by evo's format word (tum, kitti, euroc, bag, bag2, mcap), which is ignored; "
+                  "after bag/bag2/mcap: LOG REF_TOPIC EST_TOPIC...")
 
 
 @app.command()
 def ape(
-    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic. "
+                                       + FormatWordNote)],
     est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
-    align: AlignOpt = AlignMode.se3,
+    align: AlignOpt = AlignMode.none,
     n_to_align: NAlignOpt = None,
-    relation: RelationOpt = Relation.trans,
+    relation: RelationOpt = RelationWord.trans,
     max_diff: MaxDiffOpt = 0.01,
     offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: ApePlotOpt = None,
+    plot_mode: PlotModeOpt = None,
+    save_results: SaveResultsOpt = None,
     strict: StrictOpt = False,
-    sync: SyncOpt = SyncMethod.nearest,
+    sync: SyncOpt = SyncWord.nearest,
     max_gap: MaxGapOpt = 0.2,
     decompose: Annotated[bool, typer.Option(
         "--decompose", help="Also along-track, cross-track, vertical (m) and yaw (deg) error statistics.")] = False,
+    force: ForceOpt = False,
+    label: LabelOpt = None,
 ) -> None:
-    """Absolute pose error of each estimate against the reference (evo-compatible numbers)."""
+    """Absolute pose error of each estimate against the reference (evo-compatible numbers; evo's
+    command lines work: like evo, nothing is aligned unless asked, and the first line says which
+    alignment was used)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.ape_main(
-        ref, est, align=align, n_to_align=n_to_align, relation=relation, max_diff=max_diff,
-        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict, sync=sync,
-        max_gap=max_gap, decompose=decompose,
+        ref, est, align=align, n_to_align=n_to_align, relation=_relation(relation), max_diff=max_diff,
+        offset=offset, plane=_plain(plane), json_out=json_out, table=table, plot=plot, strict=strict,
+        sync=_sync(sync), max_gap=max_gap, decompose=decompose, plot_mode=_plain(plot_mode),
+        save_results=save_results, force=force, labels=label,
     )
+
+
+class DeltaWord(StrEnum):
+    frames = "frames"
+    m = "m"
+    f = "f"  # evo's -u f
 
 
 @app.command()
 def rpe(
-    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic.")],
+    ref: Annotated[str, typer.Argument(metavar="REF", help="Reference: TUM, KITTI, EuRoC CSV or log.bag:/topic. "
+                                       + FormatWordNote)],
     est: Annotated[list[str], typer.Argument(metavar="EST...", help="Estimates, same formats.")],
-    delta: Annotated[float, typer.Option(help="Pair spacing, in --delta-unit.")] = 1.0,
-    delta_unit: Annotated[DeltaUnit, typer.Option(help="frames or m (distance travelled).")] = DeltaUnit.frames,
-    all_pairs: Annotated[bool, typer.Option("--all-pairs", help="Use all pairs instead of consecutive ones.")] = False,
+    delta: Annotated[float | None, typer.Option("--delta", "-d", help="Pair spacing, in --delta-unit "
+                                                "(default 1).")] = None,
+    delta_unit: Annotated[DeltaWord, typer.Option(
+        "--delta-unit", "-u", "--delta_unit", help="frames (evo's f) or m (distance travelled).")] = DeltaWord.frames,
+    all_pairs: Annotated[bool, typer.Option("--all-pairs", "--all_pairs",
+                                            help="Use all pairs instead of consecutive ones.")] = False,
     align: AlignOpt = AlignMode.none,
     n_to_align: NAlignOpt = None,
-    relation: RelationOpt = Relation.trans,
+    relation: RelationOpt = RelationWord.trans,
     max_diff: MaxDiffOpt = 0.01,
     offset: OffsetOpt = "0",
     plane: PlaneOpt = None,
     json_out: JsonOpt = False,
     table: TableOpt = None,
     plot: PlotOpt = None,
+    plot_mode: PlotModeOpt = None,
+    save_results: SaveResultsOpt = None,
     strict: StrictOpt = False,
-    sync: SyncOpt = SyncMethod.nearest,
+    sync: SyncOpt = SyncWord.nearest,
     max_gap: MaxGapOpt = 0.2,
     pairs_from_reference: Annotated[bool, typer.Option(
-        "--pairs-from-reference", help="Choose pairs on the reference path (default: on the estimate, as evo); "
+        "--pairs-from-reference", "--pairs_from_reference",
+        help="Choose pairs on the reference path (default: on the estimate, as evo); "
         "a noisy estimate travels farther than the reference, so metre pairs from it are denser.")] = False,
     drift: Annotated[bool, typer.Option(
         "--drift", help="Also KITTI drift (translation % and deg/m over 100..800 m segments, "
         "scaled to short logs).")] = False,
+    force: ForceOpt = False,
+    label: LabelOpt = None,
 ) -> None:
-    """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers)."""
+    """Relative pose error over pairs spaced by --delta frames or metres (evo-compatible numbers;
+    evo's command lines work)."""
     from mrnc_eval.commands import trajectory_eval as trajectory_eval_command
     trajectory_eval_command.rpe_main(
-        ref, est, delta=delta, delta_unit=delta_unit, all_pairs=all_pairs, align=align,
-        n_to_align=n_to_align, relation=relation, max_diff=max_diff, offset=offset, plane=_plain(plane),
+        ref, est, delta=delta, delta_unit=DeltaUnit.frames if delta_unit.value == "f" else DeltaUnit(delta_unit.value),
+        all_pairs=all_pairs, align=align,
+        n_to_align=n_to_align, relation=_relation(relation), max_diff=max_diff, offset=offset, plane=_plain(plane),
         json_out=json_out, table=table, plot=plot,
         pairs_from=PairsFrom.reference if pairs_from_reference else PairsFrom.estimate, drift=drift,
-        strict=strict, sync=sync, max_gap=max_gap,
+        strict=strict, sync=_sync(sync), max_gap=max_gap, plot_mode=_plain(plot_mode), save_results=save_results,
+        force=force, labels=label,
     )
 
 
 @app.command()
 def table(
     source: Annotated[
-        Path,
+        Path | None,
         typer.Argument(metavar="SOURCE", help="A folder of slam results (results/: one row per log, one column "
                        "per method, the newest run of each), a folder of sequence folders <seq>/<method>.tum "
-                       "with <seq>/ground_truth.tum, or a YAML manifest."),
-    ],
+                       "with <seq>/ground_truth.tum, or a YAML manifest. Not needed with --dump-config.",
+                       show_default=False),
+    ] = None,
     out: Annotated[
         Path | None,
         typer.Option(help="Write the table (.md, .tex, .csv, .html by suffix); default: Markdown on stdout."),
@@ -333,6 +465,7 @@ def table(
              "(sets evaluation.failed_min_span_fraction).")] = None,
     min_matches: Annotated[int | None, typer.Option(
         help="Fewer matched poses than this is Failed (sets evaluation.failed_min_matches).")] = None,
+    force: ForceOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
     dump_config: DumpOpt = False,
@@ -346,8 +479,10 @@ def table(
                   "evaluation.failed_min_matches": min_matches}  # the flags are config keys: checked alike
     cfg = _config(config, [*(set_ or []), *(f"{k}={v}" for k, v in shorthands.items() if v is not None)],
                   dump_config)
+    if source is None:
+        raise UsageError("table needs SOURCE (a folder of slam results, of sequence folders, or a manifest)")
     from mrnc_eval.commands import table as table_command
-    table_command.main(source, cfg, out=out, align=align, json_out=json_out)
+    table_command.main(source, cfg, out=out, align=align, json_out=json_out, force=force)
 
 
 @app.command()
@@ -360,16 +495,22 @@ def report(
     out: Annotated[Path | None, typer.Option(help="Output directory (default: next to each result).")] = None,
     pdf: Annotated[bool, typer.Option("--pdf", help="Also write a PDF (WeasyPrint).")] = False,
     junit: JunitOpt = None,
+    force: ForceOpt = False,
+    appendix_config: Annotated[bool, typer.Option(
+        "--appendix-config", help="Add the full effective configuration as an appendix (the report lists the keys "
+        "that differ from the defaults; the full file is config.yaml beside each result).")] = False,
 ) -> None:
     """Render HTML (and PDF, CSV/LaTeX tables) reports of one log from its result directories; never recomputes."""
     from mrnc_eval.commands import report as report_command
-    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit)
+    report_command.main(result_dirs, out=out, pdf=pdf, junit=junit, force=force, appendix_config=appendix_config)
 
 
 @app.command()
 def nightly(
-    log_dir: Annotated[Path, typer.Argument(metavar="LOG_DIR", help="Folder searched recursively for logs.")],
-    out: Annotated[Path, typer.Option(help="Report root: REPORT_ROOT/<date>/index.html, trends, history.")],
+    log_dir: Annotated[Path | None, typer.Argument(metavar="LOG_DIR", help="Folder searched recursively for logs "
+                                                   "(not needed with --dump-config).", show_default=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Report root: REPORT_ROOT/<date>/index.html, trends, history "
+                                                  "(required).", show_default=False)] = None,
     jobs: Annotated[int, typer.Option(help="Parallel logs: 1 runs in-process, >1 a local process pool.")] = 2,
     scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address tcp://HOST:PORT (dask extra).")] = None,
     since: Annotated[str | None, typer.Option(help="Only logs modified on or after this date (YYYY-MM-DD).")] = None,
@@ -384,8 +525,20 @@ def nightly(
     dump_config: DumpOpt = False,
 ) -> None:
     """Run slam + control + evaluation on every new log, write per-log reports, a night index and
-    trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise."""
-    cfg = _config(config, set_, dump_config)
+    trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise. Ground truth: a pose topic
+    named like ground_truth or gt, or the one --set io.roles.ground_truth=TOPIC names, else
+    <log>.gt.tum beside the log (TUM)."""
+    cfg = _config(config, set_, dump_config)  # --dump-config needs no LOG_DIR
+    if log_dir is None or out is None:
+        raise UsageError("nightly needs LOG_DIR and --out REPORT_ROOT (e.g. mrnc-eval nightly sample_logs "
+                         "--out nightly_reports)")
+    from mrnc_eval.extras import require_extra
+
+    require_extra("slam", "mrnc-eval nightly (slam and control on every log)")
+    if pdf:
+        from mrnc_eval.reports.render import pdf_engine
+
+        pdf_engine()  # before the night starts: --no-pdf, or the pdf extra
     from mrnc_eval.commands import nightly as nightly_command
     nightly_command.main(log_dir, cfg, out=out, jobs=jobs, scheduler=scheduler, since=since,
                               gates=gates, date=date, pdf=pdf, junit=junit, force=force)
@@ -401,7 +554,8 @@ def export(
     mcap: Annotated[Path, typer.Option(help="Output .mcap file (Foxglove / Lichtblick, JSON + Foxglove schemas).")],
     with_log: Annotated[bool, typer.Option("--with-log", help="Also copy the original log's sensor topics, raw.")]
     = False,
-    force: Annotated[bool, typer.Option("--force", help="Replace an existing output file.")] = False,
+    force: Annotated[bool, typer.Option("--force", help="Replace an existing output file, only an export this "
+                                        "tool wrote (never the log or ground truth a run read).")] = False,
 ) -> None:
     """Write one MCAP on the original log's timeline: trajectories and ground truth as poses, the
     APE (m) over time, the map (downsampled), the keyframe graph with loop closures, control
@@ -431,15 +585,16 @@ def compare(
     out: Annotated[Path | None, typer.Option(help="Write the tables to a .md or .html file instead.")] = None,
     changed_only: Annotated[bool, typer.Option("--changed-only", help="Leave out metrics that did not change.")]
     = False,
+    force: ForceOpt = False,
 ) -> None:
     """The same metrics of two runs (or two nights) side by side with B - A and the relative change,
     and the configuration keys that differ."""
     from mrnc_eval.commands import compare as compare_command
     compare_command.main(runs or [], history=history, nights=nights, log_id=log_id, fmt=fmt.value, out=out,
-                         only_changed=changed_only)
+                         only_changed=changed_only, force=force)
 
 
-# choices of `simulate` (a test checks they match sim.scene.SCENES, sim.recorder.PATHS and LIDAR_MODELS)
+# choices of `simulate` (a test checks they match sim.scene.SCENES, recording.recorder.PATHS and LIDAR_MODELS)
 class Scene(StrEnum):
     yard = "yard"
     forest = "forest"
@@ -459,6 +614,11 @@ class LidarModel(StrEnum):
     os0_128 = "os0-128"
     os0_64 = "os0-64"
     os0_32 = "os0-32"
+
+
+class SimProfile(StrEnum):
+    ideal = "ideal"
+    field = "field"
 
 
 class LogFormat(StrEnum):
@@ -485,7 +645,7 @@ def simulate(
     ] = None,
     seed: Annotated[int | None, typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
                                                   "byte-identical logs.")] = None,
-    profile: Annotated[str | None, typer.Option(help="Sensor profile: ideal (exact sensors, one clock) or field "
+    profile: Annotated[SimProfile | None, typer.Option(help="Sensor profile: ideal (exact sensors, one clock) or field "
                                                      "(biases, vibration, clock offsets, miscalibrated tf, noisy "
                                                      "returns, body in the cloud, stones, a moving object, GNSS "
                                                      "multipath; sim.field.*). Default: sim.profile.")] = None,
@@ -500,28 +660,85 @@ def simulate(
     cfg = _config(config, set_, dump_config)  # --dump-config needs no OUT
     if out is None:
         raise UsageError("simulate needs OUT, the log to write (e.g. sim/yard.mcap); see mrnc-eval simulate --help")
+    from mrnc_eval.extras import require_extra
+
+    require_extra("sim", "mrnc-eval simulate")
     from mrnc_eval.commands import simulate as simulate_command
     simulate_command.main(out, cfg, scene=scene.value, path=path.value, duration=duration, lidar=lidar.value,
-                          columns=columns, rate=rate, fmt=_plain(fmt), seed=seed, profile=profile, force=force)
+                          columns=columns, rate=rate, fmt=_plain(fmt), seed=seed, profile=_plain(profile), force=force)
 
 
 # ------------------------------------------------------------------ entry point
 
 
 INTERNAL_ERROR = 5  # a bug, not a verdict on the input: never 1 ("a gate failed")
+INTERRUPTED = 130  # Ctrl-C: 128 + SIGINT, as shells report it
+BROKEN_PIPE = 0  # the reader stopped early (`info LOG | head -1`): it took what it wanted
+
+
+def _on_sigint(signum: int, frame: Any) -> None:
+    raise Interrupted()
+
+
+def _stdout_gone() -> int:
+    """stdout's reader closed the pipe: say nothing more to it (the interpreter's last flush
+    would fail again) and exit with BROKEN_PIPE."""
+    import os
+
+    try:
+        devnull = os.open(os.devnull, os.O_WRONLY)
+        os.dup2(devnull, sys.stdout.fileno())
+    except (OSError, ValueError):
+        pass
+    return BROKEN_PIPE
+
+
+def _dispatch(argv: list[str] | None) -> Any:
+    fast = fast_command(sys.argv[1:] if argv is None else argv, {"ape": ape, "rpe": rpe})
+    if fast is None:
+        return app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
+    _main()  # a plain ape/rpe line: typer's per-run validators cost ~0.1 s CPU (cli_fast)
+    return fast[0](**fast[1])
 
 
 def main(argv: list[str] | None = None) -> int:
     """Run the CLI; the single place where errors become exit codes. Every error is one line on
     stderr (--debug adds the traceback): typed errors with their code, file-system errors
-    (exists, permission, no space) with 4, anything else as an internal error with 5."""
+    (exists, permission, no space) with 4, anything else as an internal error with 5; Ctrl-C
+    "interrupted" with 130; a closed stdout pipe (`| head`) 0."""
+    import signal
+    import threading
+
+    previous = None
+    if threading.current_thread() is threading.main_thread():
+        previous = signal.signal(signal.SIGINT, _on_sigint)
     try:
-        result = app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
+        return _run(argv)
+    except (Interrupted, KeyboardInterrupt):  # KeyboardInterrupt: where the handler is not installed
+        sys.stderr.write("mrnc-eval: interrupted\n")
+        return INTERRUPTED
+    except BrokenPipeError:
+        return _stdout_gone()
+    except SystemExit as exc:  # click, typer and rich exit 1 on a broken pipe, raised while handling it
+        cause = exc.__context__
+        if isinstance(cause, OSError) and cause.errno == errno.EPIPE:
+            return _stdout_gone()
+        raise
+    finally:
+        if previous is not None:
+            signal.signal(signal.SIGINT, previous)
+
+
+def _run(argv: list[str] | None) -> int:
+    try:
+        from mrnc_eval.cli_evo import translate
+
+        result = _dispatch(translate(sys.argv[1:] if argv is None else list(argv)))  # evo's spellings first
     except typer.Exit as exc:
         return exc.exit_code
     except typer.Abort:
-        sys.stderr.write("aborted\n")
-        return 130
+        sys.stderr.write("mrnc-eval: aborted\n")
+        return INTERRUPTED
     except TyperException as exc:  # usage errors: missing argument, bad option value
         show = getattr(exc, "show", None)
         if callable(show):
@@ -534,9 +751,8 @@ def main(argv: list[str] | None = None) -> int:
             log.exception("%s", exc)
         sys.stderr.write(f"mrnc-eval: error: {printable(str(exc))}\n")
         return exc.exit_code
-    except KeyboardInterrupt:
-        sys.stderr.write("interrupted\n")
-        return 130
+    except BrokenPipeError:
+        raise  # main() turns it into BROKEN_PIPE
     except OSError as exc:  # a file-system error no layer below turned into a typed one
         from mrnc_eval.results import describe_os_error
 

@@ -62,7 +62,8 @@ class RobotConfig:
 class NightlyConfig:
     """The unattended job (`mrnc-eval nightly`)."""
 
-    scheduler_timeout_s: float = param(5.0, "how long to wait for the Dask scheduler of --scheduler to answer", "s")
+    scheduler_timeout_s: float = param(5.0, "how long to wait for the Dask scheduler of --scheduler to answer", "s",
+                                       gt=0.0)
 
 
 @dataclass(frozen=True)
@@ -172,8 +173,8 @@ def build(cls: type[T], data: dict[str, Any], where: str = "") -> T:
     unknown = sorted(str(k) for k in set(data) - set(by_name))
     if unknown:
         prefix = f"{where}." if where else ""
-        named = (prefix + k + did_you_mean(k, by_name, prefix) for k in unknown)
-        raise ConfigError(f"unknown config key(s): {shorten(', '.join(named))}")
+        named = (shorten(prefix + k) + did_you_mean(k, by_name, prefix) for k in unknown)  # quote the key only
+        raise ConfigError(f"unknown config key(s): {', '.join(named)}")
     kwargs = {}
     for key, value in data.items():
         dotted = f"{where}.{key}" if where else key
@@ -208,6 +209,17 @@ def _bounds_for(f: Field[Any]) -> dict[str, float]:
     return next((dict(b) for pattern, b in RANGE_RULES if pattern.search(f.name)), {})
 
 
+def _is_interval(f: Field[Any]) -> bool:
+    """A [low, high] parameter: declared with interval=True, or a numeric pair whose default is
+    ascending (draw ranges such as control.sweep.delay_s [0.02, 0.08]; a point such as
+    control.scenario.centre_xy_m has no order)."""
+    if "interval" in f.metadata:
+        return bool(f.metadata["interval"])
+    default = f.default_factory() if callable(f.default_factory) else f.default
+    pair = _numbers(default) if isinstance(default, (list, tuple)) and len(default) == 2 else []
+    return len(pair) == 2 and pair[0] < pair[1]
+
+
 def _numbers(value: Any) -> list[float]:
     if isinstance(value, bool):
         return []
@@ -229,6 +241,10 @@ def _check_range(value: Any, f: Field[Any], where: str) -> None:
             ok = {"gt": x > bound, "ge": x >= bound, "lt": x < bound, "le": x <= bound}[kind]
             if not ok:
                 raise ConfigError(f"{where}: {shorten(value)} is out of range (must be {_BOUND_TEXT[kind]} {bound:g})")
+    if _is_interval(f) and isinstance(value, (list, tuple)) and len(_numbers(value)) == 2:
+        lo, hi = _numbers(value)
+        if lo > hi:
+            raise ConfigError(f"{where}: {shorten(value)} is a reversed range (write [low, high])")
     check = f.metadata.get("check")
     problem = check(value) if check is not None else None
     if problem:

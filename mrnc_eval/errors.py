@@ -7,6 +7,7 @@ Exit codes (one place, `exit_code` attribute):
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 
@@ -24,6 +25,15 @@ class UsageError(MrncError):
 
 class ConfigError(UsageError):
     """A configuration file or override is invalid (unknown key, wrong type)."""
+
+
+class UnknownName(UsageError):
+    """A name (scene, path, controller, table format...) that is not one of the choices; the
+    message names what was asked and lists the choices."""
+
+    def __init__(self, kind: str, name: str, choices: Iterable[str]) -> None:
+        self.kind, self.name, self.choices = kind, name, tuple(choices)
+        super().__init__(f"unknown {kind} {name!r}; choose from {', '.join(self.choices)}")
 
 
 class InputError(MrncError):
@@ -81,3 +91,18 @@ class GateFailed(MrncError):
     """A metric gate (APE RMSE, funnel violations...) was not met."""
 
     exit_code = 1
+
+
+class MissingExtra(UsageError):
+    """A verb needs an optional part of the installation that is not installed (the message
+    names the extra: pip install 'mrnc-eval[slam]')."""
+
+    exit_code = 2
+
+
+class Interrupted(BaseException):
+    """Ctrl-C (SIGINT), raised by cli.main's handler. A BaseException like KeyboardInterrupt, so
+    no `except Exception` counts it as one more failed log, and not KeyboardInterrupt itself,
+    which typer turns into a silent exit 130. Exit code 130 (128 + SIGINT)."""
+
+    exit_code = 130

@@ -13,6 +13,7 @@ import statistics
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
+from typing import Any, Literal, NamedTuple
 
 from mrnc_eval.errors import InputError, OutputError
 
@@ -30,6 +31,19 @@ CREATE TABLE IF NOT EXISTS metrics (
 """
 
 METRIC_ROW_COLUMNS = ("night", "log_id", "metric", "value", "unit", "status", "config_hash")
+RunStatus = Literal["ok", "failed"]  # a log's outcome in a night
+
+
+class MetricRow(NamedTuple):
+    """One stored metric, in METRIC_ROW_COLUMNS' order (a tuple, so a DataFrame takes it as a row)."""
+
+    night: str
+    log_id: str
+    metric: str
+    value: float | None
+    unit: str
+    status: RunStatus
+    config_hash: str
 
 
 @dataclass(frozen=True)
@@ -40,7 +54,7 @@ class LogRecord:
     log_path: str
     tool_version: str
     config_hash: str
-    status: str  # "ok" | "failed"
+    status: RunStatus
     error: str
     finished_utc: str
     metrics: tuple[tuple[str, float | None, str], ...]  # (name, value, unit)
@@ -50,7 +64,7 @@ class LogRecord:
 @dataclass(frozen=True)
 class LastRun:
     night: str
-    status: str
+    status: RunStatus
     config_hash: str
     log_stamp: str
 
@@ -59,11 +73,22 @@ class History:
     def __init__(self, path: Path) -> None:
         self.path = path
         path.parent.mkdir(parents=True, exist_ok=True)
-        with closing(self._connect()) as db:
-            db.executescript(SCHEMA)
-            columns = {row[1] for row in db.execute("PRAGMA table_info(runs)")}
-            if "log_stamp" not in columns:  # a history written before log stamps were kept
-                db.execute("ALTER TABLE runs ADD COLUMN log_stamp TEXT NOT NULL DEFAULT ''")
+        try:
+            with closing(self._connect()) as db:
+                db.executescript(SCHEMA)
+                columns = {row[1] for row in db.execute("PRAGMA table_info(runs)")}
+                if "log_stamp" not in columns:  # a history written before log stamps were kept
+                    db.execute("ALTER TABLE runs ADD COLUMN log_stamp TEXT NOT NULL DEFAULT ''")
+        except sqlite3.DatabaseError as err:
+            raise _damaged(path, err) from err
+
+    def _query(self, sql: str, args: tuple[Any, ...] = ()) -> list[Any]:
+        """Rows of a read; a damaged database file is an InputError naming it (not a bug)."""
+        try:
+            with closing(self._connect()) as db:
+                return list(db.execute(sql, args))
+        except sqlite3.DatabaseError as err:
+            raise _damaged(self.path, err) from err
 
     def _connect(self) -> sqlite3.Connection:
         db = sqlite3.connect(self.path, timeout=30.0, isolation_level=None)
@@ -98,33 +123,32 @@ class History:
 
     def last_runs(self) -> dict[str, LastRun]:
         """log_id -> its most recently finished run, any night, any status."""
-        with closing(self._connect()) as db:
-            rows = db.execute("SELECT log_id, night, status, config_hash, log_stamp FROM runs "
-                              "ORDER BY finished_utc, night")
-            return {log_id: LastRun(night, status, cfg, stamp) for log_id, night, status, cfg, stamp in rows}
+        rows = self._query("SELECT log_id, night, status, config_hash, log_stamp FROM runs "
+                           "ORDER BY finished_utc, night")
+        return {log_id: LastRun(night, status, cfg, stamp) for log_id, night, status, cfg, stamp in rows}
 
-    def runs(self, night: str) -> list[tuple[str, str, str, str]]:  # (log_id, status, error, log_path)
-        with closing(self._connect()) as db:
-            return list(db.execute("SELECT log_id, status, error, log_path FROM runs WHERE night = ? ORDER BY log_id",
-                                   (night,)))
+    def runs(self, night: str) -> list[tuple[str, RunStatus, str, str]]:  # (log_id, status, error, log_path)
+        return self._query("SELECT log_id, status, error, log_path FROM runs WHERE night = ? ORDER BY log_id",
+                           (night,))
 
     def metric_series(self, night: str | None = None) -> list[tuple[str, str, str, float]]:
         """(night, log_id, metric, value) of successful runs (of one night if given), ordered by night."""
         where = "status = 'ok' AND value IS NOT NULL" + (" AND night = ?" if night else "")
-        with closing(self._connect()) as db:
-            return list(db.execute(f"SELECT night, log_id, metric, value FROM metrics WHERE {where} "
-                                   "ORDER BY night, log_id, metric", (night,) if night else ()))
+        return self._query(f"SELECT night, log_id, metric, value FROM metrics WHERE {where} "
+                           "ORDER BY night, log_id, metric", (night,) if night else ())
 
-    def metric_rows(self, night: str | None = None) -> list[tuple[str, str, str, float | None, str, str, str]]:
+    def metric_rows(self, night: str | None = None) -> list[MetricRow]:
         """Every stored metric (of one night if given) as METRIC_ROW_COLUMNS, ordered by night, log, metric."""
         where = " WHERE night = ?" if night else ""
-        with closing(self._connect()) as db:
-            return list(db.execute(f"SELECT {', '.join(METRIC_ROW_COLUMNS)} FROM metrics{where} "
-                                   "ORDER BY night, log_id, metric", (night,) if night else ()))
+        return [MetricRow(*row) for row in self._query(f"SELECT {', '.join(METRIC_ROW_COLUMNS)} FROM metrics{where} "
+                           "ORDER BY night, log_id, metric", (night,) if night else ())]
 
     def nights(self) -> list[str]:
-        with closing(self._connect()) as db:
-            return [r[0] for r in db.execute("SELECT DISTINCT night FROM runs ORDER BY night")]
+        return [r[0] for r in self._query("SELECT DISTINCT night FROM runs ORDER BY night")]
+
+
+def _damaged(path: Path, err: sqlite3.DatabaseError) -> InputError:
+    return InputError(path, f"damaged history database ({err}); move it aside to start a new history")
 
 
 def open_history(root: Path) -> History:

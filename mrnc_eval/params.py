@@ -20,10 +20,13 @@ Check = Callable[[Any], "str | None"]  # returns the problem, or None when the v
 
 
 def param(default: Any, help: str, unit: str = "", *, gt: float | None = None, ge: float | None = None,
-          lt: float | None = None, le: float | None = None, finite: bool = True, check: Check | None = None) -> Any:
+          lt: float | None = None, le: float | None = None, finite: bool = True, check: Check | None = None,
+          interval: bool | None = None) -> Any:
     """A documented config field. Mutable defaults (lists, dicts) are copied per instance.
-    Bounds apply to a number and to every number of a list or tuple."""
+    Bounds apply to a number and to every number of a list or tuple. `interval`: a [low, high]
+    pair that must not be reversed (default: a numeric pair whose default is ascending)."""
     metadata = {"help": help, "unit": unit, "finite": finite, "check": check,
+                **({"interval": interval} if interval is not None else {}),
                 "bounds": {k: v for k, v in (("gt", gt), ("ge", ge), ("lt", lt), ("le", le)) if v is not None}}
     if isinstance(default, (list, dict, set)):
         return field(default_factory=lambda: copy.deepcopy(default), metadata=metadata)

@@ -27,6 +27,8 @@ import secrets
 import shutil
 import tempfile
 import unicodedata
+import zipfile
+import zlib
 from dataclasses import asdict, dataclass, field
 from pathlib import Path
 from typing import TYPE_CHECKING, Any
@@ -36,6 +38,7 @@ import numpy as np
 from mrnc_eval import __version__
 from mrnc_eval.errors import InputError, OutputError
 from mrnc_eval.io.containers import LOG_SUFFIXES
+from mrnc_eval.outputs import describe
 from mrnc_eval.tables import Table
 
 if TYPE_CHECKING:
@@ -46,17 +49,47 @@ SERIES_FILE = "series.npz"
 CONFIG_FILE = "config.yaml"
 
 
-@dataclass
+# Which way is better, per metric name: True lower, False higher. A name not here has no known
+# direction (counts such as matched poses, keyframes, loop closures; settings such as the
+# mapping rate; signed biases): `compare` gives it no verdict.
+_LOWER = ("ape_rmse_m", "ape_online_rmse_m", "ape_gnss_rmse_m", "ape_max_m", "ape_mean_m", "end_drift_m",
+          "end_drift_online_m", "degeneracy_events", "map_entropy", "map_plane_variance_m2", "completion_time_s",
+          "control_effort", "cross_track_max_m", "cross_track_mean_abs_m", "cross_track_p95_m", "cross_track_rms_m",
+          "final_position_error_m", "funnel_violations", "heading_error_rms_rad", "iae", "ise", "itae",
+          "longest_saturation_s", "max_abs_error_mps", "max_e_over_o", "overshoot_pct", "paper_overshoot_pct",
+          "paper_settling_time_s", "paper_steady_state_error_mps", "recovery_time_s", "rise_time_s",
+          "rms_error_mps", "safety_stops", "saturation_ratio", "settling_time_s", "steady_state_error_mps",
+          "total_variation_rpm", "sweeps_empty", "sweeps_without_imu")
+_HIGHER = ("rtf", "rtf_end_to_end")
+METRIC_DIRECTION: dict[str, bool] = {**dict.fromkeys(_LOWER, True), **dict.fromkeys(_HIGHER, False)}
+
+
+def metric_direction(name: str, stored: bool | None = None) -> bool | None:
+    """True: lower is better, False: higher, None: unknown. The table above first (result files
+    written before it stored True for every metric, counts included); then an explicit stored
+    direction other than that old default (a metric added elsewhere with lower_is_better=False)."""
+    if name.startswith("ms_per_sweep_"):
+        return True
+    if name in METRIC_DIRECTION:
+        return METRIC_DIRECTION[name]
+    return False if stored is False else None
+
+
+@dataclass(kw_only=True)
 class Metric:
     name: str  # unit-bearing key, e.g. "ape_rmse_m", "settling_time_s"
     value: float | int | None
     unit: str = ""
     group: str = ""  # e.g. "slam", "control/raid/left"
-    lower_is_better: bool = True
+    lower_is_better: bool | None = None  # None: from METRIC_DIRECTION by name (None there: unknown)
     note: str = ""
 
+    def __post_init__(self) -> None:
+        if self.lower_is_better is None:
+            self.lower_is_better = metric_direction(self.name)
 
-@dataclass
+
+@dataclass(kw_only=True)
 class Event:
     t_s: float  # seconds since the log start
     kind: str  # "loop_closure", "degeneracy", "safety_stop", "slip", ...
@@ -64,7 +97,7 @@ class Event:
     data: dict[str, Any] = field(default_factory=dict)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class RunResult:
     kind: str  # "slam" | "control" | "info"
     log_path: str
@@ -134,6 +167,17 @@ def path_hash(relative: str | Path) -> str:
     return hashlib.sha256(Path(relative).as_posix().encode("utf-8", "surrogateescape")).hexdigest()[:8]
 
 
+def absolute_log_path(path: str | Path) -> str:
+    """The log path as result.json records it: absolute (each file of a split log "a.mcap,b.mcap"),
+    so `export --with-log`, `report` and `table` find the log from any working folder."""
+    from mrnc_eval.io.split_logs import split_log_paths
+
+    parts = split_log_paths(path)
+    if parts is not None:
+        return ",".join(str(p.absolute()) for p in parts)
+    return str(Path(path).absolute())
+
+
 def log_id_for(path: str | Path) -> str:
     """Stable id of a log from its file name (see `stable_id`), without the container suffix."""
     return stable_id(Path(path).name)
@@ -182,13 +226,19 @@ def new_run_dir(root: Path, log_id: str, verb: str) -> Path:
 
 def atomic_write_text(path: Path, text: str) -> None:
     """Write a file under a temporary name and rename it into place (mode from the umask)."""
-    path.parent.mkdir(parents=True, exist_ok=True)
-    fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    try:
+        path.parent.mkdir(parents=True, exist_ok=True)
+        fd, tmp = tempfile.mkstemp(prefix=f".{path.name}.", suffix=".tmp", dir=path.parent)
+    except OSError as err:
+        raise OutputError(path, f"cannot write here: {describe(err)}") from err
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             fh.write(text)
         follow_umask(Path(tmp))
         os.replace(tmp, path)
+    except OSError as err:  # the target named, not the temporary file
+        Path(tmp).unlink(missing_ok=True)
+        raise OutputError(path, f"cannot write: {describe(err)}") from err
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
         raise
@@ -221,8 +271,11 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
     """
     run_dir = Path(run_dir)
     _check_replaceable(run_dir)
-    run_dir.parent.mkdir(parents=True, exist_ok=True)
-    tmp = Path(tempfile.mkdtemp(prefix=f".{run_dir.name}.", suffix=".partial", dir=run_dir.parent))
+    try:
+        run_dir.parent.mkdir(parents=True, exist_ok=True)
+        tmp = Path(tempfile.mkdtemp(prefix=f".{run_dir.name}.", suffix=".partial", dir=run_dir.parent))
+    except OSError as err:
+        raise OutputError(run_dir, f"cannot write here: {describe(err)}") from err
     follow_umask(tmp)
     try:
         body = asdict(result)
@@ -246,9 +299,26 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
             shutil.rmtree(old, ignore_errors=True)
         else:
             os.replace(tmp, run_dir)
+    except OSError as err:  # name the result folder, not the hidden temporary one (no space, permission)
+        shutil.rmtree(tmp, ignore_errors=True)
+        raise OutputError(run_dir, f"cannot write: {describe(err)}") from err
     except BaseException:
         shutil.rmtree(tmp, ignore_errors=True)
         raise
+    return run_dir
+
+
+def claim_run_dir(run_dir: str | Path, *, force: bool = False) -> Path:
+    """The one overwrite rule (mrnc_eval/outputs.py) for a result folder named by the caller (the
+    API's out_dir): a missing or empty folder is written; an existing result is refused unless
+    `force`, and `force` replaces only a result this tool wrote."""
+    run_dir = Path(run_dir)
+    if run_dir.is_dir() and not run_dir.is_symlink() and not any(run_dir.iterdir()):
+        return run_dir
+    if run_dir.exists() or run_dir.is_symlink():
+        if not force:
+            raise OutputError(run_dir, "already exists; not replaced (force=True replaces a result this tool wrote)")
+        _check_replaceable(run_dir)
     return run_dir
 
 
@@ -292,8 +362,11 @@ def read_result(run_dir: str | Path, *, with_series: bool = True) -> RunResult:
     series: dict[str, np.ndarray] = {}
     npz = run_dir / SERIES_FILE
     if with_series and npz.exists():
-        with np.load(npz, allow_pickle=False) as data:
-            series = {k: data[k] for k in data.files}
+        try:
+            with np.load(npz, allow_pickle=False) as data:
+                series = {k: data[k] for k in data.files}
+        except (OSError, ValueError, EOFError, zipfile.BadZipFile, zlib.error) as err:  # truncated, flipped, not a zip
+            raise InputError(npz, f"damaged series file: {err}") from err
     try:
         return RunResult(
             kind=body["kind"],

@@ -8,6 +8,7 @@ characters are shown escaped, so a topic name cannot forge or colour our output)
 
 from __future__ import annotations
 
+import logging
 import reprlib
 from typing import Any
 
@@ -37,3 +38,38 @@ def shorten(value: Any, limit: int = MAX_SHOWN) -> str:
     """A bounded, printable repr of `value` for error messages (at most ~`limit` characters)."""
     text = printable(_repr.repr(value))
     return text if len(text) <= limit else text[: limit - 3] + "..."
+
+
+class PrintableFormatter(logging.Formatter):
+    """The log handler's formatter (cli installs it): every message, whatever module logs it and
+    whatever log text (topic names, frame ids, file names) it carries, passes through `printable`,
+    and so do traceback lines (--debug); one escaping, in one place, for all of stderr's lines."""
+
+    def formatMessage(self, record: logging.LogRecord) -> str:
+        record.message = printable(record.message)
+        return super().formatMessage(record)
+
+    def formatException(self, ei: Any) -> str:
+        return "\n".join(printable(line) for line in super().formatException(ei).splitlines())
+
+
+def install_log_format(level: int, stream: Any) -> None:
+    """Route the package's log records (and any library's) to `stream` through PrintableFormatter.
+    -v/-vv (`level` INFO/DEBUG) open the package's own records; libraries (numba, matplotlib)
+    stay at WARNING, so -vv shows our stages, not a compiler's trace."""
+    handler = logging.StreamHandler(stream)
+    handler.setFormatter(PrintableFormatter("%(levelname)s %(name)s: %(message)s"))
+    logging.basicConfig(level=max(level, logging.WARNING), handlers=[handler], force=True)
+    logging.getLogger("mrnc_eval").setLevel(level)
+
+
+OFF_TERMINAL_WIDTH = 10_000  # columns: piped or redirected output is never cut (rich would assume 80)
+
+
+def console(**options: Any) -> Any:
+    """The rich Console every verb prints tables with: the terminal's width on a terminal; off a
+    terminal (`> file`, `| cat`) wide enough that no column is cut to `Sett…` or `0.0…`."""
+    from rich.console import Console
+
+    out = Console(**options)
+    return out if out.is_terminal else Console(width=OFF_TERMINAL_WIDTH, **options)

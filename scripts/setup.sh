@@ -2,7 +2,7 @@
 # Set up mrnc-eval on a fresh Debian machine: system libraries the wheels need, then a
 # virtual environment in .venv with the package installed (editable).
 #
-#   bash scripts/setup.sh          runtime + PDF + Dask + kiss-icp extras
+#   bash scripts/setup.sh          everything: SLAM, control, simulator, PDF, Dask, kiss-icp extras
 #   bash scripts/setup.sh --test   also the test tools (evo, pytest, Chromium, pdftoppm)
 #
 # As root it installs the Debian packages itself; otherwise it prints the apt-get line to run.
@@ -49,7 +49,7 @@ if [[ ! -x .venv/bin/python ]]; then
   "$py" -m venv .venv
 fi
 .venv/bin/python -m pip install -q --upgrade pip >/dev/null
-extras="pdf,dask,kiss-icp"
+extras="all"  # the base install (pip install mrnc-eval) has no SLAM stack; this script installs all
 (( want_test )) && extras="$extras,test"
 .venv/bin/python -m pip install -q -e ".[${extras}]"
 echo "setup: ready (.venv, extras: ${extras})" >&2

@@ -41,3 +41,35 @@ def test_a_log_without_topic_lists_its_pose_topics(capsys: pytest.CaptureFixture
     assert f"{LOG}:/TOPIC" in err
     assert "/ground_truth" in err
     assert "/wheel_odom" in err
+
+
+def test_a_folder_of_logs_points_to_nightly_or_a_glob(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    logs = tmp_path / "logs"
+    logs.mkdir()
+    shutil.copy(LOG, logs / "a.bag")
+    assert main(["slam", str(logs), "--out", str(tmp_path / "out")]) == 4
+    err = capsys.readouterr().err
+    assert "a folder of 1 log(s), not one log" in err
+    assert f"mrnc-eval nightly {logs} --out REPORTS" in err
+    assert f"{logs}/*.bag" in err
+    assert not (tmp_path / "out").exists()
+    (tmp_path / "empty").mkdir()  # a folder without logs still says what a log is
+    assert main(["info", str(tmp_path / "empty")]) == 4
+    assert "not a ROS 2 bag (no metadata.yaml)" in capsys.readouterr().err
+
+
+def test_did_you_mean_quotes_only_the_key(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["config", "--set", "slam.loop.enabeld=false"]) == 2
+    err = capsys.readouterr().err
+    assert "'slam.loop.enabeld' (did you mean slam.loop.enabled?)" in err
+
+
+def test_a_night_of_only_hidden_logs_says_they_were_skipped(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    logs = tmp_path / "logs"
+    (logs / ".recording").mkdir(parents=True)
+    (logs / ".recording" / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n", encoding="utf-8")
+    shutil.copy(LOG, logs / ".partial.bag")
+    assert main(["nightly", str(logs), "--out", str(tmp_path / "out")]) == 4
+    err = capsys.readouterr().err
+    assert "no logs found" in err
+    assert "2 hidden entries skipped (.partial.bag, .recording:" in err

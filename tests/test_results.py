@@ -15,9 +15,10 @@ from mrnc_eval.results import Event, Metric, RunResult, Table, read_result, safe
 def _result() -> RunResult:
     return RunResult(
         kind="slam", log_path="/logs/a.mcap", log_id="a",
-        metrics=[Metric("ape_rmse_m", 0.05, "m"), Metric("rtf", math.inf, "", lower_is_better=False)],
+        metrics=[Metric(name="ape_rmse_m", value=0.05, unit="m"),
+                 Metric(name="rtf", value=math.inf, unit="", lower_is_better=False)],
         tables=[Table("APE", ["seq1"], ["lio", "kiss"], [[0.1, "Failed"]], unit="m")],
-        events=[Event(1.5, "loop_closure", "kf 10 -> 2", {"fitness": 0.1})],
+        events=[Event(t_s=1.5, kind="loop_closure", message="kf 10 -> 2", data={"fitness": 0.1})],
         series={"t": np.arange(5.0), "err": np.ones((5, 3), np.float32)},
     )
 

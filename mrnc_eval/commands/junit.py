@@ -21,19 +21,21 @@ def results_in(log_dir: Path) -> list[RunResult]:
     return [read_result(d) for d in result_dirs_of([log_dir])]
 
 
-def night_suites(rows: Sequence[IndexRow], night_dir: Path, gates: GatesConfig) -> list[LogSuite]:
-    """One suite per row of the night index."""
+def night_suites(rows: Sequence[IndexRow], night_dir: Path, gates: GatesConfig,
+                 methods: Sequence[str] = ("lio",)) -> list[LogSuite]:
+    """One suite per row of the night index; `methods`: the SLAM methods the night runs (they name
+    the APE gate of every log, also of one that failed)."""
     from mrnc_eval.errors import InputError
 
     suites = []
     for row in rows:
         if row.status != "ok":
-            suites.append(error_suite(row.log_id, row.log_path, row.error, gates))
+            suites.append(error_suite(row.log_id, row.log_path, row.error, gates, methods))
             continue
         try:
             results = results_in(night_dir / "logs" / row.log_id)
         except InputError as err:
-            suites.append(error_suite(row.log_id, row.log_path, f"results unreadable: {err}", gates))
+            suites.append(error_suite(row.log_id, row.log_path, f"results unreadable: {err}", gates, methods))
             continue
-        suites.append(suite_of_results(row.log_id, row.log_path, results, gates))
+        suites.append(suite_of_results(row.log_id, row.log_path, results, gates, methods))
     return suites

@@ -20,12 +20,13 @@ from pathlib import Path
 
 from mrnc_eval import __version__
 from mrnc_eval.config import Config
+from mrnc_eval.history import RunStatus
 
 DEFAULT_ANALYSIS = "mrnc_eval.commands.log_job:analyse_log"
 MetricRow = tuple[str, float | None, str]  # (metric, value, unit)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LogJob:
     log_path: str
     log_id: str  # safe, unique within the night
@@ -35,19 +36,19 @@ class LogJob:
     analysis: str = DEFAULT_ANALYSIS
 
 
-@dataclass
+@dataclass(kw_only=True)
 class Analysis:
     metrics: list[MetricRow] = field(default_factory=list)
     gates_failed: list[str] = field(default_factory=list)  # labels of the gate cards that failed
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LogSummary:
     """What a worker reports for one log of the night (picklable: plain fields only)."""
 
     log_id: str
     log_path: str
-    status: str  # "ok" | "failed"
+    status: RunStatus
     error: str = ""
     metrics: tuple[MetricRow, ...] = ()
     gates_failed: tuple[str, ...] = ()  # labels of the gate cards that failed
@@ -76,11 +77,12 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
     from mrnc_eval.commands import control, info, slam
     from mrnc_eval.config import config_hash, dump_config
     from mrnc_eval.reports.render import evaluate_gates, write_report
-    from mrnc_eval.results import RunResult, write_result
+    from mrnc_eval.results import RunResult, absolute_log_path, write_result
+    from mrnc_eval.schema.info import INFO
 
     config_yaml = dump_config(cfg)
     summary = info.run(log_path, cfg).to_json()
-    info_result = RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={"info": summary},
+    info_result = RunResult(kind="info", log_path=absolute_log_path(log_path), log_id=log_id, extra={INFO: summary},
                             config_hash=config_hash(cfg))
     write_result(info_result, work_dir / "info", config_yaml)
     results = [info_result, slam.run_log(log_path, cfg, work_dir / "slam", log_id=log_id)]
@@ -89,9 +91,10 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
         info_result.warnings.append(f"control replay skipped: the log has no {' and no '.join(missing)} topic")
     else:
         results.append(control.run_log(log_path, cfg, work_dir / "control", mode="replay", log_id=log_id))
-    write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf)
+    write_report(results, work_dir, gates=cfg.gates, config_text=config_yaml, pdf=pdf, force=True)  # its own folder
     metrics = [(f"{m.group}/{m.name}", _finite(m.value), m.unit) for r in results for m in r.metrics]
-    return Analysis(metrics, [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"])
+    failed = [g.label for g in evaluate_gates(results, cfg.gates) if g.status == "fail"]
+    return Analysis(metrics=metrics, gates_failed=failed)
 
 
 def process_log(job: LogJob) -> LogSummary:
@@ -105,7 +108,7 @@ def process_log(job: LogJob) -> LogSummary:
     target = Path(job.out_dir)
     partial = target.with_name(f".{target.name}.partial")
     run_id = f"{job.log_id}-{dt.datetime.now(dt.UTC).strftime('%Y%m%dT%H%M%S.%fZ')}"
-    partial_summary = LogSummary(job.log_id, job.log_path, "failed", run_id=run_id)
+    partial_summary = LogSummary(log_id=job.log_id, log_path=job.log_path, status="failed", run_id=run_id)
     try:
         cfg = build(Config, yaml.safe_load(job.config_yaml) or {})
         partial_summary = replace(partial_summary, config_hash=config_hash(cfg))
@@ -119,7 +122,7 @@ def process_log(job: LogJob) -> LogSummary:
                        gates_failed=tuple(outcome.gates_failed), report=str(report) if report.exists() else "")
     except MrncError as err:
         return replace(partial_summary, error=str(err))
-    except Exception as err:
+    except Exception as err:  # noqa: BLE001 - a bug on one log fails that log (traceback kept), not the night
         return replace(partial_summary, error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc())
     finally:
         shutil.rmtree(partial, ignore_errors=True)
@@ -139,10 +142,10 @@ def _move_into_place(partial: Path, target: Path) -> None:
 
 def failed_summary(job: LogJob, error: str) -> LogSummary:
     """Summary of a job whose worker died before it could answer (native crash, killed, lost)."""
-    return LogSummary(job.log_id, job.log_path, "failed", error=error)
+    return LogSummary(log_id=job.log_id, log_path=job.log_path, status="failed", error=error)
 
 
-def _finite(v) -> float | None:
+def _finite(v: object) -> float | None:
     if v is None or isinstance(v, bool) or not isinstance(v, numbers.Real) or not math.isfinite(v):
         return None
     return float(v)

@@ -9,9 +9,10 @@ import shutil
 import sys
 import tempfile
 import time
+from collections.abc import Iterable, Iterator
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import TYPE_CHECKING
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -28,6 +29,7 @@ from mrnc_eval.results import (
     Event,
     Metric,
     RunResult,
+    absolute_log_path,
     check_output_root,
     json_safe,
     link_latest,
@@ -36,8 +38,14 @@ from mrnc_eval.results import (
     stable_id,
     write_result,
 )
+from mrnc_eval.schema import slam as K
+from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.output import STAGES, SlamOutput
 from mrnc_eval.slam.wheel_odometry import WheelTrack
+from mrnc_eval.text import printable
+
+if TYPE_CHECKING:
+    from mrnc_eval.io.reader import LogReader
 
 log = logging.getLogger(__name__)
 TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
@@ -46,7 +54,7 @@ THROTTLED_GAP_PERIODS = 1.5  # kiss-icp's deskew is off when sweeps are further 
 IMU_OFFSET_FINDING_S = 0.002  # an estimated IMU-LiDAR offset above this is reported as a health finding
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LogInputs:
     """What the SLAM needs from a log besides the sweeps, read in the overview pass."""
 
@@ -63,30 +71,127 @@ class LogInputs:
     notes: tuple[str, ...] = ()  # why an input was not used (GNSS without a fix)
 
 
+@dataclass(frozen=True, kw_only=True)
+class SweepWindow:
+    """Which sweeps of a log the SLAM reads (kiss-icp's --n-scans, a time window as evo's
+    --t_start/--t_end): seconds after the log's first message, and at most n_scans sweeps
+    (counted after lio's slam.mapping_interval_s thinning)."""
+
+    start_s: float | None = None
+    end_s: float | None = None
+    n_scans: int | None = None
+
+    def __post_init__(self) -> None:
+        if self.start_s is not None and self.start_s < 0:
+            raise UsageError(f"--start {self.start_s}: seconds after the log's start, >= 0")
+        if self.end_s is not None and self.end_s <= (self.start_s or 0.0):
+            raise UsageError(f"--end {self.end_s} must come after --start {self.start_s or 0.0}")
+        if self.n_scans is not None and self.n_scans < 2:
+            raise UsageError(f"--n-scans {self.n_scans}: SLAM needs at least 2 sweeps")
+
+    @property
+    def active(self) -> bool:
+        return (self.start_s, self.end_s, self.n_scans) != (None, None, None)
+
+    def describe(self) -> str:
+        parts = [f"from {self.start_s:g} s" if self.start_s is not None else "",
+                 f"to {self.end_s:g} s" if self.end_s is not None else "",
+                 f"at most {self.n_scans} sweeps" if self.n_scans is not None else ""]
+        return "sweeps " + ", ".join(p for p in parts if p) + " (after the log's start; --start/--end/--n-scans)"
+
+
+def windowed(stream: Iterable[Sweep], window: SweepWindow, t0_s: float) -> Iterator[Sweep]:
+    """The sweeps of `stream` inside `window` (stamps relative to t0_s, the log's start)."""
+    n = 0
+    for sweep in stream:
+        t = sweep.stamp - t0_s
+        if window.start_s is not None and t < window.start_s:
+            continue
+        if window.end_s is not None and t > window.end_s:
+            return
+        yield sweep
+        n += 1
+        if window.n_scans is not None and n >= window.n_scans:
+            return
+
+
 def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = None, progress: bool = False,
-            log_id: str | None = None) -> RunResult:
+            log_id: str | None = None, window: SweepWindow | None = None) -> RunResult:
     """Replay `method` (default: the config's slam.method; given, it is written into the config)
     on one log into `out_dir`; `log_id` names the log in results (default: from its file name;
-    the nightly job passes its own, unique within the night)."""
+    the nightly job passes its own, unique within the night); `window`: only some sweeps."""
     from mrnc_eval.io import open_log
+    from mrnc_eval.io.integrity import container_notes
 
     cfg = with_method(cfg, method)
     method = cfg.slam.method
     wall_start = time.perf_counter()
-    result = RunResult(kind="slam", log_path=str(log_path), log_id=log_id or log_id_for(log_path),
+    result = RunResult(kind="slam", log_path=absolute_log_path(log_path), log_id=log_id or log_id_for(log_path),
                        config_hash=config_hash(cfg))
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
+        log.info("%s: %s, %.1f s; roles %s", log_path, lg.container, lg.duration_s,
+                 ", ".join(f"{r} {t}" for r, t in sorted(lg.roles.items())))
         inputs = _read_inputs(lg, log_path, cfg)
-        result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
-        result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
-        out = _replay(lg, inputs, cfg, progress)
+        log.debug("inputs: IMU %s samples, GNSS %s fixes, ground truth %s poses",
+                  None if inputs.imu is None else inputs.imu.stamps.size,
+                  None if inputs.gnss is None else inputs.gnss.stamps.size,
+                  None if inputs.ground_truth is None else len(inputs.ground_truth))
+        result.extra[K.ROLES] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "wheel_odom", "ground_truth")
+                                 if r in lg.roles}
+        result.extra["inputs"] = _inputs_used(lg, inputs, cfg)
+        result.extra[K.GROUND_TRUTH] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
+        if window is not None and window.active:
+            result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
+            result.warnings.append(window.describe())
+        out = _replay(lg, inputs, cfg, progress, window)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
+        read_notes += container_notes(Path(log_path), lg.container)  # lost or unverifiable data
     if out.stamps.size < 2:
         why = "; ".join(read_notes) or "no sweep could be registered"
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s) ({why})")
     result.warnings += read_notes
+    return _finish(result, out, inputs, method, cfg, out_dir, wall_start)
+
+
+def run_scan_folder(folder: Path, cfg: Config, out_dir: Path, *, method: str | None = None,
+                    log_id: str | None = None, window: SweepWindow | None = None) -> RunResult:
+    """SLAM on a folder of .bin/.pcd scans with timestamps.txt (io/scan_folder.py), as kiss-icp
+    reads one: LiDAR only, so --method kiss-icp; poses in the sensor frame (no /tf_static). A
+    `ground_truth.tum` in the folder is the reference of the APE."""
+    from mrnc_eval.io.scan_folder import open_scan_folder, scan_sweeps
+    from mrnc_eval.io.trajectory_files import read_tum
+
+    cfg = with_method(cfg, method)
+    if cfg.slam.method != "kiss-icp":
+        raise UsageError(f"{folder}: a folder of scans has no IMU for lio; run it with --method kiss-icp")
+    scans = open_scan_folder(folder)
+    wall_start = time.perf_counter()
+    result = RunResult(kind="slam", log_path=str(folder), log_id=log_id or log_id_for(folder),
+                       config_hash=config_hash(cfg))
+    gt_file = folder / "ground_truth.tum"
+    gt = read_tum(gt_file) if gt_file.is_file() else None
+    result.extra["ground_truth"] = str(gt_file.resolve()) if gt is not None else None
+    result.extra["input"] = f"scan folder: {len(scans.files)} scans ({scans.files[0].suffix}), stamps from the folder"
+    stream: Iterator[Sweep] = scan_sweeps(scans)
+    if window is not None and window.active:
+        result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
+        result.warnings.append(window.describe())
+        stream = windowed(stream, window, float(scans.stamps[0]))
+    with Prefetched(stream, depth=4) as sweeps:
+        out = _kiss_icp(sweeps, cfg, scans.max_gap_s)
+    if out.stamps.size < 2:
+        raise EvaluationError(f"{folder}: SLAM produced {out.stamps.size} pose(s)")
+    inputs = LogInputs(duration_s=scans.duration_s, base_to_sensor=np.eye(4), imu=None, sensor_to_imu=np.eye(4),
+                       gnss=None, ground_truth=gt, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3),
+                       n_sweeps=len(scans.files), max_sweep_gap_s=scans.max_gap_s)
+    return _finish(result, out, inputs, cfg.slam.method, cfg, out_dir, wall_start)
+
+
+def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, cfg: Config, out_dir: Path,
+            wall_start: float) -> RunResult:
+    """Trajectories, metrics, APE and files of a SLAM run (a log's or a scan folder's)."""
     est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, method)
     online = _to_base(out.stamps, out.online_poses if out.online_poses is not None else out.poses,
                       inputs.base_to_sensor, f"{method} online")
@@ -97,15 +202,30 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     if inputs.ground_truth is not None:
         _add_ape(result, inputs.ground_truth, est, online, method, cfg, float(out.stamps[0]))
     else:
-        result.warnings.append("no ground truth (topic or <log>.gt.tum): APE not computed")
+        where = Path(result.log_path)
+        hint = ("put a ground_truth.tum (TUM) in the scan folder" if "input" in result.extra
+                else ground_truth_hint(where))
+        result.warnings.append(f"no ground truth: APE not computed ({hint})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
-        _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method)
+        _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
     _add_wheel_health(result, out)
     _add_map_quality(result, out, cfg)
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
+    log.info("%s: %d of %d sweeps mapped in %.2f s, %d keyframes -> %s", result.log_path, out.stamps.size, out.n_sweeps,
+             out.wall_s, out.kf_stamps.size, out_dir)
+    for stage, ms in out.timing_ms.items():
+        log.debug("stage %s: %.2f ms per sweep over %d sweeps", stage, float(np.mean(ms)) if ms else 0.0, len(ms))
     return result
+
+
+def ground_truth_hint(log_path: Path) -> str:
+    """How to give a log ground truth: the sidecar file or the topic role."""
+    from mrnc_eval.io.ground_truth import gt_tum_path
+
+    return (f"give one as {gt_tum_path(log_path).name} beside the log (TUM) or --set "
+            "io.roles.ground_truth=TOPIC")
 
 
 def with_method(cfg: Config, method: str | None) -> Config:
@@ -118,7 +238,7 @@ def with_method(cfg: Config, method: str | None) -> Config:
     return cfg
 
 
-def _read_inputs(lg: Any, log_path: Path, cfg: Config) -> LogInputs:
+def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     """IMU, GNSS, /tf_static and ground truth: the overview pass keeps them in memory."""
     duration = lg.duration_s  # the overview pass first
     lidar_frame = cfg.slam.sensor.lidar_frame
@@ -137,12 +257,13 @@ def _read_inputs(lg: Any, log_path: Path, cfg: Config) -> LogInputs:
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
     antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
     lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
-    return LogInputs(duration, base_to_sensor, imu, sensor_to_imu, gnss, ground_truth_of(lg, log_path), antenna,
-                     antenna_in_sensor, lidar.count, lidar.max_gap_s,
-                     (gnss_note,) if gnss_note else ())
+    return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
+                     gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
+                     antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
+                     notes=(gnss_note,) if gnss_note else ())
 
 
-def _gnss_or_none(lg: Any, cfg: Config) -> tuple[GnssSeries | None, str]:
+def _gnss_or_none(lg: LogReader, cfg: Config) -> tuple[GnssSeries | None, str]:
     """GNSS when usable, else why not. A log without any fix is a legitimate recording (GNSS
     skipped, noted); invalid fixes are an error unless GNSS is off (--no-gps), where they are noted."""
     if not lg.has_role("gnss"):
@@ -157,7 +278,8 @@ def _gnss_or_none(lg: Any, cfg: Config) -> tuple[GnssSeries | None, str]:
         return None, f"GNSS not used: {err.problem}"
 
 
-def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutput:
+def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, window: SweepWindow | None = None
+            ) -> SlamOutput:
     """Run the configured method over the sweep stream; both methods read the same way (decoding
     runs ahead in a thread; "read" = the time still waited)."""
     from mrnc_eval.slam.replay import run_slam
@@ -165,8 +287,10 @@ def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutp
     lio = cfg.slam.method == "lio"
     with progress_bar(inputs.n_sweeps, progress) as b:
         task = b.add_task("SLAM sweeps", total=inputs.n_sweeps) if b else None
-        tick = (lambda n: b.update(task, completed=n)) if b else None
-        stream = lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s) if lio else lg.sweeps()
+        tick = (lambda n: b.update(task, completed=n)) if b and task is not None else None
+        stream = lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take) if lio else lg.sweeps()
+        if window is not None and window.active:
+            stream = windowed(stream, window, lg.start_s)
         with Prefetched(stream, depth=4) as sweeps:
             if lio:
                 return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
@@ -175,12 +299,22 @@ def _replay(lg: Any, inputs: LogInputs, cfg: Config, progress: bool) -> SlamOutp
             return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
 
 
-def _wheel_track(lg: Any, cfg: Config) -> WheelTrack | None:
+def _inputs_used(lg: LogReader, inputs: LogInputs, cfg: Config) -> dict[str, str]:
+    """role -> topic of every topic the run reads as an input (never the ground truth: io/roles.py
+    rule 4)."""
+    lio = cfg.slam.method == "lio"
+    used = {"lidar": True, "imu": lio and inputs.imu is not None,
+            "gnss": lio and inputs.gnss is not None and cfg.slam.gps.enabled,
+            "wheel_odom": lio and cfg.slam.wheel_odom.enabled and lg.has_role("wheel_odom")}
+    return {role: lg.roles[role] for role, yes in used.items() if yes and role in lg.roles}
+
+
+def _wheel_track(lg: LogReader, cfg: Config) -> WheelTrack | None:
     """The wheel odometry (odom -> base_link) when slam.wheel_odom.enabled and the log has it."""
     if not cfg.slam.wheel_odom.enabled or not lg.has_role("wheel_odom"):
         return None
     odom = lg.wheel_odometry()
-    return WheelTrack(odom.stamps, odom.positions, odom.quat_xyzw)
+    return WheelTrack(stamps=odom.stamps, positions=odom.positions, quat_xyzw=odom.quat_xyzw)
 
 
 def _kiss_icp_deskew(first: Sweep | None, max_gap_s: float) -> tuple[bool, str | None]:
@@ -198,7 +332,7 @@ def _kiss_icp_deskew(first: Sweep | None, max_gap_s: float) -> tuple[bool, str |
     return True, None
 
 
-def _kiss_icp(sweeps: Any, cfg: Config, max_gap_s: float) -> SlamOutput:
+def _kiss_icp(sweeps: Iterable[Sweep], cfg: Config, max_gap_s: float) -> SlamOutput:
     """The peer on the same Sweep arrays, configured as kiss-icp's own runner configures it (its
     default config: max range 100 m, voxel 1 m, min range 0, adaptive threshold). Deviations, each
     required by the input: no-return pixels are already dropped by the reader (kiss-icp's loader
@@ -213,19 +347,19 @@ def _kiss_icp(sweeps: Any, cfg: Config, max_gap_s: float) -> SlamOutput:
         raise UsageError("--method kiss-icp needs the kiss-icp extra: pip install 'mrnc-eval[kiss-icp]'") from err
     from mrnc_eval.slam.range_image import outside_box
 
-    sweeps = iter(sweeps)
-    first = next(sweeps, None)
+    stream: Iterator[Sweep] = iter(sweeps)
+    first = next(stream, None)
     deskew, why = _kiss_icp_deskew(first, max_gap_s)
     kcfg = load_config(None)
     kcfg.data.deskew = deskew
     icp = KissICP(kcfg)
     if first is not None:
-        sweeps = itertools.chain([first], sweeps)
+        stream = itertools.chain([first], stream)
     stamps, poses = [], []
     t_match, t_read = [], []
     wall0 = t_prev = time.perf_counter()
     n = 0
-    for s in sweeps:
+    for s in stream:
         n += 1
         t0 = time.perf_counter()
         t_read.append((t0 - t_prev) * 1e3)
@@ -241,8 +375,9 @@ def _kiss_icp(sweeps: Any, cfg: Config, max_gap_s: float) -> SlamOutput:
     timing = {st: [0.0] * len(t_match) for st in STAGES}
     timing["matching"], timing["read"] = t_match, t_read
     warnings = [why] if why else []
-    return SlamOutput(np.asarray(stamps), np.asarray(poses), np.asarray(stamps), np.asarray(poses), np.zeros((0, 3)),
-                      timing, [], warnings, n, time.perf_counter() - wall0, deskew=deskew)
+    return SlamOutput(stamps=np.asarray(stamps), poses=np.asarray(poses), kf_stamps=np.asarray(stamps),
+                      kf_poses=np.asarray(poses), map_points=np.zeros((0, 3)), timing_ms=timing, events=[],
+                      warnings=warnings, n_sweeps=n, wall_s=time.perf_counter() - wall0, deskew=deskew)
 
 
 def _to_base(stamps: np.ndarray, sensor_poses: np.ndarray, base_to_sensor: np.ndarray, name: str) -> Trajectory:
@@ -256,9 +391,34 @@ def _add_events(result: RunResult, out: SlamOutput, inputs: LogInputs) -> None:
     result.warnings += out.warnings
     if inputs.imu is None:
         result.warnings.append("log has no IMU topic")
+    _add_dropped_inputs(result, out, inputs)
     t_start = float(out.stamps[0])
     for e in out.events:
-        result.events.append(Event(e.t - t_start, e.kind, e.message, e.data))
+        result.events.append(Event(t_s=e.t - t_start, kind=e.kind, message=e.message, data=e.data))
+
+
+def _add_dropped_inputs(result: RunResult, out: SlamOutput, inputs: LogInputs) -> None:
+    """Every input the replay could not use, counted (metric) and said (warning): sweeps with no
+    valid point, and mapped sweeps with no IMU sample since the previous one (a slow or gappy
+    IMU: those sweeps ran without preintegration or deskew rotation)."""
+    if out.empty_sweeps:
+        result.metrics.append(Metric(name="sweeps_empty", value=out.empty_sweeps, unit="", group="slam",
+                                     note="sweeps with no valid point (empty, all zero or non-finite), not mapped"))
+        result.warnings.append(f"{out.empty_sweeps} of {out.n_sweeps} sweep(s) had no valid point (empty, all zero "
+                               "or non-finite): dropped")
+    if inputs.imu is None or out.stamps.size < 2:
+        return
+    imu_t = np.sort(inputs.imu.stamps)
+    sweeps_t = np.asarray(out.stamps, dtype=float)
+    counts = np.searchsorted(imu_t, sweeps_t[1:], side="right") - np.searchsorted(imu_t, sweeps_t[:-1], side="right")
+    without = int(np.count_nonzero(counts == 0))
+    result.metrics.append(Metric(name="sweeps_without_imu", value=without, unit="", group="slam", lower_is_better=True,
+                                 note="mapped sweeps with no IMU sample since the previous mapped sweep"))
+    if without:
+        span = float(imu_t[-1] - imu_t[0]) if imu_t.size > 1 else 0.0
+        rate = (imu_t.size - 1) / span if span > 0 else 0.0
+        result.warnings.append(f"{without} of {sweeps_t.size - 1} mapped sweeps had no IMU sample since the previous "
+                               f"one (IMU at {rate:.1f} Hz): they ran without IMU preintegration")
 
 
 def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, total_s: float,
@@ -266,29 +426,36 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
     """Real-time factors, counts, per-stage timing and run details."""
     duration = inputs.duration_s
     rtf = duration / out.wall_s if out.wall_s > 0 else float("inf")
-    result.metrics += [Metric("rtf", rtf, "", "slam", lower_is_better=False,
+    result.metrics += [Metric(name="rtf", value=rtf, unit="", group="slam", lower_is_better=False,
                               note="log duration / wall time of the SLAM over the sweep stream (decoding included)"),
-                       Metric("rtf_end_to_end", duration / total_s, "", "slam", lower_is_better=False,
+                       Metric(name="rtf_end_to_end", value=duration / total_s, unit="", group="slam",
+                              lower_is_better=False,
                               note="log duration / wall time including reading IMU, GNSS and ground truth"),
-                       Metric("sweeps_processed", int(out.stamps.size), "", "slam"),
-                       Metric("keyframes", int(out.kf_stamps.size), "", "slam"),
-                       Metric("loop_closures", sum(e.kind == "loop_closure" for e in out.events), "", "slam"),
-                       Metric("degeneracy_events", sum(e.kind == "degeneracy" for e in out.events), "", "slam")]
+                       Metric(name="sweeps_processed", value=int(out.stamps.size), unit="", group="slam"),
+                       Metric(name="keyframes", value=int(out.kf_stamps.size), unit="", group="slam"),
+                       Metric(name="loop_closures", value=sum(e.kind == "loop_closure" for e in out.events), unit="",
+                              group="slam"),
+                       Metric(name="degeneracy_events", value=sum(e.kind == "degeneracy" for e in out.events),
+                              unit="", group="slam")]
     rate_hz = out.stamps.size / duration if duration > 0 else float("nan")
-    result.metrics.append(Metric("mapping_rate_hz", rate_hz, "Hz", "slam",
+    result.metrics.append(Metric(name="mapping_rate_hz", value=rate_hz, unit="Hz", group="slam",
                                  note="sweeps mapped per second of log: the work the RTF was measured at"))
     timing = _stage_timing(out)
     for stage in STAGES:
-        result.metrics.append(Metric(f"ms_per_sweep_{stage}", timing[stage]["mean"], "ms", "slam/timing"))
-    interval = f", slam.mapping_interval_s = {mapping_interval_s:g} s" if method == "lio" else ""
-    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {out.n_sweeps} sweeps, {rate_hz:.1f} Hz"
-                                    f"{interval}")
-    result.extra["deskew"] = out.deskew
-    result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
+        result.metrics.append(Metric(name=f"ms_per_sweep_{stage}", value=timing[stage]["mean"], unit="ms",
+                                     group="slam/timing"))
+    # of the sweeps in the log (not of those the interval let through): "134 of 236", and why
+    every = (f"every {mapping_interval_s:g} s or more (slam.mapping_interval_s)" if method == "lio"
+             else "every sweep")
+    result.extra[K.MAPPING_RATE] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
+                                    f"{every}, {rate_hz:.1f} Hz")
+    result.extra[K.DESKEW] = out.deskew
+    result.extra.update({K.METHOD: method, K.TIMING_MS: timing, K.WALL_S: out.wall_s, K.LOG_DURATION_S: duration,
                          "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
-                         "first_sweep_ms": float(sum(v[0] for v in out.timing_ms.values() if v)),
-                         "warmup_ms": dict(out.warmup_ms), "warmup_total_ms": float(sum(out.warmup_ms.values())),
+                         K.FIRST_SWEEP_MS: float(sum(v[0] for v in out.timing_ms.values() if v)),
+                         "warmup_ms": dict(out.warmup_ms), K.WARMUP_TOTAL_MS: float(sum(out.warmup_ms.values())),
                          "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
+                         "imu_noise": out.imu_noise,  # the IMU's noise and biases from stationary stretches
                          "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static), "
                                                       "smoothed: each sweep re-anchored to its final keyframe",
                                     "trajectory_online.tum": "the same frames, each sweep's pose as estimated "
@@ -312,17 +479,17 @@ def _stage_timing(out: SlamOutput) -> dict[str, dict[str, float]]:
 
 def _add_trajectory_series(result: RunResult, est: Trajectory, online: Trajectory, keyframes: Trajectory,
                            t_start: float) -> None:
-    result.series["est_t"] = est.stamps - t_start
-    result.series["est_xyz"] = est.positions
-    result.series["est_online_xyz"] = online.positions
-    result.series["kf_xyz"] = keyframes.positions
+    result.series[K.EST_T] = est.stamps - t_start
+    result.series[K.EST_XYZ] = est.positions
+    result.series[K.EST_ONLINE_XYZ] = online.positions
+    result.series[K.KF_XYZ] = keyframes.positions
 
 
-def _end_drift(gt: Trajectory, est: Trajectory) -> float:
+def _end_drift(gt: Trajectory, est: Trajectory, max_diff_s: float) -> float:
     """Distance (m) between the estimated and true last position once the first poses coincide."""
     from mrnc_eval.evaluation.ape import ape
 
-    return float(ape(gt, est, align="origin", max_diff=0.02).errors[-1])
+    return float(ape(gt, est, align="origin", max_diff=max_diff_s).errors[-1])
 
 
 def _add_ape(result: RunResult, gt: Trajectory, est: Trajectory, online: Trajectory, method: str, cfg: Config,
@@ -341,17 +508,18 @@ def _ape_online(result: RunResult, gt: Trajectory, online: Trajectory, cfg: Conf
     from mrnc_eval.evaluation.ape import ape
 
     try:
-        r = ape(gt, online, align="se3", max_diff=0.02)
+        r = ape(gt, online, align="se3", max_diff=cfg.evaluation.gt_max_diff_s)
     except EvaluationError as err:
         result.warnings.append(f"APE of the online trajectory failed: {err}")
         return Cell(None, str(err))
-    result.metrics += [Metric("ape_online_rmse_m", r.stats["rmse"], "m", "slam/ape",
+    result.metrics += [Metric(name="ape_online_rmse_m", value=r.stats["rmse"], unit="m", group="slam/ape",
                               note="online trajectory: each sweep's pose as estimated when it was processed"),
-                       Metric("end_drift_online_m", _end_drift(gt, online), "m", "slam/ape",
+                       Metric(name="end_drift_online_m", value=_end_drift(gt, online, cfg.evaluation.gt_max_diff_s),
+                              unit="m", group="slam/ape",
                               note="end drift of the online trajectory")]
-    result.series["ape_online_err_m"] = r.errors
-    result.series["est_online_aligned_xyz"] = r.est_poses[:, :3, 3]
-    result.series["ape_online_t"] = r.stamps - t_start
+    result.series[K.ape_err(K.ONLINE)] = r.errors
+    result.series[K.EST_ONLINE_ALIGNED_XYZ] = r.est_poses[:, :3, 3]
+    result.series[K.ape_t(K.ONLINE)] = r.stamps - t_start
     return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
                  min_span_fraction=cfg.evaluation.failed_min_span_fraction)
 
@@ -360,18 +528,20 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
     from mrnc_eval.evaluation.ape import ape
 
     try:
-        r = ape(gt, est, align="se3", max_diff=0.02)
-        result.metrics += [Metric("ape_rmse_m", r.stats["rmse"], "m", "slam/ape"),
-                           Metric("ape_mean_m", r.stats["mean"], "m", "slam/ape"),
-                           Metric("ape_max_m", r.stats["max"], "m", "slam/ape"),
-                           Metric("ape_n", r.n, "", "slam/ape"), Metric("ape_span_s", r.span_s, "s", "slam/ape"),
-                           Metric("end_drift_m", _end_drift(gt, est), "m", "slam/ape",
+        r = ape(gt, est, align="se3", max_diff=cfg.evaluation.gt_max_diff_s)
+        result.metrics += [Metric(name="ape_rmse_m", value=r.stats["rmse"], unit="m", group="slam/ape"),
+                           Metric(name="ape_mean_m", value=r.stats["mean"], unit="m", group="slam/ape"),
+                           Metric(name="ape_max_m", value=r.stats["max"], unit="m", group="slam/ape"),
+                           Metric(name="ape_n", value=r.n, unit="", group="slam/ape"),
+                           Metric(name="ape_span_s", value=r.span_s, unit="s", group="slam/ape"),
+                           Metric(name="end_drift_m", value=_end_drift(gt, est, cfg.evaluation.gt_max_diff_s),
+                                  unit="m", group="slam/ape",
                                   note="position error of the last pose with the first pose aligned to the "
                                        "ground truth: the drift accumulated over the log")]
-        result.series["ape_t"] = r.stamps - t_start
-        result.series["ape_err_m"] = r.errors
-        result.series["ref_xyz"] = r.ref_poses[:, :3, 3]
-        result.series["est_aligned_xyz"] = r.est_poses[:, :3, 3]
+        result.series[K.ape_t(K.SMOOTHED)] = r.stamps - t_start
+        result.series[K.ape_err(K.SMOOTHED)] = r.errors
+        result.series[K.REF_XYZ] = r.ref_poses[:, :3, 3]
+        result.series[K.EST_ALIGNED_XYZ] = r.est_poses[:, :3, 3]
         return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
                      min_span_fraction=cfg.evaluation.failed_min_span_fraction)
     except EvaluationError as err:
@@ -379,7 +549,8 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
         return Cell(None, str(err))
 
 
-def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str) -> None:
+def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str,
+                  max_diff_s: float) -> None:
     """2-D APE of the antenna track against the GNSS fixes (yaw + translation aligned)."""
     from mrnc_eval.evaluation.ape import ape
 
@@ -387,8 +558,8 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
         ref = Trajectory(gnss.stamps, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
         shifted = Trajectory(est.stamps, est.positions + Rotation.from_quat(est.quat_xyzw).apply(antenna),
                              est.quat_xyzw, name=method)
-        rg = ape(ref, shifted, align="yaw", relation="point", max_diff=0.1, plane="xy")
-        result.metrics.append(Metric("ape_gnss_rmse_m", rg.stats["rmse"], "m", "slam/ape",
+        rg = ape(ref, shifted, align="yaw", relation="point", max_diff=max_diff_s, plane="xy")
+        result.metrics.append(Metric(name="ape_gnss_rmse_m", value=rg.stats["rmse"], unit="m", group="slam/ape",
                                      note="2-D, yaw + translation alignment, against GNSS in ENU"))
     except EvaluationError as err:
         result.warnings.append(f"APE against GNSS failed: {err}")
@@ -399,16 +570,21 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
     if out.imu_time_offset_s is None:
         return
     offset = out.imu_time_offset_s
-    result.metrics.append(Metric("imu_time_offset_s", offset, "s", "slam/health",
+    result.metrics.append(Metric(name="imu_time_offset_s", value=offset, unit="s", group="slam/health",
                                  note="IMU clock lag behind the LiDAR's, estimated by correlating the LiDAR "
                                       "odometry's rotation rate with the gyro (positive: IMU stamps late), after "
                                       "applying slam.imu.time_offset_s"))
-    if abs(offset) > IMU_OFFSET_FINDING_S:
+    sigma = out.imu_time_offset_sigma_s
+    if sigma is not None and np.isfinite(sigma):
+        result.metrics.append(Metric(name="imu_time_offset_sigma_s", value=sigma, unit="s", group="slam/health",
+                                     note="formal standard error of imu_time_offset_s (rate residuals taken as "
+                                          "independent, so a lower bound; ~1.5 ms on a 40 s log mapped at 5 Hz)"))
+    if abs(offset) > IMU_OFFSET_FINDING_S and (sigma is None or abs(offset) > 2 * sigma):
         text = (f"IMU-LiDAR time offset {offset * 1e3:.1f} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
                 f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
                 f"{cfg.slam.imu.time_offset_s + offset:.4f}")
         result.warnings.append(text)
-        result.events.append(Event(0.0, "health", text, {"imu_time_offset_s": offset}))
+        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"imu_time_offset_s": offset}))
 
 
 def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
@@ -418,18 +594,19 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
     if h is None:
         return
     result.extra["wheel_health"] = h
-    result.metrics += [Metric("wheel_track_factor", h["track_factor"], "", "slam/health",
+    result.metrics += [Metric(name="wheel_track_factor", value=h["track_factor"], unit="", group="slam/health",
                               note=f"effective track factor (wheel yaw / gyro yaw) +- {h['track_factor_sigma']:.3f}"),
-                       Metric("wheel_lr_mismatch", h["lr_mismatch"], "", "slam/health",
+                       Metric(name="wheel_lr_mismatch", value=h["lr_mismatch"], unit="", group="slam/health",
                               note=f"right-minus-left radius mismatch +- {h['lr_mismatch_sigma']:.4f}"),
-                       Metric("wheel_scale_error", h["scale_error"], "", "slam/health",
+                       Metric(name="wheel_scale_error", value=h["scale_error"], unit="", group="slam/health",
                               note=f"wheel distance / LiDAR distance - 1 +- {h['scale_error_sigma']:.4f}"),
-                       Metric("wheel_rejected_fraction", h["rejected_fraction"], "", "slam/health")]
+                       Metric(name="wheel_rejected_fraction", value=h["rejected_fraction"], unit="",
+                              group="slam/health")]
     if h["verdict"] != "ok":
         text = (f"wheel odometry {h['verdict']}: " + "; ".join(h["reasons"])
                 + " - the SLAM used the wheels calibrated online; give these values to the odometry node")
         result.warnings.append(text)
-        result.events.append(Event(0.0, "health", text, {"wheel_verdict": h["verdict"]}))
+        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"wheel_verdict": h["verdict"]}))
 
 
 def _add_map_quality(result: RunResult, out: SlamOutput, cfg: Config) -> None:
@@ -437,10 +614,11 @@ def _add_map_quality(result: RunResult, out: SlamOutput, cfg: Config) -> None:
     if q is None:
         return
     r = cfg.slam.map_quality.radius_m
-    result.metrics += [Metric("map_entropy", q.mean_map_entropy, "nats", "slam/map",
+    result.metrics += [Metric(name="map_entropy", value=q.mean_map_entropy, unit="nats", group="slam/map",
                               note=f"mean map entropy: mean of 0.5 ln det(2 pi e Sigma) over map points, Sigma = "
                                    f"covariance of the points within {r:g} m (lower = sharper map)"),
-                       Metric("map_plane_variance_m2", q.mean_plane_variance_m2, "m^2", "slam/map",
+                       Metric(name="map_plane_variance_m2", value=q.mean_plane_variance_m2, unit="m^2",
+                              group="slam/map",
                               note=f"mean plane variance: mean smallest eigenvalue of Sigma within {r:g} m")]
     result.extra["map_quality"] = {"radius_m": r, "points_evaluated": q.points_evaluated,
                                    "cloud": "union of the keyframe feature clouds in their final poses"}
@@ -467,7 +645,7 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
             for name in ("map.ply", "map.pcd"):
                 o3d.io.write_point_cloud(str(tmp / name), pc)
                 files[name] = tmp / name
-        metrics: dict[str, Any] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
+        metrics: dict[str, object] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
         if "wheel_health" in result.extra:
             metrics["wheel_health"] = result.extra["wheel_health"]
         (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")
@@ -489,16 +667,25 @@ def _row_ids(logs: list[Path]) -> dict[Path, str]:
 
 
 def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loop: bool, no_gps: bool,
-         json_out: bool) -> None:
+         json_out: bool, topic: str | None = None, window: SweepWindow | None = None) -> None:
     """The `slam` verb: the CLI flags set config values (slam.method, slam.loop.enabled,
-    slam.gps.enabled), which are then the one source of truth."""
+    slam.gps.enabled, --topic: io.roles.lidar), which are then the one source of truth; `window`
+    limits the sweeps read (recorded in each result's extra and warnings)."""
     from mrnc_eval.errors import SomeInputsFailed
+    from mrnc_eval.io.scan_folder import is_scan_folder
 
     cfg = with_method(cfg, method)
+    if topic is not None:
+        cfg = replace_path(cfg, "io.roles", {**cfg.io.roles, "lidar": topic})
     if no_loop:
         cfg = replace_path(cfg, "slam.loop.enabled", False)
     if no_gps:
         cfg = replace_path(cfg, "slam.gps.enabled", False)
+    from mrnc_eval.io.containers import detect_container
+
+    for path in logs:  # a folder of logs (not a ROS 2 bag, not scans) is refused before anything is written
+        if path.is_dir() and not is_scan_folder(path):
+            detect_container([path])
     check_output_root(out, need_bytes=SLAM_OUTPUT_BYTES * len(logs))  # before the long work, not after it
     results: list[tuple[Path, RunResult]] = []
     failed: list[tuple[Path, str]] = []
@@ -507,7 +694,10 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     for path in logs:
         run_dir = new_run_dir(out, log_id_for(path), f"slam-{cfg.slam.method}")
         try:
-            r = run_log(path, cfg, run_dir, progress=True)
+            if is_scan_folder(path):  # kiss-icp's habit: a folder of .bin/.pcd scans with timestamps.txt
+                r = run_scan_folder(path, cfg, run_dir, window=window)
+            else:
+                r = run_log(path, cfg, run_dir, progress=True, window=window)
         except InputError as err:
             if len(logs) == 1:
                 raise
@@ -529,19 +719,26 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
     from mrnc_eval.reports.tables import render_table
 
     if json_out:
-        from mrnc_eval.commands.output import emit_json
+        from mrnc_eval.commands.output import emit_json, item
 
-        emit_json([{"log": r.log_path, "run_dir": str(d), **{m.name: m.value for m in r.metrics}}
-                   for d, r in results])
+        emit_json("slam", [item(r.log_id, {m.name: m.value for m in r.metrics}, log=r.log_path, run_dir=str(d),
+                                method=r.extra.get("method"), units={m.name: m.unit for m in r.metrics},
+                                mapping=mapping_rate(r), warnings=list(r.warnings))
+                           for d, r in results],
+                  meta={"table_trajectory": cfg.slam.table_trajectory},
+                  warnings=[f"{r.log_id}: {w}" for _, r in results for w in r.warnings])
         return
     for d, r in results:
         vals = {m.name: m.value for m in r.metrics}
         apes = [f"{label} {vals[name]:.4f} m" for label, name in (("online", "ape_online_rmse_m"),
                                                                     ("smoothed", "ape_rmse_m")) if name in vals]
-        ape = ", ".join(apes) if apes else "n/a (no ground truth)"
+        ape = ", ".join(apes) if apes else f"n/a (no ground truth: {ground_truth_hint(Path(r.log_path))})"
+        if not apes and "ape_gnss_rmse_m" in vals:  # the comparison the run could make without ground truth
+            ape += f"; vs GNSS {vals['ape_gnss_rmse_m']:.3f} m (2-D, includes the GNSS error)"
         used = ", ".join(f"{role} {topic}" for role, topic in r.extra.get("roles", {}).items())
-        sys.stdout.write(f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
-                         f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}\n")
+        line = (f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
+                f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}")
+        sys.stdout.write(printable(line) + "\n")  # topic names come from the log
     if len(rows) > 1:
         title = f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"
         sys.stdout.write(render_table(table_one(cells, rows, [cfg.slam.method], title=title),

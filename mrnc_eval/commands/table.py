@@ -28,8 +28,10 @@ from mrnc_eval.evaluation.modes import AlignMode
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import read_trajectory
 from mrnc_eval.io.trajectory_inputs import TrajectorySpec, parse_trajectory_spec
+from mrnc_eval.outputs import claim_output, write_output
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
-from mrnc_eval.results import RESULT_FILE, RunResult, atomic_write_text, read_result
+from mrnc_eval.results import RESULT_FILE, RunResult, read_result
+from mrnc_eval.schema import slam as slam_keys
 from mrnc_eval.tables import Table
 
 log = logging.getLogger(__name__)
@@ -41,9 +43,10 @@ MANIFEST_HELP = ("sequences: {NAME: {reference: REF, methods: {METHOD: EST, ...}
                  "TUM, KITTI or EuRoC files, slam result folders or log.bag:/topic, relative to the manifest")
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Sequence:
-    """One row: its reference and each method's estimate (None: the method has none)."""
+    """One row: its reference and each method's estimate (None: the method gave none, Failed; a
+    method missing from `methods` was not run on it)."""
 
     reference: TrajectorySpec
     methods: dict[str, TrajectorySpec | None]
@@ -85,35 +88,60 @@ def _slam_runs(root: Path) -> list[tuple[Path, RunResult]]:
 def _run_reference(result: RunResult) -> TrajectorySpec | None:
     """The ground truth the run found: recorded in result.json (`extra.ground_truth`); for runs
     written before it was recorded, the same rule again from the log's path and roles."""
-    if "ground_truth" in result.extra:
-        spec = result.extra["ground_truth"]
+    if slam_keys.GROUND_TRUTH in result.extra:
+        spec = result.extra[slam_keys.GROUND_TRUTH]
         return None if spec is None else parse_trajectory_spec(spec)
-    topic = result.extra.get("roles", {}).get("ground_truth")
+    topic = result.extra.get(slam_keys.ROLES, {}).get("ground_truth")
     if topic:
         return TrajectorySpec(result.log_path, topic)
     beside = gt_tum_path(Path(result.log_path))
     return TrajectorySpec(str(beside)) if beside.is_file() else None
 
 
+def _log_key(result: RunResult, run_dir: Path) -> str:
+    """What identifies a log: its path as recorded (absolute since issue 26; an older relative
+    one is taken relative to the result folder's parent, the usual working folder)."""
+    path = Path(result.log_path)
+    return os.path.normpath(path if path.is_absolute() else run_dir.parent.parent / path)
+
+
+def row_labels(paths: list[str]) -> dict[str, str]:
+    """A short, distinct label per log path: the file name without suffix, with as many parent
+    folders as needed to tell logs of one name apart ("day1/run", "day2/run")."""
+    from mrnc_eval.results import log_id_for
+
+    labels: dict[str, str] = {}
+    for path in paths:
+        parts = Path(path).parts
+        depth = 1
+        while True:
+            label = "/".join([*parts[-depth:-1], log_id_for(parts[-1])]) if depth > 1 else log_id_for(parts[-1])
+            clash = [p for p in paths if p != path and
+                     "/".join([*Path(p).parts[-depth:-1], log_id_for(Path(p).name)]) == label]
+            if not clash or depth >= len(parts):
+                labels[path] = label
+                break
+            depth += 1
+    return labels
+
+
 def _from_runs(runs: list[tuple[Path, RunResult]], table_trajectory: str) -> dict[str, Sequence]:
-    """One row per log id, one column per method: the newest run of each; runs that found no
-    ground truth are left out with a warning (they have no APE to show)."""
+    """One row per log path (as `slam` writes one row per log), one column per method: the newest
+    run of each; runs that found no ground truth are left out with a warning (no APE to show)."""
     newest: dict[tuple[str, str], tuple[Path, RunResult]] = {}
     for run_dir, result in sorted(runs, key=lambda run: (run[1].created_utc, run[0].name)):
-        newest[(result.log_id, str(result.extra.get("method", "lio")))] = (run_dir, result)
+        newest[(_log_key(result, run_dir), str(result.extra.get(slam_keys.METHOD, "lio")))] = (run_dir, result)
     if len(newest) < len(runs):
         log.warning("%d older run(s) of a log and method left out: the table shows the newest of each",
                     len(runs) - len(newest))
+    labels = row_labels(sorted({key for key, _m in newest}))
     sequences: dict[str, Sequence] = {}
-    for (log_id, method), (run_dir, result) in sorted(newest.items()):
+    for (key, method), (run_dir, result) in sorted(newest.items(), key=lambda kv: (labels[kv[0][0]], kv[0][1])):
         reference = _run_reference(result)
         if reference is None:
             log.warning("%s: the run found no ground truth (no topic, no <log>.gt.tum); left out", run_dir)
             continue
-        row = log_id
-        if row in sequences and sequences[row].reference != reference:  # two logs of one name
-            row = f"{log_id} ({result.log_path})"
-        sequences.setdefault(row, Sequence(reference, {})).methods[method] = \
+        sequences.setdefault(labels[key], Sequence(reference=reference, methods={})).methods[method] = \
             TrajectorySpec(str(run_dir / RUN_TRAJECTORY[table_trajectory]))
     if not sequences:
         raise InputError(runs[0][0].parent, "no slam run in it found ground truth: nothing to tabulate")
@@ -132,7 +160,7 @@ def _from_sequence_folders(root: Path) -> dict[str, Sequence]:
             continue
         methods: dict[str, TrajectorySpec | None] = {
             p.stem: TrajectorySpec(str(p)) for p in sorted(seq_dir.glob("*.tum")) if p != gt}
-        sequences[seq_dir.name] = Sequence(TrajectorySpec(str(gt)), methods)
+        sequences[seq_dir.name] = Sequence(reference=TrajectorySpec(str(gt)), methods=methods)
     return sequences
 
 
@@ -159,15 +187,19 @@ def _from_manifest(path: Path, table_trajectory: str) -> dict[str, Sequence]:
         methods = entry.get("methods") or {}
         if not isinstance(methods, dict):
             raise InputError(path, f"sequence {name!r}: 'methods' must map method names to trajectories")
-        sequences[str(name)] = Sequence(spec(entry["reference"]),
-                                        {str(m): None if est is None else spec(est) for m, est in methods.items()})
+        sequences[str(name)] = Sequence(reference=spec(entry["reference"]),
+                                        methods={str(m): None if est is None else spec(est)
+                                                 for m, est in methods.items()})
     return sequences
 
 
 # ------------------------------------------------------------------ the table
 
 
-def _cell(reference: Trajectory, estimate: TrajectorySpec | None, cfg: Config, align: AlignMode) -> Cell:
+def _cell(reference: Trajectory, seq: Sequence, method: str, cfg: Config, align: AlignMode) -> Cell:
+    if method not in seq.methods:
+        return Cell(None, not_run=True)
+    estimate = seq.methods[method]
     if estimate is None or not estimate.exists():
         return Cell(None, "no trajectory")
     ev = cfg.evaluation
@@ -189,10 +221,11 @@ def build_table_one(source: Path, cfg: Config | None = None, *, align: AlignMode
     for name, seq in sequences.items():
         reference = read_trajectory(seq.reference)
         for m in methods:
-            cells[(name, m)] = _cell(reference, seq.methods.get(m), cfg, align)
+            cells[(name, m)] = _cell(reference, seq, m, cfg, align)
     table = table_one(cells, list(sequences), methods)
     ev = cfg.evaluation
-    table.notes.append("Failed: no trajectory, an evaluation error, "
+    table.notes.append("not run: the method was never run on that log (no result, no file); "
+                       "Failed: no trajectory, an evaluation error, "
                        f"fewer than {ev.failed_min_matches} matched poses, "
                        f"or a matched span under {ev.failed_min_span_fraction:.0%} of the reference's; "
                        f"APE after {align} alignment, max_diff {ev.max_diff_s} s")
@@ -203,17 +236,34 @@ def build_table_one(source: Path, cfg: Config | None = None, *, align: AlignMode
     return table
 
 
-def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_out: bool) -> None:
+def table_items(table: Table) -> list[dict[str, Any]]:
+    """One --json `results` item per cell: sequence, method, its number (null when Failed) and
+    why it failed; the mean row is a sequence named "Mean" like in the table."""
+    from mrnc_eval.commands.output import is_stat, item
+
+    out = []
+    for row, cells in zip(table.row_labels, table.cells, strict=True):
+        for column, cell in zip(table.column_labels, cells, strict=True):
+            number = cell if is_stat(cell) else None
+            out.append(item(f"{row}/{column}", {"value": number}, sequence=row, method=column,
+                            failed=None if number is not None else str(cell or "no value")))
+    return out
+
+
+def main(source: Path, cfg: Config, *, out: Path | None, align: AlignMode, json_out: bool, force: bool = False
+         ) -> None:
     """The `table` verb: Markdown on stdout, JSON with --json, a file by suffix with --out."""
     from mrnc_eval.commands.output import emit_json
 
     fmt = SUFFIX_FORMAT.get(out.suffix.lower()) if out is not None else "markdown"
     if fmt is None:
         raise UsageError(f"--out {out}: use a .md, .tex, .csv or .html file")
+    if out is not None:
+        claim_output(out, force=force, inputs=[source])
     table = build_table_one(source, cfg, align=align)  # everything computed before anything is written
     if json_out:
-        emit_json(table.__dict__)
+        emit_json("table", table_items(table), meta={"table": table.__dict__})
     elif out is None:
         sys.stdout.write(render_table(table, "markdown"))
     if out is not None:
-        atomic_write_text(out, render_table(table, fmt))
+        write_output(out, render_table(table, fmt), force=force, inputs=[source])

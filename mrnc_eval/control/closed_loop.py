@@ -10,13 +10,18 @@ from typing import Any
 
 import numpy as np
 
-from mrnc_eval.control.config import ControlConfig, RobotGeometry
+from mrnc_eval.control.config import ControlConfig, RobotGeometry, reference_accel_limit
 from mrnc_eval.control.controllers import (
     CONTROLLER_ID,
     LABELS,
+    OK,
     P_ANCHOR,
     P_FF,
+    P_RATE_FF,
+    S_RESTARTS,
+    S_STOP_E_OVER_O,
     STATE_SIZE,
+    STOP_CAUSES,
     controller_params,
     controller_step,
     funnel_at,
@@ -33,10 +38,11 @@ from mrnc_eval.control.scenario import Scenario, waypoint_scenario
  CH_SLIP_L, CH_SLIP_R, CH_U_L, CH_U_R, CH_FUNNEL_L, CH_FUNNEL_R, CH_UFB_L, CH_UFB_R, CH_PHI_L, CH_PHI_R) = range(22)
 N_OUT = 22
 
-# Counted at the full control rate (not only on recorded samples), per side: samples with |e| >= o(t),
-# samples with |U| at the limit, and IAE (m).
-ST_FUNNEL, ST_SATURATED, ST_IAE = range(3)
-N_STATS = 3
+# Counted at the full control rate (not only on recorded samples), per side and up to a safety stop:
+# samples with |e| >= o(t),
+# samples with |U| at the limit, IAE (m), and (at the end) the restarts of the segment clock.
+ST_FUNNEL, ST_SATURATED, ST_IAE, ST_RESTARTS = range(4)
+N_STATS = 4
 
 CONTROLLER_ID_RAID = CONTROLLER_ID["raid"]
 
@@ -49,6 +55,22 @@ PL_SIZE = 14
 (RUN_DT, RUN_STEPS, RUN_PP_EVERY, RUN_RECORD_EVERY, RUN_LINGER, RUN_X0, RUN_Y0, RUN_YAW0, RUN_ACCEL_LIMIT,
  RUN_DERIV_TAU, RUN_SEED, RUN_SAT_LEVEL) = range(12)
 RUN_SIZE = 12
+
+
+@dataclass(frozen=True, kw_only=True)
+class SideTrace:
+    """One side's channels of a trace (typed access instead of attribute names built from strings)."""
+
+    v_ref: FloatArray  # reference wheel surface speed, m/s
+    v_wheel: FloatArray  # measured wheel surface speed, m/s
+    u: FloatArray  # pump command after the clamp, RPM
+    slip: FloatArray  # slip ratio
+    funnel: FloatArray  # o(t), m/s
+    u_fb: FloatArray | None  # applied feedback U - f, RPM (None: unknown)
+    phi: FloatArray | None  # RAID's phi-hat (None for the other laws)
+
+
+SIDES = ("left", "right")
 
 
 @dataclass
@@ -85,6 +107,16 @@ class ClosedLoopTrace:
 
     def funnel_of(self, side: str) -> FloatArray:
         return self.funnel_right if side == "right" and self.funnel_right is not None else self.funnel
+
+    def side(self, side: str) -> SideTrace:
+        """The channels of `side` ("left" or "right")."""
+        if side == "left":
+            return SideTrace(v_ref=self.v_ref_left, v_wheel=self.v_wheel_left, u=self.u_left, slip=self.slip_left,
+                             funnel=self.funnel, u_fb=self.u_fb_left, phi=self.phi_left)
+        if side == "right":
+            return SideTrace(v_ref=self.v_ref_right, v_wheel=self.v_wheel_right, u=self.u_right, slip=self.slip_right,
+                             funnel=self.funnel_of("right"), u_fb=self.u_fb_right, phi=self.phi_right)
+        raise ValueError(f"side must be 'left' or 'right', not {side!r}")
 
 
 def plant_params(cfg: ControlConfig, robot: RobotGeometry, dt: float) -> FloatArray:
@@ -131,7 +163,7 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
               run: FloatArray) -> tuple[FloatArray, FloatArray, FloatArray, bool, int]:
     """The compiled loop (one function so numba keeps the whole chain in registers; split into
     kernels where a piece has its own meaning). Returns (recorded channels (n, N_OUT); safety stops
-    per side (2, 2): time s and cause (1 = barrier or non-finite), -1 when none; full-rate counters
+    per side (2, 3): time s, cause (controllers.STOP_CAUSES) and |e|/o at the stop, -1 when none; full-rate counters
     (2, N_STATS); done; step index of the goal or -1)."""
     dt = run[RUN_DT]
     n_steps, pp_every = int(run[RUN_STEPS]), int(run[RUN_PP_EVERY])
@@ -142,10 +174,10 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
     delay_l, delay_r = int(plant[PL_DELAY_L]), int(plant[PL_DELAY_R])
     n_rec = n_steps // record_every + 1
     out = np.zeros((n_rec, N_OUT))
-    stops = np.full((2, 2), -1.0)
+    stops = np.full((2, 3), -1.0)
     stats = np.zeros((2, N_STATS))
     sat_level = run[RUN_SAT_LEVEL]
-    u_ff_per_mps = p[P_FF]
+    u_ff_per_mps, rate_ff_s = p[P_FF], p[P_RATE_FF]
     raid = cid == CONTROLLER_ID_RAID
     per_step_funnel = p[P_ANCHOR] > 0.5
     state_l = np.zeros(STATE_SIZE)
@@ -186,19 +218,22 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
         meas_r = vw_r + noise * np.random.standard_normal()
         u_l, u_r = 0.0, 0.0
         if not stopped_l:
-            u_l, ok = controller_step(cid, state_l, p, centres, t, ref_l, dref_l, meas_l, dt)
-            if not ok:
+            u_l, status = controller_step(cid, state_l, p, centres, t, ref_l, dref_l, meas_l, dt)
+            if status != OK:
                 stopped_l = True
-                stops[0, 0], stops[0, 1] = t, 1.0
+                stops[0, 0], stops[0, 1], stops[0, 2] = t, status, state_l[S_STOP_E_OVER_O]
         if not stopped_r:
-            u_r, ok = controller_step(cid, state_r, p, centres, t, ref_r, dref_r, meas_r, dt)
-            if not ok:
+            u_r, status = controller_step(cid, state_r, p, centres, t, ref_r, dref_r, meas_r, dt)
+            if status != OK:
                 stopped_r = True
-                stops[1, 0], stops[1, 1] = t, 1.0
+                stops[1, 0], stops[1, 1], stops[1, 2] = t, status, state_r[S_STOP_E_OVER_O]
         o_l, _ = funnel_at(state_l, p, t)
         o_r = funnel_at(state_r, p, t)[0] if per_step_funnel else o_l  # run-start anchoring: one o(t)
-        _count(stats[0], meas_l - ref_l, o_l, u_l, sat_level, dt)
-        _count(stats[1], meas_r - ref_r, o_r, u_r, sat_level, dt)
+        # counted while the side runs: a stopped side's dead error is not tracking (time to stop is reported)
+        if not stopped_l:
+            _count(stats[0], meas_l - ref_l, o_l, u_l, sat_level, dt)
+        if not stopped_r:
+            _count(stats[1], meas_r - ref_r, o_r, u_r, sat_level, dt)
         # transport delay (ring buffers), dead band, lag, slip
         slot_l, slot_r = k % (delay_l + 1), k % (delay_r + 1)
         ul_del, ur_del = buf_l[slot_l], buf_r[slot_r]
@@ -213,8 +248,8 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
                                                            (1.0 - s_r) * vw_r, track * plant[PL_CHI], dt)
         if k % record_every == 0:
             # applied feedback: what the command holds beyond the feed-forward (0 after a safety stop)
-            fb_l = u_l - u_ff_per_mps * ref_l if not stopped_l else 0.0
-            fb_r = u_r - u_ff_per_mps * ref_r if not stopped_r else 0.0
+            fb_l = u_l - u_ff_per_mps * (ref_l + rate_ff_s * dref_l) if not stopped_l else 0.0
+            fb_r = u_r - u_ff_per_mps * (ref_r + rate_ff_s * dref_r) if not stopped_r else 0.0
             phi_l = state_l[0] if raid else math.nan
             phi_r = state_r[0] if raid else math.nan
             _record(out[k_rec], t, x, y, yaw, v_body, w_body, cmd_v, cmd_w, ref_l, ref_r, meas_l, meas_r,
@@ -222,6 +257,7 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
             k_rec += 1
         if done_at >= 0 and k - done_at >= linger_steps:
             break
+    stats[0, ST_RESTARTS], stats[1, ST_RESTARTS] = state_l[S_RESTARTS], state_r[S_RESTARTS]
     return out[:k_rec], stops, stats, done, done_at
 
 
@@ -246,7 +282,7 @@ def run_closed_loop(scenario: Scenario | FloatArray, cfg: ControlConfig, robot: 
     run[RUN_RECORD_EVERY] = max(1, int(record_every))
     run[RUN_LINGER] = int(round(2.0 / dt))
     run[RUN_X0], run[RUN_Y0], run[RUN_YAW0] = scenario.start_pose
-    run[RUN_ACCEL_LIMIT] = cfg.kinematics.reference_accel_limit_mps2
+    run[RUN_ACCEL_LIMIT] = reference_accel_limit(cfg)
     run[RUN_DERIV_TAU] = cfg.kinematics.reference_derivative_tau_s
     run[RUN_SEED] = cfg.seed if seed is None else seed
     run[RUN_SAT_LEVEL] = cfg.actuator.u_max_rpm - cfg.metrics.saturation_tolerance_rpm
@@ -257,13 +293,19 @@ def run_closed_loop(scenario: Scenario | FloatArray, cfg: ControlConfig, robot: 
     return _trace(controller, out, stops, stats, bool(done), done_at * dt if done else float("nan"), scenario)
 
 
+_STOP_TEXT = {"barrier": "|e| reached the funnel o(t)",
+              "barrier_at_clamp": "|e| reached the funnel o(t) with the command at the clamp",
+              "non_finite": "a value became non-finite"}
+
+
 def _trace(controller: str, out: FloatArray, stops: FloatArray, stats: FloatArray, done: bool,
            completion_time_s: float, scenario: Scenario) -> ClosedLoopTrace:
     """The compiled loop's output as a trace, channel by channel."""
     events: list[dict[str, Any]] = [
-        {"t_s": float(stops[i, 0]), "kind": "safety_stop", "side": side, "cause": "barrier_or_non_finite",
-         "message": f"{side} side: |e| reached the funnel o(t) or a value became non-finite; command set to 0"}
-        for i, side in enumerate(("left", "right")) if stops[i, 0] >= 0]
+        {"t_s": float(stops[i, 0]), "kind": "safety_stop", "side": side, "cause": STOP_CAUSES[int(stops[i, 1])],
+         "e_over_o": float(stops[i, 2]),
+         "message": f"{side} side: {_STOP_TEXT[STOP_CAUSES[int(stops[i, 1])]]}; command set to 0"}
+        for i, side in enumerate(SIDES) if stops[i, 0] >= 0]
     c = out.T
     return ClosedLoopTrace(
         controller=controller, label=LABELS[controller], t=c[CH_T], x=c[CH_X], y=c[CH_Y], yaw=c[CH_YAW],

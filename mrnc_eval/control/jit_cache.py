@@ -1,14 +1,16 @@
-"""The compiled-kernel decorator of the control package, and keeping numba's on-disk cache of
-those kernels consistent with their sources.
+"""The compiled-kernel decorator of the control package, with a numba cache that stays consistent
+with the package's sources.
 
 numba invalidates a cached function only when its own file changes; the closed loop inlines
 kernels from other modules (raid.py, plant.py, ...), so editing one of those would silently
-reuse a stale compiled loop. On import we hash every control source and drop the package's
-cache files when the hash differs from the one recorded beside them.
+reuse a stale compiled loop. The kernels' cache entries are therefore stamped with a hash of
+every control source: numba itself then treats an entry compiled from other sources as stale
+and recompiles (nothing is deleted, nothing happens on import).
 """
 
 from __future__ import annotations
 
+import functools
 import hashlib
 from collections.abc import Callable
 from pathlib import Path
@@ -16,6 +18,7 @@ from typing import Any, TypeVar, cast
 
 import numpy as np
 from numba import njit
+from numba.core import caching
 from numpy.typing import NDArray
 
 FloatArray = NDArray[np.float64]
@@ -29,36 +32,49 @@ def pack_slots(values: dict[int, float]) -> list[float]:
     return [float(values[k]) for k in range(len(values))]
 
 
-def kernel(fn: F) -> F:
-    """numba.njit(cache=True) that keeps the function's signature for the type checker (numba
-    ships no type information, so a bare @njit would make every kernel untyped)."""
-    return cast(F, njit(cache=True)(fn))
-
-
 _HERE = Path(__file__).parent
-_STAMP = "control-sources.sha256"
 
 
-def ensure_consistent_cache(cache_dir: Path | None = None) -> bool:
-    """Remove stale *.nbi/*.nbc of this package. Returns True when files were removed."""
-    cache_dir = cache_dir or _HERE / "__pycache__"
+@functools.cache
+def package_digest() -> str:
+    """sha256 over the names and contents of the package's sources (once per process)."""
     digest = hashlib.sha256()
     for src in sorted(_HERE.glob("*.py")):
         digest.update(src.name.encode())
         digest.update(src.read_bytes())
-    stamp = cache_dir / _STAMP
-    try:
-        if stamp.read_text() == digest.hexdigest():
-            return False
-    except OSError:
-        pass
-    removed = False
-    try:
-        cache_dir.mkdir(exist_ok=True)
-        for f in list(cache_dir.glob("*.nbi")) + list(cache_dir.glob("*.nbc")):
-            f.unlink(missing_ok=True)
-            removed = True
-        stamp.write_text(digest.hexdigest())
-    except OSError:  # read-only install: numba falls back to its own cache locator or compiles
-        pass
-    return removed
+    return digest.hexdigest()
+
+
+class _PackageStamp:
+    """Locator mixin: the source stamp is the file's own and the package digest."""
+
+    def get_source_stamp(self) -> Any:
+        return (super().get_source_stamp(), package_digest())  # type: ignore[misc]
+
+
+class _InTree(_PackageStamp, caching.InTreeCacheLocator):
+    pass
+
+
+class _UserProvided(_PackageStamp, caching.UserProvidedCacheLocator):
+    pass
+
+
+class _UserWide(_PackageStamp, caching.UserWideCacheLocator):
+    pass
+
+
+class _PackageCacheImpl(caching.CompileResultCacheImpl):
+    _locator_classes = [_UserProvided, _InTree, _UserWide]  # noqa: RUF012 (numba reads this class attribute)
+
+
+class _PackageCache(caching.FunctionCache):
+    _impl_class = _PackageCacheImpl
+
+
+def kernel(fn: F) -> F:
+    """numba.njit with an on-disk cache stamped by the package digest, keeping the function's
+    signature for the type checker (numba ships no type information)."""
+    dispatcher = njit(fn)
+    dispatcher._cache = _PackageCache(dispatcher.py_func)  # type: ignore[no-untyped-call]
+    return cast(F, dispatcher)

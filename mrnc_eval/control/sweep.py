@@ -10,6 +10,7 @@ from dataclasses import dataclass, replace
 import numpy as np
 
 from mrnc_eval.control.config import ControlConfig, DriveConfig, PlantConfig, SweepConfig
+from mrnc_eval.control.jit_cache import FloatArray
 from mrnc_eval.control.plant import SlipPatch
 from mrnc_eval.control.scenario import Scenario
 
@@ -46,6 +47,49 @@ def scenario_for(draw: PlantDraw, scenario: Scenario) -> Scenario:
     patches = tuple(SlipPatch(p.x, p.y, p.radius_m, min(p.slip * draw.slip_scale, 0.95))
                     for p in scenario.slip_patches)
     return replace(scenario, slip_patches=patches)
+
+
+def slip_demands(v_ref: list[FloatArray], slip: list[FloatArray]) -> list[tuple[float, float]]:
+    """(slip ratio, highest side reference m/s while on it) of a nominal run, sides pooled; slip 0 =
+    the highest reference anywhere. What a drawn plant must deliver where it slips most."""
+    refs, slips = np.concatenate(v_ref), np.concatenate(slip)
+    out = [(0.0, float(np.max(np.abs(refs))))]
+    for ratio in np.unique(slips[slips > 0]):
+        out.append((float(ratio), float(np.max(np.abs(refs[slips == ratio])))))
+    return out
+
+
+def authority_margin(draw: PlantDraw, demands: list[tuple[float, float]], cfg: ControlConfig) -> float:
+    """Worst speed margin (m/s) of the drawn drive at the clamp: min over the nominal run's demands of
+    K (1 - s') (U_top - dz) - v_ref, with s' the draw's scaled slip (capped at 0.95) and U_top = u_max
+    (clamp on the total command) or f(v_ref) + u_max (clamp on the feedback). Static map of the drive
+    (v = K (1 - s) deadband(U))."""
+    gain = (1.0 + draw.gain_mismatch) / cfg.model.feedforward_rpm_per_mps
+    worst = float("inf")
+    for ratio, v in demands:
+        top = cfg.actuator.u_max_rpm
+        if cfg.actuator.saturation_applies_to == "feedback":
+            top += cfg.model.feedforward_rpm_per_mps * v
+        s_draw = min(ratio * draw.slip_scale, 0.95)
+        worst = min(worst, gain * (1.0 - s_draw) * max(top - draw.dead_band_rpm, 0.0) - v)
+    return worst
+
+
+def feasible(draw: PlantDraw, demands: list[tuple[float, float]], cfg: ControlConfig) -> bool:
+    """A plant on which some controller can hold |e| < o_b everywhere: the clamp and the slip leave a
+    reachable speed within the funnel floor o_b of every demand."""
+    return authority_margin(draw, demands, cfg) > -cfg.funnel.o_b_mps
+
+
+def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
+    """Wilson score interval (95 % by default) of a fraction k/n; (nan, nan) for n = 0."""
+    if n == 0:
+        return float("nan"), float("nan")
+    p = k / n
+    den = 1.0 + z * z / n
+    centre = (p + z * z / (2 * n)) / den
+    half = z * float(np.sqrt(p * (1 - p) / n + z * z / (4 * n * n))) / den
+    return max(0.0, centre - half), min(1.0, centre + half)
 
 
 def mismatch_bins(cfg: SweepConfig, n_bins: int = 6) -> list[tuple[float, float]]:

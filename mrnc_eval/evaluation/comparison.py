@@ -2,7 +2,9 @@
 
 A cell is Failed when the method produced no trajectory, too few matched poses, or a
 matched span shorter than a fraction of the reference (a method that tracked half the
-sequence must not look good). The mean row is over non-failed cells, with the count noted.
+sequence must not look good); it is "not run" when the method was never run on that
+sequence (no result, no file): that is no verdict on the method. The mean row is over
+the cells with a number, with the count noted.
 """
 
 from __future__ import annotations
@@ -14,16 +16,18 @@ import numpy as np
 from mrnc_eval.tables import Table
 
 FAILED = "Failed"
+NOT_RUN = "not run"
 
 
 @dataclass(frozen=True)
 class Cell:
     value: float | None  # APE RMSE (m); None when failed
     reason: str = ""  # why it failed
+    not_run: bool = False  # the method was never run on this sequence: no verdict
 
     @property
     def failed(self) -> bool:
-        return self.value is None
+        return self.value is None and not self.not_run
 
 
 def judge(rmse: float, n: int, span_s: float, ref_span_s: float, *, min_matches: int,
@@ -42,8 +46,8 @@ def table_one(cells: dict[tuple[str, str], Cell], sequences: list[str], methods:
     for seq in sequences:
         row: list[float | str | None] = []
         for m in methods:
-            cell = cells.get((seq, m), Cell(None, "no trajectory"))
-            row.append(FAILED if cell.failed else cell.value)
+            cell = cells.get((seq, m), Cell(None, not_run=True))
+            row.append(NOT_RUN if cell.not_run else FAILED if cell.failed else cell.value)
             if cell.failed and cell.reason:
                 notes.append(f"{seq} / {m}: Failed ({cell.reason})")
         grid.append(row)
@@ -53,7 +57,7 @@ def table_one(cells: dict[tuple[str, str], Cell], sequences: list[str], methods:
         vals = [v for r in grid if isinstance(v := r[k], float)]
         means.append(float(np.mean(vals)) if vals else FAILED)
         counts.append(f"{m} {len(vals)}/{len(sequences)}")
-    notes.insert(0, "Mean over non-failed sequences: " + ", ".join(counts))
+    notes.insert(0, "Mean over sequences with a number (not Failed, not 'not run'): " + ", ".join(counts))
     # A mean over fewer sequences is not comparable with a full one: name the best complete method too.
     complete = [(means[k], m) for k, m in enumerate(methods)
                 if isinstance(means[k], float) and all(isinstance(r[k], float) for r in grid)]

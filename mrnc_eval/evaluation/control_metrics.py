@@ -20,6 +20,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrnc_eval.control.config import MetricsConfig, PaperMetricsConfig
+from mrnc_eval.evaluation.step_readings import funnel_reading, stepinfo
 
 FloatArray = NDArray[np.float64]
 
@@ -86,15 +87,22 @@ def step_segments(t: FloatArray, r: FloatArray, cfg: MetricsConfig) -> list[tupl
 
 
 def tracking_metrics(t: FloatArray, r: FloatArray, y: FloatArray, u: FloatArray, o: FloatArray, *, u_max: float,
-                     slip: FloatArray | None, cfg: MetricsConfig) -> dict[str, float]:
+                     slip: FloatArray | None, cfg: MetricsConfig, o_floor: float = 0.11) -> dict[str, float]:
     """Per-side metrics with unit-bearing keys. Reference changes smaller than cfg.min_step_mps
-    (continuous pure-pursuit corrections) are not steps."""
+    (continuous pure-pursuit corrections) are not steps. Settling and overshoot in three readings:
+    reference-centred (settling_time_s, overshoot_pct), stepinfo (final value) and funnel (floor
+    o_floor m/s), see evaluation/step_readings.py."""
     dt = np.diff(t, append=t[-1] + (t[-1] - t[-2] if t.size > 1 else 0.0))
     e = y - r
     ae = np.abs(e)
-    steps = []
+    steps, infos, funnel_reads = [], [], []
     for a, ramp_end, end in step_segments(t, r, cfg):
         steps.append(step_response(t[a:end], y[a:end], r[a:end], float(y[a]), cfg, target=float(r[ramp_end])))
+        window = min(cfg.steady_window_fraction * (t[end - 1] - t[a]), cfg.steady_window_max_s)
+        infos.append(stepinfo(t[a:end], y[a:end], float(y[a]), float(r[end - 1]), band=cfg.settling_band,
+                              floor=cfg.settling_floor_mps, final_window_s=window,
+                              r_step=float(r[ramp_end] - y[a])))
+        funnel_reads.append(funnel_reading(t[a:end], y[a:end], r[a:end], o[a:end], o_floor))
     sat = np.abs(u) >= u_max - cfg.saturation_tolerance_rpm
     out = {
         "settling_time_s": _worst([s.settling_time_s for s in steps]),
@@ -105,6 +113,12 @@ def tracking_metrics(t: FloatArray, r: FloatArray, y: FloatArray, u: FloatArray,
                                              else abs(s.steady_state_error) for s in steps), default=float("nan"))),
         "steady_state_bias_mps": float(max((s.steady_state_error for s in steps), key=abs, default=float("nan"))),
         "n_steps": len(steps),
+        # final-value (stepinfo) reading, steady offset apart; funnel reading (evaluation/step_readings.py)
+        "stepinfo_settling_time_s": _nanmax([i.settling_time_s for i in infos]),
+        "stepinfo_overshoot_pct": _nanmax([i.overshoot_pct for i in infos]),
+        "steady_offset_mps": float(max((i.steady_offset for i in infos), key=abs, default=float("nan"))),
+        "funnel_settling_time_s": float(max((f[0] for f in funnel_reads), default=float("nan"))),
+        "funnel_peak_use_pct": float(max((f[1] for f in funnel_reads), default=float("nan"))),
         "iae": float(np.sum(ae * dt)),
         "ise": float(np.sum(e * e * dt)),
         "itae": float(np.sum((t - t[0]) * ae * dt)),
@@ -153,7 +167,8 @@ def paper_metrics(t: FloatArray, r: FloatArray, y: FloatArray, cfg: PaperMetrics
     y is smoothed by a centred moving mean over smoothing_s first (white measurement noise)."""
     nan = float("nan")
     out = {"paper_cruise_speed_mps": nan, "paper_settling_time_s": nan, "paper_overshoot_pct": nan,
-           "paper_steady_state_error_mps": nan}
+           "paper_steady_state_error_mps": nan, "paper_stepinfo_settling_time_s": nan,
+           "paper_stepinfo_overshoot_pct": nan, "paper_steady_offset_mps": nan}
     moving = np.flatnonzero(np.abs(r) > 1e-6)
     if moving.size == 0 or t.size < 3:
         return out
@@ -177,10 +192,21 @@ def paper_metrics(t: FloatArray, r: FloatArray, y: FloatArray, cfg: PaperMetrics
     else:
         out["paper_settling_time_s"] = float(tw[outside[-1] + 1] - t0)
     out["paper_overshoot_pct"] = 100.0 * max(0.0, float(np.max(yw)) - rc) / rc
+    # final-value reading of the same start-up step (y0 = 0; y_f over the window's second half)
+    info = stepinfo(tw, yw, 0.0, rc, band=cfg.band, floor=0.0, final_window_s=0.5 * cfg.startup_window_s)
+    out["paper_stepinfo_settling_time_s"] = info.settling_time_s
+    out["paper_stepinfo_overshoot_pct"] = info.overshoot_pct
+    out["paper_steady_offset_mps"] = info.steady_offset
     cruise = (t > t0 + cfg.startup_window_s) & (np.abs(r - rc) <= cfg.cruise_tolerance * rc)
     if cruise.any():
         out["paper_steady_state_error_mps"] = float(np.mean(np.abs(r[cruise] - ys[cruise])))
     return out
+
+
+def _nanmax(values: list[float]) -> float:
+    """Largest value ignoring NaN (a segment without a reading); NaN when none has one."""
+    kept = [v for v in values if not np.isnan(v)]
+    return float(max(kept)) if kept else float("nan")
 
 
 def _worst(values: list[float]) -> float:
@@ -203,10 +229,16 @@ def recovery_time(t: FloatArray, abs_err: FloatArray, slip: FloatArray, band: fl
                   horizon_s: float = 15.0) -> float:
     """Worst time (s) from a slip event (a patch entered or left) until |e| is back below band
     and stays there for hold_s; NaN if there was no event, inf if not recovered within horizon_s."""
+    events = recovery_events(t, abs_err, slip, band, hold_s, horizon_s)
+    return max((r for _t, _kind, r in events), default=float("nan"))
+
+
+def recovery_events(t: FloatArray, abs_err: FloatArray, slip: FloatArray, band: float, hold_s: float = 1.0,
+                    horizon_s: float = 15.0) -> list[tuple[float, str, float]]:
+    """Per slip event (time s, "slip on" or "slip off", recovery s): the time from the event until
+    |e| is back below band and stays there for hold_s (inf if not within horizon_s)."""
     changes = np.flatnonzero(np.diff(slip) != 0) + 1
-    if changes.size == 0:
-        return float("nan")
-    worst = 0.0
+    out = []
     inside = abs_err <= band
     for c in changes:
         stop = np.searchsorted(t, t[c] + horizon_s + hold_s)
@@ -221,8 +253,8 @@ def recovery_time(t: FloatArray, abs_err: FloatArray, slip: FloatArray, band: fl
                 rec = float(t[c + run_start] - t[c])
                 break
             run_start = None
-        worst = max(worst, rec)
-    return worst
+        out.append((float(t[c]), "slip on" if slip[c] > slip[c - 1] else "slip off", rec))
+    return out
 
 
 def estimate_slip(t: FloatArray, v_wheel: FloatArray, v_ground: FloatArray, *, window_s: float = 1.0,

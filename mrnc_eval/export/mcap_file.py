@@ -63,8 +63,10 @@ def point_cloud(t_ns: int, frame_id: str, xyz: np.ndarray) -> dict[str, Any]:
 
 
 def line_entity(t_ns: int, frame_id: str, entity_id: str, lines: list[dict[str, Any]]) -> dict[str, Any]:
+    """A foxglove.SceneEntity of lines; the other primitive lists are empty (the schema requires them)."""
     return {"timestamp": time_of(t_ns), "frame_id": frame_id, "id": entity_id, "lifetime": {"sec": 0, "nsec": 0},
-            "frame_locked": False, "metadata": [], "lines": lines}
+            "frame_locked": False, "metadata": [], "arrows": [], "cubes": [], "spheres": [], "cylinders": [],
+            "lines": lines, "triangles": [], "texts": [], "models": []}
 
 
 def line(kind: int, xyz: np.ndarray, rgba: dict[str, float], thickness_px: float = 2.0) -> dict[str, Any]:

@@ -7,13 +7,15 @@
    strict path, which names the bad line.
 
    Numbers round exactly as float() (correctly): integer mantissa / power of ten when both are
-   exact doubles (at most 19 significant digits, mantissa <= 2^53, at most 22 decimals; one IEEE
-   division is then correctly rounded), strtod (correctly rounded in glibc) otherwise. */
+   exact doubles (at most 19 digits, mantissa <= 2^53, at most 22 decimals; one IEEE division is
+   then correctly rounded), strtod (correctly rounded in glibc) otherwise. Each line is found with
+   memchr and its numbers read in one pass over the characters. */
 
 #define PY_SSIZE_T_CLEAN
 #include <Python.h>
 
 #include <math.h>
+#include <stddef.h>
 #include <stdint.h>
 #include <stdio.h>
 #include <stdlib.h>
@@ -27,57 +29,55 @@
 static const double POW10[23] = {1e0,  1e1,  1e2,  1e3,  1e4,  1e5,  1e6,  1e7,  1e8,  1e9,  1e10, 1e11,
                                  1e12, 1e13, 1e14, 1e15, 1e16, 1e17, 1e18, 1e19, 1e20, 1e21, 1e22};
 
-static int is_digit(char c) { return c >= '0' && c <= '9'; }
+static int is_digit(char c) { return (unsigned char)(c - '0') < 10; }
 
-/* The number in s[0, len) into *out; 0, or NOT_PLAIN when it is not a plain finite decimal. */
-static int parse_number(const char *s, size_t len, double *out) {
-    if (len == 0 || len > MAX_TOKEN) return NOT_PLAIN;
-    size_t i = 0;
+/* The number starting at *cursor (before `end`) into *out, *cursor moved past it; 0, or
+   NOT_PLAIN when it is not a plain finite decimal of at most MAX_TOKEN characters. One pass over
+   the characters: at most 19 digits (leading zeros included) fit a uint64 mantissa exactly; the
+   rest (longer numbers, exponents) goes to strtod. */
+static inline int parse_number(const char **cursor, const char *end, double *out) {
+    const char *s = *cursor, *p = s;
     int negative = 0;
-    if (s[0] == '+' || s[0] == '-') {
-        negative = s[0] == '-';
-        i = 1;
+    if (p < end && (*p == '+' || *p == '-')) {
+        negative = *p == '-';
+        p++;
     }
-    uint64_t mantissa = 0;
-    int significant = 0, decimals = 0, digits = 0, seen_point = 0;
-    for (; i < len; i++) {
-        char c = s[i];
-        if (is_digit(c)) {
-            digits++;
-            decimals += seen_point;
-            if (mantissa != 0 || c != '0') significant++;
-            if (significant <= 19) mantissa = mantissa * 10 + (uint64_t)(c - '0');
-        } else if (c == '.' && !seen_point) {
-            seen_point = 1;
-        } else {
-            break;
-        }
+    uint64_t mantissa = 0; /* wraps past 19 digits: then unused */
+    const char *digits_start = p;
+    while (p < end && is_digit(*p)) mantissa = mantissa * 10 + (uint64_t)(*p++ - '0');
+    ptrdiff_t digits = p - digits_start, decimals = 0;
+    if (p < end && *p == '.') {
+        const char *fraction = ++p;
+        while (p < end && is_digit(*p)) mantissa = mantissa * 10 + (uint64_t)(*p++ - '0');
+        decimals = p - fraction;
+        digits += decimals;
     }
     if (digits == 0) return NOT_PLAIN;
-    int has_exponent = 0;
-    if (i < len && (s[i] == 'e' || s[i] == 'E')) {
-        has_exponent = 1;
-        i++;
-        if (i < len && (s[i] == '+' || s[i] == '-')) i++;
-        size_t first = i;
-        while (i < len && is_digit(s[i])) i++;
-        if (i == first) return NOT_PLAIN;
+    int exact = digits <= 19;
+    if (p < end && (*p == 'e' || *p == 'E')) {
+        exact = 0;
+        p++;
+        if (p < end && (*p == '+' || *p == '-')) p++;
+        const char *first = p;
+        while (p < end && is_digit(*p)) p++;
+        if (p == first) return NOT_PLAIN;
     }
-    if (i != len) return NOT_PLAIN;
+    size_t len = (size_t)(p - s);
+    if (len > MAX_TOKEN) return NOT_PLAIN;
     double value;
-    if (!has_exponent && significant <= 19 && mantissa <= (UINT64_C(1) << 53) && decimals <= 22) {
-        value = (double)mantissa / POW10[decimals];
+    if (exact && mantissa <= (UINT64_C(1) << 53) && decimals <= 22) {
+        value = (double)mantissa / POW10[decimals]; /* both exact: one correctly rounded division */
         if (negative) value = -value;
     } else {
         char token[MAX_TOKEN + 1];
-        char *end;
+        char *stop;
         memcpy(token, s, len);
         token[len] = '\0';
-        value = strtod(token, &end);
-        if (end != token + len) return NOT_PLAIN;
+        value = strtod(token, &stop);
+        if (stop != token + len || !isfinite(value)) return NOT_PLAIN;
     }
-    if (!isfinite(value)) return NOT_PLAIN;
     *out = value;
+    *cursor = p;
     return 0;
 }
 
@@ -98,13 +98,16 @@ static int parse_line(Table *t, const char *s, size_t len) {
         return 0;
     }
     if (t->rows >= t->cap) return NOT_PLAIN;
-    size_t start = 0;
-    for (int j = 0; j < t->ncols; j++) {
-        const char *space = memchr(s + start, ' ', len - start);
-        size_t end = space ? (size_t)(space - s) : len;
-        if ((j < t->ncols - 1) != (space != NULL)) return NOT_PLAIN; /* too few or too many fields */
-        if (parse_number(s + start, end - start, &t->out[(Py_ssize_t)j * t->cap + t->rows]) != 0) return NOT_PLAIN;
-        start = end + 1;
+    const char *p = s, *end = s + len;
+    double *cell = t->out + t->rows;
+    for (int j = 0; j < t->ncols; j++, cell += t->cap) {
+        if (parse_number(&p, end, cell) != 0) return NOT_PLAIN;
+        if (j < t->ncols - 1) { /* exactly one space between numbers, none after the last */
+            if (p == end || *p != ' ') return NOT_PLAIN;
+            p++;
+        } else if (p != end) {
+            return NOT_PLAIN;
+        }
     }
     t->rows++;
     return 0;

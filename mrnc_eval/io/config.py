@@ -35,7 +35,7 @@ class IoConfig:
         "the overview pass keeps the raw messages of every topic except clouds and images in memory, "
         "up to this many MB, so IMU, GNSS, odometry and TF are not read from the file again "
         "(a compressed log is decompressed once for them instead of once per series); 0 = off",
-        "MB",
+        "MB", ge=0.0,
     )
     validation: ValidationConfig = section(ValidationConfig, "stream validation at the reader boundary")
 

@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.library_errors import data_errors
 
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")  # single-file logs; a ROS 2 bag may also be a folder
 SUPPORTED = "a ROS 1 .bag, a ROS 2 bag directory (metadata.yaml), a .db3 or an .mcap file"
@@ -54,6 +55,22 @@ def is_log_file(path: Path) -> bool:
     return path.is_file() and (sniff(path) is not None or path.suffix.lower() in LOG_SUFFIXES)
 
 
+def _folder_problem(folder: Path) -> str:
+    """Why a folder is not a log: a folder of logs points to `nightly` or a glob (the user meant
+    every log in it); anything else says what a log is."""
+    try:
+        inside = sorted(p for p in folder.iterdir() if not p.name.startswith(".")
+                        and (is_log_file(p) or (p / "metadata.yaml").is_file()))
+    except OSError:
+        inside = []
+    if not inside:
+        return f"directory is not a ROS 2 bag (no metadata.yaml); expected {SUPPORTED}"
+    suffixes = sorted({p.suffix for p in inside if p.is_file() and p.suffix})
+    globs = " ".join(f"{folder}/*{s}" for s in suffixes) or f"{folder}/*"
+    return (f"a folder of {len(inside)} log(s), not one log (a ROS 2 bag folder holds metadata.yaml): "
+            f"`mrnc-eval nightly {folder} --out REPORTS` processes every log in it, or name them, e.g. {globs}")
+
+
 def detect_container(paths: list[Path]) -> str:
     first = paths[0]
     for p in paths:
@@ -62,7 +79,7 @@ def detect_container(paths: list[Path]) -> str:
     if first.is_dir():
         meta = first / "metadata.yaml"
         if not meta.exists():
-            raise InputError(first, f"directory is not a ROS 2 bag (no metadata.yaml); expected {SUPPORTED}")
+            raise InputError(first, _folder_problem(first))
         return "ros2-mcap" if _bag_storage(meta) == "mcap" else "ros2-sqlite3"
     if len(paths) > 1:  # a split recording: every file of the same kind
         kinds = {p: detect_container([p]) for p in paths}
@@ -114,7 +131,7 @@ def _bag_storage(meta: Path) -> str:
     try:
         info = yaml.safe_load(meta.read_text(encoding="utf-8", errors="replace"))
         return str(info["rosbag2_bagfile_information"]["storage_identifier"])
-    except Exception:
+    except (OSError, yaml.YAMLError, KeyError, TypeError):  # unreadable, not YAML, not a bag's metadata
         return ""
 
 
@@ -128,7 +145,7 @@ def _mcap_is_ros2(path: Path) -> bool:
             if header.profile == "ros2":
                 return True
             summary = reader.get_summary()
-    except Exception as err:  # McapError, struct.error, EOFError, decompression errors...
+    except data_errors() as err:  # McapError, struct.error, EOFError, decompression errors...
         raise InputError(path, f"not a readable MCAP file: {describe_error(err)}") from err
     if summary is None:
         return False

@@ -9,7 +9,8 @@ parses exactly as before: pandas' C parser, comments anywhere, and an error nami
 line. The C reader rounds as float() does; the tests hold both paths to the same bits or error.
 
 Measured (issue 14), one 1e6-pose TUM file -> (8, n) float64 in a fresh process, CPU s and peak
-MB of the whole process (python + numpy alone: 0.12 s, 25 MB): this C reader 0.31 s, 88 MB;
+MB of the whole process (python + numpy alone: 0.12 s, 25 MB): this C reader 0.31 s, 88 MB (one pass
+over each line since issue 30: two 91 MB files 0.35 -> 0.24 s CPU);
 pandas 0.69 s, 199 MB; pyarrow's CSV reader streamed into the result 0.45 s, 153 MB (the library
 alone ~55 MB); np.loadtxt 1.55 s, 90 MB; numpy vectorised over a memory map 1.9 s, 512 MB; a numba
 kernel (an earlier session) about pandas' parse time plus 0.3 s of import and 115 MB.

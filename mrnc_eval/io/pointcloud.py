@@ -44,6 +44,35 @@ def decode_cloud(msg: Any, stamp: float) -> Sweep:
     missing = {"x", "y", "z"} - names
     if missing:
         raise CloudFormatError(f"PointCloud2 has no {'/'.join(sorted(missing))} field(s) (fields: {sorted(names)})")
+    height, width = int(msg.height), int(msg.width)
+    records, dtype = _records(msg)
+    arr = records.view(dtype).reshape(width * height)
+
+    # No return: all-zero or non-finite xyz. Elementwise on the three fields (row reductions
+    # over a strided (N, 3) view cost several times more); the sum is NaN/inf when any is.
+    norm1 = np.abs(arr["x"].astype(np.float32)) + np.abs(arr["y"]) + np.abs(arr["z"])
+    valid = np.isfinite(norm1) & (norm1 > 0)
+    # compact the raw records once (a plain byte copy; take() beats boolean indexing of rows),
+    # then read contiguous fields
+    kept = records.take(np.flatnonzero(valid), axis=0).view(dtype).reshape(-1)
+    points = np.empty((kept.shape[0], 3), dtype=np.float32)
+    for k, name in enumerate("xyz"):
+        points[:, k] = kept[name]
+
+    organised = height > 1
+    ring = kept["ring"].astype(np.uint16) if "ring" in names else (
+        np.repeat(np.arange(height, dtype=np.uint16), width)[valid] if organised else None)
+    column = np.tile(np.arange(width, dtype=np.uint32), height)[valid] if organised else None
+    intensity = kept["intensity"].astype(np.float32) if "intensity" in names else None
+    reflectivity = kept["reflectivity"].astype(np.float32) if "reflectivity" in names else None
+    return Sweep(stamp=stamp, points=points, point_time=_point_time(kept, names, stamp), ring=ring, column=column,
+                 intensity=intensity, reflectivity=reflectivity, frame_id=str(msg.header.frame_id), height=height,
+                 width=width)
+
+
+def _records(msg: Any) -> tuple[np.ndarray, np.dtype[Any]]:
+    """The cloud's points as raw records (n, point_step) bytes, row padding dropped, and the
+    structured dtype that reads their fields; CloudFormatError when the sizes do not add up."""
     height, width, step = int(msg.height), int(msg.width), int(msg.point_step)
     n = width * height
     data = np.asarray(msg.data, dtype=np.uint8)
@@ -60,40 +89,7 @@ def decode_cloud(msg: Any, stamp: float) -> Sweep:
         records = np.ascontiguousarray(rows).reshape(n, step)
     else:
         records = data[: n * step].reshape(n, step)
-    arr = records.view(dtype).reshape(n)
-
-    # No return: all-zero or non-finite xyz. Elementwise on the three fields (row reductions
-    # over a strided (N, 3) view cost several times more); the sum is NaN/inf when any is.
-    norm1 = np.abs(arr["x"].astype(np.float32)) + np.abs(arr["y"]) + np.abs(arr["z"])
-    valid = np.isfinite(norm1) & (norm1 > 0)
-    # compact the raw records once (a plain byte copy; take() beats boolean indexing of rows),
-    # then read contiguous fields
-    kept = records.take(np.flatnonzero(valid), axis=0).view(dtype).reshape(-1)
-    m = kept.shape[0]
-    points = np.empty((m, 3), dtype=np.float32)
-    for k, name in enumerate("xyz"):
-        points[:, k] = kept[name]
-
-    point_time = _point_time(kept, names, stamp)
-    organised = height > 1
-    ring = kept["ring"].astype(np.uint16) if "ring" in names else (
-        np.repeat(np.arange(height, dtype=np.uint16), width)[valid] if organised else None)
-    column = np.tile(np.arange(width, dtype=np.uint32), height)[valid] if organised else None
-    intensity = kept["intensity"].astype(np.float32) if "intensity" in names else None
-    reflectivity = kept["reflectivity"].astype(np.float32) if "reflectivity" in names else None
-
-    return Sweep(
-        stamp=stamp,
-        points=points,
-        point_time=point_time,
-        ring=ring,
-        column=column,
-        intensity=intensity,
-        reflectivity=reflectivity,
-        frame_id=str(msg.header.frame_id),
-        height=height,
-        width=width,
-    )
+    return records, dtype
 
 
 def _point_time(arr: np.ndarray, names: set[str], stamp: float) -> np.ndarray | None:

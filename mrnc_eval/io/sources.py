@@ -24,6 +24,7 @@ from typing import Any
 
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import IndexUnusable
+from mrnc_eval.io.library_errors import data_errors
 
 
 @dataclass(frozen=True)
@@ -56,8 +57,16 @@ class RosbagsSource:
 
         default = typestore_for(ros1=ros1)
         self.ros1 = ros1
+        self.paths = paths
         self._reader = AnyReader(paths, default_typestore=default)
-        self._reader.open()
+        try:
+            self._reader.open()
+        except data_errors() as err:
+            if ros1 and "index" in str(err).lower():  # a recording cut short: its index (written last) is gone
+                raise InputError(",".join(str(p) for p in paths), f"the bag's index is damaged or missing, as when a "
+                                 f"recording is cut short ({err}); rebuild it with `rosbag reindex` (ROS 1) on a "
+                                 "copy, then read the copy") from err
+            raise
         self._add_missing_types(default)
         known = self._reader.typestore.fielddefs
         self._conns: dict[str, list[Any]] = {}
@@ -86,8 +95,14 @@ class RosbagsSource:
 
     def messages(self, topics: list[str]) -> Iterator[tuple[str, int, bytes]]:
         conns = [c for t in topics for c in self._conns[t]]
-        for conn, t_rec, raw in self._reader.messages(connections=conns):
-            yield conn.topic, t_rec, raw
+        try:
+            for conn, t_rec, raw in self._reader.messages(connections=conns):
+                yield conn.topic, t_rec, raw
+        except data_errors() as err:
+            if not _is_chunk_damage(err):
+                raise
+            raise InputError(",".join(str(p) for p in self.paths), f"a chunk is damaged: {err}; its messages "
+                             "cannot be trusted (mrnc-eval info lists the damaged chunks)") from None
 
     def indexed_overview(self, topics: list[str], wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
         """`messages(topics)` with each message cut to wants[topic] bytes (io/bag_index.py), for
@@ -105,6 +120,15 @@ class RosbagsSource:
         self._reader.close()
 
 
+def _is_chunk_damage(err: BaseException) -> bool:
+    """A reader's or decompressor's complaint that a chunk is not what was written (its CRC or
+    size disagrees, the compressed bytes do not decode)."""
+    text = str(err).lower()
+    kind = f"{type(err).__module__}.{type(err).__name__}".lower()
+    return "checksum mismatch" in text or "size mismatch" in text or "crc" in kind or "zstd" in kind \
+        or "lz4" in kind
+
+
 class McapSource:
     def __init__(self, path: Path) -> None:
         from mcap.reader import make_reader
@@ -113,7 +137,7 @@ class McapSource:
         self.path = path
         self._fh = path.open("rb")
         try:
-            self._reader = make_reader(self._fh)
+            self._reader = make_reader(self._fh, validate_crcs=True)  # a damaged chunk is an error, never data
             summary = self._reader.get_summary()
         except BaseException:
             self._fh.close()
@@ -148,8 +172,22 @@ class McapSource:
         store.register({k: v for k, v in types.items() if k not in store.fielddefs})
 
     def messages(self, topics: list[str]) -> Iterator[tuple[str, int, bytes]]:
-        for _schema, channel, message in self._reader.iter_messages(topics=topics, log_time_order=True):
-            yield channel.topic, int(message.log_time), message.data
+        from mcap.stream_reader import CRCValidationError
+
+        try:
+            for _schema, channel, message in self._reader.iter_messages(topics=topics, log_time_order=True):
+                yield channel.topic, int(message.log_time), message.data
+        except CRCValidationError as err:
+            chunk = getattr(err, "record", None)
+            when = (f" (messages {chunk.message_start_time / 1e9:.3f}-{chunk.message_end_time / 1e9:.3f} s)"
+                    if chunk is not None else "")
+            raise InputError(self.path, f"a chunk{when} is damaged: CRC mismatch; its messages cannot be "
+                             "trusted (mrnc-eval info lists the damaged chunks)") from None
+        except data_errors() as err:  # the decompressor's complaint about a damaged chunk
+            if isinstance(err, InputError) or not _is_chunk_damage(err):
+                raise
+            raise InputError(self.path, f"a chunk is damaged: it does not decompress ({err}); "
+                             "mrnc-eval info lists the damaged chunks") from None
 
     def deserialize(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         ch = self.channels[topic]

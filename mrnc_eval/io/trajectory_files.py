@@ -14,6 +14,7 @@ from mrnc_eval.data import Trajectory
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.number_table import first_bad_line, read_columns
 from mrnc_eval.io.trajectory_inputs import TrajectorySpec, parse_trajectory_spec, trajectory_file_in
+from mrnc_eval.io.validate import bad_poses
 
 
 def read_tum(path: str | Path) -> Trajectory:
@@ -104,7 +105,23 @@ def read_trajectory(spec: str | Path | TrajectorySpec, *, fmt: str | None = None
     readers = {"tum": read_tum, "kitti": read_kitti, "euroc": read_euroc}
     if kind not in readers:
         raise InputError(path, f"unknown trajectory format {kind!r} (tum, kitti, euroc)")
-    return readers[kind](path)
+    traj = readers[kind](path)
+    bad, what = bad_poses(traj.stamps, traj.positions, traj.quat_xyzw)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(path, f"line {_data_line_number(path, k)}: {what}; {int(bad.sum())} such pose(s) of "
+                         f"{len(traj)} (the same check logs get: io/validate.py)")
+    return traj
+
+
+def check_trajectory(traj: Trajectory) -> Trajectory:
+    """A trajectory handed over as an object (the Python API) gets the check files and logs get."""
+    bad, what = bad_poses(traj.stamps, traj.positions, traj.quat_xyzw)
+    if bad.any():
+        k = int(np.flatnonzero(bad)[0])
+        raise InputError(f"trajectory {traj.name or '(unnamed)'!r}", f"pose {k}: {what}; {int(bad.sum())} such "
+                         f"pose(s) of {len(traj)}")
+    return traj
 
 
 def is_kitti_file(spec: str | Path | TrajectorySpec) -> bool:

@@ -67,6 +67,49 @@ def bad_quaternions(quat_xyzw: npt.ArrayLike, tolerance: float) -> Mask:
         return np.asarray(~np.isfinite(q).all(axis=1) | ~(np.abs(norm - 1.0) <= tolerance), dtype=bool)
 
 
+MIN_QUAT_NORM = 1e-6  # below this a quaternion has no direction to normalise (an all-zero one)
+
+
+def bad_poses(stamps: npt.ArrayLike, positions: npt.ArrayLike, quat_xyzw: npt.ArrayLike) -> tuple[Mask, str]:
+    """The check every trajectory file and object passes (TUM, KITTI, EuRoC, the API's
+    Trajectory): per-pose mask of non-finite stamps, positions or quaternions and quaternions
+    that cannot be normalised (norm < MIN_QUAT_NORM: all-zero ones, which evo turns into the
+    identity and so into 0 deg of error), and the first problem in words. A non-unit but
+    normalisable quaternion is accepted and normalised, as evo does with such files; a log's
+    stream is screened more strictly (`bad_quaternions`, io.validation.quat_norm_tolerance)."""
+    t = np.asarray(stamps, dtype=float).reshape(-1)
+    p = np.asarray(positions, dtype=float).reshape(-1, 3)
+    q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
+    if not t.shape[0] == p.shape[0] == q.shape[0]:
+        return _bad_poses_rows(t, p, q)  # (raises as before)
+    # Block by block: the same per-row answers, with temporaries of a block instead of ~42 MB for
+    # 1e6 poses (q * q inside the norm), which two files read at once held together (issue 30).
+    bad = np.empty(t.shape[0], dtype=bool)
+    for k in range(0, t.shape[0], _ROWS):
+        bad[k:k + _ROWS] = _bad_poses_rows(t[k:k + _ROWS], p[k:k + _ROWS], q[k:k + _ROWS])[0]
+    if not bad.any():
+        return bad, ""
+    k = int(np.flatnonzero(bad)[0])
+    return bad, _bad_poses_rows(t[k:k + 1], p[k:k + 1], q[k:k + 1])[1]
+
+
+_ROWS = 1 << 13  # poses per block of bad_poses (small: each reading thread keeps its freed blocks)
+
+
+def _bad_poses_rows(t: Floats, p: Floats, q: Floats) -> tuple[Mask, str]:
+    bad_tp = ~np.isfinite(t) | ~np.isfinite(p).all(axis=1)
+    with np.errstate(invalid="ignore", over="ignore"):
+        norm = np.linalg.norm(q, axis=1)
+        bad_q = ~np.isfinite(q).all(axis=1) | ~(norm >= MIN_QUAT_NORM)
+    bad = np.asarray(bad_q | bad_tp, dtype=bool)
+    if not bad.any():
+        return bad, ""
+    k = int(np.flatnonzero(bad)[0])
+    what = ("non-finite stamp or position" if bad_tp[k] else
+            f"quaternion of norm {norm[k]:.3g}, which has no rotation (zero or non-finite)")
+    return bad, what
+
+
 def normalised(quat_xyzw: npt.ArrayLike) -> Floats:
     q = np.asarray(quat_xyzw, dtype=float).reshape(-1, 4)
     return np.asarray(q / np.linalg.norm(q, axis=1, keepdims=True), dtype=float)

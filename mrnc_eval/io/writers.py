@@ -195,6 +195,11 @@ class LogWriter:
         self._flush_until(None)
         self._writer.close()
         self._closed = True
+        if self.fmt == "mcap":  # rosbags writes no chunk CRCs: without them a flipped byte goes unnoticed
+            from mrnc_eval.io.integrity import add_chunk_crcs
+
+            for f in self._inner_path.glob("*.mcap"):
+                add_chunk_crcs(f)
         self.path.parent.mkdir(parents=True, exist_ok=True)
         if self.path.exists():
             self._remove_previous_log()

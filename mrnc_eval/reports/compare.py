@@ -21,7 +21,9 @@ class RunMetrics:
     label: str
     metrics: Mapping[str, tuple[float | None, str]]
     config: Mapping[str, Any] | None = None
-    lower_is_better: Mapping[str, bool] = field(default_factory=dict)
+    lower_is_better: Mapping[str, bool | None] = field(default_factory=dict)  # None or absent: unknown
+    logs: frozenset[str] = frozenset()  # the log path(s) the metrics come from
+    kinds: frozenset[str] = frozenset()  # slam, control, info
 
 
 def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
@@ -37,22 +39,24 @@ def flatten(tree: Mapping[str, Any], prefix: str = "") -> dict[str, Any]:
 
 
 def _number(v: float | None) -> bool:
-    return isinstance(v, (int, float)) and not isinstance(v, bool) and math.isfinite(v)
+    """A number, infinities included (a diverged run's inf is a value), NaN not."""
+    return isinstance(v, (int, float)) and not isinstance(v, bool) and not math.isnan(v)
 
 
-def _change(key: str, a: float | None, b: float | None, lower: Mapping[str, bool]) -> tuple[Cell, Cell, Cell]:
-    """(B - A, relative change %, better/worse) where both are numbers."""
+def _change(key: str, a: float | None, b: float | None, lower: Mapping[str, bool | None]) -> tuple[Cell, Cell, Cell]:
+    """(B - A, relative change %, verdict). The verdict is "same" for equal values (inf = inf
+    too), "better"/"worse" only where the metric's direction is known, else none."""
     if not (_number(a) and _number(b)):
         return None, None, "only in A" if b is None and a is not None else "only in B" if a is None else None
     assert a is not None
     assert b is not None
+    if a == b:
+        return 0.0 if math.isfinite(a) else None, 0.0 if math.isfinite(a) else None, "same"
     diff = b - a
-    rel: Cell = 100.0 * diff / abs(a) if a != 0 else (0.0 if diff == 0 else None)
-    if diff == 0 or key not in lower:
-        verdict: Cell = "same" if diff == 0 else None
-    else:
-        verdict = "better" if (diff < 0) == lower[key] else "worse"
-    return diff, rel, verdict
+    rel: Cell = 100.0 * diff / abs(a) if a != 0 and math.isfinite(a) and math.isfinite(b) else None
+    direction = lower.get(key)
+    verdict: Cell = None if direction is None else "better" if (diff < 0) == direction else "worse"
+    return diff if math.isfinite(diff) else None, rel, verdict
 
 
 def metrics_table(a: RunMetrics, b: RunMetrics, *, only_changed: bool = False) -> Table:
@@ -69,7 +73,20 @@ def metrics_table(a: RunMetrics, b: RunMetrics, *, only_changed: bool = False) -
         cells.append([unit_a or unit_b, va, vb, diff, rel, verdict])
     return Table(title=f"Metrics: A = {a.label}, B = {b.label}", row_labels=rows,
                  column_labels=["unit", "A", "B", "B - A", "change %", "verdict"], cells=cells, best=None,
-                 precision=4, notes=["verdict from the metric's direction (lower or higher is better) where known"])
+                 precision=4, notes=[*mismatch_warnings(a, b), "verdict from the metric's direction (lower or "
+                                     "higher is better) where known; none for counts and settings"])
+
+
+def mismatch_warnings(a: RunMetrics, b: RunMetrics) -> list[str]:
+    """What makes the comparison doubtful: runs of different logs, or of different kinds."""
+    out = []
+    if a.logs and b.logs and a.logs != b.logs:
+        out.append(f"WARNING: A and B are runs of different logs (A: {', '.join(sorted(a.logs))}; "
+                   f"B: {', '.join(sorted(b.logs))})")
+    if a.kinds and b.kinds and a.kinds != b.kinds:
+        out.append(f"WARNING: A and B are different kinds of run (A: {', '.join(sorted(a.kinds))}; "
+                   f"B: {', '.join(sorted(b.kinds))}): few metrics in common")
+    return out
 
 
 def config_table(a: RunMetrics, b: RunMetrics) -> Table:

@@ -11,17 +11,23 @@ import datetime as dt
 import logging
 import math
 import re
+from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from markupsafe import Markup
 
 from mrnc_eval import __version__
 from mrnc_eval.evaluation.config import GatesConfig
+from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import is_number
-from mrnc_eval.results import Metric, RunResult, atomic_write_text, safe_name
+from mrnc_eval.results import Metric, RunResult, safe_name
+from mrnc_eval.schema import control as C
+from mrnc_eval.schema import info as I
+from mrnc_eval.schema import slam as S
 from mrnc_eval.tables import Cell, Table
+from mrnc_eval.text import printable
 
 TEMPLATES = Path(__file__).parent / "templates"
 MAX_EVENTS = 60  # rows of the events table; the rest is counted
@@ -37,14 +43,24 @@ SLAM_KEYS = (  # (label, metric name) of the SLAM key-number table
     ("keyframes", "keyframes"), ("loop closures", "loop_closures"), ("degeneracy events", "degeneracy_events"),
     ("IMU time offset (s)", "imu_time_offset_s"), ("mean map entropy (nats)", "map_entropy"),
     ("mean plane variance (m^2)", "map_plane_variance_m2"))
-SLAM_DEFINITIONS = (
-    "Online: each sweep's pose as estimated when it was processed (what a real-time system has). Smoothed: each "
-    "sweep re-anchored after the run to its final, loop-corrected keyframe (trajectory.tum).",
-    "Mean map entropy: mean over map points of 0.5 ln det(2 pi e Sigma), Sigma the covariance of the map points "
-    "within the radius slam.map_quality.radius_m; lower is a sharper map. Mean plane variance: mean smallest "
-    "eigenvalue of the same Sigma (m^2). Map = union of the keyframe feature clouds in their final poses.",
-    "IMU time offset: the IMU clock's lag behind the LiDAR's (positive: IMU stamps late), from correlating the "
-    "LiDAR odometry's rotation rate with the gyro, after slam.imu.time_offset_s was applied.")
+LIO_ONLY_KEYS = ("keyframes", "loop_closures", "degeneracy_events", "imu_time_offset_s")  # no meaning for the peer
+SLAM_DEFINITIONS = {  # metric that must be present -> its definition (only what the section shows is defined)
+    "ape_online_rmse_m": "Online: each sweep's pose as estimated when it was processed (what a real-time system "
+                         "has). Smoothed: each sweep re-anchored after the run to its final, loop-corrected keyframe "
+                         "(trajectory.tum).",
+    "map_entropy": "Mean map entropy: mean over map points of 0.5 ln det(2 pi e Sigma), Sigma the covariance of the "
+                   "map points within the radius slam.map_quality.radius_m; lower is a sharper map. Mean plane "
+                   "variance: mean smallest eigenvalue of the same Sigma (m^2). Map = union of the keyframe feature "
+                   "clouds in their final poses.",
+    "imu_time_offset_s": "IMU time offset: the IMU clock's lag behind the LiDAR's (positive: IMU stamps late), from "
+                         "correlating the LiDAR odometry's rotation rate with the gyro, after slam.imu.time_offset_s "
+                         "was applied.",
+    "ape_gnss_rmse_m": "APE vs GNSS: the 2-D error of the GNSS antenna's estimated track against the fixes (ENU), "
+                       "after a yaw + translation alignment; it includes the GNSS error itself.",
+}
+PEER_DEFINITION = ("kiss-icp (the peer, configured as its own runner): scan-to-map odometry without keyframes or "
+                   "loop closure, so trajectory.tum and trajectory_online.tum hold the same poses and online equals "
+                   "smoothed. Deskew {deskew}.")
 CONTROL_ROWS = (  # Table II rows for a replay (one column per side and the path)
     ("settling time (s)", "settling_time_s"), ("overshoot (%)", "overshoot_pct"),
     ("steady-state error (m/s)", "steady_state_error_mps"), ("RMS error (m/s)", "rms_error_mps"),
@@ -60,7 +76,7 @@ class Gate:
     label: str
     value: str
     limit: str
-    status: str  # "pass" | "fail" | "na"
+    status: Literal["pass", "fail", "na"]
 
 
 def environment():
@@ -80,27 +96,30 @@ def css() -> Markup:
 
 
 def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
-    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value)."""
-    def values(kind: str, name: str) -> list[float]:
-        return [m.value for r in results if r.kind == kind for m in r.metrics
-                if m.name == name and is_number(m.value) and (kind != "control" or m.group.split("/")[1:2] in
-                                                            [[d] for d in DEPLOYED])]
+    """Pass/fail cards: APE RMSE, funnel violations, saturation, safety stops (worst value). A gate
+    whose metric is present but not a finite number (text, null from a NaN, inf) fails, naming the
+    value: it is never skipped ("n/a" only when no result has the metric at all)."""
+    def values(kind: str, name: str, method: str | None = None) -> list[Any]:
+        return [m.value for r in results if r.kind == kind and (method is None or r.extra.get(S.METHOD) == method)
+                for m in r.metrics
+                if m.name == name and (kind != "control" or m.group.split("/")[1:2] in [[d] for d in DEPLOYED])]
 
-    def card(label: str, vals: list[float], limit: float, fmt: str, unit: str = "") -> Gate:
+    def card(label: str, vals: list[Any], limit: float, fmt: str, unit: str = "") -> Gate:
         if not vals:
             return Gate(label, "n/a", f"{limit:g}{unit}", "na")
+        bad = [v for v in vals if not is_number(v)]
+        if bad:
+            return Gate(label, f"not a finite number: {printable(repr(bad[0]))[:40]}", f"{limit:g}{unit}", "fail")
         worst = max(vals)
         return Gate(label, fmt.format(worst) + unit, f"{limit:g}{unit}", "pass" if worst <= limit else "fail")
 
     def ape_cards() -> list[Gate]:  # one per SLAM method, named when the result says which
-        methods = list(dict.fromkeys(str(r.extra["method"]) for r in results if r.kind == "slam"
-                                     and r.extra.get("method")))
+        methods = list(dict.fromkeys(str(r.extra[S.METHOD]) for r in results if r.kind == "slam"
+                                     and r.extra.get(S.METHOD)))
         if len(methods) == 0:
             return [card("APE RMSE", values("slam", "ape_rmse_m"), gates.ape_rmse_max_m, "{:.3f}", " m")]
-        return [card(f"APE RMSE ({method})", [m.value for r in results if r.kind == "slam"
-                                              and r.extra.get("method") == method for m in r.metrics
-                                              if m.name == "ape_rmse_m" and is_number(m.value)],
-                     gates.ape_rmse_max_m, "{:.3f}", " m") for method in methods]
+        return [card(f"APE RMSE ({method})", values("slam", "ape_rmse_m", method), gates.ape_rmse_max_m, "{:.3f}",
+                     " m") for method in methods]
 
     return [*ape_cards(),
             card("Funnel violations", values("control", "funnel_violations"), gates.funnel_violations_max, "{:.0f}"),
@@ -108,11 +127,24 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
             card("Safety stops", values("control", "safety_stops"), gates.safety_stops_max, "{:.0f}")]
 
 
+CARD_KIND = {"APE RMSE": "slam", "Funnel violations": "control", "Saturation ratio": "control",
+             "Safety stops": "control"}
+
+
+def report_cards(results: list[RunResult], gates: GatesConfig, extra: Sequence[Gate] = ()) -> list[Gate]:
+    """The cards a report shows: the gates of the kinds of run it holds (no control cards on a
+    SLAM-only report; JUnit keeps every gate, skipped), then `extra` (cards other modules add,
+    e.g. counts of dropped input, in the same Gate form)."""
+    kinds = {r.kind for r in results}
+    return [g for g in evaluate_gates(results, gates) if CARD_KIND.get(g.label.split(" (")[0], "") in kinds
+            or g.status != "na"] + list(extra)
+
+
 def info_of(results: list[RunResult]) -> dict[str, Any] | None:
     """The `info` summary: a result of kind "info", or extra["info"] of any result."""
     for r in results:
-        if isinstance(r.extra.get("info"), dict):
-            return r.extra["info"]
+        if isinstance(r.extra.get(I.INFO), dict):
+            return r.extra[I.INFO]
     return None
 
 
@@ -121,46 +153,69 @@ def _key_table(title: str, rows: list[tuple[str, Any]]) -> Table:
 
 
 def _warmup_text(r: RunResult) -> str:
-    """The one-off cost paid before the timed loop, said apart from the per-sweep statistics."""
-    total = r.extra.get("warmup_total_ms")
-    if total is None:
+    """The one-off cost paid before the timed loop (lio: numba's compilation), said apart from
+    the per-sweep statistics; nothing when the method had none."""
+    total = r.extra.get(S.WARMUP_TOTAL_MS)
+    if not total:
         return ""
     return (f", after a warm-up of {total:.0f} ms before the timed loop (numba's one-off compilation, or loading it "
             "from its cache, and open3d's import; in neither the per-stage statistics nor the processing time)")
 
 
+def slam_definitions(r: RunResult) -> list[str]:
+    """The definitions a SLAM section needs: only of the numbers it shows, and the peer's own
+    (kiss-icp has no keyframes, loop closure or IMU, so no LIO text in its section)."""
+    method = str(r.extra.get(S.METHOD, "lio"))
+    shown = {m.name for m in r.metrics}
+    out = []
+    if method != "lio":
+        deskew = r.extra.get(S.DESKEW)
+        out.append(PEER_DEFINITION.format(deskew="on" if deskew else "off" if deskew is not None else "unknown"))
+    for name, text in SLAM_DEFINITIONS.items():
+        if name in shown and (method == "lio" or name != "ape_online_rmse_m"):
+            out.append(text)
+    return out
+
+
 def _slam_section(r: RunResult) -> dict[str, Any]:
     from mrnc_eval.reports.figures import slam_figures
 
+    method = str(r.extra.get(S.METHOD, "lio"))
     vals = {m.name: m.value for m in r.metrics}
-    keys = [(label, vals[name]) for label, name in SLAM_KEYS if name in vals]
-    timing = r.extra.get("timing_ms", {})
+    if method == "lio":
+        keys = [(label, vals[name]) for label, name in SLAM_KEYS if name in vals]
+    else:  # the peer: one trajectory (online = smoothed), no keyframes, loops or IMU
+        keys = [(label.replace(", smoothed", ""), vals[name]) for label, name in SLAM_KEYS if name in vals
+                and name not in LIO_ONLY_KEYS and name not in ("ape_online_rmse_m", "end_drift_online_m")]
+    timing = {stage: t for stage, t in r.extra.get(S.TIMING_MS, {}).items()  # the peer has no graph or loop stage
+              if method == "lio" or any(t.get(k) for k in ("mean", "p95", "max"))}
     stats = ("mean", "p95", "max")
     timing_table = Table("Per-stage timing", list(timing), list(stats), [[t.get(k) for k in stats]
                                                                          for t in timing.values()],
                          unit="ms per sweep, first sweep excluded", best=None, precision=1)
-    summary = (f"Method {r.extra.get('method', 'lio')}; log of {r.extra.get('log_duration_s', float('nan')):.1f} s "
-               f"processed in {r.extra.get('wall_s', float('nan')):.1f} s (first sweep "
-               f"{r.extra.get('first_sweep_ms', float('nan')):.0f} ms){_warmup_text(r)}; "
-               f"{r.extra.get('mapping_rate', '')}. " + " ".join(SLAM_DEFINITIONS))
+    summary = (f"Method {method}; log of {r.extra.get(S.LOG_DURATION_S, float('nan')):.1f} s "
+               f"processed in {r.extra.get(S.WALL_S, float('nan')):.1f} s (first sweep "
+               f"{r.extra.get(S.FIRST_SWEEP_MS, float('nan')):.0f} ms){_warmup_text(r)}; "
+               f"{r.extra.get(S.MAPPING_RATE, '')}.")
     tables = [_key_table("SLAM key numbers", keys)] + ([timing_table] if timing else []) + r.tables
-    return {"title": f"SLAM ({r.extra['method']})" if r.extra.get("method") else "SLAM", "summary": summary,
-            "tables": tables,
-            "figures": slam_figures(r)}
+    return {"title": f"SLAM ({r.extra[S.METHOD]})" if r.extra.get(S.METHOD) else "SLAM", "summary": summary,
+            "definitions": slam_definitions(r), "tables": tables, "figures": slam_figures(r, timing=timing),
+            "quiet_events": "no loop closures, no degeneracy" if method == "lio" else ""}
 
 
 def _control_section(r: RunResult) -> dict[str, Any]:
     from mrnc_eval.reports.figures import control_figures
 
-    labels = r.extra.get("labels", {})
-    summary = (f"Control chain, mode {r.extra.get('mode', '?')}; controllers: "
-               + ", ".join(labels.get(c, c) for c in r.extra.get("controllers", []))
-               + f". Saturation applies to the {r.extra.get('saturation_applies_to', 'total')} command; "
-               f"pure-pursuit curvature {r.extra.get('curvature', 'standard')}.")
-    if r.extra.get("replay") and r.extra.get("definitions"):  # what the replay's references are
-        summary += " " + r.extra["definitions"][0]
-    title = "Control: wheel-speed tracking (no path)" if r.extra.get("replay") == "wheel_speed" else "Control"
-    return {"title": title, "summary": summary, "tables": report_tables(r), "figures": control_figures(r)}
+    labels = r.extra.get(C.LABELS, {})
+    summary = (f"Control chain, mode {r.extra.get(C.MODE, '?')}; controllers: "
+               + ", ".join(labels.get(c, c) for c in r.extra.get(C.CONTROLLERS, []))
+               + f". Saturation applies to the {r.extra.get(C.SATURATION_APPLIES_TO, 'total')} command; "
+               f"pure-pursuit curvature {r.extra.get(C.CURVATURE, 'standard')}.")
+    if r.extra.get(C.REPLAY) and r.extra.get(C.DEFINITIONS):  # what the replay's references are
+        summary += " " + r.extra[C.DEFINITIONS][0]
+    title = "Control: wheel-speed tracking (no path)" if r.extra.get(C.REPLAY) == "wheel_speed" else "Control"
+    return {"title": title, "summary": summary, "definitions": [], "tables": report_tables(r),
+            "figures": control_figures(r), "quiet_events": ""}
 
 
 def report_tables(r: RunResult) -> list[Table]:
@@ -177,9 +232,10 @@ def _replay_table(r: RunResult) -> Table:
     by: dict[tuple[str, str], Metric] = {(m.group, m.name): m for m in r.metrics}
     rows = [(label, name) for label, name in CONTROL_ROWS if any((g, name) in by for g in groups)]
     values = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
-    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row]
+    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c)  # as the legend says
+                                 else None if isinstance(c, float) and math.isnan(c) else c) for c in row]
                                for row in values]
-    what = " (wheel-speed tracking, no path)" if r.extra.get("replay") == "wheel_speed" else ""
+    what = " (wheel-speed tracking, no path)" if r.extra.get(C.REPLAY) == "wheel_speed" else ""
     return Table(f"Table II layout: control performance of the recorded run{what}", [label for label, _ in rows],
                  [g.split("/", 1)[-1].replace("/", " ") for g in groups], cells, best=None, precision=3)
 
@@ -192,61 +248,116 @@ def _section(r: RunResult) -> dict[str, Any]:
     counts: dict[str, int] = {}
     for e in events:
         counts[e.kind] = counts.get(e.kind, 0) + 1
-    section.update(kind=r.kind, warnings=r.warnings, events=events[:MAX_EVENTS],
+    section.update(kind=r.kind, warnings=r.warnings, config_hash=r.config_hash, events=events[:MAX_EVENTS],
                    event_counts=sorted(counts.items()), events_more=max(0, len(events) - MAX_EVENTS),
                    tables=[Markup(render_table(t, "html")) for t in section["tables"]],
                    figures=[(cap, Markup(svg)) for cap, svg in section["figures"]])
     return section
 
 
-def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: str) -> str:
+@dataclass(frozen=True)
+class ConfigDiff:
+    """One configuration of a report: its hash, the runs that used it and the keys it sets
+    away from the defaults (key, value, default)."""
+
+    config_hash: str
+    used_by: list[str]
+    changed: list[tuple[str, str, str]]
+    text: str  # the full YAML, shown only in the appendix; "" when no config.yaml was found
+
+
+def config_differences(config_text: str) -> list[tuple[str, str, str]]:
+    """(key, value, default) of every key a config.yaml sets away from this mrnc-eval's defaults."""
+    from mrnc_eval.config import Config, as_dict, load_yaml
+    from mrnc_eval.reports.compare import flatten
+
+    if not config_text.strip():
+        return []
+    loaded = load_yaml(config_text, "config.yaml")
+    defaults = flatten(as_dict(Config()))
+    given = flatten(loaded if isinstance(loaded, Mapping) else {})
+
+    def shown(v: Any) -> str:
+        return "(not set)" if v is _UNSET else str(list(v) if isinstance(v, tuple) else v)
+
+    # keys of the file only: a key the file lacks was added to mrnc-eval after the run (its default
+    # did not exist then), not set by anyone; a key today's defaults lack shows "(not set)" as default
+    return [(k, shown(given[k]), shown(defaults.get(k, _UNSET))) for k in sorted(given)
+            if _comparable(given[k]) != _comparable(defaults.get(k, _UNSET))]
+
+
+_UNSET = object()
+
+
+def _comparable(v: Any) -> Any:
+    return list(v) if isinstance(v, tuple) else v
+
+
+def _config_diffs(results: list[RunResult], configs: Mapping[str, str]) -> list[ConfigDiff]:
+    """One entry per distinct configuration hash, in the order of the report's sections."""
+    out: list[ConfigDiff] = []
+    for h, text in configs.items():
+        used = [_run_label(r) for r in results if r.config_hash == h]
+        out.append(ConfigDiff(h, used, config_differences(text), text))
+    return out
+
+
+def _run_label(r: RunResult) -> str:
+    """"SLAM lio", "control replay": which run of the report a configuration belongs to."""
+    what = r.extra.get(S.METHOD) if r.kind == "slam" else r.extra.get(C.MODE)
+    return f"{'SLAM' if r.kind == 'slam' else r.kind} {what}" if what else r.kind
+
+
+def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: str,
+                configs: Mapping[str, str] | None = None, appendix_config: bool = False,
+                cards: Sequence[Gate] = ()) -> str:
+    """The report page. `configs` maps each configuration hash of the results to its YAML
+    (default: `config_text` for the first hash); the report lists every hash and the keys each
+    sets away from the defaults; the full YAML only with `appendix_config`. `cards` are further
+    cards shown after the gates (a hook for other modules)."""
     first = results[0]
-    config_hash = next((r.config_hash for r in results if r.config_hash), "")
+    hashes = list(dict.fromkeys(r.config_hash for r in results if r.config_hash))
+    if configs is None:
+        configs = {hashes[0] if hashes else "": config_text}
     info = info_of(results)
     findings = [w for r in results if r.kind == "info" for w in r.warnings]
-    used = {role: topic for r in results for role, topic in (r.extra.get("roles") or {}).items()}
+    used = {role: topic for r in results for role, topic in (r.extra.get(S.ROLES) or {}).items()}
     return environment().get_template("report.html.j2").render(
         css=css(), log_id=first.log_id, log_path=first.log_path, tool_version=first.tool_version or __version__,
-        config_hash=config_hash, created=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
-        gates=evaluate_gates(results, gates), info=info, notes=findings, used_roles=used,
-        sections=[_section(r) for r in results if r.kind in ("slam", "control")], config_text=config_text)
+        config_hashes=[(h, [_run_label(r) for r in results if r.config_hash == h]) for h in hashes],
+        created=dt.datetime.now(dt.UTC).strftime("%Y-%m-%d %H:%M UTC"),
+        gates=report_cards(results, gates, cards), info=info, notes=findings, used_roles=used,
+        sections=[_section(r) for r in results if r.kind in ("slam", "control")],
+        configs=_config_diffs(results, configs), appendix_config=appendix_config)
 
 
-def write_pdf(html: str, path: Path) -> str:
-    """PDF via WeasyPrint from the same HTML (print CSS); a matplotlib PDF that says it is a
-    fallback when WeasyPrint or its Pango libraries are missing. Returns the engine used."""
-    tmp = path.with_name(f".{path.name}.tmp")
+def pdf_engine() -> object:
+    """The weasyprint module, or MissingExtra naming the pdf extra (or the Pango libraries) when it
+    cannot load: a PDF is never replaced by a placeholder. Called before anything is written."""
+    from mrnc_eval.errors import MissingExtra
+
     try:
-        try:
-            import weasyprint
-
-            logging.getLogger("weasyprint").setLevel(logging.ERROR)  # SVG CSS properties it does not know
-            logging.getLogger("fontTools").setLevel(logging.ERROR)
-            weasyprint.HTML(string=html).write_pdf(tmp)
-            engine = "weasyprint"
-        except (ImportError, OSError) as err:
-            if isinstance(err, OSError) and err.errno is not None:
-                raise  # a real file-system error (no space, permission), not a missing Pango library
-            fallback_pdf(tmp, f"{type(err).__name__}: {err}")
-            engine = "fallback"
-        tmp.replace(path)
-    finally:
-        tmp.unlink(missing_ok=True)
-    return engine
+        import weasyprint
+    except ImportError as err:
+        raise MissingExtra(f"a PDF needs the pdf extra (WeasyPrint: {err}): pip install 'mrnc-eval[pdf]'; "
+                           "or leave out --pdf (report.html is self-contained)") from None
+    except OSError as err:
+        if err.errno is not None:
+            raise
+        raise MissingExtra(f"WeasyPrint cannot load its libraries ({err}): install Pango (scripts/setup.sh) "
+                           "or leave out --pdf") from None
+    return weasyprint
 
 
-def fallback_pdf(path: Path, reason: str) -> None:
-    from matplotlib.backends.backend_pdf import PdfPages
-    from matplotlib.figure import Figure
-
-    with PdfPages(path) as pdf:
-        fig = Figure(figsize=(8.27, 11.69))
-        fig.text(0.08, 0.92, "mrnc-eval report: FALLBACK PDF", fontsize=16, weight="bold")
-        fig.text(0.08, 0.88, "WeasyPrint could not render the report; this page only says so.", fontsize=10)
-        fig.text(0.08, 0.85, f"Reason: {reason[:160]}", fontsize=8)
-        fig.text(0.08, 0.82, "Open report.html (self-contained) for the full report, or install Pango "
-                 "(scripts/setup.sh).", fontsize=10)
-        pdf.savefig(fig)
+def write_pdf(html: str, path: Path, *, force: bool = False) -> str:
+    """PDF via WeasyPrint from the same HTML (print CSS), under the overwrite rule. Returns the
+    engine used; without WeasyPrint (or Pango) MissingExtra, and nothing is written."""
+    engine: Any = pdf_engine()
+    with output_file(path, force=force) as tmp:
+        logging.getLogger("weasyprint").setLevel(logging.ERROR)  # SVG CSS properties it does not know
+        logging.getLogger("fontTools").setLevel(logging.ERROR)
+        engine.HTML(string=html).write_pdf(tmp)
+    return "weasyprint"
 
 
 _ROMAN = {"I": 1, "II": 2, "III": 3, "IV": 4, "V": 5}
@@ -289,20 +400,27 @@ def merge_columns(tables: list[Table]) -> Table:
 
 
 def write_report(results: list[RunResult], out_dir: Path, *, gates: GatesConfig, config_text: str,
-                 pdf: bool = False) -> dict[str, Path]:
-    """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically."""
+                 pdf: bool = False, force: bool = False, configs: Mapping[str, str] | None = None,
+                 appendix_config: bool = False, cards: Sequence[Gate] = ()) -> dict[str, Path]:
+    """report.html (+ report.pdf) and every table as CSV and LaTeX, each written atomically under
+    the one overwrite rule (mrnc_eval/outputs.py): all claimed before the first is written
+    (`configs`, `appendix_config`, `cards`: see render_html)."""
     from mrnc_eval.reports.tables import render_table
 
-    out_dir.mkdir(parents=True, exist_ok=True)
-    html = render_html(results, gates=gates, config_text=config_text)
-    written = {"html": out_dir / "report.html"}
-    atomic_write_text(written["html"], html)
+    if pdf:
+        pdf_engine()  # before anything is written: no report half made when the PDF cannot be
+    html = render_html(results, gates=gates, config_text=config_text, configs=configs,
+                       appendix_config=appendix_config, cards=cards)
+    texts = {"html": (out_dir / "report.html", html)}
     for stem, table in table_files(results).items():
         for fmt, suffix in (("csv", ".csv"), ("latex", ".tex")):
-            written[f"{stem}{suffix}"] = out_dir / f"{stem}{suffix}"
-            atomic_write_text(written[f"{stem}{suffix}"], render_table(table, fmt))
+            texts[f"{stem}{suffix}"] = (out_dir / f"{stem}{suffix}", render_table(table, fmt))
+    for path in [p for p, _ in texts.values()] + ([out_dir / "report.pdf"] if pdf else []):
+        claim_output(path, force=force)
+    written = {}
+    for key, (path, text) in texts.items():
+        written[key] = write_output(path, text, force=force)
     if pdf:
         written["pdf"] = out_dir / "report.pdf"
-        if write_pdf(html, written["pdf"]) == "fallback":
-            logging.getLogger(__name__).warning("%s: WeasyPrint unavailable, wrote a fallback PDF", written["pdf"])
+        write_pdf(html, written["pdf"], force=force)
     return written

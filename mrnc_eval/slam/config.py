@@ -24,11 +24,14 @@ class SensorConfig:
 class ImuConfig:
     """IMU noise model, extrinsics and the preintegration graph (graph #2)."""
 
-    acc_noise: float = param(3.9939570888238808e-03, "accelerometer white noise sigma (imuAccNoise)", "m/s^2")
-    gyro_noise: float = param(1.5636343949698187e-03, "gyroscope white noise sigma (imuGyrNoise)", "rad/s")
-    acc_bias_noise: float = param(6.4356659353532566e-05, "accelerometer bias random walk (imuAccBiasN)", "m/s^3")
-    gyro_bias_noise: float = param(3.5640318696367613e-05, "gyroscope bias random walk (imuGyrBiasN)", "rad/s^2")
-    integration_noise: float = param(1e-4, "integration noise sigma of the preintegration")
+    acc_noise: float = param(3.9939570888238808e-03, "accelerometer white noise sigma (imuAccNoise)", "m/s^2",
+                             gt=0.0)
+    gyro_noise: float = param(1.5636343949698187e-03, "gyroscope white noise sigma (imuGyrNoise)", "rad/s", gt=0.0)
+    acc_bias_noise: float = param(6.4356659353532566e-05, "accelerometer bias random walk (imuAccBiasN)", "m/s^3",
+                                  gt=0.0)
+    gyro_bias_noise: float = param(3.5640318696367613e-05, "gyroscope bias random walk (imuGyrBiasN)", "rad/s^2",
+                                   gt=0.0)
+    integration_noise: float = param(1e-4, "integration noise sigma of the preintegration", gt=0.0)
     gravity: float = param(9.80511, "gravity magnitude (imuGravity)", "m/s^2")
     rpy_weight: float = param(0.01, "slerp weight pulling the matched roll/pitch towards the IMU's orientation "
                               "(imuRPYWeight); 9-axis IMUs only: a 6-axis IMU has no orientation, the blend is off")
@@ -53,6 +56,26 @@ class ImuConfig:
         "directions", "degenerate scan-to-map: directions = degenerate_pose_sigma only along the projected-out "
         "directions (the IMU carries them, the rest stays measured); all = on all six (LIO-SAM)")
     reset_every: int = param(100, "restart graph #2 every n keys, keeping its velocity and bias estimates")
+    reset_priors: Literal["marginals", "fixed"] = param(
+        "fixed", "priors of graph #2's periodic restart: marginals = the pose, velocity and bias marginal covariances "
+        "at the last key (LIO-SAM); fixed = pose_prior_sigmas, 1 m/s and bias_prior_sigmas around the estimates "
+        "(marginals measured no better: field OS0-32, seeds 0-2, online APE median 0.0167 -> 0.0173 m)")
+    noise_from_log: bool = param(True, "preintegration noise densities and the initial gyro bias from the log's "
+                                 "stationary stretches (slam/imu_noise.py; reported either way as imu_noise), and "
+                                 "acc_turn_on_sigma for the initial accelerometer bias; without a stationary "
+                                 "stretch, or off: the noise sigmas above and a zero bias held by bias_prior_sigmas "
+                                 "(field OS0-32, seeds 0-2: online APE median 0.0167 -> 0.0150 m, worst 0.0378 -> "
+                                 "0.0364 m; docs/simulation.md)")
+    bias_prior_sigmas: tuple[float, float] = param((1e-3, 1e-3), "bias prior sigmas [acc m/s^2, gyro rad/s] at "
+                                                   "each start of graph #2 (LIO-SAM: 1e-3 on both)")
+    acc_turn_on_sigma: float = param(0.1, "with noise_from_log: the initial accelerometer bias prior sigma, the "
+                                     "turn-on bias class of the part (a consumer MEMS: 0.1 m/s^2; a stationary "
+                                     "stretch cannot tell the horizontal bias from a tilt)", "m/s^2", gt=0.0, le=10.0)
+    deskew_motion: Literal["predicted", "last"] = param(
+        "last", "translation deskew (slam.deskew_translation): predicted = graph #2's velocity at the sweep's start "
+        "and end (constant acceleration over the sweep); last = the velocity of the last mapped sweep, constant")
+    stationary_min_s: float = param(1.5, "shortest stationary stretch the IMU noise is measured from", "s",
+                                    gt=0.0, le=3600.0)
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "
                                         "restart in a degenerate stretch costs more than it gains)", "m")
@@ -63,6 +86,12 @@ class ImuConfig:
                                  "else (positive when the IMU stamps are late)", "s")
     estimate_time_offset: bool = param(True, "estimate the remaining IMU-LiDAR offset after the run "
                                        "(imu_time_offset_s in metrics.json)")
+    refine_time_offset_s: float = param(0.0, "with estimate_time_offset: every this much log time, estimate the "
+                                        "offset left in every sweep so far and, when it exceeds twice its standard "
+                                        "error, apply it to the IMU stamps from then on. The LiDAR poses keep part "
+                                        "of the IMU-driven guess, so one estimate after the run reads only part of "
+                                        "a large lag (30 ms -> 23-28 ms); 0 = one estimate after the run, nothing "
+                                        "applied", "s", ge=0.0, le=86_400.0)
     max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
     max_bias: float = param(1.0, "... or above this bias norm")
 
@@ -98,7 +127,7 @@ class MatchingConfig:
     map_radius_m: float = param(50.0, "keyframes within this of the last one form the local map "
                                 "(surroundingKeyframeSearchRadius)", "m")
     map_recent_s: float = param(10.0, "plus every keyframe of the last seconds", "s")
-    max_iterations: int = param(30, "Gauss-Newton iterations")
+    max_iterations: int = param(30, "Gauss-Newton iterations", ge=1, le=1000)
     min_edges: int = param(10, "optimise only with at least this many edge features (edgeFeatureMinValidNum)")
     min_surfs: int = param(100, "... and planar features (surfFeatureMinValidNum)")
     match_without_edges: bool = param(True, "with too few edges, still match the planes (LIO-SAM keeps the IMU guess "

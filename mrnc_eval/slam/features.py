@@ -12,7 +12,7 @@ from mrnc_eval.slam.config import FeatureConfig
 from mrnc_eval.slam.range_image import RangeImage
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class Features:
     edges: np.ndarray  # (Ne, 3) float64, sensor frame (deskewed); float32 once kept with a keyframe
     surfs: np.ndarray  # (Ns, 3)
@@ -203,7 +203,7 @@ def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) 
     """Edges and planes of one sweep. `image` gives the ring-major order and the (raw) ranges,
     `points` (N, 3) the same points deskewed."""
     if len(image) < 12:
-        return Features(np.zeros((0, 3)), np.zeros((0, 3)))
+        return Features(edges=np.zeros((0, 3)), surfs=np.zeros((0, 3)))
     ring, rng = image.ring, image.range_m
     starts = np.flatnonzero(np.r_[True, ring[1:] != ring[:-1]])
     counts = np.diff(np.r_[starts, ring.size])
@@ -216,4 +216,4 @@ def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) 
         edge &= ~ground_mask(image, points, cfg.ground_max_angle_deg)
     edges = points[edge]
     surfs = voxel_downsample(points[label < 0], cfg.surf_leaf_m)
-    return Features(edges, surfs)
+    return Features(edges=edges, surfs=surfs)

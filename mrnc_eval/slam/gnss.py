@@ -1,14 +1,14 @@
 """GNSS factors for graph #1. LIO-SAM receives GNSS already in its odom frame (navsat_transform
 with a magnetometer heading); a 6-axis replay has no heading, so the ENU -> map yaw and offset
 are estimated from the first `align_min_travel_m` of keyframes (2-D Umeyama, rotation about z
-plus translation: evaluation.align.yaw_align), then fixes enter as GPS factors under LIO-SAM's gates."""
+plus translation: geometry.point_fit.yaw_align), then fixes enter as GPS factors under LIO-SAM's gates."""
 
 from __future__ import annotations
 
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
-from mrnc_eval.evaluation.align import yaw_align
+from mrnc_eval.geometry.point_fit import yaw_align
 from mrnc_eval.slam.config import GpsConfig
 from mrnc_eval.slam.gnss_gate import gate
 from mrnc_eval.slam.graph import KeyframeGraph
@@ -62,7 +62,8 @@ class GnssAligner:
             if len(self.pairs_map) >= 3 and travel >= g.align_min_travel_m:
                 self.enu_to_map = fit_yaw_translation(np.array(self.pairs_enu), np.array(self.pairs_map))
                 yaw = np.arctan2(self.enu_to_map[0][1, 0], self.enu_to_map[0][0, 0])
-                events.append(SlamEvent(stamp, "gps", f"ENU -> map alignment from {len(self.pairs_map)} fixes: "
+                events.append(SlamEvent(t=stamp, kind="gps",
+                                        message=f"ENU -> map alignment from {len(self.pairs_map)} fixes: "
                                         f"yaw {np.degrees(yaw):.1f} deg"))
             return False
         if len(graph.poses) < 2 or np.linalg.norm(pose[:3, 3] - graph.poses[0][:3, 3]) < g.min_travel_m:
@@ -84,7 +85,7 @@ class GnssAligner:
         if graph.last_gps_xy is not None and np.linalg.norm(p[:2] - graph.last_gps_xy) < spacing:
             return False
         graph.add_gps(len(graph.poses) - 1, p, var, self.lever, floor_m2=0.0 if rtk else 1.0)
-        events.append(SlamEvent(stamp, "gps", f"GNSS factor at keyframe {len(graph.poses) - 1}"))
+        events.append(SlamEvent(t=stamp, kind="gps", message=f"GNSS factor at keyframe {len(graph.poses) - 1}"))
         return True
 
     def maybe_add_residual(self, graph: KeyframeGraph, stamp: float, events: list[SlamEvent]) -> bool:
@@ -101,8 +102,8 @@ class GnssAligner:
                                chain_sigma)
         if align is not None and self.enu_to_map is None:
             yaw = np.arctan2(align[0][1, 0], align[0][0, 0])
-            events.append(SlamEvent(stamp, "gps", f"ENU -> map alignment (re-fitted at every keyframe) from the fixes "
-                                    f"so far: yaw {np.degrees(yaw):.1f} deg"))
+            events.append(SlamEvent(t=stamp, kind="gps", message=f"ENU -> map alignment (re-fitted at every keyframe) "
+                                    f"from the fixes so far: yaw {np.degrees(yaw):.1f} deg"))
         if align is not None:
             self.enu_to_map = align
         if decision is None or decision.position is None:
@@ -115,9 +116,10 @@ class GnssAligner:
         self.last_factor_kf = len(graph.poses) - 1
         graph.add_gps(len(graph.poses) - 1, decision.position, decision.variance, self.lever, floor_m2=0.0,
                       huber_k=g.residual_huber_k)
-        events.append(SlamEvent(stamp, "gps", f"GNSS factor at keyframe {len(graph.poses) - 1}: the chain is "
-                                f"{np.linalg.norm(decision.residual_m):.2f} m +- {decision.sigma_m:.2f} m off the "
-                                f"fixes ({decision.inliers} inliers, {decision.outliers} outliers)",
-                                {"residual_m": float(np.linalg.norm(decision.residual_m)), "sigma_m": decision.sigma_m,
-                                 "inliers": decision.inliers, "outliers": decision.outliers}))
+        events.append(SlamEvent(t=stamp, kind="gps", message=f"GNSS factor at keyframe {len(graph.poses) - 1}: the "
+                                f"chain is {np.linalg.norm(decision.residual_m):.2f} m +- {decision.sigma_m:.2f} m off "
+                                f"the fixes ({decision.inliers} inliers, {decision.outliers} outliers)",
+                                data={"residual_m": float(np.linalg.norm(decision.residual_m)),
+                                      "sigma_m": decision.sigma_m, "inliers": decision.inliers,
+                                      "outliers": decision.outliers}))
         return True

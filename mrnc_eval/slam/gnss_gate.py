@@ -17,7 +17,7 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
-from mrnc_eval.evaluation.align import yaw_align
+from mrnc_eval.geometry.point_fit import yaw_align
 from mrnc_eval.slam.config import GpsConfig
 
 

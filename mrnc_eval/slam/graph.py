@@ -16,7 +16,7 @@ from mrnc_eval.slam.config import GraphConfig, LoopConfig
 from mrnc_eval.slam.nearest import KdTree
 
 
-@dataclass
+@dataclass(kw_only=True)
 class KeyframeGraph:
     cfg: GraphConfig
     poses: list[np.ndarray] = field(default_factory=list)  # optimised keyframe poses (4x4)

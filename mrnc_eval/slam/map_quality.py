@@ -20,7 +20,7 @@ import numpy as np
 from mrnc_eval.slam.nearest import KdTree
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MapQuality:
     mean_map_entropy: float  # nats
     mean_plane_variance_m2: float
@@ -49,5 +49,6 @@ def map_quality(points: np.ndarray, radius_m: float, *, min_neighbours: int = 5,
     det = np.prod(np.clip(eig, 0.0, None), axis=1)
     finite = det > 0
     entropy = 0.5 * np.log((2 * np.pi * np.e) ** 3 * det[finite])
-    return MapQuality(float(entropy.mean()) if finite.any() else float("nan"), float(eig[:, 0].mean()),
-                      int(keep.sum()))
+    return MapQuality(mean_map_entropy=float(entropy.mean()) if finite.any() else float("nan"),
+                      mean_plane_variance_m2=float(eig[:, 0].mean()),
+                      points_evaluated=int(keep.sum()))

@@ -13,15 +13,15 @@ from mrnc_eval.slam.map_quality import MapQuality
 STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: waiting for the sweep iterator (decode)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class SlamEvent:
     t: float  # log time, s
-    kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps"
+    kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps", "imu_time_offset"
     message: str
     data: dict[str, Any] = field(default_factory=dict)
 
 
-@dataclass
+@dataclass(kw_only=True)
 class SlamOutput:
     stamps: np.ndarray  # processed sweeps, s
     poses: np.ndarray  # (N, 4, 4) LiDAR poses in the map frame, loop-corrected through their keyframe
@@ -41,4 +41,7 @@ class SlamOutput:
     deskew: bool = True  # False when the method ran without deskew (kiss-icp on throttled logs)
     # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
     warmup_ms: dict[str, float] = field(default_factory=dict)
+    empty_sweeps: int = 0  # sweeps with no valid point (empty, all zero or non-finite): not mapped, counted
+    imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)
+    imu_time_offset_sigma_s: float | None = None  # its formal standard error, s
     wheel_health: dict[str, Any] | None = None  # slam/wheel_health.py: online wheel calibration and verdict

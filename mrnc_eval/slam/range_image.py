@@ -13,7 +13,7 @@ from mrnc_eval.data import Sweep
 from mrnc_eval.slam.config import FeatureConfig, SensorConfig
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class RangeImage:
     points: np.ndarray  # (N, 3) float64, sensor frame, ring-major then column order
     ring: np.ndarray  # (N,) int64 row of the image
@@ -93,5 +93,6 @@ def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> Rang
         first = np.r_[True, pixel[1:] != pixel[:-1]]  # first point per pixel wins
         idx = idx[first]
     t = sweep.point_time[idx].astype(np.float64) if sweep.point_time is not None else None
-    return RangeImage(sweep.points[idx].astype(np.float64), ring[idx] // max(sensor.downsample_rate, 1), column[idx],
-                      rng[idx], t)
+    return RangeImage(points=sweep.points[idx].astype(np.float64), ring=ring[idx] // max(sensor.downsample_rate, 1),
+                      column=column[idx],
+                      range_m=rng[idx], point_time=t)

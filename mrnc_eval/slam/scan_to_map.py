@@ -3,7 +3,8 @@ residuals against a local map, Gauss-Newton with degeneracy remapping."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
+from enum import Enum
 
 import numpy as np
 from numba import njit
@@ -14,7 +15,7 @@ from mrnc_eval.slam.config import MatchingConfig
 from mrnc_eval.slam.nearest import KdTree
 
 
-@dataclass
+@dataclass(kw_only=True)
 class LocalMap:
     edges: np.ndarray
     surfs: np.ndarray
@@ -23,10 +24,11 @@ class LocalMap:
 
     @classmethod
     def build(cls, edges: np.ndarray, surfs: np.ndarray) -> LocalMap:
-        return cls(edges, surfs, KdTree(edges) if len(edges) >= 5 else None, KdTree(surfs) if len(surfs) >= 5 else None)
+        return cls(edges=edges, surfs=surfs, edge_tree=KdTree(edges) if len(edges) >= 5 else None,
+                   surf_tree=KdTree(surfs) if len(surfs) >= 5 else None)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class MatchResult:
     pose: np.ndarray  # 4x4 sensor pose in the map
     iterations: int
@@ -193,9 +195,22 @@ def _principal_axis(a00: float, a01: float, a02: float, a11: float, a12: float,
 
 
 @njit(cache=True)
+def _write_row(J: np.ndarray, r: np.ndarray, m: int, q: np.ndarray, o: np.ndarray, n0: float, n1: float, n2: float,
+               s: float, residual: float) -> None:
+    """Row m of a point q with unit direction n and weight s: J = s [(q - o) x n, n] (rotation
+    about the point o, map axes; then translation) and r = s residual."""
+    e0, e1, e2 = q[0] - o[0], q[1] - o[1], q[2] - o[2]
+    J[m, 0] = s * (e1 * n2 - e2 * n1)
+    J[m, 1] = s * (e2 * n0 - e0 * n2)
+    J[m, 2] = s * (e0 * n1 - e1 * n0)
+    J[m, 3], J[m, 4], J[m, 5] = s * n0, s * n1, s * n2
+    r[m] = s * residual
+
+
+@njit(cache=True)
 def _plane_rows(q: np.ndarray, o: np.ndarray, planes: np.ndarray, J: np.ndarray, r: np.ndarray) -> int:
     """Point-to-plane rows (LIO-SAM): pd = n.q + d, weight s = 1 - 0.9 |pd| / sqrt(|q|), kept when
-    s > 0.1. Writes J (m, 6) = s [(q - o) x n, n] and r = s pd; returns m."""
+    s > 0.1, direction n. Writes J (m, 6) and r (`_write_row`); returns m."""
     m = 0
     for i in range(q.shape[0]):
         n0, n1, n2, d = planes[i, 0], planes[i, 1], planes[i, 2], planes[i, 3]
@@ -205,12 +220,7 @@ def _plane_rows(q: np.ndarray, o: np.ndarray, planes: np.ndarray, J: np.ndarray,
         s = 1.0 - 0.9 * abs(pd) / np.sqrt(np.sqrt(q[i, 0] ** 2 + q[i, 1] ** 2 + q[i, 2] ** 2) + 1e-9)
         if s <= 0.1:
             continue
-        e0, e1, e2 = q[i, 0] - o[0], q[i, 1] - o[1], q[i, 2] - o[2]  # rotation about the sensor
-        J[m, 0] = s * (e1 * n2 - e2 * n1)
-        J[m, 1] = s * (e2 * n0 - e0 * n2)
-        J[m, 2] = s * (e0 * n1 - e1 * n0)
-        J[m, 3], J[m, 4], J[m, 5] = s * n0, s * n1, s * n2
-        r[m] = s * pd
+        _write_row(J, r, m, q[i], o, n0, n1, n2, s, pd)
         m += 1
     return m
 
@@ -218,7 +228,7 @@ def _plane_rows(q: np.ndarray, o: np.ndarray, planes: np.ndarray, J: np.ndarray,
 @njit(cache=True)
 def _edge_rows(q: np.ndarray, o: np.ndarray, lines: np.ndarray, J: np.ndarray, r: np.ndarray) -> int:
     """Point-to-line rows (LIO-SAM): ld = distance to the line, weight s = 1 - 0.9 ld, kept when
-    s > 0.1; the row's direction is the unit normal from the line to the point."""
+    s > 0.1; the row's direction is the unit normal from the line to the point (`_write_row`)."""
     m = 0
     for i in range(q.shape[0]):
         if lines[i, 0] != lines[i, 0]:  # NaN: no line
@@ -231,15 +241,16 @@ def _edge_rows(q: np.ndarray, o: np.ndarray, lines: np.ndarray, J: np.ndarray, r
         s = 1.0 - 0.9 * ld
         if s <= 0.1 or ld < 1e-9:
             continue
-        n0, n1, n2 = p0 / ld, p1 / ld, p2 / ld
-        e0, e1, e2 = q[i, 0] - o[0], q[i, 1] - o[1], q[i, 2] - o[2]  # rotation about the sensor
-        J[m, 0] = s * (e1 * n2 - e2 * n1)
-        J[m, 1] = s * (e2 * n0 - e0 * n2)
-        J[m, 2] = s * (e0 * n1 - e1 * n0)
-        J[m, 3], J[m, 4], J[m, 5] = s * n0, s * n1, s * n2
-        r[m] = s * ld
+        _write_row(J, r, m, q[i], o, p0 / ld, p1 / ld, p2 / ld, s, ld)
         m += 1
     return m
+
+
+class Correspondence(Enum):
+    """What a feature is matched to in the local map."""
+
+    LINE = "line"  # an edge feature: point-to-line (5 neighbours along a line)
+    PLANE = "plane"  # a surface feature: point-to-plane (5 neighbours on a plane)
 
 
 class _Correspondences:
@@ -248,7 +259,7 @@ class _Correspondences:
     iteration, as LIO-SAM). Neighbours farther than sqrt(max_sq) are not searched for: a feature
     whose 5th neighbour is that far has no correspondence anyway."""
 
-    def __init__(self, tree: KdTree, cloud: np.ndarray, kind: str, max_sq: float, max_offset: float,
+    def __init__(self, tree: KdTree, cloud: np.ndarray, kind: Correspondence, max_sq: float, max_offset: float,
                  requery_m: float, min_spread: float = 0.0) -> None:
         self.tree, self.cloud, self.kind = tree, cloud, kind
         self.max_dist, self.max_offset, self.requery_m = max_sq ** 0.5, max_offset, requery_m
@@ -266,7 +277,7 @@ class _Correspondences:
             d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
             ok = d[:, 4] < self.max_dist
             idx[~ok] = 0  # unmatched rows point past the cloud's end
-            if self.kind == "plane":
+            if self.kind is Correspondence.PLANE:
                 self.fits = np.empty((len(q), 4))
                 _fit_planes(self.cloud, idx, ok, self.max_offset, self.min_spread, self.fits)
             else:
@@ -275,7 +286,7 @@ class _Correspondences:
             self.at = T
         J, r = np.empty((len(q), 6)), np.empty(len(q))
         origin = np.ascontiguousarray(T[:3, 3] if pivot is None else T[:3, :3] @ pivot + T[:3, 3])
-        m = (_plane_rows(q, origin, self.fits, J, r) if self.kind == "plane"
+        m = (_plane_rows(q, origin, self.fits, J, r) if self.kind is Correspondence.PLANE
              else _edge_rows(q, origin, self.fits, J, r))
         return J[:m], r[:m]
 
@@ -332,51 +343,93 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
     use_edges = len(edges) >= cfg.min_edges and local_map.edge_tree is not None
     if (len(surfs) < cfg.min_surfs or local_map.surf_tree is None
             or (not use_edges and not cfg.match_without_edges)):
-        return MatchResult(guess, 0, False, False, float("nan"), len(edges), len(surfs), False)
-    T = guess.copy()
-    P = good = np.eye(6)
-    degenerate, min_eig, converged, it, n_bad = False, float("nan"), False, 0, 0
-    weakest: tuple[float, ...] = ()
-    eigenvalues: tuple[float, ...] = ()
-    directions = np.zeros((0, 6))
-    edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, "line", cfg.max_nn_sq_dist_m2, 0.0,
-                                  cfg.requery_motion_m) if use_edges and local_map.edge_tree is not None else None)
-    surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, "plane", cfg.max_nn_sq_dist_m2,
+        return MatchResult(pose=guess, iterations=0, converged=False, degenerate=False, min_eigenvalue=float("nan"),
+                           n_edges=len(edges), n_surfs=len(surfs), optimised=False)
+    edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, Correspondence.LINE, cfg.max_nn_sq_dist_m2,
+                                  0.0, cfg.requery_motion_m) if use_edges and local_map.edge_tree is not None else None)
+    surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, Correspondence.PLANE, cfg.max_nn_sq_dist_m2,
                                  cfg.plane_max_offset_m, cfg.requery_motion_m, cfg.plane_min_spread_m)
+    T, deg, converged, it = guess.copy(), _Degeneracy(), False, 0
     for it in range(1, cfg.max_iterations + 1):
-        Je, re = edge_corr.rows(edges, T, pivot) if edge_corr is not None else (np.zeros((0, 6)), np.zeros(0))
-        Js, rs = surf_corr.rows(surfs, T, pivot)
-        if cfg.ground_normal_min_z > 0:
-            _ground_rows_vertical_only(Js, cfg.ground_normal_min_z)
-        J, r = np.r_[Je, Js], np.r_[re, rs]
+        J, r = _stacked_rows(edge_corr, surf_corr, edges, surfs, T, pivot, cfg.ground_normal_min_z)
         if r.size < cfg.min_correspondences:
             break
-        H = J.T @ J
-        g = -J.T @ r
+        H, g = J.T @ J, -J.T @ r
         if it == 1:  # degeneracy: project out directions with tiny curvature (LIO-SAM remapping)
-            w, V = np.linalg.eigh(H)
-            min_eig, weakest, eigenvalues = float(w[0]), tuple(float(v) for v in V[:, 0]), tuple(float(v) for v in w)
-            V2 = V.copy()
-            bad = w < cfg.degeneracy_eigen_threshold
-            good = V[:, ~bad]
-            if bad.any():
-                degenerate, n_bad, directions = True, int(bad.sum()), V[:, bad].T.copy()
-                V2[:, bad] = 0.0
-                P = V2 @ V.T
-        if prior is None:
-            dx = np.linalg.lstsq(H, g, rcond=None)[0]
-            if degenerate:
-                dx = P @ dx
-        else:  # solved within the measured directions: projecting the prior-held solution afterwards
-            # would turn its translation into yaw (H's eigenvectors mix the two)
-            g_held = g - prior * _tangent_from(guess, T)
-            dx = good @ np.linalg.lstsq(good.T @ (H + np.diag(prior)) @ good, good.T @ g_held, rcond=None)[0]
+            deg = _degenerate_directions(H, cfg.degeneracy_eigen_threshold)
+        dx = _step(H, g, deg, prior, guess, T)
         T = _update(T, dx, pivot)
-        rot_deg, trans_cm = np.degrees(np.linalg.norm(dx[:3])), np.linalg.norm(dx[3:]) * 100
-        if rot_deg < cfg.converge_rot_deg and trans_cm < cfg.converge_trans_cm:
+        if _small(dx, cfg):
             converged = True
             break
+    directions = deg.directions
     if pivot is not None and len(directions):  # report them about the sensor, as without a pivot
         directions = _about_sensor(directions, T[:3, :3] @ pivot)
-    return MatchResult(T, it, converged, degenerate, min_eig, len(edges), len(surfs), True, n_bad, weakest, eigenvalues,
-                       directions)
+    return MatchResult(pose=T, iterations=it, converged=converged, degenerate=deg.degenerate,
+                       min_eigenvalue=deg.min_eigenvalue, n_edges=len(edges), n_surfs=len(surfs), optimised=True,
+                       n_degenerate=len(deg.directions), weakest_direction=deg.weakest, eigenvalues=deg.eigenvalues,
+                       degenerate_directions=directions)
+
+
+@dataclass(frozen=True, kw_only=True)
+class _Degeneracy:
+    """The first iteration's eigen-analysis of J^T J; the defaults: none yet (every direction measured)."""
+
+    eigenvalues: tuple[float, ...] = ()  # ascending
+    weakest: tuple[float, ...] = ()  # unit eigenvector of the smallest eigenvalue, [rot, trans] in map axes
+    measured: np.ndarray = field(default_factory=lambda: np.eye(6))  # (6, k) eigenvectors kept, as columns
+    projection: np.ndarray = field(default_factory=lambda: np.eye(6))  # P = V' V^T, the degenerate ones zeroed
+    directions: np.ndarray = field(default_factory=lambda: np.zeros((0, 6)))  # (k, 6) eigenvectors projected out
+
+    @property
+    def degenerate(self) -> bool:
+        return len(self.directions) > 0
+
+    @property
+    def min_eigenvalue(self) -> float:
+        return self.eigenvalues[0] if self.eigenvalues else float("nan")
+
+
+def _degenerate_directions(H: np.ndarray, threshold: float) -> _Degeneracy:
+    """LIO-SAM's degeneracy remapping: the eigenvectors of J^T J whose eigenvalue is below
+    `threshold` are directions the sweep does not measure; updates along them are projected out."""
+    w, V = np.linalg.eigh(H)
+    bad = w < threshold
+    projection = np.eye(6)
+    if bad.any():
+        V2 = V.copy()
+        V2[:, bad] = 0.0
+        projection = V2 @ V.T
+    return _Degeneracy(eigenvalues=tuple(float(v) for v in w), weakest=tuple(float(v) for v in V[:, 0]),
+                       measured=V[:, ~bad], projection=projection, directions=V[:, bad].T.copy())
+
+
+def _step(H: np.ndarray, g: np.ndarray, deg: _Degeneracy, prior: np.ndarray | None, guess: np.ndarray,
+          T: np.ndarray) -> np.ndarray:
+    """The Gauss-Newton update dx = [dtheta, dt] (map axes) of H dx = g, without the degenerate
+    directions; with a prior, solved within the measured directions with the prior's information
+    pulling towards the guess (projecting a prior-held solution afterwards would turn its
+    translation into yaw: H's eigenvectors mix the two)."""
+    if prior is None:
+        dx: np.ndarray = np.linalg.lstsq(H, g, rcond=None)[0]
+        return deg.projection @ dx if deg.degenerate else dx
+    g_held = g - prior * _tangent_from(guess, T)
+    good = deg.measured
+    return np.asarray(good @ np.linalg.lstsq(good.T @ (H + np.diag(prior)) @ good, good.T @ g_held, rcond=None)[0])
+
+
+def _small(dx: np.ndarray, cfg: MatchingConfig) -> bool:
+    """Converged: the step turns less than converge_rot_deg and moves less than converge_trans_cm."""
+    return bool(np.degrees(np.linalg.norm(dx[:3])) < cfg.converge_rot_deg
+                and np.linalg.norm(dx[3:]) * 100 < cfg.converge_trans_cm)
+
+
+def _stacked_rows(edge_corr: _Correspondences | None, surf_corr: _Correspondences, edges: np.ndarray,
+                  surfs: np.ndarray, T: np.ndarray, pivot: np.ndarray | None,
+                  ground_normal_min_z: float) -> tuple[np.ndarray, np.ndarray]:
+    """The edge rows, then the plane rows (ground planes vertical-only when ground_normal_min_z > 0)."""
+    Je, re = edge_corr.rows(edges, T, pivot) if edge_corr is not None else (np.zeros((0, 6)), np.zeros(0))
+    Js, rs = surf_corr.rows(surfs, T, pivot)
+    if ground_normal_min_z > 0:
+        _ground_rows_vertical_only(Js, ground_normal_min_z)
+    return np.r_[Je, Js], np.r_[re, rs]

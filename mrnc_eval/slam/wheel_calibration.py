@@ -57,7 +57,7 @@ def integrate(inc: WheelIncrements, forward_m: np.ndarray, yaw_rad: np.ndarray) 
     dy = forward_m * np.sin(mid) + inc.lateral_m * np.cos(mid)
     pos = np.c_[inc.start[0, 3] + np.r_[0.0, np.cumsum(dx)], inc.start[1, 3] + np.r_[0.0, np.cumsum(dy)],
                 np.full(yaw.size, inc.start[2, 3])]
-    return WheelTrack(inc.stamps, pos, Rotation.from_euler("z", yaw[:, None]).as_quat())
+    return WheelTrack(stamps=inc.stamps, positions=pos, quat_xyzw=Rotation.from_euler("z", yaw[:, None]).as_quat())
 
 
 def gyro_yaw_rate(imu: ImuSeries, imu_in_base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -15,7 +15,7 @@ from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import WheelOdomConfig
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class WheelTrack:
     """odom -> base_link poses: stamps (N,) s, positions (N, 3) m, quaternions (N, 4) xyzw."""
 

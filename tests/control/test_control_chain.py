@@ -198,8 +198,9 @@ def test_cross_track_sign_and_integral_errors() -> None:
 # ---- replay ------------------------------------------------------------------------------
 
 def test_replay_of_a_written_log_reproduces_the_simulated_tracking(tmp_path) -> None:
-    from mrnc_eval.commands.control import evaluate_trace, run_log
+    from mrnc_eval.commands.control import run_log
     from mrnc_eval.data import Trajectory, Waypoints
+    from mrnc_eval.evaluation.control_run import evaluate_trace
     from mrnc_eval.io.writers import LogWriter
 
     cfg = Config()
@@ -217,7 +218,7 @@ def test_replay_of_a_written_log_reproduces_the_simulated_tracking(tmp_path) -> 
         w.write_joint_state("/pump_cmd", t, ["left_pump", "right_pump"], np.c_[tr.u_left, tr.u_right])
     result = run_log(log, cfg, tmp_path / "out", mode="replay")
     got = {(m.group, m.name): m.value for m in result.metrics}
-    want = evaluate_trace(tr, cfg)
+    want = evaluate_trace(tr, cfg.control)
     path = want["path"]
     assert got[("control/recorded/path", "cross_track_rms_m")] == pytest.approx(path["cross_track_rms_m"], rel=1e-6)
     assert got[("control/recorded/path", "completion_time_s")] == pytest.approx(path["completion_time_s"], abs=0.1)

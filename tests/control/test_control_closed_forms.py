@@ -167,15 +167,19 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
     assert main(["control", "--mode", "simulate", "--controllers", "raid,pid,ff", "--out", str(tmp_path),
                  "--json"]) == 0
     body = json.loads(capsys.readouterr().out)
-    raid = body["controllers"]["raid"]
+    sides: dict[str, dict[str, dict]] = {}
+    for r in body["results"]:
+        sides.setdefault(r["controller"], {})[r["side"]] = {**r["stats"], **({"phi_hat": r["phi_hat"]}
+                                                                            if "phi_hat" in r else {})}
+    raid = sides["raid"]
     assert raid["left"]["funnel_violations"] == 0
     assert raid["right"]["safety_stops"] == 0
-    ff = body["controllers"]["ff"]
+    ff = sides["ff"]
     assert ff["left"]["funnel_violations"] + ff["right"]["funnel_violations"] > 0  # the negative control fails
     assert ff["left"]["feedback_share_mean"] == 0.0
     phi = raid["left"]["phi_hat"]
     assert len(phi["t_s"]) == len(phi["value"]) > 50  # RAID's phi-hat(t) at ~1 Hz
-    assert "phi_hat" not in body["controllers"]["pid"]["left"]
+    assert "phi_hat" not in sides["pid"]["left"]
     for key in ("paper_settling_time_s", "paper_overshoot_pct", "paper_steady_state_error_mps",
                 "feedback_share_p95"):
         assert key in raid["left"]
@@ -183,9 +187,23 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
         assert key in raid["left"]
     from mrnc_eval.results import read_result
 
+    # issue 25: stepinfo beside the reference-centred reading, the steady offset apart, restarts per side,
+    # and RAID's declared output unit with its interior gain in the result
+    for key in ("stepinfo_settling_time_s", "stepinfo_overshoot_pct", "steady_offset_mps",
+                "paper_stepinfo_settling_time_s", "paper_stepinfo_overshoot_pct", "paper_steady_offset_mps"):
+        assert key in raid["left"], key
+    assert raid["left"]["segment_restarts"] >= 1
+    assert raid["right"]["segment_restarts"] >= 1
+    # the feed-forward's +4 % offset is overshoot only in the reference-centred reading
+    assert raid["left"]["paper_overshoot_pct"] > 3.0 > 1.0 > raid["left"]["paper_stepinfo_overshoot_pct"]
+    assert raid["left"]["paper_steady_offset_mps"] > 0.01
+    assert body["meta"]["loop"]["raid_output_unit"] == "rpm_per_unit"
+    assert 50.0 < body["meta"]["loop"]["raid_interior_gain_rpm_per_mps"] < 200.0  # literal reading: ~97 RPM per m/s
+    assert [r["scale_rpm_per_unit"] for r in body["meta"]["raid_scale_study"]] == [1.0, 10.0, 100.0]
     result = read_result(next(tmp_path.iterdir()))
-    paper, table = result.tables
+    paper, table = result.tables[:2]
     assert paper.column_labels == ["RAID", "PID", "FF only (negative control)", "paper: RAID", "paper: PID"]
+    assert paper.row_labels[0] == "Settling time, stepinfo (s)"
     assert paper.cells[0][3:] == [3.2, 5.8]  # the printed settling times beside ours
     assert table.column_labels == ["RAID", "PID", "FF only (negative control)"]
     assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]
@@ -193,11 +211,12 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
 
 
 def test_table_two_has_the_papers_structure(paper_runs) -> None:
-    from mrnc_eval.commands.control import evaluate_trace, table_two
+    from mrnc_eval.evaluation.control_run import evaluate_trace
+    from mrnc_eval.reports.control_tables import table_two
     from mrnc_eval.reports.tables import render_table
 
     cfg, runs = paper_runs
-    metrics = {n: evaluate_trace(tr, cfg) for n, tr in runs.items()}
+    metrics = {n: evaluate_trace(tr, cfg.control) for n, tr in runs.items()}
     table = table_two(metrics, tuple(runs), cfg)
     # the paper: criteria as rows (settling time, overshoot, steady-state error), RAID | APC | PID | FOPTC
     assert table.row_labels[:3] == ["Settling time (s)", "Overshoot (%)", "Steady-state error (m/s)"]

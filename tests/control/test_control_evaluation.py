@@ -177,15 +177,16 @@ def test_sweep_cli_json_counts_runs_per_controller(tmp_path, capsys) -> None:
             str(tmp_path), "--json", "--set", "control.sweep.duration_s=12", "--set", "control.sweep.workers=1"]
     assert main(argv) == 0
     body = json.loads(capsys.readouterr().out)
-    assert body["mode"] == "sweep"
-    assert body["runs"] == 3
+    assert body["meta"]["mode"] == "sweep"
+    assert body["meta"]["runs"] == 3
+    by = {r["controller"]: r for r in body["results"]}
     for name in ("raid", "ff"):
-        c = body["controllers"][name]
+        c = by[name]["stats"]
         assert c["runs"] == 3
         assert 0 <= c["runs_with_funnel_violation"] <= 3
         assert 0 <= c["runs_with_safety_stop"] <= 3
-        assert sum(b["runs"] for b in c["violation_rate_by_gain_mismatch"]) == 3
-    assert body["controllers"]["ff"]["runs_with_safety_stop"] == 0  # no barrier without RAID
+        assert sum(b["runs"] for b in by[name]["violation_rate_by_gain_mismatch"]) == 3
+    assert by["ff"]["stats"]["runs_with_safety_stop"] == 0  # no barrier without RAID
     from mrnc_eval.results import read_result
 
     result = read_result(next(tmp_path.iterdir()))

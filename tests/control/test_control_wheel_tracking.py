@@ -14,11 +14,12 @@ import numpy as np
 import pytest
 
 from mrnc_eval.cli import main
-from mrnc_eval.commands.control import evaluate_trace, run_log
+from mrnc_eval.commands.control import run_log
 from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.scenario import Scenario, scripted_scenario
 from mrnc_eval.data import Trajectory, Twists, Waypoints
+from mrnc_eval.evaluation.control_run import evaluate_trace
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import LogWriter
 from mrnc_eval.results import RunResult
@@ -85,7 +86,7 @@ def test_without_a_path_the_replay_tracks_wheel_speeds_against_cmd_vel(run, tmp_
     # the references are the simulator's own: the same IK of the same commands, the same slew (the
     # replay steps the slew at 50 Hz, the simulation at 1 kHz: apart by at most one 20 ms step of it)
     slew_step = cfg.control.kinematics.reference_accel_limit_mps2 * 0.02
-    sim = evaluate_trace(tr, cfg)
+    sim = evaluate_trace(tr, cfg.control)
     got = _metrics(result)
     for side in SIDES:
         v_ref = result.series[f"recorded_{side}_v_ref"]
@@ -172,14 +173,14 @@ def test_path_file_reproduces_the_replay_of_the_log_with_its_plan(run, tmp_path:
     assert main(["control", str(without), "--mode", "replay", "--path", str(tum), "--out", str(tmp_path / "b"),
                  "--json"]) == 0
     body = json.loads(capsys.readouterr().out)
-    got = {(f"control/recorded/{side}", name): float("nan" if value is None else value)  # JSON: inf as "inf"
-           for side, values in body["controllers"]["recorded"].items()
-           for name, value in values.items() if not isinstance(value, dict)}
+    got = {(f"control/recorded/{r['side']}", name): float("nan" if value is None else value)  # inf: null
+           for r in body["results"] if r["controller"] == "recorded" for name, value in r["stats"].items()}
     assert set(got) == set(want)
     assert any(k[0].endswith("/path") for k in want)  # cross-track and completion, as with /plan
-    for key, value in want.items():
+    for key, value in want.items():  # --json stats: NaN and infinity ("not settled") are both null
+        value = value if np.isfinite(value) else float("nan")
         assert got[key] == pytest.approx(value, rel=1e-6, abs=1e-9, nan_ok=True), key
-    saved = json.loads((Path(body["run_dir"]) / "result.json").read_text())
+    saved = json.loads((Path(body["meta"]["run_dir"]) / "result.json").read_text())
     assert saved["extra"]["replay"] == "path"
     assert saved["extra"]["roles"]["path"] == f"{tum} (--path)"
 
@@ -230,3 +231,15 @@ def test_csv_waypoints_with_or_without_a_header(tmp_path: Path) -> None:
     want = np.array([[0.0, 0.0], [1.5, 0.25], [3.0, 1.0]])
     for path in (plain, named):
         np.testing.assert_array_equal(read_waypoints(path).xy, want)
+
+
+def test_replay_refuses_controllers_and_prints_not_settled(capsys: pytest.CaptureFixture[str],
+                                                          tmp_path: Path) -> None:
+    from mrnc_eval.cli import main as cli_main
+    from mrnc_eval.reports.control_tables import replay_cell as _replay_cell
+
+    assert cli_main(["control", str(tmp_path / "any.mcap"), "--mode", "replay", "--controllers", "pid"]) == 2
+    assert "--controllers chooses the controllers of --mode simulate and sweep" in capsys.readouterr().err
+    assert _replay_cell(float("inf")) == "not settled"  # the legend's words, not "inf"
+    assert _replay_cell(float("nan")) is None
+    assert _replay_cell(1.5) == 1.5

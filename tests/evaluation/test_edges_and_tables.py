@@ -121,8 +121,9 @@ def test_ape_cli_json_keys(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -
     write_tum(tmp_path / "gt.tum", ref)
     write_tum(tmp_path / "est.tum", est)
     assert main(["ape", str(tmp_path / "gt.tum"), str(tmp_path / "est.tum"), "--json", "--max-diff", "0.01"]) == 0
-    out = json.loads(capsys.readouterr().out)
-    assert set(out[0]) >= {"name", "rmse", "mean", "median", "std", "min", "max", "sse", "n"}
+    out = json.loads(capsys.readouterr().out)["results"]
+    assert out[0]["name"] == "est"
+    assert set(out[0]["stats"]) >= {"rmse", "mean", "median", "std", "min", "max", "sse", "n"}
     assert main(["ape", str(tmp_path / "gt.tum"), str(tmp_path / "missing.tum")]) == 4
 
 

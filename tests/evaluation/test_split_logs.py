@@ -45,11 +45,11 @@ def test_split_log_reads_as_one(tmp_path: Path, fmt: str, suffix: str, capsys: p
     with open_log(spec) as log:
         assert [p.name for p in log.paths] == [p.name for p in paths]
     assert main(["info", spec, "--json"]) == 0
-    info = json.loads(capsys.readouterr().out)
+    info = json.loads(capsys.readouterr().out)["results"][0]
     assert next(t for t in info["topics"] if t["topic"] == "/odom")["count"] == len(whole)
     write_tum(tmp_path / "gt.tum", whole)
     assert main(["ape", str(tmp_path / "gt.tum"), f"{spec}:/odom", "--json", "--align", "none"]) == 0
-    out = json.loads(capsys.readouterr().out)[0]
+    out = json.loads(capsys.readouterr().out)["results"][0]["stats"]
     assert out["n"] == len(whole)
     assert out["max"] < 1e-9
 

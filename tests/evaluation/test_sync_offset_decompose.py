@@ -149,7 +149,7 @@ def test_cli_warns_once_per_file_and_strict_refuses(tmp_path: Path, capsys: pyte
     gt, est = _messy_files(tmp_path)
     assert main(["ape", str(gt), str(est), str(est), "--json", "--max-diff", "0.02"]) == 0
     captured = capsys.readouterr()
-    out = json.loads(captured.out)[0]
+    out = json.loads(captured.out)["results"][0]
     assert out["repeated_stamps"] == {"reference": 1, "estimate": 4}
     lines = [ln.split(": ", 1)[1] for ln in captured.err.splitlines() if ln.startswith("WARNING")]
     assert lines == [f"{gt}: 1 repeated time stamp(s), paired as evo does (--strict refuses such files)",
@@ -167,9 +167,9 @@ def test_cli_offset_auto_interpolate_decompose_and_path_plot(tmp_path: Path,
     assert main([*args, "--offset", "auto", "--sync", "interpolate", "--decompose",
                  "--plot", str(tmp_path / "path.svg")]) == 0
     captured = capsys.readouterr()
-    out = json.loads(captured.out)[0]
-    assert abs(out["offset_s"] - 0.1) < 0.005
-    assert f"est: estimated clock offset {out['offset_s']:+.4f} s" in captured.err
+    out = json.loads(captured.out)["results"][0]
+    assert abs(out["stats"]["offset_s"] - 0.1) < 0.005
+    assert f"est: estimated clock offset {out['stats']['offset_s']:+.4f} s" in captured.err
     assert set(out["decomposition"]) == {"along_m", "cross_m", "vertical_m", "yaw_deg"}
     svg = (tmp_path / "path.svg").read_text()
     assert "reference" in svg

@@ -92,6 +92,9 @@ def test_fast_path_rounds_as_float(tmp_path: Path, numtext: ModuleType) -> None:
     rng = np.random.default_rng(1)
     tokens = ["0", "-0", "5.", ".5", "+1.25", "007", "0.12345678901234567890", "9007199254740993", "1e22", "1E-5",
               "123456789012345678901234", "2.5e+300", "4.9e-324", "1e-400", "0.1000000000000000055511151231257827",
+              # around the one-pass reader's limits: 19 digits counting leading zeros, 2^53, 22 decimals
+              "00000000000000000001.5", "0.0000000000000000001234", "-0.0000000000000000000000001",
+              "1234567890123456789", "9007199254740992", "9007199254740992.1", "0.1234567890123456789",
               *(repr(float(x)) for x in rng.normal(scale=1e6, size=60)), *(f"{x:.17g}" for x in rng.uniform(-1, 1, 60))]
     tokens += ["1"] * (-len(tokens) % 8)
     path = tmp_path / "n.txt"

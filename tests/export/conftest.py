@@ -25,7 +25,7 @@ class Runs:
 @pytest.fixture(scope="session")
 def sim_runs(tmp_path_factory) -> Runs:
     from mrnc_eval.commands import control, slam
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     root = tmp_path_factory.mktemp("export")
     cfg = tiny_cfg()

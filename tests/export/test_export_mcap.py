@@ -60,7 +60,7 @@ def test_schema_names_counts_and_encodings(exported: Path, sim_runs: Runs) -> No
     assert counts["/eval/slam/lio/keyframes"] == len(read_tum(sim_runs.slam / "keyframes.tum"))
     assert counts["/eval/control/recorded/tracking"] == control.series["recorded_t"].size
     assert counts["/eval/control/recorded/planned_path"] == counts["/eval/control/recorded/driven_path"] == 1
-    assert counts["/eval/tf"] == 1
+    assert counts["/eval/tf"] == 1 + 2 * len(traj)  # the alignment, then lio/map -> base_link and -> odom per pose
     assert summary.statistics.message_count == len(messages)
 
 
@@ -82,7 +82,7 @@ def test_decoded_poses_equal_the_tum_file(exported: Path, sim_runs: Runs) -> Non
     assert len(poses) == len(traj)
     for (t_ns, body), stamp, xyz, q in zip(poses, traj.stamps, traj.positions, traj.quat_xyzw, strict=True):
         p, o = body["pose"]["position"], body["pose"]["orientation"]
-        assert body["frame_id"] == "map"
+        assert body["frame_id"] == "lio/map"  # the estimate's own, namespaced frame
         assert abs(t_ns * 1e-9 - stamp) < 1e-6  # float64 of a 1.7e9 s stamp: 0.24 us resolution
         np.testing.assert_allclose([p["x"], p["y"], p["z"]], xyz, rtol=0, atol=1e-12)
         np.testing.assert_allclose([o["x"], o["y"], o["z"], o["w"]], q, rtol=0, atol=1e-12)
@@ -111,18 +111,49 @@ def test_map_cloud_and_control_values_decode_to_the_results(exported: Path, sim_
     np.testing.assert_allclose([m["funnel_upper_mps"] for m in tracking], control.series["recorded_funnel_o"])
 
 
-def test_messages_validate_against_their_own_schemas(exported: Path) -> None:
-    jsonschema = pytest.importorskip("jsonschema", reason="jsonschema not installed")
+OFFICIAL = Path(__file__).resolve().parents[2] / "mrnc_eval" / "export" / "foxglove_schemas"
+
+
+def test_every_message_validates_against_the_official_foxglove_schemas(exported: Path) -> None:
+    """The embedded schema of every foxglove.* channel is the published file (foxglove-sdk,
+    SOURCE.md), and every message validates against it (ours: against the embedded one)."""
     from mcap.reader import make_reader
 
-    seen: set[str] = set()
+    from tests.needs import need_module
+
+    jsonschema = need_module("jsonschema", "jsonschema is not installed (pip install 'mrnc-eval[test]')")
+    validators: dict[str, object] = {}
+    topics: set[str] = set()
+    n = 0
     with exported.open("rb") as fh:
         for schema, channel, message in make_reader(fh).iter_messages():
-            if channel.topic in seen:
-                continue
-            seen.add(channel.topic)
-            jsonschema.validate(json.loads(message.data), json.loads(schema.data))
-    assert len(seen) >= 10
+            if schema.name not in validators:
+                embedded = json.loads(schema.data)
+                if schema.name.startswith("foxglove."):
+                    official = json.loads((OFFICIAL / f"{schema.name.removeprefix('foxglove.')}.json").read_text())
+                    assert embedded == official, schema.name
+                validators[schema.name] = jsonschema.Draft7Validator(embedded)
+            validators[schema.name].validate(json.loads(message.data))  # type: ignore[attr-defined]
+            topics.add(channel.topic)
+            n += 1
+    assert len(topics) >= 10
+    assert {"foxglove.SceneUpdate", "foxglove.FrameTransform", "foxglove.PointCloud", "foxglove.Log"} <= set(validators)
+    assert n > 1000
+
+
+def test_the_official_schema_refuses_what_the_hand_copy_let_through() -> None:
+    """Negative control: a SceneEntity without the empty primitive lists (the old hand copy's
+    shape) fails the official SceneUpdate schema."""
+    from mrnc_eval.export.mcap_file import line_entity
+    from mrnc_eval.export.schemas import SCENE_UPDATE
+    from tests.needs import need_module
+
+    jsonschema = need_module("jsonschema", "jsonschema is not installed (pip install 'mrnc-eval[test]')")
+    entity = line_entity(0, "lio/map", "g", [])
+    jsonschema.validate({"deletions": [], "entities": [entity]}, SCENE_UPDATE)
+    old = {k: v for k, v in entity.items() if k not in ("arrows", "cubes", "texts")}
+    with pytest.raises(jsonschema.ValidationError):
+        jsonschema.validate({"deletions": [], "entities": [old]}, SCENE_UPDATE)
 
 
 def test_with_log_copies_every_topic_raw(sim_runs: Runs, tmp_path: Path) -> None:
@@ -168,9 +199,12 @@ def test_never_overwrites_without_force_and_leaves_nothing_on_failure(sim_runs: 
                                                                       capsys) -> None:
     out = tmp_path / "x.mcap"
     out.write_bytes(b"keep me")
-    assert main(["export", str(sim_runs.slam), "--mcap", str(out)]) == 2
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out)]) == 4  # the one overwrite rule: exit 4
     assert out.read_bytes() == b"keep me"
     assert "--force" in capsys.readouterr().err
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 4  # not a file we wrote
+    assert out.read_bytes() == b"keep me"
+    assert "not a file this tool wrote" in capsys.readouterr().err
     broken = tmp_path / "broken"
     broken.mkdir()
     for name in ("result.json", "config.yaml", "series.npz"):
@@ -178,7 +212,9 @@ def test_never_overwrites_without_force_and_leaves_nothing_on_failure(sim_runs: 
     assert main(["export", str(broken), "--mcap", str(tmp_path / "new.mcap")]) == 4
     assert "trajectory.tum" in capsys.readouterr().err
     assert sorted(p.name for p in tmp_path.iterdir()) == ["broken", "x.mcap"]  # no partial or temporary file
-    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 0
+    out.unlink()
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out)]) == 0
+    assert main(["export", str(sim_runs.slam), "--mcap", str(out), "--force"]) == 0  # our own export: replaced
     assert out.read_bytes()[:8] == b"\x89MCAP0\r\n"
     assert out.stat().st_mode & 0o044 == 0o044 or os.umask(os.umask(0)) & 0o044  # readable as any file is
 

@@ -70,16 +70,19 @@ def test_table_reads_slam_result_folders(sim_runs: Runs, results_root: Path, tmp
     for setting, lio_metric, kiss_file in (([], "ape_online_rmse_m", "trajectory_online.tum"),  # the default
                                            (["--set", "slam.table_trajectory=smoothed"], "ape_rmse_m",
                                             "trajectory.tum")):
-        table = _json(["table", str(results_root), "--json", "--max-diff", "0.02", *setting], capsys)  # slam's max_diff
+        doc = _json(["table", str(results_root), "--json", "--max-diff", "0.02", *setting], capsys)  # slam's max_diff
+        table = doc["meta"]["table"]
         assert table["row_labels"] == [run.log_id, "Mean"]
         assert table["column_labels"] == ["kiss-icp", "lio"]
         kiss_cell, lio_cell = table["cells"][0]
+        assert [r["stats"]["value"] for r in doc["results"][:2]] == [kiss_cell, lio_cell]  # one item per cell
         own = run.metric(lio_metric)
         assert own is not None
         assert lio_cell == pytest.approx(own.value, rel=1e-6), setting  # the run's own APE
-        ape = _json(["ape", f"{sim_runs.log}:/ground_truth", str(kiss / kiss_file), "--max-diff", "0.02", "--json"],
+        ape = _json(["ape", f"{sim_runs.log}:/ground_truth", str(kiss / kiss_file), "--max-diff", "0.02", "--json",
+                     "-a"],
                     capsys)
-        assert kiss_cell == pytest.approx(ape[0]["rmse"], rel=1e-9), setting
+        assert kiss_cell == pytest.approx(ape["results"][0]["stats"]["rmse"], rel=1e-9), setting
     assert not any("yard-slam-lio-old" in n for n in table["notes"])
     recorded = run.extra["ground_truth"]  # as the run found it, with an absolute path
     assert recorded == f"{sim_runs.log.resolve()}:/ground_truth"
@@ -87,11 +90,13 @@ def test_table_reads_slam_result_folders(sim_runs: Runs, results_root: Path, tmp
 
 def test_table_from_results_honours_config_and_writes_files(results_root: Path, tmp_path: Path,
                                                             capsys: pytest.CaptureFixture[str]) -> None:
-    table = _json(["table", str(results_root), "--json", "--set", "evaluation.failed_min_matches=100000"], capsys)
-    assert table["cells"][0] == ["Failed", "Failed"]
+    doc = _json(["table", str(results_root), "--json", "--set", "evaluation.failed_min_matches=100000"], capsys)
+    assert doc["meta"]["table"]["cells"][0] == ["Failed", "Failed"]
+    assert doc["results"][0]["stats"]["value"] is None
+    assert doc["results"][0]["failed"] == "Failed"
     cfg = tmp_path / "strict.yaml"
     cfg.write_text("evaluation:\n  failed_min_matches: 100000\n", encoding="utf-8")
-    assert _json(["table", str(results_root), "--json", "--config", str(cfg)], capsys)["cells"][0] == \
+    assert _json(["table", str(results_root), "--json", "--config", str(cfg)], capsys)["meta"]["table"]["cells"][0] == \
         ["Failed", "Failed"]
     assert main(["table", str(results_root), "--min-span-fraction", "2"]) == 2  # a config key's range
     assert main(["table", str(results_root), "--dump-config"]) == 0

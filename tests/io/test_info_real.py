@@ -12,7 +12,7 @@ from mrnc_eval.cli import main
 
 def test_info_real_recording(real_ouster_mcap: Path, capsys: pytest.CaptureFixture[str]) -> None:
     assert main(["info", str(real_ouster_mcap.parent), "--json"]) == 0
-    info = json.loads(capsys.readouterr().out)
+    info = json.loads(capsys.readouterr().out)["results"][0]
     counts = {t["topic"]: (t["msgtype"], t["count"]) for t in info["topics"]}
     assert counts["/ouster/points"] == ("sensor_msgs/msg/PointCloud2", 3)
     assert counts["/ouster/imu"] == ("sensor_msgs/msg/Imu", 30)
@@ -21,7 +21,7 @@ def test_info_real_recording(real_ouster_mcap: Path, capsys: pytest.CaptureFixtu
     assert info["lidar"]["height"] == 128
     assert info["lidar"]["width"] == 1024
     assert info["lidar"]["per_point_time"]
-    assert 0.3 < info["duration_s"] < 0.32
+    assert 0.3 < info["stats"]["duration_s"] < 0.32
 
 
 def test_real_sweeps_have_per_point_time(real_ouster_mcap: Path) -> None:

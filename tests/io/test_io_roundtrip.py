@@ -15,6 +15,7 @@ from mrnc_eval.errors import InputError
 from mrnc_eval.io import open_log
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.writers import LogWriter
+from mrnc_eval.slam.mapping_interval import MappingInterval
 
 FORMATS = [("mcap", "log.mcap", "ros2-mcap"), ("db3", "log.db3", "ros2-sqlite3"), ("bag", "log.bag", "ros1"),
            ("mcap", "bagdir", "ros2-mcap")]
@@ -173,7 +174,7 @@ def test_failed_write_leaves_nothing(tmp_path: Path) -> None:
 def test_sweeps_skipped_before_decoding_at_a_lower_mapping_rate(tmp_path: Path) -> None:
     write_sample(tmp_path / "a.mcap", "mcap")
     with open_log(tmp_path / "a.mcap") as log:
-        kept = [s.stamp for s in log.sweeps(min_interval_s=0.15)]
+        kept = [s.stamp for s in log.sweeps(keep=MappingInterval(interval_s=0.15).take)]
     assert kept == pytest.approx([100.0, 100.2])
 
 
@@ -189,11 +190,11 @@ def test_overview_pass_keeps_small_topics_so_series_do_not_reread_the_file(tmp_p
             assert lg.topics  # the overview pass
             passes: list[list[str]] = []
 
-            def counting(topics, real=lg._iterate, seen=passes):
+            def counting(topics, real=lg.source.iterate, seen=passes):
                 seen.append(topics)
                 return real(topics)
 
-            lg._iterate = counting
+            lg.source.iterate = counting
             series[budget] = (lg.imu(), lg.gnss(), lg.ground_truth(), lg.transform("base_link", "os_imu"))
             reread = [t for t in passes if t != ["/ouster/points"]]
         assert (reread == []) == (budget == 1024.0), (budget, reread)

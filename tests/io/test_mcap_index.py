@@ -56,10 +56,10 @@ def _overview(path: Path | str, monkeypatch: pytest.MonkeyPatch, *, indexed: boo
         used.append(1)
         return real(*args)
 
-    monkeypatch.setattr("mrnc_eval.io.bag_index.overview" if ros1 else "mrnc_eval.io.reader.mcap_overview", counted)
+    monkeypatch.setattr("mrnc_eval.io.bag_index.overview" if ros1 else "mrnc_eval.io.overview.mcap_overview", counted)
     with open_log(path) as lg:
         out = {"topics": lg.topics, "stamps": {t: lg.stamps(t) for t in lg.topic_types()},
-               "cache": lg._cache, "health": lg.health_notes(), "imu": lg.imu().stamps}
+               "cache": lg.source.cache, "health": lg.health_notes(), "imu": lg.imu().stamps}
     assert bool(used) == indexed
     return out
 
@@ -146,7 +146,7 @@ def test_slam_read_decompresses_each_bag_chunk_once(tmp_path: Path, monkeypatch:
 
     monkeypatch.setitem(bag_reader.decompressors, compression, counting)
     with open_log(tmp_path / "a.bag") as lg:
-        n_chunks = len(lg._src._reader.readers[0].chunks)  # type: ignore[union-attr]
+        n_chunks = len(lg.source.src._reader.readers[0].chunks)  # type: ignore[union-attr]
     assert n_chunks == len(CLOUD_STAMPS)  # one cloud a chunk (the chunk of the last one also ends the bag)
     decompressed.clear()
     _sweep_read(tmp_path / "a.bag")

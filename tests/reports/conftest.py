@@ -7,7 +7,7 @@ import numpy as np
 import pytest
 
 from mrnc_eval.config import Config
-from mrnc_eval.sim.recorder import SimRequest, simulate_log
+from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
 
 def tiny_cfg() -> Config:

@@ -27,12 +27,13 @@ def info_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf:
     time.sleep(float(os.environ.get(SLEEP_ENV, "0")))
     result = RunResult(kind="info", log_path=str(log_path), log_id=log_id, extra={"info": summary},
                        config_hash=config_hash(cfg),
-                       metrics=[Metric("duration_s", summary["duration_s"], "s", "info"),
-                                Metric("messages", sum(t["count"] for t in summary["topics"]), "", "info"),
-                                Metric("topics", len(summary["topics"]), "", "info")])
+                       metrics=[Metric(name="duration_s", value=summary["duration_s"], unit="s", group="info"),
+                                Metric(name="messages", value=sum(t["count"] for t in summary["topics"]), unit="",
+                                       group="info"),
+                                Metric(name="topics", value=len(summary["topics"]), unit="", group="info")])
     write_result(result, work_dir / "info", dump_config(cfg))
     write_report([result], work_dir, gates=cfg.gates, config_text=dump_config(cfg), pdf=pdf)
-    return Analysis([(f"{m.group}/{m.name}", m.value, m.unit) for m in result.metrics], [])
+    return Analysis(metrics=[(f"{m.group}/{m.name}", m.value, m.unit) for m in result.metrics], gates_failed=[])
 
 
 def crashing_analysis(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: bool) -> Analysis:

@@ -221,6 +221,7 @@ def test_a_second_nightly_on_the_same_root_is_refused(imu_logs: Path, tmp_path: 
             run_night(imu_logs, out, night="2026-11-06")
     assert not (out / "history.sqlite").exists()
     assert run_night(imu_logs, out, night="2026-11-06") == 0  # released: runs
+    assert not (out / ".nightly.lock").exists()  # removed after the run, not left in the report root
 
 
 def test_a_failed_gate_exits_1_and_is_named_in_the_index_and_history(imu_logs: Path, tmp_path: Path) -> None:
@@ -238,12 +239,15 @@ def test_gate_cards_judge_the_worst_deployed_value() -> None:
     from mrnc_eval.reports.render import evaluate_gates
     from mrnc_eval.results import Metric, RunResult
 
-    slam = RunResult("slam", "x.mcap", "x", metrics=[Metric("ape_rmse_m", 0.12, "m", "slam/ape")])
-    control = RunResult("control", "x.mcap", "x", metrics=[
-        Metric("funnel_violations", 0, "", "control/raid/left"), Metric("funnel_violations", 3, "", "control/pid/left"),
-        Metric("saturation_ratio", 0.1, "", "control/raid/left"),
-        Metric("saturation_ratio", 0.3, "", "control/raid/right"),
-        Metric("safety_stops", float("nan"), "", "control/raid/left")])
+    slam = RunResult(kind="slam", log_path="x.mcap", log_id="x",
+                     metrics=[Metric(name="ape_rmse_m", value=0.12, unit="m", group="slam/ape")])
+    control = RunResult(kind="control", log_path="x.mcap", log_id="x", metrics=[
+        Metric(name="funnel_violations", value=0, unit="", group="control/raid/left"),
+        Metric(name="funnel_violations", value=3, unit="", group="control/pid/left"),
+        Metric(name="saturation_ratio", value=0.1, unit="", group="control/raid/left"),
+        Metric(name="saturation_ratio", value=0.3, unit="", group="control/raid/right"),
+        Metric(name="safety_stops", value=float("nan"), unit="", group="control/raid/left")])
     cards = {g.label: (g.value, g.status) for g in evaluate_gates([slam, control], GatesConfig())}
     assert cards == {"APE RMSE": ("0.120 m", "fail"), "Funnel violations": ("0", "pass"),  # PID is not gated
-                     "Saturation ratio": ("0.300", "fail"), "Safety stops": ("n/a", "na")}
+                     "Saturation ratio": ("0.300", "fail"),
+                     "Safety stops": ("not a finite number: nan", "fail")}  # a NaN never skips (issue 26)

@@ -13,6 +13,7 @@ import numpy as np
 import pytest
 
 from mrnc_eval.cli import main
+from mrnc_eval.outputs import MANIFEST
 
 CHROMIUM_FLAGS = ["--headless", "--no-sandbox", "--disable-gpu", "--disable-quic", "--no-first-run",
                   "--disable-background-networking", "--disable-component-update", "--disable-sync"]
@@ -78,7 +79,7 @@ def test_report_opens_in_chromium_with_every_figure_drawn(night: Path, tmp_path:
     assert not console, console
     html = report.read_text(encoding="utf-8")
     assert not re.search(r'<img|<link|<script|src=|href="(?!#|data:)[a-z]+:|url\((?!#)', html)  # self-contained
-    for heading in ("Log health", "SLAM (lio)", "Control", "Effective configuration"):
+    for heading in ("Log health", "SLAM (lio)", "Control", "Configuration"):
         assert f"<h2>{heading}</h2>" in html
     for card in ("APE RMSE (lio)", "Funnel violations", "Saturation ratio", "Safety stops"):
         assert f'<div class="l">{card}</div>' in html
@@ -111,6 +112,7 @@ def test_pdf_pages_are_not_blank(night: Path, tmp_path: Path) -> None:
     subprocess.run(["pdftoppm", "-r", "40", "-png", str(pdf), str(tmp_path / "p")], check=True)
     pngs = sorted(tmp_path.glob("p-*.png"))
     assert len(pngs) == pages >= 4  # health, SLAM, control, configuration
+    assert pages <= 6  # SLAM + control without --appendix-config: the configuration is a list of changed keys
     for png in pngs:
         arr = np.asarray(Image.open(png).convert("L"))
         body = arr[: int(arr.shape[0] * 0.94)]  # above the bottom margin's page number ("11 / 11")
@@ -118,8 +120,27 @@ def test_pdf_pages_are_not_blank(night: Path, tmp_path: Path) -> None:
         # a blank one 0 (a fixed 0.5 % failed whenever the listing's last page came out short)
         assert (body < 200).mean() > 0.0005, png.name
     text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True, check=True).stdout
-    for words in ("Log health", "SLAM key numbers", "Table II layout", "Effective configuration"):
+    for words in ("Log health", "SLAM key numbers", "Table II layout", "Configuration", "--appendix-config"):
         assert words in text
+    assert "Appendix: effective configuration" not in text
+
+
+def test_appendix_config_adds_the_full_configuration_on_request(night: Path, tmp_path: Path) -> None:
+    """The full configuration only with report --appendix-config (the negative control of the page limit)."""
+    if not shutil.which("pdftotext"):
+        pytest.skip("pdftotext is not installed (poppler-utils; scripts/setup.sh --test installs it)")
+    log_dir = night / "logs" / "a"
+    assert main(["report", str(log_dir), "--out", str(tmp_path / "full"), "--pdf", "--appendix-config"]) in (0, 1)
+    pdf = tmp_path / "full" / "report.pdf"
+    text = subprocess.run(["pdftotext", str(pdf), "-"], capture_output=True, text=True, check=True).stdout
+    assert "Appendix: effective configuration" in text
+    assert "mapping_interval_s" in text  # a key only the full listing has (the defaults differ in nothing)
+    full = int(re.search(r"Pages:\s+(\d+)", subprocess.run(["pdfinfo", str(pdf)], capture_output=True, text=True,
+                                                             check=True).stdout).group(1))
+    short = int(re.search(r"Pages:\s+(\d+)", subprocess.run(["pdfinfo", str(log_dir / "report.pdf")],
+                                                              capture_output=True, text=True,
+                                                              check=True).stdout).group(1))
+    assert full > short
 
 
 def test_tables_exported_and_report_verb_rerenders_without_recomputing(night: Path, tmp_path: Path) -> None:
@@ -141,7 +162,10 @@ def test_tables_exported_and_report_verb_rerenders_without_recomputing(night: Pa
     assert main(["report", str(tmp_path / "missing")]) == 4
 
 
-def test_pdf_falls_back_to_matplotlib_and_says_so(tmp_path: Path, monkeypatch) -> None:
+def test_pdf_without_weasyprint_is_an_error_naming_the_extra(tmp_path: Path, monkeypatch) -> None:
+    """No placeholder PDF: `report --pdf` without a PDF engine exits 2 naming the pdf extra and writes
+    nothing; without --pdf the same report is written."""
+    from mrnc_eval.errors import MissingExtra
     from mrnc_eval.reports.render import write_pdf
 
     real_import = builtins.__import__
@@ -152,12 +176,9 @@ def test_pdf_falls_back_to_matplotlib_and_says_so(tmp_path: Path, monkeypatch) -
         return real_import(name, *args, **kwargs)
 
     monkeypatch.setattr(builtins, "__import__", no_weasyprint)
-    assert write_pdf("<html><body>x</body></html>", tmp_path / "r.pdf") == "fallback"
-    if shutil.which("pdftotext"):
-        text = subprocess.run(["pdftotext", str(tmp_path / "r.pdf"), "-"], capture_output=True, text=True).stdout
-        assert "FALLBACK PDF" in text
-        assert "libpango" in text
-    assert [p.name for p in tmp_path.iterdir()] == ["r.pdf"]
+    with pytest.raises(MissingExtra, match="Pango"):
+        write_pdf("<html><body>x</body></html>", tmp_path / "r.pdf")
+    assert [p.name for p in tmp_path.iterdir() if p.name != MANIFEST] == []  # nothing written
 
 
 def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_path: Path) -> None:
@@ -166,12 +187,14 @@ def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_p
     assert main(["report", str(result_dir), "--out", str(tmp_path / "rep")]) == 0
     html = (tmp_path / "rep" / "report.html").read_text(encoding="utf-8")
     captions = re.findall(r"<figcaption>([^<]*)</figcaption>", html)
-    assert len(captions) == 8  # tracking, effort, feedback share (and phi-hat for RAID), path per controller
+    # tracking, effort, feedback share (and phi-hat for RAID), path per controller; one Bode plot of the laws
+    assert len(captions) == 9
+    assert sum("Open loop" in c for c in captions) == 1
     assert sum("phi-hat" in c for c in captions) == 1
     assert [c for c in captions if "funnel" in c] == ["RAID: wheel-speed reference vs measured, funnel band "
                                                       "reference ± o(t)"]
     assert "Table II" in html
     assert (tmp_path / "rep" / "control_table2.tex").exists()
     counts, console = open_in_chromium(tmp_path / "rep" / "report.html", tmp_path)
-    assert counts["figures"] == counts["sized"] == counts["drawn"] == 8
+    assert counts["figures"] == counts["sized"] == counts["drawn"] == 9
     assert not console

@@ -14,12 +14,12 @@ from scipy.spatial.transform import Rotation
 
 from mrnc_eval.config import Config
 from mrnc_eval.io import open_log
+from mrnc_eval.recording.recorder import LOG_EPOCH_S, SimRequest, mounts, simulate_log, transform
 from mrnc_eval.sim.config import FieldImuConfig
 from mrnc_eval.sim.gnss import STATUS_FIX, STATUS_GBAS_FIX, STATUS_SBAS_FIX, simulate_field_gnss
 from mrnc_eval.sim.imu import imu_errors, vibration
 from mrnc_eval.sim.lidar import FieldLidar, LidarSimulator
 from mrnc_eval.sim.lidar_field import MovingBox, Puddles, range_sigma
-from mrnc_eval.sim.recorder import LOG_EPOCH_S, SimRequest, mounts, simulate_log, transform
 from mrnc_eval.sim.scene import Terrain, build_scene
 from mrnc_eval.sim.trajectory import GRAVITY_MPS2, BodyTrajectory
 

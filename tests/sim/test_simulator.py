@@ -15,8 +15,8 @@ from mrnc_eval.config import Config
 from mrnc_eval.io import open_log
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import read_tum
+from mrnc_eval.recording.recorder import LOG_EPOCH_S, SimRequest, simulate_log
 from mrnc_eval.sim.imu import ImuNoise, ideal_imu, simulate_imu
-from mrnc_eval.sim.recorder import LOG_EPOCH_S, SimRequest, simulate_log
 from mrnc_eval.sim.scene import SCENES, Terrain, build_scene
 from mrnc_eval.sim.trajectory import GRAVITY_MPS2, BodyTrajectory
 

@@ -7,7 +7,7 @@ from pathlib import Path
 import pytest
 
 from mrnc_eval.config import Config, replace_path
-from mrnc_eval.sim.recorder import SimRequest, simulate_log
+from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
 
 def _line_log(tmp_path_factory: pytest.TempPathFactory, scene: str, record_every: int = 1) -> Path:

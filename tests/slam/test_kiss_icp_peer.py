@@ -27,7 +27,7 @@ def field_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     """4 s yard line, field profile (the body, outliers and mixed pixels near the sensor, stamp
     jitter), OS0-32 x 512 at 10 Hz: clouds where a min range or a time normalisation of our own
     would change kiss-icp's poses."""
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     path = tmp_path_factory.mktemp("peer") / "yard_field.mcap"
     return simulate_log(path, Config(), SimRequest(scene="yard", path="line", duration_s=4.0, lidar="os0-32",

@@ -24,7 +24,7 @@ HARSH = {"sim.path_size_m": 16.0, "sim.lidar.range_noise_m": 0.03, "sim.imu.gyro
 
 @pytest.fixture(scope="module")
 def loop_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     cfg = Config()
     for key, value in HARSH.items():
@@ -69,7 +69,7 @@ def test_loop_log_accuracy_loop_closure_gain_and_kiss_icp(loop_log: Path, tmp_pa
 def crown_log(tmp_path_factory: pytest.TempPathFactory, monkeypatch_module) -> Path:
     """The same loop in a layout made before scenes kept the path clear: the LiDAR passes through
     a tree crown for ~10 s (max range 5 m, sweeps without features, then degenerate matching)."""
-    import mrnc_eval.sim.recorder as recorder
+    import mrnc_eval.recording.recorder as recorder
 
     build = recorder.build_scene
     monkeypatch_module.setattr(recorder, "build_scene", lambda *a, **k: build(*a, **{**k, "keep_clear_xy": None}))

@@ -212,7 +212,7 @@ def test_a_wrong_fix_moves_the_anchored_chain_little_and_lio_sams_free_start_a_l
 
     moved = {}
     for name, anchored in (("anchored", True), ("lio-sam", False)):
-        graph = KeyframeGraph(GraphConfig(), anchored=anchored)
+        graph = KeyframeGraph(cfg=GraphConfig(), anchored=anchored)
         for k in range(21):
             graph.add_keyframe(se3.make(np.eye(3), np.array([float(k), 0.0, 0.0])), float(k))
         before = graph.poses[-1][:3, 3].copy()
@@ -234,7 +234,7 @@ def test_gnss_factors_pull_a_drifting_keyframe_chain_onto_the_fixes() -> None:
     step_drift = se3.make(Rotation.from_euler("z", 0.01).as_matrix(), np.array([1.0, 0.0, 0.0]))
     errors = {}
     for with_gnss in (False, True):
-        graph = KeyframeGraph(GraphConfig())
+        graph = KeyframeGraph(cfg=GraphConfig())
         for k in range(n):  # each new pose continues from the optimised last one, as scan-to-map does
             graph.add_keyframe(truth[0] if k == 0 else graph.poses[-1] @ step_drift, float(k))
             if with_gnss and k % 5 == 0 and k > 0:

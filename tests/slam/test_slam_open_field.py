@@ -120,7 +120,7 @@ def test_rtk_fixes_bend_the_chain_only_where_scan_to_map_left_x_y_to_the_imu() -
     loose = np.eye(6)[[X, Y]]  # x and y left to the IMU
     errors = {}
     for name, sigma, floor in (("loose", 0.1, 0.0), ("lio_sam", 0.0, 1.0)):
-        graph = KeyframeGraph(replace(GraphConfig(), degenerate_odometry_sigma=sigma))
+        graph = KeyframeGraph(cfg=replace(GraphConfig(), degenerate_odometry_sigma=sigma))
         for k in range(n):
             step = se3.make(np.eye(3), np.array([1.0, 0.004 * k, 0.0]))
             graph.add_keyframe(truth[0] if k == 0 else graph.poses[-1] @ step, float(k), loose)

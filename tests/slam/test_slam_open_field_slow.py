@@ -50,7 +50,7 @@ def _with(cfg: Config, values: dict[str, object]) -> Config:
 
 
 def _open_field_log(folder: Path, profile: str, lidar: str) -> Path:
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     return simulate_log(folder / f"open_field_{profile}_{lidar}.mcap", _with(Config(), DRIVE),
                         SimRequest(scene="open_field", path="line", duration_s=40.0, lidar=lidar, columns=512,

@@ -107,7 +107,8 @@ def test_gate_rejects_a_wheel_glitch_and_takes_the_gyro_yaw() -> None:
     """A 0.5 s stretch where one side reads 0.5 m/s too much (a stuck pickup): its bins fail the
     chi-square gate; the gate off (gate_chi2 huge) keeps them: the negative control."""
     t, v, w = _drive()
-    glitch = WheelTrack(*_glitched(t, v, w))
+    stamps, positions, quat = _glitched(t, v, w)
+    glitch = WheelTrack(stamps=stamps, positions=positions, quat_xyzw=quat)
     wheels_yaw = WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0)  # the gate alone, no gyro blending
     on = WheelCalibrator.build(glitch, _imu(t, w, 0), np.eye(4), wheels_yaw)
     off = WheelCalibrator.build(glitch, _imu(t, w, 0), np.eye(4), replace(wheels_yaw, gate_chi2=1e12))
@@ -153,7 +154,7 @@ def _fixes(n: int, sigma: float, seed: int, multipath: tuple[float, float] | Non
     if multipath is not None:
         enu[(t >= multipath[0]) & (t < multipath[1]), 1] += 2.5
     cov = np.tile(np.diag([sigma ** 2] * 3), (t.size, 1, 1))
-    return GnssSeries(t, enu, enu, cov, np.zeros(3))
+    return GnssSeries(stamps=t, lla=enu, enu=enu, covariance=cov, origin_lla=np.zeros(3))
 
 
 def test_gnss_gate_lets_fixes_in_only_when_the_chain_drifted() -> None:

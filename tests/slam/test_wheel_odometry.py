@@ -25,7 +25,7 @@ def _arc(radius: float, speed: float, t: np.ndarray) -> WheelTrack:
     """Planar circular arc from the origin heading +x, turning left: yaw = v t / r."""
     yaw = speed * t / radius
     pos = np.c_[radius * np.sin(yaw), radius * (1 - np.cos(yaw)), np.zeros_like(t)]
-    return WheelTrack(t, pos, Rotation.from_euler("z", yaw[:, None]).as_quat())
+    return WheelTrack(stamps=t, positions=pos, quat_xyzw=Rotation.from_euler("z", yaw[:, None]).as_quat())
 
 
 def test_relative_motion_on_an_arc_matches_the_closed_form() -> None:
@@ -79,10 +79,11 @@ def test_no_factor_outside_the_odometry_span() -> None:
 def _chain(wheel: bool) -> np.ndarray:
     """Keyframes 1 m apart along x where the 'LiDAR' (here: a biased gyro) turns 0.02 rad per step
     and left yaw free (degenerate); the wheels say straight. Returns the final keyframe poses."""
-    graph = KeyframeGraph(GraphConfig())
+    graph = KeyframeGraph(cfg=GraphConfig())
     loose = np.array([[0, 0, 1, 0, 0, 0], [0, 0, 0, 1, 0, 0], [0, 0, 0, 0, 1, 0]], float)  # yaw, x, y (map)
     straight = np.linspace(0.0, 10.0, 11)
-    track = WheelTrack(straight, np.c_[straight, np.zeros((11, 2))], np.tile([0, 0, 0, 1.0], (11, 1)))
+    track = WheelTrack(stamps=straight, positions=np.c_[straight, np.zeros((11, 2))],
+                       quat_xyzw=np.tile([0, 0, 0, 1.0], (11, 1)))
     cfg = WheelOdomConfig()
     pose = np.eye(4)
     for k in range(11):

@@ -6,7 +6,7 @@ from __future__ import annotations
 
 import json
 import math
-from collections.abc import Callable
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
 from typing import Any, Literal, cast
@@ -15,19 +15,20 @@ import numpy as np
 from scipy.spatial.transform import Rotation
 
 from mrnc_eval.config import Config
-from mrnc_eval.control.closed_loop import run_closed_loop
-from mrnc_eval.control.scenario import scripted_scenario
+from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
+from mrnc_eval.control.scenario import Scenario, scripted_scenario
 from mrnc_eval.data import ImuSeries, Trajectory, Waypoints
-from mrnc_eval.errors import ConfigError
+from mrnc_eval.errors import ConfigError, UsageError
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import Format, LogWriter
-from mrnc_eval.sim.config import LidarSimConfig
-from mrnc_eval.sim.gnss import simulate_field_gnss, simulate_gnss
+from mrnc_eval.sim.config import FieldConfig, LidarSimConfig
+from mrnc_eval.sim.gnss import GnssFixes, simulate_field_gnss, simulate_gnss
 from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
 from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, OrganisedSweep, ouster_metadata
 from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
 from mrnc_eval.sim.scene import SCENES, Scene, build_scene
+from mrnc_eval.sim.standstill import hold_start
 from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
 from mrnc_eval.sim.wheels import WheelErrors, draw_wheel_errors, drive_signals
 
@@ -72,7 +73,8 @@ def mounts(cfg: Config) -> tuple[np.ndarray, np.ndarray]:
     return written, true
 
 
-def transform(xyz, rot=None) -> np.ndarray:
+def transform(xyz: Sequence[float], rot: np.ndarray | None = None) -> np.ndarray:
+    """4x4 pose from a translation (m) and a rotation matrix (identity when None)."""
     t = np.eye(4)
     t[:3, 3] = xyz
     if rot is not None:
@@ -99,21 +101,22 @@ def validate(req: SimRequest) -> None:
     if req.duration_s is not None and req.duration_s <= 0.5:
         problems.append(f"duration {req.duration_s:g} s (must exceed 0.5 s)")
     if problems:
-        raise ValueError("unsupported simulation request: " + "; ".join(problems))
+        raise UsageError("unsupported simulation request: " + "; ".join(problems))
 
 
-def _driven_path(trace) -> np.ndarray:
+def _driven_path(trace: ClosedLoopTrace) -> np.ndarray:
     """The driven xy (m) every ~0.1 m: what the scene must leave clear."""
     xy = np.c_[trace.x, trace.y]
     step = np.r_[0.0, np.cumsum(np.linalg.norm(np.diff(xy, axis=0), axis=1))]
-    return xy[np.unique(np.searchsorted(step, np.arange(0.0, step[-1] + 0.1, 0.1)).clip(0, len(xy) - 1))]
+    return np.asarray(xy[np.unique(np.searchsorted(step, np.arange(0.0, step[-1] + 0.1, 0.1)).clip(0, len(xy) - 1))])
 
 
 def simulate_log(out: Path, cfg: Config, req: SimRequest,
                  progress: Callable[[int, int], None] | None = None) -> Path:
     """Write the log to `out` (atomically) and the ground truth TUM beside it; returns the log
-    path. `progress(done, total)` is called after each recorded sweep. Long because it is the
-    table of contents of a recording: world, motion, then every sensor in a fixed draw order."""
+    path. `progress(done, total)` is called after each recorded sweep. The table of contents of a
+    recording: world, motion, then every sensor in a fixed draw order (the order is the format:
+    the same seed writes the same bytes)."""
     validate(req)
     if not cfg.sim.scene_scale > 0:
         raise ConfigError(f"sim.scene_scale must be > 0, got {cfg.sim.scene_scale:g}")
@@ -121,15 +124,79 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         cfg = replace(cfg, sim=replace(cfg.sim, profile=cast(Profile, req.profile)))  # validate() checked it
     out = Path(out)
     out.parent.mkdir(parents=True, exist_ok=True)
-    scfg = cfg.sim
-    field = scfg.field if scfg.profile == "field" else None
-    lcfg = replace(scfg.lidar, beams=LIDAR_MODELS[req.lidar], columns=req.columns, rate_hz=req.rate_hz)
     seed = cfg.sim.seed if req.seed is None else req.seed
-    rng = np.random.default_rng(seed)
-    frng = np.random.default_rng([seed, FIELD_STREAM])
+    run = _Run(cfg=cfg, req=req, rng=np.random.default_rng(seed), frng=np.random.default_rng([seed, FIELD_STREAM]),
+               lcfg=replace(cfg.sim.lidar, beams=LIDAR_MODELS[req.lidar], columns=req.columns, rate_hz=req.rate_hz))
+    world = _drive_world(run, seed)
+    frames = _Frames.of(cfg, run.lcfg)
+    compression = None if cfg.sim.bag_compression == "none" else cfg.sim.bag_compression
+    writer = LogWriter(out, cast(Format, req.fmt), ros1_compression=compression)  # validate() checked it
+    try:
+        _write_static(writer, run, world, frames)
+        _write_imus(writer, run, world, frames)
+        fixes = _write_gnss(writer, run, world, frames, np.random.default_rng([seed, GNSS_STREAM]))
+        errors_on = cfg.sim.wheels.model == "errors" or (cfg.sim.wheels.model == "profile" and run.field is not None)
+        wheel_errors = draw_wheel_errors(cfg.sim.wheels, errors_on, np.random.default_rng([seed, WHEEL_STREAM]))
+        _write_drive(writer, world.trace, run.stamps(cfg.sim.wheel_rate_hz, world), cfg, LOG_EPOCH_S, run.host_stamps,
+                     wheel_errors, np.random.default_rng([seed, WHEEL_STREAM, 1]))
+        drawn = _errors_drawn(cfg, wheel_errors, fixes)
+        writer.write_strings(TOPICS["sim_errors"], np.array([LOG_EPOCH_S]), [json.dumps(drawn, sort_keys=True)])
+        gt = _write_ground_truth(writer, world.traj, run.stamps(cfg.sim.ground_truth_rate_hz, world), LOG_EPOCH_S)
+        _write_sweeps(writer, run, world, frames, progress)
+        path = writer.close()
+    except BaseException:
+        writer.abort()
+        raise
+    write_tum(gt_tum_path(path), gt)
+    errors_json_path(path).write_text(json.dumps(drawn, indent=2, sort_keys=True), encoding="utf-8")
+    return path
 
+
+@dataclass(frozen=True, kw_only=True)
+class _Run:
+    """One recording's settings and random streams (rng: the ideal draws; frng: the field profile's)."""
+
+    cfg: Config
+    req: SimRequest
+    rng: np.random.Generator
+    frng: np.random.Generator
+    lcfg: LidarSimConfig
+
+    @property
+    def field(self) -> FieldConfig | None:
+        return self.cfg.sim.field if self.cfg.sim.profile == "field" else None
+
+    def stamps(self, rate: float, world: _World) -> np.ndarray:
+        """Sample times (s since the log start) of a sensor at `rate` Hz."""
+        return np.arange(0.0, world.t_end, 1.0 / rate)
+
+    def host_stamps(self, times: np.ndarray) -> np.ndarray:
+        """Header stamps of host-stamped topics (log time): jittered with the field profile."""
+        field = self.field
+        return times if field is None else times + self.frng.normal(0.0, field.clock.host_jitter_s, times.size)
+
+
+@dataclass(frozen=True, kw_only=True)
+class _World:
+    """The driven mission and the world it crossed."""
+
+    scenario: Scenario
+    trace: ClosedLoopTrace
+    centre: tuple[float, float]  # the waypoints' mean, m
+    scene: Scene
+    traj: BodyTrajectory
+    t_end: float  # s
+
+
+def _drive_world(run: _Run, seed: int) -> _World:
+    """Drive the mission in closed loop, build the scene clear of the driven path, and the body's
+    motion over its terrain (stones shake it with the field profile)."""
+    cfg, req, scfg, field = run.cfg, run.req, run.cfg.sim, run.field
     scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
-    trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
+    still = max(scfg.standstill_s, 0.0)
+    drive_s = None if req.duration_s is None else max(req.duration_s - still, 0.5)
+    trace = hold_start(run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=drive_s, seed=seed),
+                       still)
     centre = tuple(scenario.waypoints_xy.mean(axis=0))
     roughness = scfg.terrain_roughness_m if field is None else field.world.terrain_roughness_m
     scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m, roughness_m=roughness,
@@ -140,81 +207,104 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         w = field.world
         shake = stone_shake(np.asarray(trace.t, float), np.c_[trace.x, trace.y], stones_per_m=w.stones_per_m,
                             height_m=w.stone_height_m, length_m=w.stone_length_m, track_m=cfg.robot.track_width_m,
-                            wheelbase_m=w.wheelbase_m, natural_hz=w.shake_hz, damping=w.shake_damping, rng=frng)
+                            wheelbase_m=w.wheelbase_m, natural_hz=w.shake_hz, damping=w.shake_damping, rng=run.frng)
     traj = BodyTrajectory.from_trace(trace, scene.terrain, shake, scfg.motion_smoothing_s)
     t_end = float(trace.t[-1]) if req.duration_s is None else float(req.duration_s)
+    return _World(scenario=scenario, trace=trace, centre=centre, scene=scene, traj=traj, t_end=t_end)
 
-    base_to_sensor, true_base_to_sensor = mounts(cfg)
-    sensor_to_lidar = transform((0.0, 0.0, lcfg.lidar_to_sensor_z_m), Rotation.from_euler("z", math.pi).as_matrix())
-    sensor_to_imu = transform(scfg.imu.mount_xyz_m)
-    base_to_imu = true_base_to_sensor @ sensor_to_imu
-    base_to_gnss = transform(scfg.gnss.antenna_xyz_m)
-    base_to_chassis = transform(scfg.imu.chassis_mount_xyz_m,
-                                Rotation.from_euler("xyz", scfg.imu.chassis_mount_rpy_deg, degrees=True).as_matrix())
 
-    def stamps(rate: float) -> np.ndarray:
-        return np.arange(0.0, t_end, 1.0 / rate)
+@dataclass(frozen=True, kw_only=True)
+class _Frames:
+    """The mounts (4x4): as /tf_static writes them, and where the sensors really are."""
 
-    def host_stamps(times: np.ndarray) -> np.ndarray:  # header stamps of host-stamped topics, log time
-        return times if field is None else times + frng.normal(0.0, field.clock.host_jitter_s, times.size)
+    base_to_sensor: np.ndarray  # written
+    true_base_to_sensor: np.ndarray
+    sensor_to_lidar: np.ndarray
+    sensor_to_imu: np.ndarray
+    base_to_gnss: np.ndarray
+    base_to_chassis: np.ndarray
 
-    t0 = LOG_EPOCH_S
-    compression = None if scfg.bag_compression == "none" else scfg.bag_compression
-    writer = LogWriter(out, cast(Format, req.fmt), ros1_compression=compression)  # validate() checked it
-    try:
-        writer.write_tf_static([("base_link", "os_sensor", base_to_sensor), ("os_sensor", "os_lidar", sensor_to_lidar),
-                                ("os_sensor", "os_imu", sensor_to_imu), ("base_link", "chassis_imu", base_to_chassis),
-                                ("base_link", "gnss", base_to_gnss)], t0)
-        writer.write_strings(TOPICS["metadata"], np.array([t0]), [ouster_metadata(lcfg, sensor_to_imu, req.lidar)])
-        writer.write_path(TOPICS["plan"], Waypoints(scenario.waypoints_xy, frame_id="map"), t0)
-        if field is None:
-            noise = ImuNoise.from_config(scfg.imu)
-            imu = simulate_imu(traj, stamps(scfg.imu.rate_hz), base_to_imu, noise, rng, "os_imu")
-        else:
-            noise = ImuNoise(field.imu.acc_noise_density, field.imu.gyro_noise_density, field.imu.acc_bias_walk,
-                             field.imu.gyro_bias_walk)
-            imu = _field_imu_series(traj, stamps(scfg.imu.rate_hz), base_to_imu, cfg, frng)
-        _write_imu(writer, TOPICS["imu"], imu, noise, t0)
-        if scfg.imu.chassis_rate_hz > 0:  # an ADIS16475-class part: the ideal model in both profiles
-            chassis_noise = ImuNoise.from_config(scfg.imu)
-            chassis = simulate_imu(traj, stamps(scfg.imu.chassis_rate_hz), base_to_chassis, chassis_noise, rng,
-                                   "chassis_imu")
-            _write_imu(writer, TOPICS["chassis_imu"], chassis, chassis_noise, t0)
-        if field is None and scfg.gnss.mode == "profile":
-            fixes = simulate_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, rng)
-            gnss_stamps = fixes.stamps
-        else:  # a forced fix type in the ideal profile draws from its own stream, the ideal draws stay
-            grng = frng if field is not None else np.random.default_rng([seed, GNSS_STREAM])
-            fixes = simulate_field_gnss(traj, stamps(scfg.gnss.rate_hz), base_to_gnss, scfg.gnss, scfg.field.gnss,
-                                        _structures_xy(scene), grng)
-            gnss_stamps = fixes.stamps if field is None else host_stamps(fixes.stamps + field.clock.gnss_latency_s)
-        writer.write_navsatfix(TOPICS["gnss"], gnss_stamps + t0, fixes.lla, fixes.covariance, fixes.status)
-        errors_on = scfg.wheels.model == "errors" or (scfg.wheels.model == "profile" and field is not None)
-        wheel_errors = draw_wheel_errors(scfg.wheels, errors_on, np.random.default_rng([seed, WHEEL_STREAM]))
-        _write_drive(writer, trace, stamps(scfg.wheel_rate_hz), cfg, t0, host_stamps, wheel_errors,
-                     np.random.default_rng([seed, WHEEL_STREAM, 1]))
-        writer.write_strings(TOPICS["sim_errors"], np.array([t0]),
-                             [json.dumps(_errors_drawn(cfg, wheel_errors, fixes), sort_keys=True)])
-        gt = _write_ground_truth(writer, traj, stamps(scfg.ground_truth_rate_hz), t0)
+    @classmethod
+    def of(cls, cfg: Config, lcfg: LidarSimConfig) -> _Frames:
+        written, true = mounts(cfg)
+        scfg = cfg.sim
+        return cls(base_to_sensor=written, true_base_to_sensor=true,
+                   sensor_to_lidar=transform((0.0, 0.0, lcfg.lidar_to_sensor_z_m),
+                                             Rotation.from_euler("z", math.pi).as_matrix()),
+                   sensor_to_imu=transform(scfg.imu.mount_xyz_m), base_to_gnss=transform(scfg.gnss.antenna_xyz_m),
+                   base_to_chassis=transform(scfg.imu.chassis_mount_xyz_m, Rotation.from_euler(
+                       "xyz", scfg.imu.chassis_mount_rpy_deg, degrees=True).as_matrix()))
 
-        body = _body_box(cfg) if lcfg.self_occlusion or (field is not None and field.lidar.body_in_cloud) else None
-        lidar = LidarSimulator(scene, lcfg, true_base_to_sensor, rng, body,
-                               None if field is None else _field_lidar(cfg, scene, trace, centre, frng))
-        kept = recorded_sweep_starts(t_end, lcfg)
-        for n, start in enumerate(kept):
-            s = lidar.sweep(traj, float(start))
-            stamp = s.stamp if field is None else s.stamp + frng.normal(0.0, field.clock.lidar_jitter_s)
-            _write_cloud(writer, t0 + stamp, s, lcfg)
-            if progress is not None:
-                progress(n + 1, kept.size)
-        path = writer.close()
-    except BaseException:
-        writer.abort()
-        raise
-    write_tum(gt_tum_path(path), gt)
-    errors_json_path(path).write_text(json.dumps(_errors_drawn(cfg, wheel_errors, fixes), indent=2, sort_keys=True),
-                                      encoding="utf-8")
-    return path
+    @property
+    def base_to_imu(self) -> np.ndarray:
+        return self.true_base_to_sensor @ self.sensor_to_imu
+
+
+def _write_static(writer: LogWriter, run: _Run, world: _World, frames: _Frames) -> None:
+    """/tf_static, the Ouster metadata and the planned path, at the log start."""
+    f, t0 = frames, LOG_EPOCH_S
+    writer.write_tf_static([("base_link", "os_sensor", f.base_to_sensor), ("os_sensor", "os_lidar", f.sensor_to_lidar),
+                            ("os_sensor", "os_imu", f.sensor_to_imu), ("base_link", "chassis_imu", f.base_to_chassis),
+                            ("base_link", "gnss", f.base_to_gnss)], t0)
+    writer.write_strings(TOPICS["metadata"], np.array([t0]),
+                         [ouster_metadata(run.lcfg, f.sensor_to_imu, run.req.lidar)])
+    writer.write_path(TOPICS["plan"], Waypoints(world.scenario.waypoints_xy, frame_id="map"), t0)
+
+
+def _write_imus(writer: LogWriter, run: _Run, world: _World, frames: _Frames) -> None:
+    """The Ouster IMU (the profile's model) and the chassis IMU (an ADIS16475-class part: the
+    ideal model in both profiles)."""
+    scfg, field = run.cfg.sim, run.field
+    if field is None:
+        noise = ImuNoise.from_config(scfg.imu)
+        imu = simulate_imu(world.traj, run.stamps(scfg.imu.rate_hz, world), frames.base_to_imu, noise, run.rng,
+                           "os_imu")
+    else:
+        noise = ImuNoise(field.imu.acc_noise_density, field.imu.gyro_noise_density, field.imu.acc_bias_walk,
+                         field.imu.gyro_bias_walk)
+        imu = _field_imu_series(world.traj, run.stamps(scfg.imu.rate_hz, world), frames.base_to_imu, run.cfg,
+                                run.frng)
+    _write_imu(writer, TOPICS["imu"], imu, noise, LOG_EPOCH_S)
+    if scfg.imu.chassis_rate_hz > 0:
+        chassis_noise = ImuNoise.from_config(scfg.imu)
+        chassis = simulate_imu(world.traj, run.stamps(scfg.imu.chassis_rate_hz, world), frames.base_to_chassis,
+                               chassis_noise, run.rng, "chassis_imu")
+        _write_imu(writer, TOPICS["chassis_imu"], chassis, chassis_noise, LOG_EPOCH_S)
+
+
+def _write_gnss(writer: LogWriter, run: _Run, world: _World, frames: _Frames,
+                forced_rng: np.random.Generator) -> GnssFixes:
+    """GNSS fixes: ideal, or the field receiver (fix types, multipath near structures, stamped late);
+    sim.gnss.mode rtk/float/single forces one fix type (in the ideal profile from `forced_rng`, so
+    the ideal draws stay)."""
+    scfg, field = run.cfg.sim, run.field
+    times = run.stamps(scfg.gnss.rate_hz, world)
+    if field is None and scfg.gnss.mode == "profile":
+        fixes = simulate_gnss(world.traj, times, frames.base_to_gnss, scfg.gnss, run.rng)
+        gnss_stamps = fixes.stamps
+    else:
+        fixes = simulate_field_gnss(world.traj, times, frames.base_to_gnss, scfg.gnss, scfg.field.gnss,
+                                    _structures_xy(world.scene), run.frng if field is not None else forced_rng)
+        gnss_stamps = fixes.stamps if field is None else run.host_stamps(fixes.stamps + field.clock.gnss_latency_s)
+    writer.write_navsatfix(TOPICS["gnss"], gnss_stamps + LOG_EPOCH_S, fixes.lla, fixes.covariance, fixes.status)
+    return fixes
+
+
+def _write_sweeps(writer: LogWriter, run: _Run, world: _World, frames: _Frames,
+                  progress: Callable[[int, int], None] | None) -> None:
+    """The LiDAR sweeps ray-cast against the scene, the recorded ones (throttled outside the full-rate window)."""
+    cfg, lcfg, field = run.cfg, run.lcfg, run.field
+    body = _body_box(cfg) if lcfg.self_occlusion or (field is not None and field.lidar.body_in_cloud) else None
+    lidar = LidarSimulator(world.scene, lcfg, frames.true_base_to_sensor, run.rng, body,
+                           None if field is None else _field_lidar(cfg, world.scene, world.trace, world.centre,
+                                                                   run.frng))
+    kept = recorded_sweep_starts(world.t_end, lcfg)
+    for n, start in enumerate(kept):
+        s = lidar.sweep(world.traj, float(start))
+        stamp = s.stamp if field is None else s.stamp + run.frng.normal(0.0, field.clock.lidar_jitter_s)
+        _write_cloud(writer, LOG_EPOCH_S + stamp, s, lcfg)
+        if progress is not None:
+            progress(n + 1, kept.size)
 
 
 def recorded_sweep_starts(t_end: float, lcfg: LidarSimConfig) -> np.ndarray:
@@ -255,7 +345,8 @@ def _structures_xy(scene: Scene) -> np.ndarray:
     return np.concatenate(parts).astype(float) if parts else np.zeros((0, 2))
 
 
-def _field_lidar(cfg: Config, scene: Scene, trace, centre: tuple[float, float], rng: np.random.Generator) -> FieldLidar:
+def _field_lidar(cfg: Config, scene: Scene, trace: ClosedLoopTrace, centre: tuple[float, float],
+                 rng: np.random.Generator) -> FieldLidar:
     w = cfg.sim.field.world
     puddles = scatter_puddles(centre, 30.0 * cfg.sim.scene_scale, cfg.sim.field.lidar, rng)
     moving = None
@@ -272,12 +363,12 @@ def _body_box(cfg: Config) -> BodyBox:
     return BodyBox((0.0, 0.0, 0.5 * (bottom + top)), (r.length_m, r.width_m, top - bottom))
 
 
-def _write_imu(writer: LogWriter, topic: str, imu, noise: ImuNoise, t0: float) -> None:
+def _write_imu(writer: LogWriter, topic: str, imu: ImuSeries, noise: ImuNoise, t0: float) -> None:
     acc_var, gyro_var = noise.variances(1.0 / float(np.median(np.diff(imu.stamps))) if imu.stamps.size > 1 else 100.0)
     writer.write_imu(topic, replace(imu, stamps=imu.stamps + t0), acc_var=acc_var, gyro_var=gyro_var)
 
 
-def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes) -> dict[str, Any]:
+def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes: GnssFixes) -> dict[str, Any]:
     """What the log's sensors got wrong on purpose, for tests and benchmarks (the /sim/errors_drawn
     topic, a std_msgs/String of JSON, and <log>.errors.json beside the log)."""
     status, counts = np.unique(np.asarray(fixes.status), return_counts=True)
@@ -292,10 +383,11 @@ def errors_json_path(log_path: Path) -> Path:
     return gt.with_name(gt.name.removesuffix(".gt.tum") + ".errors.json")
 
 
-def _write_drive(writer: LogWriter, trace, times: np.ndarray, cfg: Config, t0: float,
+def _write_drive(writer: LogWriter, trace: ClosedLoopTrace, times: np.ndarray, cfg: Config, t0: float,
                  stamp: Callable[[np.ndarray], np.ndarray], errors: WheelErrors | None = None,
                  rng: np.random.Generator | None = None) -> None:
-    """Drive-train topics; `stamp` maps true times to header stamps (the identity when ideal)."""
+    """Drive-train topics; `stamp` maps true times to header stamps (the identity when ideal);
+    the wheel speeds and odometry carry `errors` (sim.wheels)."""
     d = drive_signals(trace, times, cfg.robot.wheel_radius_m, cfg.robot.track_width_m, errors, rng)
     header = stamp(d.stamps) + t0
     writer.write_joint_state(TOPICS["wheels"], header, ["left_wheel", "right_wheel"], d.wheel_rad_s)
