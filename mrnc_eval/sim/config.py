@@ -96,14 +96,15 @@ class WheelSimConfig:
         "profile", "exact: the plant's wheel speeds (slip only); errors: the errors below; profile: errors with "
         "sim.profile = field, exact with ideal")
     scale_error: float = param(0.005, "common speed scale error, |fraction| (effective rolling radius); the sign "
-                               "is drawn per log")
+                               "is drawn per log", ge=0.0, lt=1.0)
     lr_mismatch: float = param(0.005, "left/right radius mismatch, |fraction| (right x (1 + m/2), left x "
-                               "(1 - m/2)); the sign is drawn per log")
+                               "(1 - m/2)); the sign is drawn per log", ge=0.0, lt=1.0)
     track_factor: float = param(1.1, "skid in turns: the odometry's yaw = this x the true yaw (effective track "
-                                "1.2-2x the geometric one on a real skid-steer; 1 = none)")
+                                "1.2-2x the geometric one on a real skid-steer; 1 = none)", gt=0.0)
     speed_noise_mps: float = param(0.05, "1-sigma white noise of each side's speed per sample (hydraulic motor "
-                                   "speed pickups)", "m/s")
-    yaw_rate_bias_rad_s: float = param(0.0, "|yaw-rate bias| of the odometry; the sign is drawn per log", "rad/s")
+                                   "speed pickups)", "m/s", ge=0.0)
+    yaw_rate_bias_rad_s: float = param(0.0, "|yaw-rate bias| of the odometry; the sign is drawn per log", "rad/s",
+                                       ge=0.0)
     random_signs: bool = param(True, "draw the signs of scale, mismatch and bias per log (false: as given)")
 
 

@@ -77,27 +77,12 @@ def gate(gnss: GnssSeries, usable: np.ndarray, kf_stamps: np.ndarray, kf_poses: 
     sig = np.sqrt(np.max(np.diagonal(gnss.covariance[sel][recent], axis1=1, axis2=2)[:, :2], axis=1))
     if res.shape[0] == 0:
         return None, (rot, t)
-    dt = gnss.stamps[sel][recent] - t_now  # s, <= 0
-    # a robust line per axis, residual = a + b dt: the chain's offset now (a) and its velocity error (-b);
-    # fixes far from the line are outliers (multipath jumps)
-    inl = np.ones(dt.size, bool)
-    for _ in range(2):
-        if inl.sum() < cfg.residual_min_fixes:
-            break
-        coef = _line_fit(dt[inl], res[inl])
-        off = np.linalg.norm(res - (coef[0] + np.outer(dt, coef[1])), axis=1)
-        inl = off <= cfg.residual_outlier_sigmas * sig + cfg.residual_floor_m
+    fit = _robust_line(gnss.stamps[sel][recent] - t_now, res, sig, cfg)
+    if fit is None:
+        return GateDecision(residual_m=np.zeros(2), sigma_m=float("inf"), inliers=0, outliers=int(recent.sum())), \
+            (rot, t)
+    med, sigma, velocity, inl = fit
     n = int(inl.sum())
-    if n < cfg.residual_min_fixes or np.ptp(dt[inl]) < 0.5 * cfg.residual_window_s:
-        return GateDecision(residual_m=np.zeros(2), sigma_m=float("inf"), inliers=n,
-                            outliers=int((~inl).sum())), (rot, t)
-    coef = _line_fit(dt[inl], res[inl])
-    x = np.c_[np.ones(n), dt[inl]]
-    cov = np.linalg.inv(x.T @ x) * float(np.median(sig[inl])) ** 2
-    med, slope = coef[0], coef[1]
-    sigma = float(np.hypot(np.sqrt(cov[0, 0]), cfg.residual_floor_m))
-    slope_sigma = float(np.sqrt(cov[1, 1]))
-    velocity = slope if np.linalg.norm(slope) > cfg.residual_drift_sigmas * slope_sigma else None
     decision = GateDecision(residual_m=med, sigma_m=sigma, inliers=n, outliers=int((~inl).sum()))
     size = float(np.linalg.norm(med))
     if size < max(cfg.residual_drift_sigmas * sigma, cfg.residual_min_correction_m):
@@ -108,6 +93,30 @@ def gate(gnss: GnssSeries, usable: np.ndarray, kf_stamps: np.ndarray, kf_poses: 
     position = np.r_[ant_now[:2] + med, ant_now[2]]
     return GateDecision(residual_m=med, sigma_m=sigma, inliers=n, outliers=decision.outliers, position=position,
                         variance=np.array([sigma ** 2, sigma ** 2, 0.01]), velocity_error=velocity), (rot, t)
+
+
+def _robust_line(dt: np.ndarray, res: np.ndarray, sig: np.ndarray, cfg: GpsConfig
+                 ) -> tuple[np.ndarray, float, np.ndarray | None, np.ndarray] | None:
+    """A robust line per axis through the residuals, res = a + b dt (dt <= 0, s): the offset now
+    (a, m), its sigma, the drift rate (b, m/s; None when not significant) and the inlier mask;
+    fixes far from the line are outliers (multipath jumps). None with too few inliers or too
+    short a span."""
+    inl = np.ones(dt.size, bool)
+    for _ in range(2):
+        if inl.sum() < cfg.residual_min_fixes:
+            break
+        coef = _line_fit(dt[inl], res[inl])
+        off = np.linalg.norm(res - (coef[0] + np.outer(dt, coef[1])), axis=1)
+        inl = off <= cfg.residual_outlier_sigmas * sig + cfg.residual_floor_m
+    n = int(inl.sum())
+    if n < cfg.residual_min_fixes or np.ptp(dt[inl]) < 0.5 * cfg.residual_window_s:
+        return None
+    coef = _line_fit(dt[inl], res[inl])
+    x = np.c_[np.ones(n), dt[inl]]
+    cov = np.linalg.inv(x.T @ x) * float(np.median(sig[inl])) ** 2
+    sigma = float(np.hypot(np.sqrt(cov[0, 0]), cfg.residual_floor_m))
+    slope_ok = np.linalg.norm(coef[1]) > cfg.residual_drift_sigmas * float(np.sqrt(cov[1, 1]))
+    return coef[0], sigma, (coef[1] if slope_ok else None), inl
 
 
 def _line_fit(dt: np.ndarray, res: np.ndarray) -> np.ndarray:

@@ -82,7 +82,7 @@ def stationary_gyro_bias(stamps: np.ndarray, yaw_rate: np.ndarray, inc: WheelInc
     return float(yaw_rate[still].mean()) if still.sum() >= 5 else None
 
 
-@dataclass
+@dataclass(kw_only=True)
 class WheelCalibrator:
     """Causal estimator: `update(t)` consumes the bins that ended by t; `track()` is the wheel track
     re-integrated with the current estimates (rejected bins take the gyro's yaw)."""
@@ -120,7 +120,8 @@ class WheelCalibrator:
         inc = WheelIncrements.of(track)
         gt, gw = gyro_yaw_rate(imu, imu_in_base)
         bias = stationary_gyro_bias(gt, gw, inc, cfg.stationary_speed_mps)
-        cal = cls(cfg, inc, gt, gw, 0.0 if bias is None else bias, cfg.track_width_m)
+        cal = cls(cfg=cfg, inc=inc, gyro_t=gt, gyro_w=gw, gyro_bias=0.0 if bias is None else bias,
+                  track_width_m=cfg.track_width_m)
         cal.standing_start = bias is not None
         cal.info = np.diag(1.0 / np.square(cfg.prior_sigmas))
         cal.vec = cal.info @ np.array([1.0, 0.0, 0.0])
