@@ -132,9 +132,7 @@ def test_the_ground_truth_pairing_tolerance_has_one_home() -> None:
 MAX_FUNCTION_LINES = 50
 COMPILED = {"njit", "jit", "kernel", "vectorize", "guvectorize"}  # numba kernels: one loop body, kept whole
 # Known long functions still being split, each with its reason; an entry that is fixed fails the test.
-KNOWN_LONG: dict[str, str] = {
-    "commands/control.py:run_log": "the control verb's replay/simulate dispatch; restructured by the control issue",
-}
+KNOWN_LONG: dict[str, str] = {}
 
 
 def long_functions(tree: ast.Module, where: str, limit: int = MAX_FUNCTION_LINES) -> list[str]:

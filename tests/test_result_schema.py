@@ -8,7 +8,8 @@ import ast
 from pathlib import Path
 
 PACKAGE = Path(__file__).resolve().parents[1] / "mrnc_eval"
-WRITERS = ("commands/slam.py", "commands/control.py", "commands/log_job.py", "commands/control_sweep.py")
+WRITERS = ("commands/slam.py", "commands/control.py", "commands/log_job.py", "commands/control_sweep.py",
+           "commands/control_runs.py")
 READERS = ("reports/figures.py", "reports/render.py", "export/topics.py", "commands/export.py", "commands/table.py")
 RESULT_MAPS = ("series", "extra", "s")  # result.series, r.extra and figures' `s = r.series`
 

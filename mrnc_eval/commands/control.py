@@ -12,31 +12,22 @@ from typing import Any
 
 import numpy as np
 
+from mrnc_eval.commands.control_runs import ControlRun, add_simulation_studies, replayed_run, simulated_run
 from mrnc_eval.config import Config, config_hash, dump_config
-from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
+from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace
 from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
-from mrnc_eval.control.margins import bode, loop_summary
-from mrnc_eval.control.raid import interior_gain, rbf_centres
-from mrnc_eval.control.replay import evaluated, replay_roles, replay_trace
-from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
+from mrnc_eval.control.raid import rbf_centres
+from mrnc_eval.control.replay import replay_trace
 from mrnc_eval.data import Waypoints
 from mrnc_eval.errors import InputError, UsageError
-from mrnc_eval.evaluation.control_run import evaluate_trace, raid_scale_study
-from mrnc_eval.evaluation.disturbance import disturbance_study
-from mrnc_eval.io.control_recording import read_recording, scenario_from_log
+from mrnc_eval.evaluation.control_run import evaluate_trace
+from mrnc_eval.io.control_recording import read_recording
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
 from mrnc_eval.reports.control_tables import (
     UNITS,
-    disturbance_table,
-    paper_reading_table,
     print_summary,
-    raid_output_table,
-    replay_definitions,
-    scale_study_table,
-    table_notes,
-    table_two,
 )
 from mrnc_eval.results import (
     Event,
@@ -63,12 +54,6 @@ def parse_controllers(text: str) -> tuple[str, ...]:
 
 
 
-def simulate(cfg: Config, names: tuple[str, ...],
-             scenario: Scenario) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any]]:
-    traces = {n: run_closed_loop(scenario, cfg.control, cfg.robot, n) for n in names}
-    return traces, {n: evaluate_trace(tr, cfg.control, cfg.robot.track_width_m) for n, tr in traces.items()}
-
-
 def simulation_topics(roles: Mapping[str, str]) -> dict[str, str]:
     """role -> topic of what a simulation along the log's path reads, for summaries and reports
     (a replay names every role it read)."""
@@ -92,74 +77,48 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
     """`log_id` names the log in results (default: from its file name; the nightly job passes its own);
     `path` (replay: waypoints from --path, named `path_source`) replaces the log's path topic."""
     wall_start = time.perf_counter()  # the run's real time: JUnit's time of the control gates
-    warnings: list[str] = []
-    roles: Mapping[str, str] = {}  # of the log, read once with its streams
-    replay_kind, definitions = "", table_notes(cfg)
     if path is not None and mode != "replay":
         raise UsageError("--path supplies the path of a replay (--mode replay)")
     if mode == "simulate":
-        if log_path is None:
-            scenario = paper_circle_scenario(cfg.control)
-        else:
-            scenario, roles = scenario_from_log(log_path, cfg.io, cfg.control)
-        traces, metrics = simulate(cfg, controllers, scenario)
-        names = controllers
+        run = simulated_run(log_path, cfg, controllers)
     elif mode == "replay":
         if log_path is None:
             raise UsageError("control --mode replay needs a LOG")
-        rec = read_recording(log_path, cfg.io, cfg.robot.wheel_radius_m, path,
-                             path_source if path is not None else "")
-        roles = replay_roles(rec)
-        tr, warnings = replay_trace(rec, cfg.control, cfg.robot)
-        traces, metrics = {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg.control)}
-        names = ("recorded",)
-        replay_kind = "path" if rec.waypoints is not None else "wheel_speed"
-        definitions = replay_definitions(rec, cfg) + definitions
+        run = replayed_run(log_path, cfg, path, path_source)
     else:
         raise UsageError(f"unknown mode {mode!r}: replay, simulate, sweep, identify or tune")
     result = RunResult(kind="control", log_path=absolute_log_path(log_path) if log_path else "paper-scenario",
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
-                       config_hash=config_hash(cfg), warnings=warnings)
-    longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
+                       config_hash=config_hash(cfg), warnings=run.warnings)
+    _add_runs(result, run, mode, cfg)
+    if mode == "simulate":
+        add_simulation_studies(result, run, cfg)
+    if run.replay_kind:
+        result.extra[K.REPLAY] = run.replay_kind
+        result.extra[K.T0_STAMP_S] = run.t0_stamp_s
+    result.extra["wall_s"] = time.perf_counter() - wall_start  # real time: JUnit's time of the control gates
+    write_result(result, out_dir, dump_config(cfg))
+    return result
+
+
+def _add_runs(result: RunResult, run: ControlRun, mode: str, cfg: Config) -> None:
+    """Every controller's series and metrics, the run-start funnel and what the run was."""
+    longest = max(run.traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
     result.series[K.T] = longest.t[:: _decimate(longest.t)]
     if longest.waypoints is not None:
         result.series[K.PATH_XY] = longest.waypoints
     result.series[K.FUNNEL_O] = longest.funnel[:: _decimate(longest.t)]
-    for n in names:
-        _add_controller(result, n, traces[n], metrics[n])
-    result.extra = {K.MODE: mode, K.CONTROLLERS: list(names),
-                    K.LABELS: {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
+    for n in run.names:
+        _add_controller(result, n, run.traces[n], run.metrics[n])
+    result.extra = {K.MODE: mode, K.CONTROLLERS: list(run.names),
+                    K.LABELS: {n: run.traces[n].label if n == "recorded" else LABELS.get(n, n) for n in run.names},
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
-                    "seed": cfg.control.seed, K.DEFINITIONS: definitions,
+                    "seed": cfg.control.seed, K.DEFINITIONS: run.definitions,
                     K.SATURATION_APPLIES_TO: cfg.control.actuator.saturation_applies_to,
                     "supervisor": cfg.control.supervisor.stop_rule, "step_detector": cfg.control.steps.detector,
                     "reference_shaping": shaping_text(cfg.control),
                     K.CURVATURE: cfg.control.pure_pursuit.curvature,
-                    K.ROLES: dict(roles) if mode == "replay" else simulation_topics(roles)}
-    if mode == "simulate":
-        loops = loop_summary(cfg.control, cfg.control.pure_pursuit.desired_speed_mps)
-        result.tables += [paper_reading_table(metrics, names, cfg), table_two(metrics, names, cfg),
-                          raid_output_table(loops)]
-        result.extra["loop"] = loops
-        w, loop = bode(cfg.control, interior_gain(cfg.control, v=cfg.control.pure_pursuit.desired_speed_mps,
-                                                  phi=0.0))
-        result.series[K.BODE_W] = w
-        for law, lw in loop.items():
-            result.series[K.bode_magnitude(law)] = 20.0 * np.log10(np.abs(lw))
-            result.series[K.bode_phase(law)] = np.degrees(np.unwrap(np.angle(lw)))
-        events = disturbance_study(names, cfg.control, cfg.robot)
-        result.tables.append(disturbance_table(events, cfg))
-        result.extra["disturbance"] = events
-        if "raid" in names and cfg.control.raid.scale_study:
-            study = raid_scale_study(scenario, cfg.control, cfg.robot, tuple(cfg.control.raid.scale_study))
-            result.tables.append(scale_study_table(study, cfg))
-            result.extra["raid_scale_study"] = study
-    if replay_kind:
-        result.extra[K.REPLAY] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
-        result.extra[K.T0_STAMP_S] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
-    result.extra["wall_s"] = time.perf_counter() - wall_start  # real time: JUnit's time of the control gates
-    write_result(result, out_dir, dump_config(cfg))
-    return result
+                    K.ROLES: dict(run.roles) if mode == "replay" else simulation_topics(run.roles)}
 
 
 
