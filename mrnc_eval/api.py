@@ -64,13 +64,41 @@ def read_trajectory(spec: TrajectoryLike) -> Trajectory:
     return check_trajectory(spec) if isinstance(spec, Trajectory) else read(spec)
 
 
+def _checked_options(compute: Any, options: dict[str, Any], verb: str) -> dict[str, Any]:
+    """The options of api.ape/rpe checked as the CLI checks its flags: unknown names, choices
+    outside their enumeration and offsets that are not seconds are UsageError/EvaluationError
+    with the CLI's words, never a TypeError or ValueError from deep inside."""
+    import inspect
+
+    from mrnc_eval.commands.trajectory_eval import parse_offset
+    from mrnc_eval.errors import EvaluationError, UsageError
+    from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
+
+    known = [p for p in inspect.signature(compute).parameters if p not in ("ref", "est")]
+    unknown = sorted(set(options) - set(known))
+    if unknown:
+        raise UsageError(f"api.{verb}: unknown option(s) {', '.join(unknown)}; options: {', '.join(known)}")
+    choices = {"align": AlignMode, "relation": Relation, "sync": SyncMethod, "delta_unit": DeltaUnit,
+               "pairs_from": PairsFrom}
+    for key, enum in choices.items():
+        value = options.get(key)
+        if value is not None and str(value) not in {e.value for e in enum}:
+            raise EvaluationError(f"unknown {key} {value!r}; choose one of {', '.join(e.value for e in enum)}")
+    if "offset" in options:
+        offset = parse_offset(options["offset"])
+        if offset is None:
+            raise UsageError(f"api.{verb}: offset='auto' is the CLI's estimate; pass seconds (a number)")
+        options = {**options, "offset": offset}
+    return options
+
+
 def ape(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> ApeResult:
     """Absolute pose error (evo-compatible); options as `mrnc-eval ape`: align="none" (evo's default;
     "se3", "sim3", "scale", "origin", "yaw"), relation="trans", max_diff=0.01, offset=0.0,
-    n_to_align=None, plane=None."""
+    n_to_align=None, plane=None. Bad input raises the CLI's typed errors."""
     from mrnc_eval.evaluation.ape import ape as compute
 
-    options.setdefault("align", "none")
+    options = _checked_options(compute, {"align": "none", **options}, "ape")
     return compute(read_trajectory(ref), read_trajectory(est), **options)
 
 
@@ -96,9 +124,11 @@ def save_evo_result(path: str | Path, result: ApeResult | RpeResult, *, ref_name
 
 def rpe(ref: TrajectoryLike, est: TrajectoryLike, **options: Any) -> RpeResult:
     """Relative pose error (evo-compatible); options as `mrnc-eval rpe`: delta=1.0, delta_unit="frames",
-    all_pairs=False, relation="trans", align="none", pairs_from="estimate"..."""
+    all_pairs=False, relation="trans", align="none", pairs_from="estimate"... Bad input raises the
+    CLI's typed errors."""
     from mrnc_eval.evaluation.rpe import rpe as compute
 
+    options = _checked_options(compute, options, "rpe")
     return compute(read_trajectory(ref), read_trajectory(est), **options)
 
 
@@ -119,7 +149,7 @@ def run_control(log: str | Path | None, out_dir: str | Path, *, mode: str = "rep
     """The control evaluation of `mrnc-eval control` (mode "replay" or "simulate"; log None with
     "simulate": the paper's circle); writes its result directory to `out_dir`. `path`: a TUM or
     CSV waypoint file replacing the log's path topic (`--path`)."""
-    from mrnc_eval.commands.control import run_log
+    from mrnc_eval.commands.control import parse_controllers, run_log
     from mrnc_eval.control.controllers import CONTROLLERS
     from mrnc_eval.io.waypoint_files import read_waypoints
     from mrnc_eval.results import claim_run_dir
@@ -127,7 +157,8 @@ def run_control(log: str | Path | None, out_dir: str | Path, *, mode: str = "rep
     claim_run_dir(out_dir, force=force)  # before the work
     waypoints = read_waypoints(path) if path is not None else None
     return run_log(None if log is None else Path(log), _cfg(cfg, overrides), Path(out_dir), mode=mode,
-                   controllers=tuple(controllers) if controllers else CONTROLLERS, path=waypoints,
+                   controllers=parse_controllers(controllers if isinstance(controllers, str) else ",".join(controllers))
+                   if controllers else CONTROLLERS, path=waypoints,
                    path_source=f"{path} (--path)")
 
 

@@ -35,7 +35,7 @@ app = typer.Typer(
     "Global options (--debug, -v, -q) may also follow the verb.",
     cls=PlainGroup,
     no_args_is_help=True,
-    add_completion=False,
+    add_completion=True,  # --install-completion, --show-completion (bash, zsh, fish, PowerShell)
     pretty_exceptions_enable=False,
     rich_markup_mode="rich",  # markdown would eat <run>, <date>, <seq>/<method> as HTML tags
     context_settings={"help_option_names": ["-h", "--help"]},
@@ -133,7 +133,8 @@ def info(
     set_: SetOpt = None,
 ) -> None:
     """Summarise a log: container, duration, topics with type, count, rate and gaps, detected
-    roles, and health findings (IMU rate and gaps, LiDAR fields, per-point time, IMU coverage
+    roles (--set io.roles.ROLE=TOPIC picks another topic for a role), and health findings (IMU
+    rate and gaps, LiDAR fields, per-point time, IMU coverage
     of each sweep, GNSS fix ratio, duplicate or out-of-order stamps)."""
     cfg = _config(config, set_)
     from mrnc_eval.commands import info as info_command
@@ -155,9 +156,11 @@ class SlamMethod(StrEnum):  # a str: passed on as is
 @app.command()
 def slam(
     logs: Annotated[
-        list[Path],
-        typer.Argument(metavar="LOG...", help="One or more logs; several give the Table I layout."),
-    ],
+        list[Path] | None,
+        typer.Argument(metavar="LOG...", help="One or more logs (or folders of .bin/.pcd scans with "
+                       "timestamps.txt, for --method kiss-icp); several give the Table I layout. "
+                       "Not needed with --dump-config.", show_default=False),
+    ] = None,
     method: Annotated[
         SlamMethod | None,
         typer.Option(help="SLAM method: lio (LIO-SAM replay) or kiss-icp (peer, needs the kiss-icp extra); "
@@ -180,8 +183,13 @@ def slam(
     dump_config: DumpOpt = False,
 ) -> None:
     """Re-run LIO-SAM-style LiDAR-inertial SLAM on recorded logs; write trajectories (TUM), the
-    map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth."""
-    cfg = _config(config, set_, dump_config)
+    map, per-stage timing (ms/sweep), real-time factor, events and APE (m) against ground truth.
+    Ground truth: a pose topic (Odometry, PoseStamped, ...) named like ground_truth or gt, or the one
+    --set io.roles.ground_truth=TOPIC names (io.roles.ROLE=TOPIC picks the topic of any role), else
+    <log>.gt.tum beside the log (TUM)."""
+    cfg = _config(config, set_, dump_config)  # --dump-config needs no LOG
+    if not logs:
+        raise UsageError("slam needs LOG... (one or more logs; a folder of logs: mrnc-eval nightly FOLDER --out ROOT)")
     from mrnc_eval.extras import require_extra
 
     require_extra("slam", "mrnc-eval slam")
@@ -197,6 +205,8 @@ class ControlMode(StrEnum):
     replay = "replay"
     simulate = "simulate"
     sweep = "sweep"
+    identify = "identify"
+    tune = "tune"
 
 
 @app.command()
@@ -208,13 +218,17 @@ def control(
     mode: Annotated[
         ControlMode,
         typer.Option(help="replay: evaluate recorded tracking; simulate: closed loop with the plant; "
-                          "sweep: every controller on --runs drawn plants (robustness)."),
+                          "sweep: every controller on --runs drawn plants (robustness); identify: the drive "
+                          "(gain, dead band, lag, delay per side) fitted to the LOG's commands and wheel speeds; "
+                          "tune: every law tuned with the same optimiser, cost and budget, Table II at paper "
+                          "and tuned gains."),
     ] = ControlMode.replay,
     controllers: Annotated[
-        str,
-        typer.Option(help="Comma-separated: raid,pid,apc,foptc,ff (apc and foptc are labelled stand-ins; "
-                          "ff is the feed-forward alone, the negative control)."),
-    ] = "raid,pid,apc,foptc,ff",
+        str | None,
+        typer.Option(help="simulate, sweep: comma-separated raid,pid,apc,foptc,ff (apc and foptc are labelled "
+                          "stand-ins; ff is the feed-forward alone, the negative control). Default: all.",
+                     show_default=False),
+    ] = None,
     runs: Annotated[int | None, typer.Option(help="sweep: plants drawn (default control.sweep.runs).")] = None,
     seed: Annotated[int | None, typer.Option(help="sweep: seed of the draws (default control.sweep.seed).")] = None,
     path: Annotated[Path | None, typer.Option(
@@ -432,11 +446,12 @@ def rpe(
 @app.command()
 def table(
     source: Annotated[
-        Path,
+        Path | None,
         typer.Argument(metavar="SOURCE", help="A folder of slam results (results/: one row per log, one column "
                        "per method, the newest run of each), a folder of sequence folders <seq>/<method>.tum "
-                       "with <seq>/ground_truth.tum, or a YAML manifest."),
-    ],
+                       "with <seq>/ground_truth.tum, or a YAML manifest. Not needed with --dump-config.",
+                       show_default=False),
+    ] = None,
     out: Annotated[
         Path | None,
         typer.Option(help="Write the table (.md, .tex, .csv, .html by suffix); default: Markdown on stdout."),
@@ -464,6 +479,8 @@ def table(
                   "evaluation.failed_min_matches": min_matches}  # the flags are config keys: checked alike
     cfg = _config(config, [*(set_ or []), *(f"{k}={v}" for k, v in shorthands.items() if v is not None)],
                   dump_config)
+    if source is None:
+        raise UsageError("table needs SOURCE (a folder of slam results, of sequence folders, or a manifest)")
     from mrnc_eval.commands import table as table_command
     table_command.main(source, cfg, out=out, align=align, json_out=json_out, force=force)
 
@@ -490,8 +507,10 @@ def report(
 
 @app.command()
 def nightly(
-    log_dir: Annotated[Path, typer.Argument(metavar="LOG_DIR", help="Folder searched recursively for logs.")],
-    out: Annotated[Path, typer.Option(help="Report root: REPORT_ROOT/<date>/index.html, trends, history.")],
+    log_dir: Annotated[Path | None, typer.Argument(metavar="LOG_DIR", help="Folder searched recursively for logs "
+                                                   "(not needed with --dump-config).", show_default=False)] = None,
+    out: Annotated[Path | None, typer.Option(help="Report root: REPORT_ROOT/<date>/index.html, trends, history "
+                                                  "(required).", show_default=False)] = None,
     jobs: Annotated[int, typer.Option(help="Parallel logs: 1 runs in-process, >1 a local process pool.")] = 2,
     scheduler: Annotated[str | None, typer.Option(help="Dask scheduler address tcp://HOST:PORT (dask extra).")] = None,
     since: Annotated[str | None, typer.Option(help="Only logs modified on or after this date (YYYY-MM-DD).")] = None,
@@ -506,8 +525,13 @@ def nightly(
     dump_config: DumpOpt = False,
 ) -> None:
     """Run slam + control + evaluation on every new log, write per-log reports, a night index and
-    trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise."""
-    cfg = _config(config, set_, dump_config)
+    trends. Exit 3 if a log failed, 1 if a gate regressed, 0 otherwise. Ground truth: a pose topic
+    named like ground_truth or gt, or the one --set io.roles.ground_truth=TOPIC names, else
+    <log>.gt.tum beside the log (TUM)."""
+    cfg = _config(config, set_, dump_config)  # --dump-config needs no LOG_DIR
+    if log_dir is None or out is None:
+        raise UsageError("nightly needs LOG_DIR and --out REPORT_ROOT (e.g. mrnc-eval nightly sample_logs "
+                         "--out nightly_reports)")
     from mrnc_eval.extras import require_extra
 
     require_extra("slam", "mrnc-eval nightly (slam and control on every log)")
@@ -592,6 +616,11 @@ class LidarModel(StrEnum):
     os0_32 = "os0-32"
 
 
+class SimProfile(StrEnum):
+    ideal = "ideal"
+    field = "field"
+
+
 class LogFormat(StrEnum):
     mcap = "mcap"
     db3 = "db3"
@@ -616,7 +645,7 @@ def simulate(
     ] = None,
     seed: Annotated[int | None, typer.Option(help="Random seed (default: sim.seed, 0); the same seed gives "
                                                   "byte-identical logs.")] = None,
-    profile: Annotated[str | None, typer.Option(help="Sensor profile: ideal (exact sensors, one clock) or field "
+    profile: Annotated[SimProfile | None, typer.Option(help="Sensor profile: ideal (exact sensors, one clock) or field "
                                                      "(biases, vibration, clock offsets, miscalibrated tf, noisy "
                                                      "returns, body in the cloud, stones, a moving object, GNSS "
                                                      "multipath; sim.field.*). Default: sim.profile.")] = None,
@@ -636,7 +665,7 @@ def simulate(
     require_extra("sim", "mrnc-eval simulate")
     from mrnc_eval.commands import simulate as simulate_command
     simulate_command.main(out, cfg, scene=scene.value, path=path.value, duration=duration, lidar=lidar.value,
-                          columns=columns, rate=rate, fmt=_plain(fmt), seed=seed, profile=profile, force=force)
+                          columns=columns, rate=rate, fmt=_plain(fmt), seed=seed, profile=_plain(profile), force=force)
 
 
 # ------------------------------------------------------------------ entry point

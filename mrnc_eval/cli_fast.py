@@ -168,7 +168,7 @@ def fast_command(argv: Sequence[str], commands: dict[str, Callable[..., Any]]
     func = commands[argv[0]]
     try:
         sig = _signature(func)
-    except Exception:  # an annotation this parser cannot resolve: typer's business
+    except (NameError, TypeError, AttributeError, ValueError):  # an annotation it cannot resolve: typer's
         return None
     if sig is None:
         return None

@@ -85,8 +85,9 @@ class PlainOption(TyperOption):
         if self.metavar is not None:
             return self.metavar
         label = (super().display_type(ctx) or "").strip("<>")  # "<path>", "<list[str]>", "<lio|kiss-icp>"
-        if "|" in label:
-            return f"[{label.removeprefix('list[').removesuffix(']') if label.startswith('list[') else label}]"
+        if "|" in label:  # spaces around |: a narrow terminal wraps between choices, never inside one
+            choices = label.removeprefix("list[").removesuffix("]") if label.startswith("list[") else label
+            return "[" + " | ".join(choices.split("|")) + "]"
         words = label.removeprefix("list[").removesuffix("]").split(",")  # a tuple option: one word per value
         return " ".join(_PLAIN_TYPES.get(w.strip(), "TEXT") for w in words)
 

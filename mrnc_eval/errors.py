@@ -7,6 +7,7 @@ Exit codes (one place, `exit_code` attribute):
 
 from __future__ import annotations
 
+from collections.abc import Iterable
 from pathlib import Path
 
 
@@ -24,6 +25,15 @@ class UsageError(MrncError):
 
 class ConfigError(UsageError):
     """A configuration file or override is invalid (unknown key, wrong type)."""
+
+
+class UnknownName(UsageError):
+    """A name (scene, path, controller, table format...) that is not one of the choices; the
+    message names what was asked and lists the choices."""
+
+    def __init__(self, kind: str, name: str, choices: Iterable[str]) -> None:
+        self.kind, self.name, self.choices = kind, name, tuple(choices)
+        super().__init__(f"unknown {kind} {name!r}; choose from {', '.join(self.choices)}")
 
 
 class InputError(MrncError):

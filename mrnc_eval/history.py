@@ -13,7 +13,7 @@ import statistics
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal, NamedTuple
 
 from mrnc_eval.errors import InputError, OutputError
 
@@ -31,6 +31,19 @@ CREATE TABLE IF NOT EXISTS metrics (
 """
 
 METRIC_ROW_COLUMNS = ("night", "log_id", "metric", "value", "unit", "status", "config_hash")
+RunStatus = Literal["ok", "failed"]  # a log's outcome in a night
+
+
+class MetricRow(NamedTuple):
+    """One stored metric, in METRIC_ROW_COLUMNS' order (a tuple, so a DataFrame takes it as a row)."""
+
+    night: str
+    log_id: str
+    metric: str
+    value: float | None
+    unit: str
+    status: RunStatus
+    config_hash: str
 
 
 @dataclass(frozen=True)
@@ -41,7 +54,7 @@ class LogRecord:
     log_path: str
     tool_version: str
     config_hash: str
-    status: str  # "ok" | "failed"
+    status: RunStatus
     error: str
     finished_utc: str
     metrics: tuple[tuple[str, float | None, str], ...]  # (name, value, unit)
@@ -51,7 +64,7 @@ class LogRecord:
 @dataclass(frozen=True)
 class LastRun:
     night: str
-    status: str
+    status: RunStatus
     config_hash: str
     log_stamp: str
 
@@ -114,7 +127,7 @@ class History:
                            "ORDER BY finished_utc, night")
         return {log_id: LastRun(night, status, cfg, stamp) for log_id, night, status, cfg, stamp in rows}
 
-    def runs(self, night: str) -> list[tuple[str, str, str, str]]:  # (log_id, status, error, log_path)
+    def runs(self, night: str) -> list[tuple[str, RunStatus, str, str]]:  # (log_id, status, error, log_path)
         return self._query("SELECT log_id, status, error, log_path FROM runs WHERE night = ? ORDER BY log_id",
                            (night,))
 
@@ -124,11 +137,11 @@ class History:
         return self._query(f"SELECT night, log_id, metric, value FROM metrics WHERE {where} "
                            "ORDER BY night, log_id, metric", (night,) if night else ())
 
-    def metric_rows(self, night: str | None = None) -> list[tuple[str, str, str, float | None, str, str, str]]:
+    def metric_rows(self, night: str | None = None) -> list[MetricRow]:
         """Every stored metric (of one night if given) as METRIC_ROW_COLUMNS, ordered by night, log, metric."""
         where = " WHERE night = ?" if night else ""
-        return self._query(f"SELECT {', '.join(METRIC_ROW_COLUMNS)} FROM metrics{where} "
-                           "ORDER BY night, log_id, metric", (night,) if night else ())
+        return [MetricRow(*row) for row in self._query(f"SELECT {', '.join(METRIC_ROW_COLUMNS)} FROM metrics{where} "
+                           "ORDER BY night, log_id, metric", (night,) if night else ())]
 
     def nights(self) -> list[str]:
         return [r[0] for r in self._query("SELECT DISTINCT night FROM runs ORDER BY night")]

@@ -54,10 +54,13 @@ class PrintableFormatter(logging.Formatter):
 
 
 def install_log_format(level: int, stream: Any) -> None:
-    """Route the package's log records (and any library's) to `stream` through PrintableFormatter."""
+    """Route the package's log records (and any library's) to `stream` through PrintableFormatter.
+    -v/-vv (`level` INFO/DEBUG) open the package's own records; libraries (numba, matplotlib)
+    stay at WARNING, so -vv shows our stages, not a compiler's trace."""
     handler = logging.StreamHandler(stream)
     handler.setFormatter(PrintableFormatter("%(levelname)s %(name)s: %(message)s"))
-    logging.basicConfig(level=level, handlers=[handler], force=True)
+    logging.basicConfig(level=max(level, logging.WARNING), handlers=[handler], force=True)
+    logging.getLogger("mrnc_eval").setLevel(level)
 
 
 OFF_TERMINAL_WIDTH = 10_000  # columns: piped or redirected output is never cut (rich would assume 80)

@@ -58,9 +58,10 @@ def test_help_placeholders_survive_the_markup(capsys: pytest.CaptureFixture[str]
 
 
 @pytest.mark.parametrize(("verb", "listed"), [
-    ("slam", "[lio|kiss-icp]"), ("ape", "[xy|xz|yz]"), ("simulate", "[yard|forest|corridor|field|open_field]"),
-    ("simulate", "[circle|figure8|loop|line]"), ("simulate", "[os0-128|os0-64|os0-32]"),
-    ("simulate", "[mcap|db3|bag]"),
+    ("slam", "[lio | kiss-icp]"), ("ape", "[xy | xz | yz]"),
+    ("simulate", "[yard | forest | corridor | field | open_field]"),
+    ("simulate", "[circle | figure8 | loop | line]"), ("simulate", "[os0-128 | os0-64 | os0-32]"),
+    ("simulate", "[mcap | db3 | bag]"), ("simulate", "[ideal | field]"),
 ])
 def test_choices_are_listed(verb: str, listed: str, capsys: pytest.CaptureFixture[str],
                             monkeypatch: pytest.MonkeyPatch) -> None:
@@ -137,3 +138,54 @@ def test_yaml_errors_are_one_line_without_literal_newlines(tmp_path: Path,
     assert "invalid YAML" in err
     assert "\\n" not in err
     assert err.count("\n") == 1
+
+
+@pytest.mark.parametrize("columns", ["70", "80", "100"])
+@pytest.mark.parametrize("verb", ["simulate", "ape", "rpe", "slam", "control"])
+def test_choices_never_break_inside_a_word_on_a_narrow_terminal(verb: str, columns: str,
+                                                                 capsys: pytest.CaptureFixture[str],
+                                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    import re
+
+    import typer
+
+    monkeypatch.setenv("COLUMNS", columns)
+    assert main([verb, "--help"]) == 0
+    out = capsys.readouterr().out
+    words = set(re.findall(r"[\w.-]+", out))
+    command = typer.main.get_command(cli.app).commands[verb]  # type: ignore[attr-defined]
+    import enum
+    import typing
+
+    checked = 0
+    for param in command.params:
+        annotation = getattr(getattr(param, "type_descriptor", None), "annotation", None)
+        enums = [a for a in (annotation, *typing.get_args(annotation))
+                 if isinstance(a, type) and issubclass(a, enum.Enum)]
+        for choice in (c.value for e in enums for c in e):
+            checked += 1
+            assert str(choice) in words, f"{verb} --help splits the choice {choice!r} at {columns} columns"
+    assert checked >= 2  # the check saw the verb's choices
+
+
+def test_help_says_where_ground_truth_comes_from(capsys: pytest.CaptureFixture[str],
+                                                 monkeypatch: pytest.MonkeyPatch) -> None:
+    for verb in ("slam", "nightly"):
+        out = " ".join(_help(verb, capsys, monkeypatch).split())
+        assert "io.roles.ground_truth=TOPIC" in out
+        assert "<log>.gt.tum beside the log" in out
+    assert "io.roles.ROLE=TOPIC" in " ".join(_help("info", capsys, monkeypatch).split())
+
+
+@pytest.mark.parametrize("verb", ["slam", "nightly", "table", "control", "simulate"])
+def test_dump_config_needs_no_log(verb: str, capsys: pytest.CaptureFixture[str]) -> None:
+    assert main([verb, "--dump-config", "--set", "slam.mapping_interval_s=0.3"]) == 0
+    assert "mapping_interval_s: 0.3" in capsys.readouterr().out
+
+
+@pytest.mark.parametrize(("argv", "needs"), [(["slam"], "slam needs LOG"), (["nightly", "x"], "nightly needs LOG_DIR"),
+                                             (["table"], "table needs SOURCE")])
+def test_without_dump_config_the_log_is_still_required(argv: list[str], needs: str,
+                                                       capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(argv) == 2
+    assert needs in capsys.readouterr().err

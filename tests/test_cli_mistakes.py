@@ -62,3 +62,14 @@ def test_did_you_mean_quotes_only_the_key(capsys: pytest.CaptureFixture[str]) ->
     assert main(["config", "--set", "slam.loop.enabeld=false"]) == 2
     err = capsys.readouterr().err
     assert "'slam.loop.enabeld' (did you mean slam.loop.enabled?)" in err
+
+
+def test_a_night_of_only_hidden_logs_says_they_were_skipped(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    logs = tmp_path / "logs"
+    (logs / ".recording").mkdir(parents=True)
+    (logs / ".recording" / "metadata.yaml").write_text("rosbag2_bagfile_information: {}\n", encoding="utf-8")
+    shutil.copy(LOG, logs / ".partial.bag")
+    assert main(["nightly", str(logs), "--out", str(tmp_path / "out")]) == 4
+    err = capsys.readouterr().err
+    assert "no logs found" in err
+    assert "2 hidden entries skipped (.partial.bag, .recording:" in err

@@ -75,11 +75,11 @@ def night_metrics(root: Path, night: str, log_id: str | None) -> RunMetrics:
     path, nights = history.path, history.nights()
     if night not in nights:
         raise InputError(path, f"night {night} is not in the history (nights: {', '.join(nights)})")
-    rows = [r for r in history.metric_rows(night) if r[5] == "ok" and (log_id is None or r[1] == log_id)]
+    rows = [r for r in history.metric_rows(night) if r.status == "ok" and (log_id is None or r.log_id == log_id)]
     if not rows:
         raise InputError(path, f"night {night} has no metrics" + (f" for log {log_id}" if log_id else ""))
-    metrics = {(m if log_id else f"{lid}: {m}"): (v, unit) for _n, lid, m, v, unit, _s, _h in rows
-               if not m.startswith("gate_failed/")}
+    metrics = {(r.metric if log_id else f"{r.log_id}: {r.metric}"): (r.value, r.unit) for r in rows
+               if not r.metric.startswith("gate_failed/")}
     lower = {key: metric_direction(key.rsplit("/", 1)[-1]) for key in metrics}
     logs_dir = root / night / "logs"
     configs = sorted(logs_dir.glob(f"{log_id or '*'}/*/{CONFIG_FILE_NAME}")) if logs_dir.is_dir() else []

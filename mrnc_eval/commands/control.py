@@ -14,19 +14,22 @@ import numpy as np
 
 from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace, run_closed_loop
+from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
-from mrnc_eval.control.margins import loop_summary
-from mrnc_eval.control.raid import rbf_centres
+from mrnc_eval.control.margins import bode, loop_summary
+from mrnc_eval.control.raid import interior_gain, rbf_centres
 from mrnc_eval.control.replay import evaluated, replay_roles, replay_trace
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
 from mrnc_eval.data import Waypoints
 from mrnc_eval.errors import InputError, UsageError
 from mrnc_eval.evaluation.control_run import evaluate_trace, raid_scale_study
+from mrnc_eval.evaluation.disturbance import disturbance_study
 from mrnc_eval.io.control_recording import read_recording, scenario_from_log
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
 from mrnc_eval.reports.control_tables import (
     UNITS,
+    disturbance_table,
     paper_reading_table,
     print_summary,
     raid_output_table,
@@ -46,6 +49,7 @@ from mrnc_eval.results import (
     new_run_dir,
     write_result,
 )
+from mrnc_eval.schema import control as K
 
 log = logging.getLogger(__name__)
 
@@ -62,7 +66,7 @@ def parse_controllers(text: str) -> tuple[str, ...]:
 def simulate(cfg: Config, names: tuple[str, ...],
              scenario: Scenario) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any]]:
     traces = {n: run_closed_loop(scenario, cfg.control, cfg.robot, n) for n in names}
-    return traces, {n: evaluate_trace(tr, cfg.control) for n, tr in traces.items()}
+    return traces, {n: evaluate_trace(tr, cfg.control, cfg.robot.track_width_m) for n, tr in traces.items()}
 
 
 def simulation_topics(roles: Mapping[str, str]) -> dict[str, str]:
@@ -112,38 +116,47 @@ def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "r
         replay_kind = "path" if rec.waypoints is not None else "wheel_speed"
         definitions = replay_definitions(rec, cfg) + definitions
     else:
-        raise UsageError(f"unknown mode {mode!r}: replay, simulate or sweep")
+        raise UsageError(f"unknown mode {mode!r}: replay, simulate, sweep, identify or tune")
     result = RunResult(kind="control", log_path=absolute_log_path(log_path) if log_path else "paper-scenario",
                        log_id=log_id or (log_id_for(log_path) if log_path else "paper-circle"),
                        config_hash=config_hash(cfg), warnings=warnings)
     longest = max(traces.values(), key=lambda tr: tr.t.size)  # run-start funnel: the same o(t) for all
-    result.series["t"] = longest.t[:: _decimate(longest.t)]
+    result.series[K.T] = longest.t[:: _decimate(longest.t)]
     if longest.waypoints is not None:
-        result.series["path_xy"] = longest.waypoints
-    result.series["funnel_o"] = longest.funnel[:: _decimate(longest.t)]
+        result.series[K.PATH_XY] = longest.waypoints
+    result.series[K.FUNNEL_O] = longest.funnel[:: _decimate(longest.t)]
     for n in names:
         _add_controller(result, n, traces[n], metrics[n])
-    result.extra = {"mode": mode, "controllers": list(names),
-                    "labels": {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
+    result.extra = {K.MODE: mode, K.CONTROLLERS: list(names),
+                    K.LABELS: {n: traces[n].label if n == "recorded" else LABELS.get(n, n) for n in names},
                     "rbf_centres": rbf_centres(cfg.control).tolist(), "rbf_centre_seed": cfg.control.raid.centre_seed,
-                    "seed": cfg.control.seed, "definitions": definitions,
-                    "saturation_applies_to": cfg.control.actuator.saturation_applies_to,
+                    "seed": cfg.control.seed, K.DEFINITIONS: definitions,
+                    K.SATURATION_APPLIES_TO: cfg.control.actuator.saturation_applies_to,
                     "supervisor": cfg.control.supervisor.stop_rule, "step_detector": cfg.control.steps.detector,
-                    "reference_shaping": f"slew {cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2",
-                    "curvature": cfg.control.pure_pursuit.curvature,
-                    "roles": dict(roles) if mode == "replay" else simulation_topics(roles)}
+                    "reference_shaping": shaping_text(cfg.control),
+                    K.CURVATURE: cfg.control.pure_pursuit.curvature,
+                    K.ROLES: dict(roles) if mode == "replay" else simulation_topics(roles)}
     if mode == "simulate":
         loops = loop_summary(cfg.control, cfg.control.pure_pursuit.desired_speed_mps)
         result.tables += [paper_reading_table(metrics, names, cfg), table_two(metrics, names, cfg),
                           raid_output_table(loops)]
         result.extra["loop"] = loops
+        w, loop = bode(cfg.control, interior_gain(cfg.control, v=cfg.control.pure_pursuit.desired_speed_mps,
+                                                  phi=0.0))
+        result.series[K.BODE_W] = w
+        for law, lw in loop.items():
+            result.series[K.bode_magnitude(law)] = 20.0 * np.log10(np.abs(lw))
+            result.series[K.bode_phase(law)] = np.degrees(np.unwrap(np.angle(lw)))
+        events = disturbance_study(names, cfg.control, cfg.robot)
+        result.tables.append(disturbance_table(events, cfg))
+        result.extra["disturbance"] = events
         if "raid" in names and cfg.control.raid.scale_study:
             study = raid_scale_study(scenario, cfg.control, cfg.robot, tuple(cfg.control.raid.scale_study))
             result.tables.append(scale_study_table(study, cfg))
             result.extra["raid_scale_study"] = study
     if replay_kind:
-        result.extra["replay"] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
-        result.extra["t0_stamp_s"] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
+        result.extra[K.REPLAY] = replay_kind  # "path" (following one) or "wheel_speed" (no path)
+        result.extra[K.T0_STAMP_S] = float(rec.speeds.stamps[evaluated(rec)][0])  # log time of the series' t = 0
     result.extra["wall_s"] = time.perf_counter() - wall_start  # real time: JUnit's time of the control gates
     write_result(result, out_dir, dump_config(cfg))
     return result
@@ -159,22 +172,23 @@ def _add_controller(result: RunResult, name: str, tr: ClosedLoopTrace, metrics: 
         for key, val in metrics[side].items():
             value = val if isinstance(val, int) else float(val)
             result.metrics.append(Metric(name=key, value=value, unit=UNITS.get(key, ""), group=group))
-        result.series[f"{name}_{side}_v_ref"] = s.v_ref[::step]
-        result.series[f"{name}_{side}_v_meas"] = s.v_wheel[::step]
-        result.series[f"{name}_{side}_u_rpm"] = s.u[::step]
-        for key, series in ((f"{name}_{side}_u_fb_rpm", s.u_fb), (f"{name}_{side}_phi_hat", s.phi)):
+        result.series[K.side_series(name, side, K.V_REF)] = s.v_ref[::step]
+        result.series[K.side_series(name, side, K.V_MEAS)] = s.v_wheel[::step]
+        result.series[K.side_series(name, side, K.U_RPM)] = s.u[::step]
+        for key, series in ((K.side_series(name, side, K.U_FB_RPM), s.u_fb),
+                            (K.side_series(name, side, K.PHI_HAT), s.phi)):
             if series is not None and np.isfinite(series).any():
                 result.series[key] = series[::step]
-    result.series[f"{name}_t"] = tr.t[::step]
+    result.series[K.time(name)] = tr.t[::step]
     if np.isfinite(tr.x).any():  # wheel-speed tracking without a pose topic: nowhere to place the run
-        result.series[f"{name}_xy"] = np.c_[tr.x, tr.y][::step]
+        result.series[K.driven_xy(name)] = np.c_[tr.x, tr.y][::step]
     if "path" in metrics:
         cte = metrics["path"].pop("_cte")
         for key, val in metrics["path"].items():
             result.metrics.append(Metric(name=key, value=float(val), unit=UNITS.get(key, ""),
                                          group=f"control/{name}/path"))
-        result.series[f"{name}_cte_m"] = cte[::step]
-    result.series[f"{name}_funnel_o"] = tr.funnel[::step]
+        result.series[K.cte(name)] = cte[::step]
+    result.series[K.funnel(name)] = tr.funnel[::step]
     result.events += [Event(t_s=e["t_s"], kind="safety_stop", message=f"{LABELS.get(name, name)}: {e['message']}",
                             data={"side": e["side"]}) for e in tr.events]
 
@@ -186,9 +200,12 @@ def _decimate(t: np.ndarray, max_points: int = 20000) -> int:
 CONTROL_OUTPUT_BYTES = 50_000_000  # free space asked for before a run: result.json, series.npz
 
 
-def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out: Path, json_out: bool,
+def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str | None, out: Path, json_out: bool,
          runs: int | None = None, seed: int | None = None, path_file: Path | None = None) -> None:
-    names = parse_controllers(controllers)
+    if controllers is not None and mode == "replay":  # refused, not silently ignored
+        raise UsageError("--controllers chooses the controllers of --mode simulate and sweep; a replay evaluates "
+                         "the recorded run (the deployed controller)")
+    names = parse_controllers(controllers) if controllers is not None else CONTROLLERS
     if path_file is not None and mode != "replay":
         raise UsageError("--path supplies the path of a replay (--mode replay)")
     if log_path is not None and split_log_paths(log_path) is None and not log_path.exists():  # split: open_log checks
@@ -196,7 +213,19 @@ def main(log_path: Path | None, cfg: Config, *, mode: str, controllers: str, out
     waypoints = read_waypoints(path_file) if path_file is not None else None  # a bad file fails before any output
     check_output_root(out, need_bytes=CONTROL_OUTPUT_BYTES)  # before the long work, not after it
     run_dir = new_run_dir(out, log_id_for(log_path) if log_path else "paper-circle", f"control-{mode}")
-    if mode == "sweep":
+    if mode == "tune":
+        if log_path is not None:
+            raise UsageError("control --mode tune runs the paper circle's nominal plant; it takes no LOG")
+        from mrnc_eval.commands.control_tune import run_tune
+
+        result = run_tune(cfg, names, run_dir)
+    elif mode == "identify":
+        if log_path is None:
+            raise UsageError("control --mode identify needs a LOG with pump commands and wheel speeds")
+        from mrnc_eval.commands.control_identify import run_identify
+
+        result = run_identify(log_path, cfg, run_dir)
+    elif mode == "sweep":
         if log_path is not None:
             raise UsageError("control --mode sweep runs the paper circle; it takes no LOG")
         from mrnc_eval.commands.control_sweep import run_sweep_result
@@ -221,13 +250,27 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
 
     meta = {"run_dir": str(run_dir), "mode": mode, "labels": result.extra["labels"],
             "definitions": result.extra["definitions"]}
+    if mode == "tune":  # one item per law: the gains found (stats) and where the search started
+        table = result.tables[0]
+        items = [item(law, {**r["params"], "cost": r["cost"], "start_cost": r["start_cost"],
+                            "evaluations": r["evaluations"]}, controller=law, start_params=r["start_params"],
+                      box=r["box"]) for law, r in result.extra["tuned"].items()]
+        return document("control", items, meta={**meta, **{k: result.extra[k] for k in (
+            "optimiser", "cost", "budget", "tuning_noise_seed", "report_noise_seed")},
+            "table": {"rows": table.row_labels, "columns": table.column_labels, "cells": table.cells}},
+            warnings=result.warnings)
+    if mode == "identify":  # one item per side
+        items = [item(side, est, side=side) for side, est in result.extra["identified"].items()]
+        return document("control", items, meta={**meta, "plant_file": str(run_dir / result.extra["plant_file"]),
+                                                "topics": result.extra["roles"]}, warnings=result.warnings)
     if mode == "sweep":
         items = []
         for ctrl, summary in result.extra["sweep"].items():
             stats, rest = split_stats(summary)
             items.append(item(ctrl, stats, controller=ctrl, **rest))
         return document("control", items, meta={**meta, "runs": result.extra["runs"], "seed": result.extra["seed"],
-                                                    "supervisor": result.extra.get("supervisor", "")},
+                                                    "supervisor": result.extra.get("supervisor", ""),
+                                                    "reference_shaping": result.extra.get("shaping", "")},
                         warnings=result.warnings)
     body: dict[tuple[str, str], dict[str, Any]] = {}
     for m in result.metrics:
@@ -241,7 +284,9 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
             every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
             extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}
         items.append(item(f"{ctrl}/{side}", stats, controller=ctrl, side=side, **extra))
-    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study") if k in result.extra}
+    study: dict[str, Any] = {k: result.extra[k] for k in ("loop", "raid_scale_study", "disturbance",
+                                                          "reference_shaping", "supervisor", "step_detector")
+                             if k in result.extra}
     return document("control", items, meta={**meta, **study, "events": [e.__dict__ for e in result.events]},
                     warnings=result.warnings)
 

@@ -17,6 +17,7 @@ import numpy as np
 
 from mrnc_eval.config import Config, config_hash, dump_config
 from mrnc_eval.control.closed_loop import SIDES, ST_FUNNEL, ST_IAE, ST_RESTARTS, ST_SATURATED, run_closed_loop
+from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import LABELS, STOP_CAUSES
 from mrnc_eval.control.scenario import paper_circle_scenario
 from mrnc_eval.control.sweep import (
@@ -33,6 +34,7 @@ from mrnc_eval.control.sweep import (
 from mrnc_eval.errors import UsageError
 from mrnc_eval.evaluation.control_metrics import cross_track, paper_metrics
 from mrnc_eval.results import RunResult, write_result
+from mrnc_eval.schema import control as K
 from mrnc_eval.tables import Table
 
 
@@ -233,8 +235,8 @@ def sweep_table(summary: dict[str, dict[str, Any]], cfg: Config, runs: int, seed
         f"{cfg.control.funnel.o_b_mps:g} m/s. Fractions with Wilson 95 % intervals.",
         f"Safety stop on funnel exit for: {cfg.control.supervisor.stop_rule} (control.supervisor.stop_rule); counts, "
         "IAE and steady-state error run up to a side's stop; stop causes: barrier, barrier_at_clamp (previous command "
-        "at the clamp), non_finite. Reference shaping: slew "
-        f"{cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2; RAID output unit "
+        "at the clamp), non_finite. "
+        f"{shaping_text(cfg.control).capitalize()}; RAID output unit "
         f"{cfg.control.raid.output_unit} x {cfg.control.raid.feedback_scale_rpm:g}.",
         "APC and FOPTC are stand-ins; FF only is the negative control (no feedback).",
     ]
@@ -267,16 +269,16 @@ def run_sweep_result(cfg: Config, names: tuple[str, ...], out_dir: Path, *, runs
     first = next(iter(summary.values()))
     bins = first["violation_rate_by_gain_mismatch"]
     assert isinstance(bins, list)
-    result.series["sweep_gain_mismatch_mid"] = np.array([0.5 * (b["gain_mismatch_lo"] + b["gain_mismatch_hi"])
+    result.series[K.SWEEP_GAIN_MISMATCH_MID] = np.array([0.5 * (b["gain_mismatch_lo"] + b["gain_mismatch_hi"])
                                                          for b in bins])
     for name, smry in summary.items():
         per_bin = smry["violation_rate_by_gain_mismatch"]
         assert isinstance(per_bin, list)
-        result.series[f"sweep_{name}_violation_rate"] = np.array([b["funnel_violation_rate"] for b in per_bin])
-    result.extra = {"mode": "sweep", "controllers": list(names), "labels": {n_: LABELS.get(n_, n_) for n_ in names},
-                    "runs": n, "seed": s, "sweep": summary, "sweep_runs": runs_as_rows(rows),
-                    "supervisor": cfg.control.supervisor.stop_rule,
-                    "definitions": table.notes}
+        result.series[K.sweep_violation_rate(name)] = np.array([b["funnel_violation_rate"] for b in per_bin])
+    result.extra = {K.MODE: "sweep", K.CONTROLLERS: list(names), K.LABELS: {n_: LABELS.get(n_, n_) for n_ in names},
+                    K.RUNS: n, "seed": s, "sweep": summary, "sweep_runs": runs_as_rows(rows),
+                    "supervisor": cfg.control.supervisor.stop_rule, "shaping": shaping_text(cfg.control),
+                    K.DEFINITIONS: table.notes}
     write_result(result, out_dir, dump_config(cfg))
     return result
 

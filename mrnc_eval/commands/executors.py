@@ -49,7 +49,7 @@ class LocalPool:
         # a spawned worker starts without our log handler: give it the same escaping formatter
         return ProcessPoolExecutor(max_workers=workers, mp_context=multiprocessing.get_context("spawn"),
                                    max_tasks_per_child=1, initializer=install_log_format,
-                                   initargs=(logging.getLogger().getEffectiveLevel(), None))
+                                   initargs=(logging.getLogger("mrnc_eval").getEffectiveLevel(), None))
 
     def run(self, jobs: Iterable[LogJob]) -> Iterator[LogSummary]:
         queue = deque(jobs)
@@ -117,7 +117,7 @@ class Dask:
             for fut in dask_completed(futures):
                 try:
                     yield fut.result()
-                except Exception as err:
+                except Exception as err:  # noqa: BLE001 - a worker's crash fails its log, not the night
                     yield failed_summary(futures[fut], f"{CRASHED}: {type(err).__name__}: {err}")
 
 

@@ -23,10 +23,12 @@ from mrnc_eval.export import topics
 from mrnc_eval.export.mcap_file import JsonMcap, stamp_ns
 from mrnc_eval.outputs import claim_output, output_file
 from mrnc_eval.results import RunResult, read_result
+from mrnc_eval.schema import control as control_keys
+from mrnc_eval.schema import slam as slam_keys
 from mrnc_eval.text import printable
 
 
-@dataclass
+@dataclass(kw_only=True)
 class ExportSummary:
     path: Path
     size_bytes: int = 0
@@ -35,7 +37,7 @@ class ExportSummary:
     warnings: list[str] = field(default_factory=list)
 
 
-@dataclass(frozen=True)
+@dataclass(frozen=True, kw_only=True)
 class LogContext:
     """What the export needs from the original log (None when the log is not at its recorded path)."""
 
@@ -72,8 +74,9 @@ def read_log_context(log_path: Path, cfg: Config) -> LogContext:
         gt = ground_truth_of(lg, log_path)
         wheel = lg.wheel_speeds(wheel_radius_m=cfg.robot.wheel_radius_m) if lg.has_role("wheel_speeds") else None
         odom = lg.wheel_odometry() if lg.has_role("wheel_odom") else None
-    return LogContext(log_path, start, end, gt, float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size
-                      else None, odom)
+    return LogContext(path=log_path, start_s=start, end_s=end, ground_truth=gt,
+                      wheel_t0_s=float(wheel.stamps[0]) if wheel is not None and wheel.stamps.size else None,
+                      odometry=odom)
 
 
 def _slam_files(run_dir: Path) -> topics.SlamFiles:
@@ -100,10 +103,10 @@ def _read_map(run_dir: Path) -> np.ndarray | None:
 def _control_t0(result: RunResult, ctx: LogContext | None, summary: ExportSummary) -> float:
     """Control series are in seconds since the run's first sample: a replay starts at the first
     wheel-speed stamp (as commands.control.replay uses it), a simulation at the log start."""
-    if "t0_stamp_s" in result.extra:
-        return float(result.extra["t0_stamp_s"])
+    if control_keys.T0_STAMP_S in result.extra:
+        return float(result.extra[control_keys.T0_STAMP_S])
     if ctx is not None:
-        if result.extra.get("mode") == "replay" and ctx.wheel_t0_s is not None:
+        if result.extra.get(control_keys.MODE) == "replay" and ctx.wheel_t0_s is not None:
             return ctx.wheel_t0_s
         return ctx.start_s
     summary.warnings.append(f"{result.log_id}: control result without its log: time starts at 0")
@@ -121,7 +124,7 @@ def _fixed_frame(ctx: LogContext | None) -> str:
 
 
 def _write_slam_frames(out: JsonMcap, files: topics.SlamFiles, ctx: LogContext | None, *, fixed: str,
-                       frame: str, body: str, summary: ExportSummary) -> None:
+                       frame: str, body: str, summary: ExportSummary, max_diff_s: float) -> None:
     """fixed -> frame (the 4-DoF alignment to the ground truth, identity without one, at the log's
     start so every later lookup finds it), frame -> body (the SLAM pose at each stamp) and, for the
     first method, frame -> odom (REP 105: where the wheel odometry's origin sits)."""
@@ -135,7 +138,7 @@ def _write_slam_frames(out: JsonMcap, files: topics.SlamFiles, ctx: LogContext |
         # near-planar drive a full SE(3) fit tilts the estimate's frame (16 deg on the 6 s test circle,
         # for 0.7 mm less RMSE), which would tilt every cloud drawn through it
         try:
-            transform = ape(ctx.ground_truth, files.trajectory, align="yaw", max_diff=0.02).transform
+            transform = ape(ctx.ground_truth, files.trajectory, align="yaw", max_diff=max_diff_s).transform
         except EvaluationError as err:
             summary.warnings.append(f"no {fixed} -> {frame} alignment ({err}): identity")
     else:
@@ -158,12 +161,13 @@ def _write_all(out: JsonMcap, runs: list[tuple[Path, RunResult]], ctx: LogContex
     for run_dir, result in runs:
         if result.kind == "slam":
             files = _slam_files(run_dir)
-            method = str(result.extra.get("method", "lio"))
+            method = str(result.extra.get(slam_keys.METHOD, "lio"))
             frame = f"{method}/map"
             body = f"{method}/{BODY_FRAME}" if body_taken else BODY_FRAME  # one parent per frame
             body_taken = True
             summary.map_points += topics.write_slam(out, result, files, frame=frame)
-            _write_slam_frames(out, files, ctx, fixed=fixed, frame=frame, body=body, summary=summary)
+            _write_slam_frames(out, files, ctx, fixed=fixed, frame=frame, body=body, summary=summary,
+                               max_diff_s=_run_config(run_dir).evaluation.gt_max_diff_s)
             topics.write_events(out, result, float(files.trajectory.stamps[0]), f"slam/{method}")
         elif result.kind == "control":
             cfg = _run_config(run_dir).control

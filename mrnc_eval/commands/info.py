@@ -40,6 +40,7 @@ class InfoSummary:
     roles: dict[str, str]
     findings: list[Finding] = field(default_factory=list)
     lidar: dict[str, Any] = field(default_factory=dict)
+    imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches
 
     def to_json(self) -> dict[str, Any]:
         return asdict(self)
@@ -51,6 +52,12 @@ class InfoSummary:
         rest = self.to_json()
         stats = {k: rest.pop(k) for k in ("duration_s", "start_s", "end_s")}
         return item(self.path, {**stats, "n_topics": len(self.topics)}, **rest)
+
+
+def type_name(msgtype: str, container: str) -> str:
+    """A message type as the log's ROS version writes it: sensor_msgs/Imu in a ROS 1 bag (the
+    reader's type store names every type the ROS 2 way, sensor_msgs/msg/Imu)."""
+    return msgtype.replace("/msg/", "/", 1) if container == "ros1" else msgtype
 
 
 def run(path: Path, cfg: Config) -> InfoSummary:
@@ -72,11 +79,13 @@ def run(path: Path, cfg: Config) -> InfoSummary:
 
 
 def _summary(path: Path, cfg: Config) -> InfoSummary:
+    log.info("%s: reading the overview (topics, stamps, roles)", path)
     with open_log(path, cfg.io) as lg:
+        log.info("%s: %s, %d topics, %.1f s", path, lg.container, len(lg.topics), lg.duration_s)
         topics = lg.topics
         summary = InfoSummary(
             path=str(path), container=lg.container, start_s=lg.start_s, end_s=lg.end_s, duration_s=lg.duration_s,
-            topics=[{"topic": t.topic, "msgtype": t.msgtype, "count": t.count, "role": t.role,
+            topics=[{"topic": t.topic, "msgtype": type_name(t.msgtype, lg.container), "count": t.count, "role": t.role,
                      "rate_hz": round(t.rate_hz, 3), "max_gap_s": round(t.max_gap_s, 6),
                      "duplicates": t.duplicates, "out_of_order": t.out_of_order, "problem": t.problem}
                     for t in topics],
@@ -87,7 +96,43 @@ def _summary(path: Path, cfg: Config) -> InfoSummary:
         _lidar_findings(lg, summary)
         _gnss_findings(lg, summary)
         _validation_findings(lg, summary)
+        _imu_noise_findings(lg, summary, cfg)
     return summary
+
+
+def _imu_noise_findings(lg: LogReader, summary: InfoSummary, cfg: Config) -> None:
+    """The IMU's noise densities and biases from the log's stationary stretches (slam/imu_noise.py),
+    beside the preintegration's configured noise."""
+    from mrnc_eval.errors import InputError
+    from mrnc_eval.slam.imu_noise import estimate_imu_noise
+
+    topic = summary.roles.get("imu")
+    if topic is None:
+        return
+    try:
+        imu = lg.imu(topic)
+    except InputError:
+        return  # already an error finding
+    icfg = cfg.slam.imu
+    est = estimate_imu_noise(imu.stamps, imu.acc, imu.gyro, gravity=icfg.gravity, min_s=icfg.stationary_min_s)
+    if est is None:
+        summary.findings.append(Finding(
+            level="warning", topic=topic, message=f"no stationary stretch of {icfg.stationary_min_s:g} s or more: the "
+            "IMU's noise and biases cannot be measured; the SLAM uses the configured noise (slam.imu.acc_noise, "
+            "gyro_noise)"))
+        return
+    summary.imu_noise = est.summary()
+    b = ", ".join(f"{v:+.4f}" for v in est.gyro_bias)
+    summary.findings.append(Finding(
+        level="ok", topic=topic,
+        message=f"IMU from {est.stationary_s:.1f} s stationary ({est.stretches} stretch(es)): noise density acc "
+        f"{est.acc_noise_density:.2g} m/s^2/sqrt(Hz) (configured {icfg.acc_noise:.2g}), gyro "
+        f"{est.gyro_noise_density:.2g} rad/s/sqrt(Hz) (configured {icfg.gyro_noise:.2g}); per-sample spread "
+        f"{est.acc_sample_std:.2g} m/s^2, {est.gyro_sample_std:.2g} rad/s; gyro bias [{b}] rad/s "
+        f"(+-{est.gyro_bias_sigma:.1g}); accelerometer bias along gravity {est.acc_bias_along_gravity:+.3f} m/s^2"))
+    if est.acc_noise_density > 2 * icfg.acc_noise or est.gyro_noise_density > 2 * icfg.gyro_noise:
+        summary.findings.append(Finding(level="warning", topic=topic, message="the IMU is noisier than the "
+                                        "preintegration assumes (vibration?): consider slam.imu.noise_from_log=true"))
 
 
 def _validation_findings(lg: LogReader, summary: InfoSummary) -> None:

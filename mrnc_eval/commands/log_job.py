@@ -20,6 +20,7 @@ from pathlib import Path
 
 from mrnc_eval import __version__
 from mrnc_eval.config import Config
+from mrnc_eval.history import RunStatus
 
 DEFAULT_ANALYSIS = "mrnc_eval.commands.log_job:analyse_log"
 MetricRow = tuple[str, float | None, str]  # (metric, value, unit)
@@ -47,7 +48,7 @@ class LogSummary:
 
     log_id: str
     log_path: str
-    status: str  # "ok" | "failed"
+    status: RunStatus
     error: str = ""
     metrics: tuple[MetricRow, ...] = ()
     gates_failed: tuple[str, ...] = ()  # labels of the gate cards that failed
@@ -77,10 +78,11 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
     from mrnc_eval.config import config_hash, dump_config
     from mrnc_eval.reports.render import evaluate_gates, write_report
     from mrnc_eval.results import RunResult, absolute_log_path, write_result
+    from mrnc_eval.schema.info import INFO
 
     config_yaml = dump_config(cfg)
     summary = info.run(log_path, cfg).to_json()
-    info_result = RunResult(kind="info", log_path=absolute_log_path(log_path), log_id=log_id, extra={"info": summary},
+    info_result = RunResult(kind="info", log_path=absolute_log_path(log_path), log_id=log_id, extra={INFO: summary},
                             config_hash=config_hash(cfg))
     write_result(info_result, work_dir / "info", config_yaml)
     results = [info_result, slam.run_log(log_path, cfg, work_dir / "slam", log_id=log_id)]
@@ -120,7 +122,7 @@ def process_log(job: LogJob) -> LogSummary:
                        gates_failed=tuple(outcome.gates_failed), report=str(report) if report.exists() else "")
     except MrncError as err:
         return replace(partial_summary, error=str(err))
-    except Exception as err:
+    except Exception as err:  # noqa: BLE001 - a bug on one log fails that log (traceback kept), not the night
         return replace(partial_summary, error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc())
     finally:
         shutil.rmtree(partial, ignore_errors=True)

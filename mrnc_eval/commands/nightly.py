@@ -71,6 +71,23 @@ def discover_logs(root: Path, since: dt.date | None = None) -> list[Path]:
     return sorted(found)
 
 
+def hidden_logs(root: Path) -> list[str]:
+    """Logs (by suffix or metadata.yaml) that discovery skipped because a part of their path
+    starts with '.', relative to `root`: said, so an empty night is not a mystery."""
+    if not root.is_dir():
+        return []
+    found = set()
+    for p in root.rglob("*"):
+        rel = p.relative_to(root)
+        if not any(part.startswith(".") for part in rel.parts):
+            continue
+        if p.name == "metadata.yaml":
+            found.add(str(rel.parent))
+        elif p.suffix in LOG_SUFFIXES and p.is_file():
+            found.add(str(rel))
+    return sorted(found)
+
+
 def _unique_ids(logs: list[Path], root: Path) -> dict[Path, str]:
     """Stable log ids from the path relative to LOG_DIR (nested/run.mcap -> nested_run; a slug
     plus a hash of the path for names that are not plain ASCII), so a log keeps its id across
@@ -84,12 +101,13 @@ def _unique_ids(logs: list[Path], root: Path) -> dict[Path, str]:
 def _night(date: str | None) -> str:
     if date is None:
         return dt.date.today().isoformat()
+    wrong = UsageError(f"--date {shorten(date)}: expected a calendar date YYYY-MM-DD")
+    if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
+        raise wrong
     try:
-        if not re.fullmatch(r"\d{4}-\d{2}-\d{2}", date):
-            raise ValueError
         return dt.date.fromisoformat(date).isoformat()  # a real calendar date: 2026-13-45 is not one
     except ValueError:
-        raise UsageError(f"--date {shorten(date)}: expected a calendar date YYYY-MM-DD") from None
+        raise wrong from None
 
 
 def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | None, since: str | None,
@@ -106,8 +124,15 @@ def main(log_dir: Path, cfg: Config, *, out: Path, jobs: int, scheduler: str | N
     concurrency = 0 if scheduler else max(1, jobs)
     since_date = _since(since)
     logs = discover_logs(log_dir, since_date)
+    hidden = hidden_logs(log_dir)
     if not logs and since_date is None:  # a wrong folder, not a quiet night
-        raise InputError(log_dir, "no logs found (.mcap, .db3 or .bag files, ROS 2 bag folders)")
+        raise InputError(log_dir, "no logs found (.mcap, .db3 or .bag files, ROS 2 bag folders)" + (
+            f"; {len(hidden)} hidden entr{'y' if len(hidden) == 1 else 'ies'} skipped ({', '.join(hidden[:3])}"
+            f"{', ...' if len(hidden) > 3 else ''}: a name starting with '.' is a recorder's partial write; "
+            "rename it to process it)" if hidden else ""))
+    if hidden:
+        log.warning("%s: %d hidden log(s) skipped (names starting with '.'): %s", log_dir, len(hidden),
+                    ", ".join(hidden[:5]))
     check_output_root(out, need_bytes=NIGHTLY_OUTPUT_BYTES * max(1, len(logs)))
     skipped = unreadable_folders(log_dir)
     for folder in skipped:
@@ -229,7 +254,7 @@ def _close_interrupted_night(history: History, night: str, night_dir: Path, nigh
             shutil.rmtree(night_dir, ignore_errors=True)
         elif night_dir.is_dir():
             _write_index(history, night, night_dir)
-    except Exception as err:  # already stopping: say it, keep the original exception
+    except Exception as err:  # noqa: BLE001 - already stopping: say it, keep the original exception
         log.error("%s: could not close the interrupted night: %s", night_dir, err)
 
 
@@ -239,7 +264,7 @@ def _with_gates(cfg: Config, gates: Path | None) -> Config:
     try:
         data = load_yaml_file(gates, "gates") or {}
         if not isinstance(data, dict):
-            raise TypeError("expected a mapping of gate names to limits")
+            raise ConfigError("expected a mapping of gate names to limits")
         return build(Config, {**as_dict(cfg), "gates": {**as_dict(cfg.gates), **data}})
     except (OSError, yaml.YAMLError, ConfigError, TypeError) as err:
         raise ConfigError(f"{gates}: invalid gates file: {err}") from err

@@ -6,10 +6,14 @@ from __future__ import annotations
 import os
 import sys
 from pathlib import Path
+from typing import TYPE_CHECKING
 
 from mrnc_eval.config import Config
 from mrnc_eval.errors import OutputError, UsageError
 from mrnc_eval.io.containers import FORMAT_NAMES, FORMAT_SUFFIX, SUFFIX_FORMAT
+
+if TYPE_CHECKING:
+    from mrnc_eval.recording.recorder import SimRequest
 
 SIM_OUTPUT_BYTES = 100_000_000  # free space asked for before simulating (a minute of OS0-128 is ~50 MB)
 _BAG_FILES = (".mcap", ".db3", ".yaml")  # what a ROS 2 bag folder written by this tool holds
@@ -73,10 +77,7 @@ def main(out: str | Path, cfg: Config, *, scene: str, path: str, duration: float
     target, log_format = log_target(out, fmt)
     req = SimRequest(scene=scene, path=path, duration_s=duration, lidar=lidar, columns=columns, rate_hz=rate,
                      fmt=log_format, seed=seed, profile=profile)
-    try:
-        validate(req)
-    except ValueError as exc:
-        raise UsageError(str(exc)) from None
+    validate(req)  # a UsageError naming every unsupported choice, before any work
     check_target(target, force=force)
     with progress_bar(total=1) as bar:  # the sweep count is known once the mission has been driven
         if bar is None:
@@ -84,4 +85,25 @@ def main(out: str | Path, cfg: Config, *, scene: str, path: str, duration: float
         else:
             task = bar.add_task(f"simulating {req.lidar} sweeps ({req.profile or cfg.sim.profile} profile)", total=None)
             written = simulate_log(target, cfg, req, lambda n, total: bar.update(task, completed=n, total=total))
-    sys.stderr.write(f"wrote {written}\n")
+    sys.stderr.write(wrote_line(Path(written), req, cfg) + "\n")
+
+
+def _size_text(path: Path) -> str:
+    size = sum(p.stat().st_size for p in path.rglob("*") if p.is_file()) if path.is_dir() else path.stat().st_size
+    return f"{size / 1e6:.1f} MB" if size >= 1e5 else f"{size / 1e3:.0f} kB"
+
+
+def wrote_line(written: Path, req: SimRequest, cfg: Config) -> str:
+    """What was written: the log (format, size, duration, what it holds) and its ground truth."""
+    from mrnc_eval.io.ground_truth import gt_tum_path
+
+    gt = gt_tum_path(written)
+    duration = ""
+    if gt.is_file():
+        lines = [ln.split() for ln in gt.read_text(encoding="utf-8").splitlines() if ln and not ln.startswith("#")]
+        if len(lines) > 1:
+            duration = f", {float(lines[-1][0]) - float(lines[0][0]):.1f} s"
+    what = (f"{req.scene} {req.path}, {req.lidar} x {req.columns} at {req.rate_hz:g} Hz, "
+            f"{req.profile or cfg.sim.profile} profile, seed {cfg.sim.seed if req.seed is None else req.seed}")
+    line = f"wrote {written} ({FORMAT_NAMES[req.fmt]}, {_size_text(written)}{duration}: {what})"
+    return line + (f" and its ground truth {gt} (TUM; slam and table find it beside the log)" if gt.is_file() else "")

@@ -38,6 +38,7 @@ from mrnc_eval.results import (
     stable_id,
     write_result,
 )
+from mrnc_eval.schema import slam as K
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.output import STAGES, SlamOutput
 from mrnc_eval.slam.wheel_odometry import WheelTrack
@@ -130,9 +131,17 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     with open_log(log_path, cfg.io) as lg:
         if not lg.has_role("lidar"):
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
+        log.info("%s: %s, %.1f s; roles %s", log_path, lg.container, lg.duration_s,
+                 ", ".join(f"{r} {t}" for r, t in sorted(lg.roles.items())))
         inputs = _read_inputs(lg, log_path, cfg)
-        result.extra["roles"] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "ground_truth") if r in lg.roles}
-        result.extra["ground_truth"] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
+        log.debug("inputs: IMU %s samples, GNSS %s fixes, ground truth %s poses",
+                  None if inputs.imu is None else inputs.imu.stamps.size,
+                  None if inputs.gnss is None else inputs.gnss.stamps.size,
+                  None if inputs.ground_truth is None else len(inputs.ground_truth))
+        result.extra[K.ROLES] = {r: lg.roles[r] for r in ("lidar", "imu", "gnss", "wheel_odom", "ground_truth")
+                                 if r in lg.roles}
+        result.extra["inputs"] = _inputs_used(lg, inputs, cfg)
+        result.extra[K.GROUND_TRUTH] = ground_truth_spec(lg, log_path)  # what `table` reads back as the reference
         if window is not None and window.active:
             result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
             result.warnings.append(window.describe())
@@ -143,6 +152,46 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         why = "; ".join(read_notes) or "no sweep could be registered"
         raise EvaluationError(f"{log_path}: SLAM produced {out.stamps.size} pose(s) ({why})")
     result.warnings += read_notes
+    return _finish(result, out, inputs, method, cfg, out_dir, wall_start)
+
+
+def run_scan_folder(folder: Path, cfg: Config, out_dir: Path, *, method: str | None = None,
+                    log_id: str | None = None, window: SweepWindow | None = None) -> RunResult:
+    """SLAM on a folder of .bin/.pcd scans with timestamps.txt (io/scan_folder.py), as kiss-icp
+    reads one: LiDAR only, so --method kiss-icp; poses in the sensor frame (no /tf_static). A
+    `ground_truth.tum` in the folder is the reference of the APE."""
+    from mrnc_eval.io.scan_folder import open_scan_folder, scan_sweeps
+    from mrnc_eval.io.trajectory_files import read_tum
+
+    cfg = with_method(cfg, method)
+    if cfg.slam.method != "kiss-icp":
+        raise UsageError(f"{folder}: a folder of scans has no IMU for lio; run it with --method kiss-icp")
+    scans = open_scan_folder(folder)
+    wall_start = time.perf_counter()
+    result = RunResult(kind="slam", log_path=str(folder), log_id=log_id or log_id_for(folder),
+                       config_hash=config_hash(cfg))
+    gt_file = folder / "ground_truth.tum"
+    gt = read_tum(gt_file) if gt_file.is_file() else None
+    result.extra["ground_truth"] = str(gt_file.resolve()) if gt is not None else None
+    result.extra["input"] = f"scan folder: {len(scans.files)} scans ({scans.files[0].suffix}), stamps from the folder"
+    stream: Iterator[Sweep] = scan_sweeps(scans)
+    if window is not None and window.active:
+        result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
+        result.warnings.append(window.describe())
+        stream = windowed(stream, window, float(scans.stamps[0]))
+    with Prefetched(stream, depth=4) as sweeps:
+        out = _kiss_icp(sweeps, cfg, scans.max_gap_s)
+    if out.stamps.size < 2:
+        raise EvaluationError(f"{folder}: SLAM produced {out.stamps.size} pose(s)")
+    inputs = LogInputs(duration_s=scans.duration_s, base_to_sensor=np.eye(4), imu=None, sensor_to_imu=np.eye(4),
+                       gnss=None, ground_truth=gt, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3),
+                       n_sweeps=len(scans.files), max_sweep_gap_s=scans.max_gap_s)
+    return _finish(result, out, inputs, cfg.slam.method, cfg, out_dir, wall_start)
+
+
+def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, cfg: Config, out_dir: Path,
+            wall_start: float) -> RunResult:
+    """Trajectories, metrics, APE and files of a SLAM run (a log's or a scan folder's)."""
     est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, method)
     online = _to_base(out.stamps, out.online_poses if out.online_poses is not None else out.poses,
                       inputs.base_to_sensor, f"{method} online")
@@ -153,13 +202,20 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
     if inputs.ground_truth is not None:
         _add_ape(result, inputs.ground_truth, est, online, method, cfg, float(out.stamps[0]))
     else:
-        result.warnings.append(f"no ground truth: APE not computed ({ground_truth_hint(log_path)})")
+        where = Path(result.log_path)
+        hint = ("put a ground_truth.tum (TUM) in the scan folder" if "input" in result.extra
+                else ground_truth_hint(where))
+        result.warnings.append(f"no ground truth: APE not computed ({hint})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
     _add_map_quality(result, out, cfg)
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
+    log.info("%s: %d of %d sweeps mapped in %.2f s, %d keyframes -> %s", result.log_path, out.stamps.size, out.n_sweeps,
+             out.wall_s, out.kf_stamps.size, out_dir)
+    for stage, ms in out.timing_ms.items():
+        log.debug("stage %s: %.2f ms per sweep over %d sweeps", stage, float(np.mean(ms)) if ms else 0.0, len(ms))
     return result
 
 
@@ -240,6 +296,16 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
                                 antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
                                 base_to_sensor=inputs.base_to_sensor, progress=tick)
             return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
+
+
+def _inputs_used(lg: LogReader, inputs: LogInputs, cfg: Config) -> dict[str, str]:
+    """role -> topic of every topic the run reads as an input (never the ground truth: io/roles.py
+    rule 4)."""
+    lio = cfg.slam.method == "lio"
+    used = {"lidar": True, "imu": lio and inputs.imu is not None,
+            "gnss": lio and inputs.gnss is not None and cfg.slam.gps.enabled,
+            "wheel_odom": lio and cfg.slam.wheel_odom.enabled and lg.has_role("wheel_odom")}
+    return {role: lg.roles[role] for role, yes in used.items() if yes and role in lg.roles}
 
 
 def _wheel_track(lg: LogReader, cfg: Config) -> WheelTrack | None:
@@ -380,14 +446,15 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
     # of the sweeps in the log (not of those the interval let through): "134 of 236", and why
     every = (f"every {mapping_interval_s:g} s or more (slam.mapping_interval_s)" if method == "lio"
              else "every sweep")
-    result.extra["mapping_rate"] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
+    result.extra[K.MAPPING_RATE] = (f"mapping {out.stamps.size} of {max(inputs.n_sweeps, out.n_sweeps)} sweeps, "
                                     f"{every}, {rate_hz:.1f} Hz")
-    result.extra["deskew"] = out.deskew
-    result.extra.update({"method": method, "timing_ms": timing, "wall_s": out.wall_s, "log_duration_s": duration,
+    result.extra[K.DESKEW] = out.deskew
+    result.extra.update({K.METHOD: method, K.TIMING_MS: timing, K.WALL_S: out.wall_s, K.LOG_DURATION_S: duration,
                          "sweeps_decoded": out.n_sweeps, "wall_total_s": total_s,
-                         "first_sweep_ms": float(sum(v[0] for v in out.timing_ms.values() if v)),
-                         "warmup_ms": dict(out.warmup_ms), "warmup_total_ms": float(sum(out.warmup_ms.values())),
+                         K.FIRST_SWEEP_MS: float(sum(v[0] for v in out.timing_ms.values() if v)),
+                         "warmup_ms": dict(out.warmup_ms), K.WARMUP_TOTAL_MS: float(sum(out.warmup_ms.values())),
                          "imu_bias": None if out.imu_bias is None else out.imu_bias.tolist(),
+                         "imu_noise": out.imu_noise,  # the IMU's noise and biases from stationary stretches
                          "frames": {"trajectory.tum": "map -> base_link (LiDAR poses through /tf_static), "
                                                       "smoothed: each sweep re-anchored to its final keyframe",
                                     "trajectory_online.tum": "the same frames, each sweep's pose as estimated "
@@ -411,10 +478,10 @@ def _stage_timing(out: SlamOutput) -> dict[str, dict[str, float]]:
 
 def _add_trajectory_series(result: RunResult, est: Trajectory, online: Trajectory, keyframes: Trajectory,
                            t_start: float) -> None:
-    result.series["est_t"] = est.stamps - t_start
-    result.series["est_xyz"] = est.positions
-    result.series["est_online_xyz"] = online.positions
-    result.series["kf_xyz"] = keyframes.positions
+    result.series[K.EST_T] = est.stamps - t_start
+    result.series[K.EST_XYZ] = est.positions
+    result.series[K.EST_ONLINE_XYZ] = online.positions
+    result.series[K.KF_XYZ] = keyframes.positions
 
 
 def _end_drift(gt: Trajectory, est: Trajectory, max_diff_s: float) -> float:
@@ -449,9 +516,9 @@ def _ape_online(result: RunResult, gt: Trajectory, online: Trajectory, cfg: Conf
                        Metric(name="end_drift_online_m", value=_end_drift(gt, online, cfg.evaluation.gt_max_diff_s),
                               unit="m", group="slam/ape",
                               note="end drift of the online trajectory")]
-    result.series["ape_online_err_m"] = r.errors
-    result.series["est_online_aligned_xyz"] = r.est_poses[:, :3, 3]
-    result.series["ape_online_t"] = r.stamps - t_start
+    result.series[K.ape_err(K.ONLINE)] = r.errors
+    result.series[K.EST_ONLINE_ALIGNED_XYZ] = r.est_poses[:, :3, 3]
+    result.series[K.ape_t(K.ONLINE)] = r.stamps - t_start
     return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
                  min_span_fraction=cfg.evaluation.failed_min_span_fraction)
 
@@ -470,10 +537,10 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
                                   unit="m", group="slam/ape",
                                   note="position error of the last pose with the first pose aligned to the "
                                        "ground truth: the drift accumulated over the log")]
-        result.series["ape_t"] = r.stamps - t_start
-        result.series["ape_err_m"] = r.errors
-        result.series["ref_xyz"] = r.ref_poses[:, :3, 3]
-        result.series["est_aligned_xyz"] = r.est_poses[:, :3, 3]
+        result.series[K.ape_t(K.SMOOTHED)] = r.stamps - t_start
+        result.series[K.ape_err(K.SMOOTHED)] = r.errors
+        result.series[K.REF_XYZ] = r.ref_poses[:, :3, 3]
+        result.series[K.EST_ALIGNED_XYZ] = r.est_poses[:, :3, 3]
         return judge(r.stats["rmse"], r.n, r.span_s, r.ref_span_s, min_matches=cfg.evaluation.failed_min_matches,
                      min_span_fraction=cfg.evaluation.failed_min_span_fraction)
     except EvaluationError as err:
@@ -506,7 +573,12 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
                                  note="IMU clock lag behind the LiDAR's, estimated by correlating the LiDAR "
                                       "odometry's rotation rate with the gyro (positive: IMU stamps late), after "
                                       "applying slam.imu.time_offset_s"))
-    if abs(offset) > IMU_OFFSET_FINDING_S:
+    sigma = out.imu_time_offset_sigma_s
+    if sigma is not None and np.isfinite(sigma):
+        result.metrics.append(Metric(name="imu_time_offset_sigma_s", value=sigma, unit="s", group="slam/health",
+                                     note="formal standard error of imu_time_offset_s (rate residuals taken as "
+                                          "independent, so a lower bound; ~1.5 ms on a 40 s log mapped at 5 Hz)"))
+    if abs(offset) > IMU_OFFSET_FINDING_S and (sigma is None or abs(offset) > 2 * sigma):
         text = (f"IMU-LiDAR time offset {offset * 1e3:.1f} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
                 f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
                 f"{cfg.slam.imu.time_offset_s + offset:.4f}")
@@ -575,6 +647,7 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     slam.gps.enabled, --topic: io.roles.lidar), which are then the one source of truth; `window`
     limits the sweeps read (recorded in each result's extra and warnings)."""
     from mrnc_eval.errors import SomeInputsFailed
+    from mrnc_eval.io.scan_folder import is_scan_folder
 
     cfg = with_method(cfg, method)
     if topic is not None:
@@ -585,8 +658,8 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
         cfg = replace_path(cfg, "slam.gps.enabled", False)
     from mrnc_eval.io.containers import detect_container
 
-    for path in logs:  # a folder of logs (not a ROS 2 bag) is refused before anything is written
-        if path.is_dir():
+    for path in logs:  # a folder of logs (not a ROS 2 bag, not scans) is refused before anything is written
+        if path.is_dir() and not is_scan_folder(path):
             detect_container([path])
     check_output_root(out, need_bytes=SLAM_OUTPUT_BYTES * len(logs))  # before the long work, not after it
     results: list[tuple[Path, RunResult]] = []
@@ -596,7 +669,10 @@ def main(logs: list[Path], cfg: Config, *, method: str | None, out: Path, no_loo
     for path in logs:
         run_dir = new_run_dir(out, log_id_for(path), f"slam-{cfg.slam.method}")
         try:
-            r = run_log(path, cfg, run_dir, progress=True, window=window)
+            if is_scan_folder(path):  # kiss-icp's habit: a folder of .bin/.pcd scans with timestamps.txt
+                r = run_scan_folder(path, cfg, run_dir, window=window)
+            else:
+                r = run_log(path, cfg, run_dir, progress=True, window=window)
         except InputError as err:
             if len(logs) == 1:
                 raise

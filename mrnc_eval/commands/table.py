@@ -31,6 +31,7 @@ from mrnc_eval.io.trajectory_inputs import TrajectorySpec, parse_trajectory_spec
 from mrnc_eval.outputs import claim_output, write_output
 from mrnc_eval.reports.tables import SUFFIX_FORMAT, render_table
 from mrnc_eval.results import RESULT_FILE, RunResult, read_result
+from mrnc_eval.schema import slam as slam_keys
 from mrnc_eval.tables import Table
 
 log = logging.getLogger(__name__)
@@ -87,10 +88,10 @@ def _slam_runs(root: Path) -> list[tuple[Path, RunResult]]:
 def _run_reference(result: RunResult) -> TrajectorySpec | None:
     """The ground truth the run found: recorded in result.json (`extra.ground_truth`); for runs
     written before it was recorded, the same rule again from the log's path and roles."""
-    if "ground_truth" in result.extra:
-        spec = result.extra["ground_truth"]
+    if slam_keys.GROUND_TRUTH in result.extra:
+        spec = result.extra[slam_keys.GROUND_TRUTH]
         return None if spec is None else parse_trajectory_spec(spec)
-    topic = result.extra.get("roles", {}).get("ground_truth")
+    topic = result.extra.get(slam_keys.ROLES, {}).get("ground_truth")
     if topic:
         return TrajectorySpec(result.log_path, topic)
     beside = gt_tum_path(Path(result.log_path))
@@ -129,7 +130,7 @@ def _from_runs(runs: list[tuple[Path, RunResult]], table_trajectory: str) -> dic
     run of each; runs that found no ground truth are left out with a warning (no APE to show)."""
     newest: dict[tuple[str, str], tuple[Path, RunResult]] = {}
     for run_dir, result in sorted(runs, key=lambda run: (run[1].created_utc, run[0].name)):
-        newest[(_log_key(result, run_dir), str(result.extra.get("method", "lio")))] = (run_dir, result)
+        newest[(_log_key(result, run_dir), str(result.extra.get(slam_keys.METHOD, "lio")))] = (run_dir, result)
     if len(newest) < len(runs):
         log.warning("%d older run(s) of a log and method left out: the table shows the newest of each",
                     len(runs) - len(newest))

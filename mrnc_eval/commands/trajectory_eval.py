@@ -242,6 +242,10 @@ def _load(ref: str, est: list[str], labels: list[str] | None = None) -> tuple[An
         reference, *trajs = list(pool.map(read_trajectory, [ref, *est]))
     estimates = [(replace(t, name=labels[k] if labels else default_label(spec, t.name)), by_index)
                  for k, (t, by_index, spec) in enumerate(zip(trajs, pairing, est, strict=True))]
+    log.info("reference %s: %d poses over %.2f s", ref, len(reference),
+             float(reference.stamps[-1] - reference.stamps[0]) if len(reference) else 0.0)
+    for spec, (t, by_index) in zip(est, estimates, strict=True):
+        log.info("estimate %s: %d poses%s", spec, len(t), " (paired by line: KITTI)" if by_index else "")
     names = [t.name for t, _ in estimates]
     for k, ((t, by_index), spec) in enumerate(zip(estimates, est, strict=True)):
         if names.count(t.name) > 1 and not labels:  # same name from different folders: use the path
@@ -309,6 +313,8 @@ def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | No
                    offset=o, plane=plane, by_index=by_index, strict=strict, sync=sync, max_gap=max_gap)
                for (e, by_index), o in zip(estimates, offsets, strict=True)]
     _warn_stamps(ref, est, results)
+    for r in results:
+        log.info("%s: %d matched poses over %.2f s, RMSE %.6g %s", r.name, r.n, r.span_s, r.stats["rmse"], r.unit)
     decompositions = [r.decompose() for r in results] if decompose else None
     title = f"APE w.r.t. {TITLES[relation]}, {alignment_phrase(results[0].alignment_summary())}"
     _emit(results, title, json_out, table, plot, decompositions=decompositions, force=force, inputs=inputs,

@@ -10,13 +10,14 @@ from typing import Any
 
 import numpy as np
 
-from mrnc_eval.control.config import ControlConfig, RobotGeometry
+from mrnc_eval.control.config import ControlConfig, RobotGeometry, reference_accel_limit
 from mrnc_eval.control.controllers import (
     CONTROLLER_ID,
     LABELS,
     OK,
     P_ANCHOR,
     P_FF,
+    P_RATE_FF,
     S_RESTARTS,
     S_STOP_E_OVER_O,
     STATE_SIZE,
@@ -176,7 +177,7 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
     stops = np.full((2, 3), -1.0)
     stats = np.zeros((2, N_STATS))
     sat_level = run[RUN_SAT_LEVEL]
-    u_ff_per_mps = p[P_FF]
+    u_ff_per_mps, rate_ff_s = p[P_FF], p[P_RATE_FF]
     raid = cid == CONTROLLER_ID_RAID
     per_step_funnel = p[P_ANCHOR] > 0.5
     state_l = np.zeros(STATE_SIZE)
@@ -247,8 +248,8 @@ def _simulate(cid: int, p: FloatArray, centres: FloatArray, wp: FloatArray, patc
                                                            (1.0 - s_r) * vw_r, track * plant[PL_CHI], dt)
         if k % record_every == 0:
             # applied feedback: what the command holds beyond the feed-forward (0 after a safety stop)
-            fb_l = u_l - u_ff_per_mps * ref_l if not stopped_l else 0.0
-            fb_r = u_r - u_ff_per_mps * ref_r if not stopped_r else 0.0
+            fb_l = u_l - u_ff_per_mps * (ref_l + rate_ff_s * dref_l) if not stopped_l else 0.0
+            fb_r = u_r - u_ff_per_mps * (ref_r + rate_ff_s * dref_r) if not stopped_r else 0.0
             phi_l = state_l[0] if raid else math.nan
             phi_r = state_r[0] if raid else math.nan
             _record(out[k_rec], t, x, y, yaw, v_body, w_body, cmd_v, cmd_w, ref_l, ref_r, meas_l, meas_r,
@@ -281,7 +282,7 @@ def run_closed_loop(scenario: Scenario | FloatArray, cfg: ControlConfig, robot: 
     run[RUN_RECORD_EVERY] = max(1, int(record_every))
     run[RUN_LINGER] = int(round(2.0 / dt))
     run[RUN_X0], run[RUN_Y0], run[RUN_YAW0] = scenario.start_pose
-    run[RUN_ACCEL_LIMIT] = cfg.kinematics.reference_accel_limit_mps2
+    run[RUN_ACCEL_LIMIT] = reference_accel_limit(cfg)
     run[RUN_DERIV_TAU] = cfg.kinematics.reference_derivative_tau_s
     run[RUN_SEED] = cfg.seed if seed is None else seed
     run[RUN_SAT_LEVEL] = cfg.actuator.u_max_rpm - cfg.metrics.saturation_tolerance_rpm

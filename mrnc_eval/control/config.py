@@ -50,9 +50,32 @@ class PurePursuitConfig:
 
 @dataclass(frozen=True)
 class KinematicsConfig:
+    reference_shaping: Literal["none", "slew", "slew_rate_ff"] = param(
+        "slew", "wheel references: none (the inverse kinematics as issued, as the paper), slew (rate-limited by "
+        "reference_accel_limit_mps2; not in the paper), slew_rate_ff (slewed, and every law's feed-forward adds "
+        "f x rate_feedforward_tau_s x dv_ref/dt, the drive's lag during a ramp)")
     reference_accel_limit_mps2: float = param(
         0.3, "slew limit on each side's reference speed; keeps |e(0)| < o(0) at start-up (not in the paper)", "m/s^2")
+    rate_feedforward_tau_s: float = param(0.4, "assumed drive lag of the rate feed-forward (slew_rate_ff)", "s",
+                                          ge=0.0, le=10.0)
     reference_derivative_tau_s: float = param(0.05, "first-order filter on d(v_ref)/dt used by RAID", "s")
+
+
+def reference_accel_limit(cfg: ControlConfig) -> float:
+    """The slew limit in effect (m/s^2; 0 = none) under control.kinematics.reference_shaping."""
+    k = cfg.kinematics
+    return 0.0 if k.reference_shaping == "none" else k.reference_accel_limit_mps2
+
+
+def shaping_text(cfg: ControlConfig) -> str:
+    """The reference shaping in effect, for every report."""
+    k = cfg.kinematics
+    if k.reference_shaping == "none":
+        return "reference shaping: none (inverse kinematics as issued)"
+    text = f"reference shaping: slew {k.reference_accel_limit_mps2:g} m/s^2 (not in the paper)"
+    if k.reference_shaping == "slew_rate_ff":
+        text += f" with rate feed-forward (lag {k.rate_feedforward_tau_s:g} s)"
+    return text
 
 
 @dataclass(frozen=True)
@@ -72,8 +95,9 @@ class StepDetectorConfig:
         "ramp", "ramp: a movement of the reference (|dr/dt| > ramp_rate_mps2) that has changed it by "
         "restart_step_mps restarts the clock, held at zero until the ramp ends; per_sample: one sample must change "
         "it by more than control.metrics.step_threshold_mps (never fires under the reference slew; the old rule)")
-    ramp_rate_mps2: float = param(0.05, "the reference is moving where |dr/dt| exceeds this", "m/s^2")
-    restart_step_mps: float = param(0.1, "a movement that changes the reference by this much is a step", "m/s")
+    ramp_rate_mps2: float = param(0.05, "the reference is moving where |dr/dt| exceeds this", "m/s^2", gt=0.0)
+    restart_step_mps: float = param(0.1, "a movement that changes the reference by this much is a step", "m/s",
+                                    gt=0.0)
 
 
 @dataclass(frozen=True)
@@ -99,7 +123,8 @@ class RaidConfig:
         "by o_b first; feedforward_gain = the output read as m/s x the feed-forward gain (3000 RPM per m/s) x "
         "feedback_scale_rpm. Reported with the interior gain beside Table II")
     scale_study: tuple[float, ...] = param((1.0, 10.0, 100.0), "feedback scales RAID is also run at in "
-                                           "control --mode simulate (the scale study table; empty: none)", "RPM")
+                                           "control --mode simulate (the scale study table; empty: none)", "RPM",
+                                           gt=0.0, interval=False)
 
 
 @dataclass(frozen=True)
@@ -283,6 +308,34 @@ class SweepConfig:
 
 
 @dataclass(frozen=True)
+class IdentifyConfig:
+    """control --mode identify: the drive model of control.plant fitted to a log's commands and wheel speeds."""
+
+    command_signal: Literal["held", "sampled"] = param(
+        "held", "how the recorded pump command runs between its messages: held (what a pump does with its "
+        "command messages) or sampled (a faster command recorded at a lower rate: linear between samples, as in "
+        "the simulator's logs, whose 1 kHz commands are written at the wheel rate)")
+    max_delay_s: float = param(0.2, "longest transport delay searched", "s", gt=0.0, le=10.0)
+    sweep_sigmas: float = param(3.0, "the identified plant's sweep ranges: estimate +/- this many standard "
+                                "deviations (at least 5 % of the estimate; delay at least 5 ms)", gt=0.0, le=100.0)
+
+
+@dataclass(frozen=True)
+class TuneConfig:
+    """control --mode tune: every law's free parameters (control/tune.py SPACE) searched with the same
+    optimiser, cost and budget on the nominal plant; reported on a different noise seed."""
+
+    budget: int = param(64, "closed-loop runs per law (the configured gains count as the first)", ge=1, le=100_000)
+    seed: int = param(0, "seed of the scrambled Halton search points (the same for every law)", ge=0)
+    noise_seed_offset: int = param(1, "tuning runs use measurement-noise seed control.seed + this; the table "
+                                   "reports on control.seed (tune on some seeds, report on others)", ge=1)
+    duration_s: float = param(100.0, "simulated time per tuning run (the paper circle takes ~98 s)", "s", gt=0.0,
+                              le=86_400.0)
+    stop_penalty_m: float = param(5.0, "cost added per side with a safety stop (IAE units)", "m", ge=0.0)
+    violation_penalty_m: float = param(1.0, "cost added per side that left the funnel while running", "m", ge=0.0)
+
+
+@dataclass(frozen=True)
 class ControlConfig:
     rate_hz: float = param(1000.0, "wheel control loop rate of the closed-loop simulation", "Hz")
     seed: int = param(0, "seed of the measurement noise")
@@ -302,3 +355,5 @@ class ControlConfig:
     metrics: MetricsConfig = section(MetricsConfig, "Table II metric definitions (segments: any log)")
     paper_metrics: PaperMetricsConfig = section(PaperMetricsConfig, "Table II as the paper reads it (simulate)")
     sweep: SweepConfig = section(SweepConfig, "robustness sweep over plants")
+    identify: IdentifyConfig = section(IdentifyConfig, "drive identification from a log (control --mode identify)")
+    tune: TuneConfig = section(TuneConfig, "equal-effort tuning (control --mode tune)")

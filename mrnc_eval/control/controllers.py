@@ -80,8 +80,8 @@ _PARAMS = {"raid": raid_params, "pid": pid_params, "apc": apc_params, "foptc": f
 
 # common parameter vector head, then the law's own parameters from P_LAW on
 (P_FF, P_UMAX, P_SATFB, P_STEP, P_ANCHOR, P_OOV, P_OB, P_OSTAR, P_DETECTOR, P_RAMP_RATE, P_RESTART_STEP,
- P_SUPERVISE) = range(12)
-P_LAW = 12
+ P_SUPERVISE, P_RATE_FF) = range(13)
+P_LAW = 13
 
 # per-side state: the law's own slots [0, LAW_SLOTS), then the shared bookkeeping
 LAW_SLOTS = 12
@@ -107,7 +107,9 @@ def controller_params(name: str, cfg: ControlConfig) -> FloatArray:
                          P_OOV: f.o_ov_mps, P_OB: f.o_b_mps, P_OSTAR: f.o_star_per_s,
                          P_DETECTOR: 1.0 if cfg.steps.detector == "ramp" else 0.0,
                          P_RAMP_RATE: cfg.steps.ramp_rate_mps2, P_RESTART_STEP: cfg.steps.restart_step_mps,
-                         P_SUPERVISE: float(SUPERVISORS.index(cfg.supervisor.stop_rule))})
+                         P_SUPERVISE: float(SUPERVISORS.index(cfg.supervisor.stop_rule)),
+                         P_RATE_FF: cfg.kinematics.rate_feedforward_tau_s
+                         if cfg.kinematics.reference_shaping == "slew_rate_ff" else 0.0})
     return np.asarray(common + _PARAMS[name](cfg), dtype=np.float64)
 
 
@@ -183,7 +185,7 @@ def controller_step(cid: int, state: FloatArray, p: FloatArray, centres: FloatAr
     """One control period of law `cid` for one side: (pump command RPM after the clamp, status).
     status OK, or the cause of a safety stop (the command is then 0): RAID's barrier or a non-finite
     value, and with the supervisor on every law (control.supervisor.stop_rule = all) |e| >= o(t)."""
-    u_ff = p[P_FF] * v_ref
+    u_ff = p[P_FF] * (v_ref + p[P_RATE_FF] * vdot_ref)  # rate term: slew_rate_ff shaping only
     u_max = p[P_UMAX]
     detect_step(state, p, t, v_ref, dt)
     if state[S_INIT] == 0.0:

@@ -102,3 +102,11 @@ def loop_summary(cfg: ControlConfig, v_cruise: float) -> dict[str, object]:
         "v_cruise_mps": v_cruise,
         "margins": {name: m.__dict__ for name, m in loop_margins(cfg, gain, drive).items()},
     }
+
+
+def bode(cfg: ControlConfig, raid_gain_rpm_per_mps: float,
+         points: int = 400) -> tuple[FloatArray, dict[str, FloatArray]]:
+    """(w rad/s, {law: open loop L(jw) = C(jw) P(jw)}) on the left drive, `points` log-spaced frequencies."""
+    w = np.logspace(-2, 3, points)
+    p = plant_response(cfg.plant.left, w)
+    return w, {name: c * p for name, c in law_responses(cfg, raid_gain_rpm_per_mps, w).items()}

@@ -13,7 +13,7 @@ import numpy as np
 from numpy.typing import NDArray
 
 from mrnc_eval.control.closed_loop import ClosedLoopTrace
-from mrnc_eval.control.config import ControlConfig, RobotGeometry
+from mrnc_eval.control.config import ControlConfig, RobotGeometry, reference_accel_limit
 from mrnc_eval.control.jit_cache import FloatArray
 from mrnc_eval.control.kinematics import inverse_kinematics, slew
 from mrnc_eval.control.pure_pursuit import PurePursuit
@@ -70,7 +70,7 @@ def replay_references(t: FloatArray, px: FloatArray, py: FloatArray, pyaw: Float
     v_ref = np.zeros((t.size, 2))
     next_pp, tl, tr_, vl, vr = t[0], 0.0, 0.0, 0.0, 0.0
     done_at = float("nan")
-    accel = cfg.kinematics.reference_accel_limit_mps2
+    accel = reference_accel_limit(cfg)
     for k in range(t.size):
         if t[k] >= next_pp:
             v, w, _, _ = pp.step(px[k], py[k], pyaw[k], 0.5 * (speeds.left[k] + speeds.right[k]))
@@ -158,7 +158,7 @@ def wheel_speed_tracking(rec: Recording, cfg: ControlConfig,
     t = rec.speeds.stamps[inside]
     speeds = SidePair(t, rec.speeds.left[inside], rec.speeds.right[inside], rec.speeds.unit)
     v_ref = wheel_speed_references(t, tw.stamps, tw.v, tw.omega, robot.track_width_m, held=role == "cmd_vel",
-                                   accel_limit_mps2=cfg.kinematics.reference_accel_limit_mps2,
+                                   accel_limit_mps2=reference_accel_limit(cfg),
                                    start=(float(speeds.left[0]), float(speeds.right[0])))
     x = y = yaw = np.full_like(t, np.nan)
     slip_l = slip_r = np.zeros_like(t)

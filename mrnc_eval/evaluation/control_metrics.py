@@ -229,10 +229,16 @@ def recovery_time(t: FloatArray, abs_err: FloatArray, slip: FloatArray, band: fl
                   horizon_s: float = 15.0) -> float:
     """Worst time (s) from a slip event (a patch entered or left) until |e| is back below band
     and stays there for hold_s; NaN if there was no event, inf if not recovered within horizon_s."""
+    events = recovery_events(t, abs_err, slip, band, hold_s, horizon_s)
+    return max((r for _t, _kind, r in events), default=float("nan"))
+
+
+def recovery_events(t: FloatArray, abs_err: FloatArray, slip: FloatArray, band: float, hold_s: float = 1.0,
+                    horizon_s: float = 15.0) -> list[tuple[float, str, float]]:
+    """Per slip event (time s, "slip on" or "slip off", recovery s): the time from the event until
+    |e| is back below band and stays there for hold_s (inf if not within horizon_s)."""
     changes = np.flatnonzero(np.diff(slip) != 0) + 1
-    if changes.size == 0:
-        return float("nan")
-    worst = 0.0
+    out = []
     inside = abs_err <= band
     for c in changes:
         stop = np.searchsorted(t, t[c] + horizon_s + hold_s)
@@ -247,8 +253,8 @@ def recovery_time(t: FloatArray, abs_err: FloatArray, slip: FloatArray, band: fl
                 rec = float(t[c + run_start] - t[c])
                 break
             run_start = None
-        worst = max(worst, rec)
-    return worst
+        out.append((float(t[c]), "slip on" if slip[c] > slip[c - 1] else "slip off", rec))
+    return out
 
 
 def estimate_slip(t: FloatArray, v_wheel: FloatArray, v_ground: FloatArray, *, window_s: float = 1.0,

@@ -139,4 +139,4 @@ def estimate_offset(ref: Trajectory, est: Trajectory, *, max_offset: float = 1.0
     fine = minimize_scalar(cost, bounds=(best - step / 2, best + step / 2), method="bounded",
                            options={"xatol": 1e-5})
     offset = float(fine.x)
-    return OffsetEstimate(offset, coarse, float(corr[peak]), float(fine.fun))
+    return OffsetEstimate(offset_s=offset, coarse_s=coarse, correlation=float(corr[peak]), rmse_m=float(fine.fun))

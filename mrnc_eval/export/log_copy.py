@@ -16,6 +16,7 @@ if TYPE_CHECKING:
 
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.containers import describe_error, detect_container, openable
+from mrnc_eval.io.library_errors import data_errors
 
 
 def copy_log(writer: Writer, log_path: Path, reserved_prefix: str) -> Counter[str]:
@@ -28,7 +29,7 @@ def copy_log(writer: Writer, log_path: Path, reserved_prefix: str) -> Counter[st
         return _copy_rosbags(writer, log_path, container, reserved_prefix)
     except InputError:
         raise
-    except Exception as err:
+    except data_errors() as err:
         raise InputError(log_path, f"cannot copy the log's topics: {describe_error(err)}") from err
 
 

@@ -26,6 +26,7 @@ from typing import Any
 import numpy as np
 
 from mrnc_eval.data import Trajectory
+from mrnc_eval.errors import InputError
 from mrnc_eval.export import schemas as S
 from mrnc_eval.export.mcap_file import (
     JsonMcap,
@@ -39,6 +40,8 @@ from mrnc_eval.export.mcap_file import (
     time_of,
 )
 from mrnc_eval.results import Event, RunResult
+from mrnc_eval.schema import control as control_keys
+from mrnc_eval.schema import slam as slam_keys
 
 ROOT = "/eval"
 MAP_POINTS_MAX = 100_000  # a viewer opens 100k points (1.2 MB of float32) instantly
@@ -142,7 +145,7 @@ class SlamFiles:
 def write_slam(out: JsonMcap, result: RunResult, files: SlamFiles, *, frame: str) -> int:
     """Estimate(s), APE over time, map, keyframe graph with loop closures, all in the estimate's
     frame `frame` (e.g. lio/map); returns the map points written."""
-    topic = f"{ROOT}/slam/{result.extra.get('method', 'lio')}"
+    topic = f"{ROOT}/slam/{result.extra.get(slam_keys.METHOD, 'lio')}"
     write_trajectory(out, topic, files.trajectory, frame)
     if files.online is not None:
         write_trajectory(out, f"{topic}/online", files.online, frame)
@@ -150,10 +153,11 @@ def write_slam(out: JsonMcap, result: RunResult, files: SlamFiles, *, frame: str
     t0 = stamp_ns(t0_s)
     schema = S.scalars("mrnc_eval.ApeError", {"ape_m": "position error after SE(3) alignment to the ground "
                                               "truth, m"})
-    for sub, prefix in (("", "ape"), ("/online", "ape_online")):  # smoothed and online estimates
-        if f"{prefix}_t" not in result.series or f"{prefix}_err_m" not in result.series:
-            continue
-        for t, e in zip(result.series[f"{prefix}_t"], result.series[f"{prefix}_err_m"], strict=True):
+    for sub, which in (("", slam_keys.SMOOTHED), ("/online", slam_keys.ONLINE)):  # smoothed and online estimates
+        t_key, err_key = slam_keys.ape_t(which), slam_keys.ape_err(which)
+        if t_key not in result.series or err_key not in result.series:
+            continue  # no ground truth, no APE
+        for t, e in zip(result.series[t_key], result.series[err_key], strict=True):
             t_ns = stamp_ns(t0_s + float(t))
             out.write(f"{topic}{sub}/ape", schema, t_ns, clean({"timestamp": time_of(t_ns), "ape_m": float(e)}))
     written = 0
@@ -209,17 +213,25 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
     schema = S.scalars("mrnc_eval.ControlSample", TRACKING_FIELDS)
     s = result.series
     t0 = stamp_ns(t0_s)
-    labels = result.extra.get("labels", {})  # as commands/control labels each controller's events
-    for name in result.extra.get("controllers", []):
-        if f"{name}_t" not in s:
-            continue
+    if result.extra.get(control_keys.MODE) == "sweep":
+        return  # per-bin rates, no run over time to play back
+    labels = result.extra.get(control_keys.LABELS, {})  # as commands/control labels each controller's events
+    for name in result.extra.get(control_keys.CONTROLLERS, []):
+        missing = [k for k in (control_keys.time(name), control_keys.funnel(name),
+                               *(control_keys.side_series(name, side, q) for side in ("left", "right")
+                                 for q in (control_keys.V_REF, control_keys.V_MEAS, control_keys.U_RPM)))
+                   if k not in s]
+        if missing:  # a renamed series must not drop a controller from the export unseen
+            raise InputError(result.log_path, f"control result of {name!r} has no series {', '.join(missing)}")
         topic = f"{ROOT}/control/{name}"
         stops = np.sort([e.t_s for e in result.events if e.kind == "safety_stop"
                          and e.message.startswith((f"{labels.get(name, name)}:", f"{name}:"))])
-        t = s[f"{name}_t"]
-        side = {k: {f: s[f"{name}_{k}_{f}"] for f in ("v_ref", "v_meas", "u_rpm")} for k in ("left", "right")}
-        o = s[f"{name}_funnel_o"]
-        cte = s.get(f"{name}_cte_m")  # None: wheel-speed tracking, no path to measure against
+        t = s[control_keys.time(name)]
+        side = {k: {f: s[control_keys.side_series(name, k, f)]
+                    for f in (control_keys.V_REF, control_keys.V_MEAS, control_keys.U_RPM)}
+                for k in ("left", "right")}
+        o = s[control_keys.funnel(name)]
+        cte = s.get(control_keys.cte(name))  # None: wheel-speed tracking, no path to measure against
         for i in range(t.size):
             t_ns = stamp_ns(t0_s + float(t[i]))
             body: dict[str, Any] = {
@@ -227,16 +239,17 @@ def write_control(out: JsonMcap, result: RunResult, t0_s: float, *, u_max_rpm: f
                 "cross_track_m": float(cte[i]) if cte is not None else float("nan"),
                 "safety_stops": int(np.searchsorted(stops, t[i], side="right"))}
             for k, v in side.items():
-                u = float(v["u_rpm"][i])
-                body.update({f"v_ref_{k}_mps": float(v["v_ref"][i]), f"v_{k}_mps": float(v["v_meas"][i]),
-                             f"error_{k}_mps": float(v["v_meas"][i] - v["v_ref"][i]), f"u_{k}_rpm": u,
+                u = float(v[control_keys.U_RPM][i])
+                ref, meas = float(v[control_keys.V_REF][i]), float(v[control_keys.V_MEAS][i])
+                body.update({f"v_ref_{k}_mps": ref, f"v_{k}_mps": meas, f"error_{k}_mps": meas - ref, f"u_{k}_rpm": u,
                              f"saturated_{k}": int(abs(u) >= u_max_rpm - saturation_tol_rpm)})
             out.write(f"{topic}/tracking", schema, t_ns, clean(body))
-        planned = s.get("path_xy")
+        planned = s.get(control_keys.PATH_XY)
         if planned is not None and planned.size:
             out.write(f"{topic}/planned_path", S.POSES_IN_FRAME, t0, _path_2d(t0, planned, frame))
-        if f"{name}_xy" in s:  # absent: wheel-speed tracking of a log without a pose topic
-            out.write(f"{topic}/driven_path", S.POSES_IN_FRAME, t0, _path_2d(t0, s[f"{name}_xy"], frame))
+        if control_keys.driven_xy(name) in s:  # absent: wheel-speed tracking of a log without a pose topic
+            out.write(f"{topic}/driven_path", S.POSES_IN_FRAME, t0,
+                      _path_2d(t0, s[control_keys.driven_xy(name)], frame))
 
 
 def _path_2d(t_ns: int, xy: np.ndarray, frame: str) -> dict[str, Any]:

@@ -10,6 +10,8 @@ from __future__ import annotations
 import bz2
 from typing import Any, BinaryIO
 
+from mrnc_eval.io.library_errors import data_errors
+
 WHOLE = -1  # a `wants` value: the whole message (otherwise: its first so many bytes)
 _PIECE = 16384  # compressed bytes fed to the decompressor at a time
 
@@ -41,7 +43,7 @@ class ChunkPrefix:
             self._left -= len(piece)
             try:
                 self._buf += self._decompress(piece)
-            except Exception as err:  # corrupt data: the full read names it
+            except data_errors() as err:  # corrupt data: the full read names it
                 raise IndexUnusable(str(err)) from err
         return self._buf
 

@@ -20,6 +20,7 @@ from contextlib import contextmanager
 from pathlib import Path
 
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.library_errors import data_errors
 
 LOG_SUFFIXES = (".mcap", ".db3", ".bag")  # single-file logs; a ROS 2 bag may also be a folder
 SUPPORTED = "a ROS 1 .bag, a ROS 2 bag directory (metadata.yaml), a .db3 or an .mcap file"
@@ -130,7 +131,7 @@ def _bag_storage(meta: Path) -> str:
     try:
         info = yaml.safe_load(meta.read_text(encoding="utf-8", errors="replace"))
         return str(info["rosbag2_bagfile_information"]["storage_identifier"])
-    except Exception:
+    except (OSError, yaml.YAMLError, KeyError, TypeError):  # unreadable, not YAML, not a bag's metadata
         return ""
 
 
@@ -144,7 +145,7 @@ def _mcap_is_ros2(path: Path) -> bool:
             if header.profile == "ros2":
                 return True
             summary = reader.get_summary()
-    except Exception as err:  # McapError, struct.error, EOFError, decompression errors...
+    except data_errors() as err:  # McapError, struct.error, EOFError, decompression errors...
         raise InputError(path, f"not a readable MCAP file: {describe_error(err)}") from err
     if summary is None:
         return False

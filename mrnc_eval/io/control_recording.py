@@ -13,7 +13,7 @@ import numpy as np
 from mrnc_eval.control.config import ControlConfig
 from mrnc_eval.control.replay import Pose, Recording, evaluated
 from mrnc_eval.control.scenario import Scenario, paper_circle_scenario
-from mrnc_eval.data import Twists, Waypoints
+from mrnc_eval.data import SidePair, Twists, Waypoints
 from mrnc_eval.errors import InputError
 from mrnc_eval.geometry.lie import quat_xyzw_to_matrix, yaw_pitch_roll_sxyz
 from mrnc_eval.io import open_log
@@ -115,3 +115,22 @@ def _tracking_twists(lg: Any, log_path: Path) -> tuple[Twists, str]:
     raise InputError(log_path, "control replay needs a path to follow (a path topic, or --path FILE with TUM or CSV "
                                "waypoints) or, for wheel-speed tracking without one, a cmd_vel or wheel-odometry "
                                "topic (none found; set io.roles.path, io.roles.cmd_vel or io.roles.wheel_odom)")
+
+
+def read_drive_record(log_path: Path, io_cfg: IoConfig,
+                      wheel_radius_m: float) -> tuple[SidePair, SidePair, dict[str, str]]:
+    """Wheel speeds (m/s) and pump commands (RPM) per side for identifying the drive, and the topics."""
+    with open_log(log_path, io_cfg) as lg:
+        roles = dict(lg.roles)
+        if "commands" not in roles:
+            raise InputError(log_path, "control --mode identify needs the pump commands: no commands topic found "
+                                       "(JointState per side, RPM; set io.roles.commands)")
+        if "wheel_speeds" not in roles:
+            raise InputError(log_path, "control --mode identify needs the wheel speeds: no wheel_speeds topic found "
+                                       "(set io.roles.wheel_speeds)")
+        speeds = lg.wheel_speeds(wheel_radius_m=wheel_radius_m)
+        cmds = lg.commands()
+    if speeds.stamps.size < 50 or cmds.stamps.size < 2:
+        raise InputError(log_path, f"too few messages to identify the drive ({speeds.stamps.size} wheel speeds, "
+                                   f"{cmds.stamps.size} commands)", topic=roles["commands"])
+    return speeds, cmds, {r: roles[r] for r in ("wheel_speeds", "commands")}

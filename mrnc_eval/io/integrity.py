@@ -17,6 +17,8 @@ from dataclasses import dataclass, field
 from pathlib import Path
 from typing import BinaryIO
 
+from mrnc_eval.io.library_errors import data_errors
+
 _MAGIC = b"\x89MCAP0\r\n"
 _CHUNK = 0x06
 _MESSAGE_INDEX = 0x07
@@ -139,7 +141,7 @@ def _channel_names(path: Path) -> dict[int, str]:
         with path.open("rb") as fh:
             summary = make_reader(fh).get_summary()
         return {cid: ch.topic for cid, ch in summary.channels.items()} if summary else {}
-    except Exception:  # a damaged summary: topics unnamed, the check still runs
+    except data_errors():  # a damaged summary: topics unnamed, the check still runs
         return {}
 
 
@@ -174,7 +176,7 @@ def verify_chunks(path: Path) -> ChunkCheck:
                 data = _decompress(fh.read(ch.data_len), ch.compression, ch.size)
                 reason = ("size mismatch" if len(data) != ch.size
                           else "CRC mismatch" if ch.crc and zlib.crc32(data) != ch.crc else "")
-            except Exception as err:  # the decompressor's own complaint: the data is not what was written
+            except data_errors() as err:  # the decompressor's own complaint: the data is not what was written
                 reason = f"does not decompress ({type(err).__name__}: {err})"
             if reason:
                 check.damaged.append(DamagedChunk(offset=off, start_s=ch.start_ns / 1e9, end_s=ch.end_ns / 1e9,

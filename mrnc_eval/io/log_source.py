@@ -16,6 +16,7 @@ from typing import Any
 
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.containers import describe_error, detect_container, openable
+from mrnc_eval.io.library_errors import data_errors
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
 from mrnc_eval.io.split_logs import SplitSource, split_log_paths
 
@@ -35,7 +36,7 @@ class LogSource:
         except InputError:
             self._links.close()
             raise
-        except Exception as err:  # rosbags/mcap/sqlite raise many unrelated types for broken files
+        except data_errors() as err:  # rosbags/mcap/sqlite raise many unrelated types for broken files
             self._links.close()
             raise InputError(self.path, f"cannot open {self.container} log: {describe_error(err)}") from err
         self.channels: dict[str, Channel] = self.src.channels
@@ -75,7 +76,7 @@ class LogSource:
             yield from self.src.messages(topics)
         except InputError:
             raise
-        except Exception as err:
+        except data_errors() as err:
             where = topics[0] if len(topics) == 1 else None
             raise InputError(self.path, f"corrupted or truncated data: {describe_error(err)}", topic=where) from err
 
@@ -93,7 +94,7 @@ class LogSource:
     def decode(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         try:
             return self.src.deserialize(raw, topic)
-        except Exception as err:
+        except data_errors() as err:
             raise InputError(self.path, f"cannot decode {self.msgtype(topic)} message: {describe_error(err)}",
                              topic=topic) from err
 

@@ -28,6 +28,7 @@ from typing import Any, BinaryIO
 import numpy as np
 
 from mrnc_eval.io.chunk_prefix import WHOLE, ChunkPrefix, IndexUnusable
+from mrnc_eval.io.library_errors import data_errors
 
 _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
@@ -52,7 +53,7 @@ def _chunk_indexes(fh: BinaryIO) -> tuple[list[Any], dict[int, str]]:
 
     try:
         summary = make_reader(fh).get_summary()
-    except Exception as err:  # the full read reports what is wrong with the file
+    except data_errors() as err:  # the full read reports what is wrong with the file
         raise IndexUnusable(str(err)) from err
     if summary is None or summary.statistics is None or not summary.chunk_indexes:
         raise IndexUnusable("no summary, statistics or chunk index")

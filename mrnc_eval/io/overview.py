@@ -14,7 +14,9 @@ from dataclasses import dataclass
 
 import numpy as np
 
+from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import WHOLE, IndexUnusable
+from mrnc_eval.io.library_errors import data_errors
 from mrnc_eval.io.log_source import LogSource, RawMessages
 from mrnc_eval.io.mcap_index import overview as mcap_overview
 from mrnc_eval.io.sources import RosbagsSource
@@ -55,9 +57,10 @@ def scan(src: LogSource, health: HealthLedger, cache_mb: float) -> tuple[dict[st
                      if ch.msgtype in _STAMPED_FIRST_FIELD and ch.encoding in ("ros1", "cdr")}
     keep = {t for t, ch in src.channels.items() if ch.msgtype not in _BULK_TYPES and not ch.problem}
     wants = {t: WHOLE if t in keep else _HEADER_BYTES if t in header_topics else 0 for t in src.channels}
+    no_index: tuple[type[Exception], ...] = (IndexUnusable, InputError, *data_errors())  # or a broken log
     try:  # MCAP, ROS 1: from the indexes, the clouds left compressed (io/chunk_prefix.py)
         stamps, cache = _collect(src, _indexed_overview(src, wants), header_topics, keep, cache_mb)
-    except Exception:  # no usable index, or a broken log: the full read, and its own error
+    except no_index:  # the full read, and its own error
         stamps, cache = _collect(src, src.iterate(list(src.channels)), header_topics, keep, cache_mb)
     src.cache = cache
     arrays = {t: np.frombuffer(v, dtype=np.float64) if len(v) else np.zeros(0) for t, v in stamps.items()}

@@ -41,7 +41,7 @@ class Prefetched(Generic[T]):
             for item in it:
                 if not self._put(item):
                     return
-        except BaseException as err:
+        except BaseException as err:  # noqa: BLE001 - handed to the consumer's thread, which raises it
             self._put((_END, err))
             return
         finally:

@@ -26,7 +26,7 @@ from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.log_source import LogSource, expand_paths
 from mrnc_eval.io.overview import TopicInfo, scan
 from mrnc_eval.io.role_detection import detect_roles
-from mrnc_eval.io.roles import Ambiguity
+from mrnc_eval.io.roles import Ambiguity, TruthExclusion
 from mrnc_eval.io.series import SeriesReader
 from mrnc_eval.io.stream_health import HealthLedger
 
@@ -47,7 +47,7 @@ class LogReader:
         self._stats: dict[str, TopicInfo] | None = None
         self._stamps: dict[str, np.ndarray] = {}
         self._roles: dict[str, str] | None = None
-        self.role_doubts: list[Ambiguity] = []  # roles chosen among several candidates (io/roles.py's rule)
+        self.role_doubts: list[Ambiguity | TruthExclusion] = []  # io/roles.py rules 3 and 4
 
     # ------------------------------------------------------------------ lifecycle
     def close(self) -> None:

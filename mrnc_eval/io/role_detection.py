@@ -12,12 +12,13 @@ from dataclasses import replace
 
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.log_source import LogSource
-from mrnc_eval.io.roles import Ambiguity, Candidate, candidates_by_role, choose_roles
+from mrnc_eval.io.roles import Ambiguity, Candidate, TruthExclusion, candidates_by_role, choose_roles
 
 log = logging.getLogger("mrnc_eval.io.reader")  # warnings name the reader, as before the split
 
 
-def detect_roles(src: LogSource, overrides: dict[str, str]) -> tuple[dict[str, str], list[Ambiguity]]:
+def detect_roles(src: LogSource, overrides: dict[str, str]
+                 ) -> tuple[dict[str, str], list[Ambiguity | TruthExclusion]]:
     """role -> topic, and the roles chosen among several candidates (each logged as a warning)."""
     joint_names: dict[str, list[str]] = {}
     for topic, ch in src.channels.items():

@@ -16,11 +16,19 @@ The rule, per role:
    d. the topic name, alphabetically (only to make the choice repeatable).
 3. A role with several candidates, or whose only candidate looks like another source, is
    reported as an ambiguity: the reader logs a warning naming the alternatives and the override.
+4. Inputs never come from ground truth: a topic that is the ground-truth role's topic, or whose
+   name marks it as truth (ground_truth, truth, gt, mocap, vicon, optitrack, qualisys), never gets
+   an input role (INPUT_ROLES). A pose topic named so takes the ground_truth role; the others are
+   left out. When that leaves an input role without a topic, a TruthExclusion says why; an
+   override that names such a topic for an input role is refused.
 """
 
 from __future__ import annotations
 
+import re
 from dataclasses import dataclass
+
+from mrnc_eval.errors import ConfigError
 
 ROLES = ("lidar", "imu", "chassis_imu", "gnss", "wheel_odom", "wheel_speeds", "commands", "cmd_vel", "path",
          "ground_truth", "tf_static", "tf", "metadata")
@@ -47,6 +55,12 @@ _THIS_ROLE = {
     "lidar": ("ouster", "os0", "os1", "os2", "velodyne", "lidar", "hesai", "livox", "rslidar", "pandar"),
     "wheel_odom": ("wheel",),
 }
+# roles whose topic feeds an estimate (SLAM, control replay): never ground truth (rule 4)
+INPUT_ROLES = ("lidar", "imu", "chassis_imu", "gnss", "wheel_odom", "wheel_speeds", "commands", "cmd_vel")
+# names that mark a topic as truth: whole words (split at / _ - . and spaces) ...
+_TRUTH_WORDS = ("truth", "groundtruth", "gt", "mocap", "vicon", "optitrack", "qualisys", "motioncapture")
+# ... and word pairs
+_TRUTH_PAIRS = ("ground_truth", "ground-truth", "motion_capture")
 _TIME_FIELDS = ("t", "time", "timestamp")
 _UNJUDGED = ("tf", "tf_static", "metadata")  # several of these are normal; none feeds a computation by itself
 
@@ -77,9 +91,37 @@ class Ambiguity:
                 f"choose with --set io.roles.{self.role}=TOPIC")
 
 
-def _is_ground_truth(topic: str) -> bool:
+@dataclass(frozen=True)
+class TruthExclusion:
+    """A topic kept out of an input role because it is (or is named like) ground truth, reported
+    when the role is left without a topic."""
+
+    role: str  # the input role its message type fits
+    topic: str
+    reason: str
+
+    @property
+    def chosen(self) -> str:  # the topic a finding is about (as Ambiguity.chosen)
+        return self.topic
+
+    def message(self) -> str:
+        what = "wheel odometry" if self.role == "wheel_odom" else self.role.replace("_", " ")
+        return (f"{self.topic} is not used as {what}: {self.reason}; inputs never come from "
+                f"ground truth, so the run has no {self.role} input")
+
+
+def truth_marker(topic: str) -> str | None:
+    """The word of `topic` that marks it as ground truth (rule 4), or None."""
     low = topic.lower()
-    return "ground_truth" in low or "groundtruth" in low or low.endswith("/gt") or "/gt/" in low
+    for pair in _TRUTH_PAIRS:
+        if pair in low:
+            return pair
+    words = [w for w in re.split(r"[/_\-.\s]+", low) if w]
+    return next((w for w in words if w in _TRUTH_WORDS), None)
+
+
+def _is_ground_truth(topic: str) -> bool:
+    return truth_marker(topic) is not None
 
 
 def role_of(topic: str, msgtype: str, joint_names: list[str]) -> str | None:
@@ -143,11 +185,57 @@ def candidates_by_role(topics: list[Candidate], joint_names: dict[str, list[str]
     return found
 
 
+def _truth_reason(topic: str, truth_topic: str | None) -> str | None:
+    """Why `topic` may not be an input (rule 4), or None."""
+    word = truth_marker(topic)
+    if word is not None:
+        return f"its name marks it as ground truth ({word!r})"
+    return "it is the run's ground-truth source (role ground_truth)" if topic == truth_topic else None
+
+
+def _refuse_truth_overrides(overrides: dict[str, str], truth_topic: str | None) -> None:
+    for role, topic in overrides.items():
+        why = _truth_reason(topic, truth_topic) if role in INPUT_ROLES else None
+        if why:
+            raise ConfigError(f"io.roles.{role}={topic}: {why}; an input never comes from ground truth "
+                              "(rename the topic in the log, or choose another)")
+
+
+def without_truth(found: dict[str, list[Candidate]], overrides: dict[str, str]
+                  ) -> tuple[dict[str, list[Candidate]], list[TruthExclusion]]:
+    """`found` with every ground-truth topic taken out of the input roles (rule 4), and the
+    exclusions that left an input role without a topic. A truth-named Odometry (role ground_truth)
+    counts as taken out of wheel_odom."""
+    gt = found.get("ground_truth", [])
+    truth_topic = overrides.get("ground_truth") or (rank("ground_truth", gt)[0].topic if gt else None)
+    _refuse_truth_overrides(overrides, truth_topic)
+    kept: dict[str, list[Candidate]] = {}
+    left_out: dict[str, list[TruthExclusion]] = {}
+    for role, cands in found.items():
+        keep = []
+        for c in cands:
+            why = _truth_reason(c.topic, truth_topic) if role in INPUT_ROLES else None
+            if why:
+                left_out.setdefault(role, []).append(TruthExclusion(role, c.topic, why))
+            else:
+                keep.append(c)
+        if keep:
+            kept[role] = keep
+    for c in gt:
+        if c.msgtype == "nav_msgs/msg/Odometry":
+            why = _truth_reason(c.topic, truth_topic) or "its name marks it as ground truth"
+            left_out.setdefault("wheel_odom", []).append(TruthExclusion("wheel_odom", c.topic, why))
+    notes = [e for role, es in left_out.items() if role not in kept and role not in overrides for e in es]
+    return kept, notes
+
+
 def choose_roles(found: dict[str, list[Candidate]], overrides: dict[str, str]
-                 ) -> tuple[dict[str, str], list[Ambiguity]]:
-    """role -> topic (rule 2; overrides win) and the ambiguities to warn about (rule 3)."""
+                 ) -> tuple[dict[str, str], list[Ambiguity | TruthExclusion]]:
+    """role -> topic (rule 2; overrides win; rule 4: never ground truth as an input) and the
+    ambiguities and truth exclusions to warn about (rules 3 and 4)."""
     roles: dict[str, str] = {}
-    doubts: list[Ambiguity] = []
+    found, excluded = without_truth(found, overrides)
+    doubts: list[Ambiguity | TruthExclusion] = list(excluded)
     for role, cands in found.items():
         ranked = rank(role, cands)
         roles[role] = ranked[0].topic

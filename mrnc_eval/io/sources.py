@@ -24,6 +24,7 @@ from typing import Any
 
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import IndexUnusable
+from mrnc_eval.io.library_errors import data_errors
 
 
 @dataclass(frozen=True)
@@ -60,7 +61,7 @@ class RosbagsSource:
         self._reader = AnyReader(paths, default_typestore=default)
         try:
             self._reader.open()
-        except Exception as err:
+        except data_errors() as err:
             if ros1 and "index" in str(err).lower():  # a recording cut short: its index (written last) is gone
                 raise InputError(",".join(str(p) for p in paths), f"the bag's index is damaged or missing, as when a "
                                  f"recording is cut short ({err}); rebuild it with `rosbag reindex` (ROS 1) on a "
@@ -97,7 +98,7 @@ class RosbagsSource:
         try:
             for conn, t_rec, raw in self._reader.messages(connections=conns):
                 yield conn.topic, t_rec, raw
-        except Exception as err:
+        except data_errors() as err:
             if not _is_chunk_damage(err):
                 raise
             raise InputError(",".join(str(p) for p in self.paths), f"a chunk is damaged: {err}; its messages "
@@ -119,7 +120,7 @@ class RosbagsSource:
         self._reader.close()
 
 
-def _is_chunk_damage(err: Exception) -> bool:
+def _is_chunk_damage(err: BaseException) -> bool:
     """A reader's or decompressor's complaint that a chunk is not what was written (its CRC or
     size disagrees, the compressed bytes do not decode)."""
     text = str(err).lower()
@@ -182,7 +183,7 @@ class McapSource:
                     if chunk is not None else "")
             raise InputError(self.path, f"a chunk{when} is damaged: CRC mismatch; its messages cannot be "
                              "trusted (mrnc-eval info lists the damaged chunks)") from None
-        except Exception as err:  # the decompressor's complaint about a damaged chunk
+        except data_errors() as err:  # the decompressor's complaint about a damaged chunk
             if isinstance(err, InputError) or not _is_chunk_damage(err):
                 raise
             raise InputError(self.path, f"a chunk is damaged: it does not decompress ({err}); "

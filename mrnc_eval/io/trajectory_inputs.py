@@ -1,10 +1,12 @@
 """What a trajectory argument names, parsed in one place for `ape`, `rpe`, `table` and the API: a
-file (TUM, KITTI, EuRoC), a result folder (its trajectory.tum is meant) or a log with a topic
+file (TUM, KITTI, EuRoC), a result folder (the trajectory `slam` reports: online unless the
+run's slam.table_trajectory says smoothed) or a log with a topic
 (`log.bag:/topic`, `a.mcap,b.mcap:/topic`, `bag_dir:/topic`, `log.bag:/tf:odom.base_link`); and the
 mistakes newcomers make: a log without `:/topic` (say it is a log and list its pose topics)."""
 
 from __future__ import annotations
 
+import logging
 from dataclasses import dataclass
 from pathlib import Path
 
@@ -12,7 +14,10 @@ from mrnc_eval.errors import InputError
 from mrnc_eval.io.containers import LOG_SUFFIXES, is_log_file
 from mrnc_eval.io.roles import POSE_TYPES
 
-RESULT_TRAJECTORY = "trajectory.tum"  # what `slam` writes into each result folder
+RESULT_TRAJECTORY = "trajectory.tum"  # the smoothed trajectory `slam` writes into each result folder
+# slam.table_trajectory -> the file of a slam result folder holding that trajectory
+RESULT_TRAJECTORIES = {"online": "trajectory_online.tum", "smoothed": RESULT_TRAJECTORY}
+log = logging.getLogger(__name__)
 
 
 @dataclass(frozen=True)
@@ -67,14 +72,37 @@ def trajectory_file_in(path: Path) -> Path:
     if not path.exists():
         raise InputError(path, "no such file")
     if path.is_dir() and not (path / "metadata.yaml").exists():
-        if (path / RESULT_TRAJECTORY).is_file():
-            return path / RESULT_TRAJECTORY
+        chosen = result_trajectory(path)
+        if chosen is not None:
+            return chosen
         raise InputError(path, f"is a folder, not a trajectory file (a slam result folder holds {RESULT_TRAJECTORY}; "
                                "pass a TUM, KITTI or EuRoC file)")
     if path.is_dir() or is_log_file(path):  # by its first bytes, or its suffix
         raise InputError(path, f"is a log, not a trajectory file: name a pose topic as {path}:/TOPIC "
                                f"({_pose_topics(path)})")
     return path
+
+
+def result_trajectory(run_dir: Path) -> Path | None:
+    """The trajectory of a slam result folder that `slam` and `table` report: the run's
+    slam.table_trajectory (config.yaml; online by default), said on stderr so the number can be
+    matched; the smoothed one when a run has no online file. None when the folder has neither."""
+    import yaml
+
+    which = "online"
+    try:
+        cfg = yaml.safe_load((run_dir / "config.yaml").read_text(encoding="utf-8")) or {}
+        which = str(cfg.get("slam", {}).get("table_trajectory", "online"))
+    except (OSError, yaml.YAMLError, AttributeError):
+        pass
+    for name in (RESULT_TRAJECTORIES.get(which, RESULT_TRAJECTORIES["online"]), RESULT_TRAJECTORY):
+        if (run_dir / name).is_file():
+            other = [n for n in RESULT_TRAJECTORIES.values() if n != name and (run_dir / n).is_file()]
+            log.warning("%s: using %s (the %s trajectory, as slam and table report it)%s", run_dir, name,
+                        "online" if name != RESULT_TRAJECTORY else "smoothed",
+                        f"; pass {run_dir / other[0]} for the other" if other else "")
+            return run_dir / name
+    return None
 
 
 def _pose_topics(path: Path) -> str:

@@ -17,7 +17,7 @@ from mrnc_eval.config import Config
 from mrnc_eval.control.closed_loop import ClosedLoopTrace, run_closed_loop
 from mrnc_eval.control.scenario import Scenario, scripted_scenario
 from mrnc_eval.data import ImuSeries, Trajectory, Waypoints
-from mrnc_eval.errors import ConfigError
+from mrnc_eval.errors import ConfigError, UsageError
 from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import Format, LogWriter
@@ -27,6 +27,7 @@ from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
 from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, OrganisedSweep, ouster_metadata
 from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
 from mrnc_eval.sim.scene import SCENES, Scene, build_scene
+from mrnc_eval.sim.standstill import hold_start
 from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
 from mrnc_eval.sim.wheels import drive_signals
 
@@ -97,7 +98,7 @@ def validate(req: SimRequest) -> None:
     if req.duration_s is not None and req.duration_s <= 0.5:
         problems.append(f"duration {req.duration_s:g} s (must exceed 0.5 s)")
     if problems:
-        raise ValueError("unsupported simulation request: " + "; ".join(problems))
+        raise UsageError("unsupported simulation request: " + "; ".join(problems))
 
 
 def _driven_path(trace: ClosedLoopTrace) -> np.ndarray:
@@ -183,9 +184,11 @@ def _drive_world(run: _Run, seed: int) -> _World:
     motion over its terrain (stones shake it with the field profile)."""
     cfg, req, scfg, field = run.cfg, run.req, run.cfg.sim, run.field
     scenario = scripted_scenario(req.path, cfg.control, size_m=scfg.path_size_m)
-    trace = run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=req.duration_s, seed=seed)
-    mean_x, mean_y = scenario.waypoints_xy.mean(axis=0)
-    centre = (mean_x, mean_y)
+    still = max(scfg.standstill_s, 0.0)
+    drive_s = None if req.duration_s is None else max(req.duration_s - still, 0.5)
+    trace = hold_start(run_closed_loop(scenario, cfg.control, cfg.robot, "raid", duration_s=drive_s, seed=seed),
+                       still)
+    centre = tuple(scenario.waypoints_xy.mean(axis=0))
     roughness = scfg.terrain_roughness_m if field is None else field.world.terrain_roughness_m
     scene = build_scene(req.scene, seed=seed, amplitude_m=scfg.terrain_amplitude_m, roughness_m=roughness,
                         centre=centre, keep_clear_xy=_driven_path(trace), clearance_m=cfg.robot.width_m / 2 + 0.5,

@@ -11,6 +11,7 @@ from typing import Any
 import numpy as np
 
 from mrnc_eval.config import Config
+from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import LABELS, PAPER_ORDER
 from mrnc_eval.control.replay import WHEEL_SPEED_TRACKING, Recording
 from mrnc_eval.results import RunResult
@@ -20,7 +21,8 @@ UNITS = {"settling_time_s": "s", "overshoot_pct": "%", "steady_state_error_mps":
          "iae": "m", "ise": "m^2/s", "itae": "m s", "rms_error_mps": "m/s", "max_abs_error_mps": "m/s",
          "funnel_violations": "samples", "max_e_over_o": "", "saturation_ratio": "", "longest_saturation_s": "s",
          "max_abs_command_rpm": "RPM", "control_effort": "RPM^2 s", "total_variation_rpm": "RPM",
-         "recovery_time_s": "s", "safety_stops": "", "segment_restarts": "", "time_to_stop_s": "s", "n_steps": "",
+         "recovery_time_s": "s", "safety_stops": "", "segment_restarts": "", "time_to_stop_s": "s",
+         "shaping_share_of_error": "", "n_steps": "",
          "steady_state_bias_mps": "m/s",
 "cross_track_mean_abs_m": "m", "cross_track_rms_m": "m", "cross_track_max_m": "m", "cross_track_p95_m": "m",
          "heading_error_rms_rad": "rad", "completion_time_s": "s", "final_position_error_m": "m",
@@ -44,6 +46,7 @@ TABLE_ROWS = [("Settling time (s)", "settling_time_s", "max"), ("Overshoot (%)",
               ("Max |U*| (RPM)", "max_abs_command_rpm", "max"), ("Saturation ratio", "saturation_ratio", "max"),
               ("Total variation (RPM)", "total_variation_rpm", "max"), ("Safety stops", "safety_stops", "sum"),
               ("Step restarts (funnel / FOPTC clock)", "segment_restarts", "sum"),
+              ("Reference shaping's share of |v - IK target|", "shaping_share_of_error", "max"),
               ("Feedback share |u_fb|/|U|, mean", "feedback_share_mean", "max"),
               ("Feedback share |u_fb|/|U|, p95", "feedback_share_p95", "max"),
               ("Cross-track RMS (m)", "cross_track_rms_m", "path"),
@@ -141,8 +144,7 @@ def paper_reading_notes(cfg: Config) -> list[str]:
         f"y_f - r_c is reported apart.",
         f"RAID output unit: {cfg.control.raid.output_unit}, feedback scale {cfg.control.raid.feedback_scale_rpm:g}; "
         f"supervisor (stop on funnel exit): {cfg.control.supervisor.stop_rule}; step detector: "
-        f"{cfg.control.steps.detector}; reference shaping: slew {cfg.control.kinematics.reference_accel_limit_mps2:g} "
-        f"m/s^2 (not in the paper).",
+        f"{cfg.control.steps.detector}; {shaping_text(cfg.control)}.",
         PAPER_COMPARISON_NOTE,
         "APC and FOPTC are stand-ins (CFDL-MFAPC; prescribed-time gain); FF only is the negative control.",
     ]
@@ -229,11 +231,11 @@ def replay_definitions(rec: Recording, cfg: Config) -> list[str]:
     """What the replay's references are, printed above the metric definitions."""
     if rec.waypoints is not None:
         return [f"Path following: the references pure pursuit (at {cfg.control.pure_pursuit.rate_hz:g} Hz), the "
-                f"inverse kinematics (track {cfg.robot.track_width_m:g} m) and the reference slew "
-                f"({cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2) issue along the recorded pose "
+                f"inverse kinematics (track {cfg.robot.track_width_m:g} m) and the chain's {shaping_text(cfg.control)} "
+                f"issue along the recorded pose "
                 f"({rec.pose_source}), path from {rec.path_source}."]
-    how = ("held between messages and slewed as the chain slews its references "
-           f"({cfg.control.kinematics.reference_accel_limit_mps2:g} m/s^2)" if rec.twist_role == "cmd_vel"
+    how = (f"held between messages and shaped as the chain shapes its references ({shaping_text(cfg.control)})"
+           if rec.twist_role == "cmd_vel"
            else "interpolated, not slewed (a measured twist, not a command)")
     return [f"{WHEEL_SPEED_TRACKING.capitalize()}: the log has no planned path, so the "
             f"recorded wheel speeds are compared with the inverse kinematics v -/+ omega Lr / 2 (Lr = "
@@ -285,8 +287,18 @@ def replay_table(result: RunResult) -> Table:
     groups = [g for g in groups if any(m.group.endswith(f"/{g}") for m in result.metrics)]
     return Table(title=title, column_labels=groups,
                  row_labels=[f"{n} ({UNITS[n]})" if UNITS.get(n) else n for n in rows],
-                 cells=[[by[(g, n)].value if (g, n) in by else None for g in groups] for n in rows], best=None,
-                 precision=4, notes=list(result.extra.get("definitions", [])))
+                 cells=[[replay_cell(by[(g, n)].value) if (g, n) in by else None for g in groups] for n in rows],
+                 best=None, precision=4, notes=list(result.extra.get("definitions", [])))
+
+
+def replay_cell(value: float | int | None) -> float | int | str | None:
+    """A replay metric as the legend reads it: infinity (a time that never came) "not settled",
+    NaN (nothing to measure) an empty cell."""
+    if isinstance(value, float) and math.isinf(value):
+        return "not settled"
+    if isinstance(value, float) and math.isnan(value):
+        return None
+    return value
 
 
 def raid_output_table(summary: dict[str, Any]) -> Table:
@@ -332,3 +344,61 @@ def scale_study_table(rows: list[dict[str, float]], cfg: Config) -> Table:
                  notes=[f"raid.output_unit = {cfg.control.raid.output_unit}; only raid.feedback_scale_rpm varies. "
                         "The paper states no unit: 1 RPM per law unit is the literal reading, not a sanctioned one. "
                         "Across drawn plants: control --mode sweep --set control.raid.feedback_scale_rpm=S."])
+
+
+TUNE_ROWS = [("Settling time, stepinfo (s)", "paper_stepinfo_settling_time_s"),
+             ("Overshoot, stepinfo (%)", "paper_stepinfo_overshoot_pct"),
+             ("Steady-state error (m/s)", "paper_steady_state_error_mps"),
+             ("Steady offset y_f - r_c (m/s)", "paper_steady_offset_mps"),
+             ("IAE (m)", "iae"), ("Funnel violations (samples)", "funnel_violations"),
+             ("Safety stops", "safety_stops")]
+
+
+def tune_table(metrics: dict[str, dict[str, dict[str, dict[str, float]]]], found: dict[str, Any],
+               cfg: Config) -> Table:
+    """Table II's criteria per law at the paper (configured) gains and at the tuned ones, worst side."""
+    cols = [(law, col) for law in PAPER_ORDER if law in metrics for col in ("paper", "tuned")]
+    cells: list[list[Cell]] = []
+    for _label, key in TUNE_ROWS:
+        row: list[Cell] = []
+        for law, col in cols:
+            vals = [metrics[law][col][s].get(key, float("nan")) for s in ("left", "right")]
+            v = _absmax(vals) if key == "paper_steady_offset_mps" else (
+                float(np.nansum(vals)) if key in ("funnel_violations", "safety_stops") else
+                float("nan") if all(np.isnan(vals)) else float(np.nanmax(vals)))
+            row.append("not settled" if math.isinf(v) else v)
+        cells.append(row)
+    t = cfg.control.tune
+    found_text = "; ".join(f"{LABELS.get(law, law).split(' (')[0]}: " + ", ".join(
+        f"{k} {v:.4g}" for k, v in found[law].params.items()) for law in found)
+    return Table(title="Table II at the paper gains and at equal-effort tuned gains (simulated paper circle)",
+                 row_labels=[r[0] for r in TUNE_ROWS],
+                 column_labels=[f"{LABELS.get(law, law).split(' (')[0]}: {col}" for law, col in cols],
+                 cells=cells, best=None, precision=3,
+                 notes=[f"Tuned with the same optimiser, cost and budget for every law ({t.budget} runs: the "
+                        f"configured gains, then scrambled Halton points in each law's box; cost IAE + "
+                        f"{t.stop_penalty_m:g} m per stopped side + {t.violation_penalty_m:g} m per side leaving the "
+                        f"funnel) on noise seed "
+                        f"{cfg.control.seed + t.noise_seed_offset}; reported on seed {cfg.control.seed}.",
+                        f"Found: {found_text}."])
+
+
+DISTURBANCE_ROWS = [("Start-up step: settling, stepinfo (s)", "step_settling_stepinfo_s"),
+                    ("Start-up step: overshoot, stepinfo (%)", "step_overshoot_stepinfo_pct"),
+                    ("Recovery after entering the slip patch (s)", "recovery_slip_on_s"),
+                    ("Recovery after leaving it (s)", "recovery_slip_off_s"),
+                    ("Minimum funnel margin 1 - max |e|/o", "min_funnel_margin"), ("Safety stops", "safety_stops")]
+
+
+def disturbance_table(study: dict[str, dict[str, Any]], cfg: Config) -> Table:
+    """Isolated events on a straight line per law (evaluation/disturbance.py)."""
+    cols = [n for n in PAPER_ORDER if n in study] + [n for n in study if n not in PAPER_ORDER]
+    m = cfg.control.metrics
+    cells: list[list[Cell]] = [[("not recovered" if isinstance(v := study[n][key], float) and math.isinf(v) else v)
+                                for n in cols] for _label, key in DISTURBANCE_ROWS]
+    return Table(title="Isolated events on a straight line: start-up step, slip patch entered and left (worst side)",
+                 row_labels=[r[0] for r in DISTURBANCE_ROWS], column_labels=[LABELS.get(n, n) for n in cols],
+                 cells=cells, best=None, precision=3,
+                 notes=[f"30 m straight line at the desired speed; slip 0.15 from x = 11 to 17 m. Recovery: time after "
+                        f"the event until |e| < {m.recovery_band_mps:g} m/s for {m.recovery_hold_s:g} s. No load "
+                        "disturbance: the drive model has no load input (slip is the load-like gain drop)."])

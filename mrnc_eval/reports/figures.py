@@ -10,6 +10,8 @@ import re
 import numpy as np
 
 from mrnc_eval.results import RunResult
+from mrnc_eval.schema import control as C
+from mrnc_eval.schema import slam as S
 
 U_MAX_RPM = 1250.0  # pump command limit drawn on the effort plot, RPM
 MAX_POINTS = 4000  # per line
@@ -140,88 +142,130 @@ def slam_figures(r: RunResult, timing: dict[str, dict[str, float]] | None = None
     """Path coloured by APE, APE over time and per-stage timing (`timing`: the stages to draw,
     default all in the result). Labels name online and smoothed only where they differ (lio)."""
     s = r.series
-    lio = r.extra.get("method", "lio") == "lio"
+    lio = r.extra.get(S.METHOD, "lio") == "lio"
     out = []
-    if "est_aligned_xyz" in s and "ape_err_m" in s and "ref_xyz" in s:
-        fig, ax = new_figure(6.5, 5.0)
-        overlays = []
-        if "est_online_aligned_xyz" in s and lio:
-            overlays.append((s["est_online_aligned_xyz"], "online (as processed, SE(3) aligned)", "tab:red"))
-        draw_error_path(fig, ax[0, 0], s["ref_xyz"], s["est_aligned_xyz"], s["ape_err_m"],
-                        est_label="smoothed (SE(3) aligned)" if lio else "estimate (SE(3) aligned)",
-                        overlays=overlays)
-        out.append(("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
-                    "truth dashed)" if lio else "Trajectory in the plane (estimate coloured by its APE, ground truth "
-                    "dashed)", svg(fig)))
-        fig, ax = new_figure(7.0, 3.0)
-        ax = ax[0, 0]
-        t, e = decimate(s["ape_t"], s["ape_err_m"])
-        ax.plot(t, e, lw=1.0, color="tab:blue",
-                label="smoothed (re-anchored to the final keyframes)" if lio else "estimate")
-        if "ape_online_t" in s and "ape_online_err_m" in s and lio:
-            t, e = decimate(s["ape_online_t"], s["ape_online_err_m"])
-            ax.plot(t, e, lw=1.0, color="tab:red", label="online (as processed)")
-            ax.legend(fontsize="small", loc="upper left")
-        marks = _mark_events(ax, r, ("loop_closure", "degeneracy"))
-        ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
-               title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
-        ax.grid(alpha=0.3)
-        out.append(("APE (translation) over time" + (", online and smoothed" if lio else ""), svg(fig)))
-    elif "est_xyz" in s and len(s["est_xyz"]):
-        fig, ax = new_figure(6.5, 5.0)
-        xyz, = decimate(s["est_xyz"])
-        ax[0, 0].plot(xyz[:, 0], xyz[:, 1], lw=1.0)
-        if "kf_xyz" in s and len(s["kf_xyz"]) and lio:
-            ax[0, 0].plot(s["kf_xyz"][:, 0], s["kf_xyz"][:, 1], "o", ms=3, color="tab:orange", label="keyframes")
-            ax[0, 0].legend(fontsize="small")
-        ax[0, 0].set_aspect("equal", adjustable="datalim")
-        ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="Estimated trajectory (no ground truth: APE not computed)")
-        out.append(("Estimated trajectory in the plane", svg(fig)))
-    timing = r.extra.get("timing_ms", {}) if timing is None else timing
+    if S.EST_ALIGNED_XYZ in s and S.ape_err() in s and S.REF_XYZ in s:
+        out += [_ape_path(s, lio), _ape_over_time(r, lio)]
+    elif S.EST_XYZ in s and len(s[S.EST_XYZ]):
+        out.append(_estimate_path(s, lio))
+    timing = r.extra.get(S.TIMING_MS, {}) if timing is None else timing
     if timing:
-        fig, ax = new_figure(6.5, 0.6 + 0.35 * len(timing))
-        ax = ax[0, 0]
-        names = list(timing)[::-1]  # first stage on top
-        ax.barh(names, [timing[n].get("mean", np.nan) for n in names], color="tab:blue", label="mean")
-        ax.scatter([timing[n].get("p95", np.nan) for n in names], names, color="tab:red", zorder=3, label="p95")
-        ax.set(xlabel="ms per processed sweep", title="Per-stage timing")
-        ax.legend(fontsize="small", loc="lower right")
-        ax.grid(axis="x", alpha=0.3)
-        out.append(("Per-stage timing (bars: mean, dots: 95th percentile)", svg(fig)))
+        out.append(_stage_timing(timing))
     return out
+
+
+def _ape_path(s: dict[str, np.ndarray], lio: bool) -> tuple[str, str]:
+    fig, ax = new_figure(6.5, 5.0)
+    overlays = []
+    if S.EST_ONLINE_ALIGNED_XYZ in s and lio:
+        overlays.append((s[S.EST_ONLINE_ALIGNED_XYZ], "online (as processed, SE(3) aligned)", "tab:red"))
+    draw_error_path(fig, ax[0, 0], s[S.REF_XYZ], s[S.EST_ALIGNED_XYZ], s[S.ape_err()],
+                    est_label="smoothed (SE(3) aligned)" if lio else "estimate (SE(3) aligned)",
+                    overlays=overlays)
+    return ("Trajectory in the plane (smoothed estimate coloured by its APE, online estimate red, ground "
+            "truth dashed)" if lio else "Trajectory in the plane (estimate coloured by its APE, ground truth "
+            "dashed)", svg(fig))
+
+
+def _ape_over_time(r: RunResult, lio: bool) -> tuple[str, str]:
+    s = r.series
+    fig, axes = new_figure(7.0, 3.0)
+    ax = axes[0, 0]
+    t, e = decimate(s[S.ape_t()], s[S.ape_err()])
+    ax.plot(t, e, lw=1.0, color="tab:blue",
+            label="smoothed (re-anchored to the final keyframes)" if lio else "estimate")
+    if S.ape_t(S.ONLINE) in s and S.ape_err(S.ONLINE) in s and lio:
+        t, e = decimate(s[S.ape_t(S.ONLINE)], s[S.ape_err(S.ONLINE)])
+        ax.plot(t, e, lw=1.0, color="tab:red", label="online (as processed)")
+        ax.legend(fontsize="small", loc="upper left")
+    marks = _mark_events(ax, r, ("loop_closure", "degeneracy"))
+    ax.set(xlabel="time since log start (s)", ylabel="APE (m)", ylim=(0, None),
+           title="APE over time" + (f" ({'; '.join(marks)})" if marks else ""))
+    ax.grid(alpha=0.3)
+    return ("APE (translation) over time" + (", online and smoothed" if lio else ""), svg(fig))
+
+
+def _estimate_path(s: dict[str, np.ndarray], lio: bool) -> tuple[str, str]:
+    fig, ax = new_figure(6.5, 5.0)
+    xyz, = decimate(s[S.EST_XYZ])
+    ax[0, 0].plot(xyz[:, 0], xyz[:, 1], lw=1.0)
+    if S.KF_XYZ in s and len(s[S.KF_XYZ]) and lio:
+        ax[0, 0].plot(s[S.KF_XYZ][:, 0], s[S.KF_XYZ][:, 1], "o", ms=3, color="tab:orange", label="keyframes")
+        ax[0, 0].legend(fontsize="small")
+    ax[0, 0].set_aspect("equal", adjustable="datalim")
+    ax[0, 0].set(xlabel="x (m)", ylabel="y (m)", title="Estimated trajectory (no ground truth: APE not computed)")
+    return ("Estimated trajectory in the plane", svg(fig))
+
+
+def _stage_timing(timing: dict[str, dict[str, float]]) -> tuple[str, str]:
+    fig, axes = new_figure(6.5, 0.6 + 0.35 * len(timing))
+    ax = axes[0, 0]
+    names = list(timing)[::-1]  # first stage on top
+    ax.barh(names, [timing[n].get("mean", np.nan) for n in names], color="tab:blue", label="mean")
+    ax.scatter([timing[n].get("p95", np.nan) for n in names], names, color="tab:red", zorder=3, label="p95")
+    ax.set(xlabel="ms per processed sweep", title="Per-stage timing")
+    ax.legend(fontsize="small", loc="lower right")
+    ax.grid(axis="x", alpha=0.3)
+    return ("Per-stage timing (bars: mean, dots: 95th percentile)", svg(fig))
 
 
 def control_figures(r: RunResult) -> list[tuple[str, str]]:
     s = r.series
     out = []
-    if r.extra.get("mode") == "sweep" and "sweep_gain_mismatch_mid" in s:
+    if r.extra.get(C.MODE) == "sweep" and C.SWEEP_GAIN_MISMATCH_MID in s:
         return [("Robustness sweep: fraction of runs with a funnel violation against the drive-gain mismatch",
                  _sweep_violations(s, r))]
-    for ctrl in r.extra.get("controllers", []):
-        label = r.extra.get("labels", {}).get(ctrl, ctrl)
-        t = s.get(f"{ctrl}_t", s.get("t"))
-        if t is None or f"{ctrl}_left_v_ref" not in s:
+    for ctrl in r.extra.get(C.CONTROLLERS, []):
+        label = r.extra.get(C.LABELS, {}).get(ctrl, ctrl)
+        t = s.get(C.time(ctrl), s.get(C.T))
+        missing = [k for k in (C.side_series(ctrl, "left", C.V_REF),) if k not in s] + ([] if t is not None else
+                                                                                        [C.time(ctrl)])
+        if t is None or missing:  # said in the report, not skipped: a renamed series must not hide a figure
+            out.append((f"{label}: no tracking figure: the result has no series {', '.join(missing)}", ""))
             continue
-        funnel = "funnel_o" in s and len(s["funnel_o"]) >= len(t) and ctrl in FUNNEL_CONTROLLERS
+        funnel = C.FUNNEL_O in s and len(s[C.FUNNEL_O]) >= len(t) and ctrl in FUNNEL_CONTROLLERS
         caption = f"{label}: wheel-speed reference vs measured" + (", funnel band reference ± o(t)" if funnel else "")
         out.append((caption, _tracking(s, ctrl, label, t, funnel)))
-        if f"{ctrl}_left_u_rpm" in s:
+        if C.side_series(ctrl, "left", C.U_RPM) in s:
             out.append((f"{label}: pump commands with the ±{U_MAX_RPM:.0f} RPM limits", _effort(s, r, ctrl, label, t)))
-        if f"{ctrl}_left_u_fb_rpm" in s:
+        if C.side_series(ctrl, "left", C.U_FB_RPM) in s:
             caption = f"{label}: feedback share |u_fb|/|U| per side" + (
-                " and the adaptive parameter phi-hat(t)" if f"{ctrl}_left_phi_hat" in s else "")
+                " and the adaptive parameter phi-hat(t)" if C.side_series(ctrl, "left", C.PHI_HAT) in s else "")
             out.append((caption, _feedback(s, ctrl, label, t)))
-        if f"{ctrl}_xy" in s and f"{ctrl}_cte_m" in s:
+        if C.driven_xy(ctrl) in s and C.cte(ctrl) in s:
             out.append((f"{label}: driven path and cross-track error", _path(s, ctrl, label, t)))
+    if C.BODE_W in s:
+        out.append(("Open loop C(jw) K e^{-jwd}/(jw tau + 1) of the linear laws on the left drive (RAID: its "
+                    "interior gain as a P law; dead band and clamp left out)", _bode(s)))
     return out
+
+
+def _bode(s) -> str:
+    fig, axes = new_figure(7.5, 4.6, rows=2, sharex=True)
+    w = s[C.BODE_W]
+    labels = {"raid": "RAID (interior gain)", "pid": "PID", "foptc": "FOPTC (frozen gain)",
+              "foptc_restart": "FOPTC (at a restart)"}
+    for law, label in labels.items():
+        if C.bode_magnitude(law) in s:
+            axes[0, 0].semilogx(w, s[C.bode_magnitude(law)], lw=1.0, label=label)
+            axes[1, 0].semilogx(w, s[C.bode_phase(law)], lw=1.0, label=label)
+    axes[0, 0].axhline(0.0, color="k", lw=0.6)
+    axes[1, 0].axhline(-180.0, color="k", lw=0.6)
+    axes[1, 0].set_ylim(-540.0, 45.0)
+    axes[0, 0].set(ylabel="|L| (dB)", title="Open-loop Bode plot on the drive")
+    axes[1, 0].set(xlabel="frequency (rad/s)", ylabel="phase (deg)")
+    axes[0, 0].legend(fontsize="x-small", loc="lower left")
+    for ax in axes[:, 0]:
+        ax.grid(alpha=0.3, which="both")
+    return svg(fig)
 
 
 def _tracking(s, ctrl: str, label: str, t: np.ndarray, funnel: bool) -> str:
     fig, axes = new_figure(7.5, 5.0, rows=2, sharex=True)
     for ax, side in zip(axes[:, 0], ("left", "right"), strict=True):
-        arrays = [t, s[f"{ctrl}_{side}_v_ref"], s[f"{ctrl}_{side}_v_meas"]]
+        arrays = [t, s[C.side_series(ctrl, side, C.V_REF)], s[C.side_series(ctrl, side, C.V_MEAS)]]
         if funnel:
-            arrays.append(s["funnel_o"])
+            arrays.append(s[C.FUNNEL_O])
         tt, rr, mm, *o = decimate(*arrays)
         if o:
             ax.fill_between(tt, rr - o[0], rr + o[0], color="tab:orange", alpha=0.25, lw=0, label="funnel ±o(t)")
@@ -239,7 +283,7 @@ def _effort(s, r: RunResult, ctrl: str, label: str, t: np.ndarray) -> str:
     fig, ax = new_figure(7.5, 2.8)
     ax = ax[0, 0]
     for side, colour in (("left", "tab:blue"), ("right", "tab:orange")):
-        tt, uu = decimate(t, s[f"{ctrl}_{side}_u_rpm"])
+        tt, uu = decimate(t, s[C.side_series(ctrl, side, C.U_RPM)])
         ax.plot(tt, uu, lw=0.8, color=colour, label=side)
     for lim in (U_MAX_RPM, -U_MAX_RPM):
         ax.axhline(lim, color="tab:red", ls="--", lw=0.8)
@@ -260,11 +304,11 @@ def _effort(s, r: RunResult, ctrl: str, label: str, t: np.ndarray) -> str:
 
 def _feedback(s, ctrl: str, label: str, t: np.ndarray) -> str:
     """What the feedback does: |u_fb|/|U| (0 = feed-forward alone) and, for RAID, phi-hat(t)."""
-    phi = f"{ctrl}_left_phi_hat" in s
+    phi = C.side_series(ctrl, "left", C.PHI_HAT) in s
     fig, axes = new_figure(7.5, 4.6 if phi else 2.6, rows=2 if phi else 1, sharex=True)
     ax = axes[0, 0]
     for side, colour in (("left", "tab:blue"), ("right", "tab:orange")):
-        u, fb = np.abs(s[f"{ctrl}_{side}_u_rpm"]), np.abs(s[f"{ctrl}_{side}_u_fb_rpm"])
+        u, fb = np.abs(s[C.side_series(ctrl, side, C.U_RPM)]), np.abs(s[C.side_series(ctrl, side, C.U_FB_RPM)])
         share = np.where(u > 1.0, fb / np.maximum(u, 1.0), np.nan)
         tt, sh = decimate(t, share)
         ax.plot(tt, sh, lw=0.7, color=colour, label=side)
@@ -274,7 +318,7 @@ def _feedback(s, ctrl: str, label: str, t: np.ndarray) -> str:
     if phi:
         ax = axes[1, 0]
         for side, colour in (("left", "tab:blue"), ("right", "tab:orange")):
-            tt, ph = decimate(t, s[f"{ctrl}_{side}_phi_hat"])
+            tt, ph = decimate(t, s[C.side_series(ctrl, side, C.PHI_HAT)])
             ax.plot(tt, ph, lw=0.8, color=colour, label=side)
         ax.set(ylabel="phi-hat", title="RAID adaptive parameter phi-hat(t)")
         ax.grid(alpha=0.3)
@@ -285,16 +329,16 @@ def _feedback(s, ctrl: str, label: str, t: np.ndarray) -> str:
 def _sweep_violations(s, r: RunResult) -> str:
     fig, ax = new_figure(7.0, 3.2)
     ax = ax[0, 0]
-    mid = 100.0 * s["sweep_gain_mismatch_mid"]
+    mid = 100.0 * s[C.SWEEP_GAIN_MISMATCH_MID]
     styles = itertools.cycle([("-", "o"), ("--", "s"), (":", "^"), ("-.", "D"), ((0, (5, 1, 1, 1)), "v")])
-    for ctrl in r.extra.get("controllers", []):
-        if f"sweep_{ctrl}_violation_rate" in s:  # styles differ: equal rates would hide a line
+    for ctrl in r.extra.get(C.CONTROLLERS, []):
+        if C.sweep_violation_rate(ctrl) in s:  # styles differ: equal rates would hide a line
             ls, marker = next(styles)
-            ax.plot(mid, s[f"sweep_{ctrl}_violation_rate"], ls=ls, marker=marker, lw=1.0, ms=4,
-                    label=r.extra.get("labels", {}).get(ctrl, ctrl))
+            ax.plot(mid, s[C.sweep_violation_rate(ctrl)], ls=ls, marker=marker, lw=1.0, ms=4,
+                    label=r.extra.get(C.LABELS, {}).get(ctrl, ctrl))
     ax.set(xlabel="drive gain mismatch (%, plant vs the controllers' model)",
            ylabel="runs with a funnel violation", ylim=(-0.03, 1.03),
-           title=f"Robustness sweep ({r.extra.get('runs', '?')} plants per controller)")
+           title=f"Robustness sweep ({r.extra.get(C.RUNS, '?')} plants per controller)")
     ax.legend(fontsize="x-small", loc="best")
     ax.grid(alpha=0.3)
     return svg(fig)
@@ -302,11 +346,11 @@ def _sweep_violations(s, r: RunResult) -> str:
 
 def _path(s, ctrl: str, label: str, t: np.ndarray) -> str:
     fig, axes = new_figure(7.5, 3.4, cols=2)
-    xy, cte = s[f"{ctrl}_xy"], s[f"{ctrl}_cte_m"]
+    xy, cte = s[C.driven_xy(ctrl)], s[C.cte(ctrl)]
     xy, = decimate(xy)
     ax = axes[0, 0]
-    if "path_xy" in s and len(s["path_xy"]):
-        ax.plot(s["path_xy"][:, 0], s["path_xy"][:, 1], "k--", lw=0.8, marker="o", ms=3, label="planned")
+    if C.PATH_XY in s and len(s[C.PATH_XY]):
+        ax.plot(s[C.PATH_XY][:, 0], s[C.PATH_XY][:, 1], "k--", lw=0.8, marker="o", ms=3, label="planned")
     ax.plot(xy[:, 0], xy[:, 1], lw=1.0, color="tab:blue", label="driven")
     ax.set_aspect("equal", adjustable="datalim")
     ax.set(xlabel="x (m)", ylabel="y (m)", title="Path")

@@ -14,7 +14,7 @@ import re
 from collections.abc import Mapping, Sequence
 from dataclasses import dataclass
 from pathlib import Path
-from typing import Any
+from typing import Any, Literal
 
 from markupsafe import Markup
 
@@ -23,6 +23,9 @@ from mrnc_eval.evaluation.config import GatesConfig
 from mrnc_eval.outputs import claim_output, output_file, write_output
 from mrnc_eval.reports.tables import is_number
 from mrnc_eval.results import Metric, RunResult, safe_name
+from mrnc_eval.schema import control as C
+from mrnc_eval.schema import info as I
+from mrnc_eval.schema import slam as S
 from mrnc_eval.tables import Cell, Table
 from mrnc_eval.text import printable
 
@@ -73,7 +76,7 @@ class Gate:
     label: str
     value: str
     limit: str
-    status: str  # "pass" | "fail" | "na"
+    status: Literal["pass", "fail", "na"]
 
 
 def environment():
@@ -97,7 +100,7 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
     whose metric is present but not a finite number (text, null from a NaN, inf) fails, naming the
     value: it is never skipped ("n/a" only when no result has the metric at all)."""
     def values(kind: str, name: str, method: str | None = None) -> list[Any]:
-        return [m.value for r in results if r.kind == kind and (method is None or r.extra.get("method") == method)
+        return [m.value for r in results if r.kind == kind and (method is None or r.extra.get(S.METHOD) == method)
                 for m in r.metrics
                 if m.name == name and (kind != "control" or m.group.split("/")[1:2] in [[d] for d in DEPLOYED])]
 
@@ -111,8 +114,8 @@ def evaluate_gates(results: list[RunResult], gates: GatesConfig) -> list[Gate]:
         return Gate(label, fmt.format(worst) + unit, f"{limit:g}{unit}", "pass" if worst <= limit else "fail")
 
     def ape_cards() -> list[Gate]:  # one per SLAM method, named when the result says which
-        methods = list(dict.fromkeys(str(r.extra["method"]) for r in results if r.kind == "slam"
-                                     and r.extra.get("method")))
+        methods = list(dict.fromkeys(str(r.extra[S.METHOD]) for r in results if r.kind == "slam"
+                                     and r.extra.get(S.METHOD)))
         if len(methods) == 0:
             return [card("APE RMSE", values("slam", "ape_rmse_m"), gates.ape_rmse_max_m, "{:.3f}", " m")]
         return [card(f"APE RMSE ({method})", values("slam", "ape_rmse_m", method), gates.ape_rmse_max_m, "{:.3f}",
@@ -140,8 +143,8 @@ def report_cards(results: list[RunResult], gates: GatesConfig, extra: Sequence[G
 def info_of(results: list[RunResult]) -> dict[str, Any] | None:
     """The `info` summary: a result of kind "info", or extra["info"] of any result."""
     for r in results:
-        if isinstance(r.extra.get("info"), dict):
-            return r.extra["info"]
+        if isinstance(r.extra.get(I.INFO), dict):
+            return r.extra[I.INFO]
     return None
 
 
@@ -152,7 +155,7 @@ def _key_table(title: str, rows: list[tuple[str, Any]]) -> Table:
 def _warmup_text(r: RunResult) -> str:
     """The one-off cost paid before the timed loop (lio: numba's compilation), said apart from
     the per-sweep statistics; nothing when the method had none."""
-    total = r.extra.get("warmup_total_ms")
+    total = r.extra.get(S.WARMUP_TOTAL_MS)
     if not total:
         return ""
     return (f", after a warm-up of {total:.0f} ms before the timed loop (numba's one-off compilation, or loading it "
@@ -162,11 +165,11 @@ def _warmup_text(r: RunResult) -> str:
 def slam_definitions(r: RunResult) -> list[str]:
     """The definitions a SLAM section needs: only of the numbers it shows, and the peer's own
     (kiss-icp has no keyframes, loop closure or IMU, so no LIO text in its section)."""
-    method = str(r.extra.get("method", "lio"))
+    method = str(r.extra.get(S.METHOD, "lio"))
     shown = {m.name for m in r.metrics}
     out = []
     if method != "lio":
-        deskew = r.extra.get("deskew")
+        deskew = r.extra.get(S.DESKEW)
         out.append(PEER_DEFINITION.format(deskew="on" if deskew else "off" if deskew is not None else "unknown"))
     for name, text in SLAM_DEFINITIONS.items():
         if name in shown and (method == "lio" or name != "ape_online_rmse_m"):
@@ -177,25 +180,25 @@ def slam_definitions(r: RunResult) -> list[str]:
 def _slam_section(r: RunResult) -> dict[str, Any]:
     from mrnc_eval.reports.figures import slam_figures
 
-    method = str(r.extra.get("method", "lio"))
+    method = str(r.extra.get(S.METHOD, "lio"))
     vals = {m.name: m.value for m in r.metrics}
     if method == "lio":
         keys = [(label, vals[name]) for label, name in SLAM_KEYS if name in vals]
     else:  # the peer: one trajectory (online = smoothed), no keyframes, loops or IMU
         keys = [(label.replace(", smoothed", ""), vals[name]) for label, name in SLAM_KEYS if name in vals
                 and name not in LIO_ONLY_KEYS and name not in ("ape_online_rmse_m", "end_drift_online_m")]
-    timing = {stage: t for stage, t in r.extra.get("timing_ms", {}).items()  # the peer has no graph or loop stage
+    timing = {stage: t for stage, t in r.extra.get(S.TIMING_MS, {}).items()  # the peer has no graph or loop stage
               if method == "lio" or any(t.get(k) for k in ("mean", "p95", "max"))}
     stats = ("mean", "p95", "max")
     timing_table = Table("Per-stage timing", list(timing), list(stats), [[t.get(k) for k in stats]
                                                                          for t in timing.values()],
                          unit="ms per sweep, first sweep excluded", best=None, precision=1)
-    summary = (f"Method {method}; log of {r.extra.get('log_duration_s', float('nan')):.1f} s "
-               f"processed in {r.extra.get('wall_s', float('nan')):.1f} s (first sweep "
-               f"{r.extra.get('first_sweep_ms', float('nan')):.0f} ms){_warmup_text(r)}; "
-               f"{r.extra.get('mapping_rate', '')}.")
+    summary = (f"Method {method}; log of {r.extra.get(S.LOG_DURATION_S, float('nan')):.1f} s "
+               f"processed in {r.extra.get(S.WALL_S, float('nan')):.1f} s (first sweep "
+               f"{r.extra.get(S.FIRST_SWEEP_MS, float('nan')):.0f} ms){_warmup_text(r)}; "
+               f"{r.extra.get(S.MAPPING_RATE, '')}.")
     tables = [_key_table("SLAM key numbers", keys)] + ([timing_table] if timing else []) + r.tables
-    return {"title": f"SLAM ({r.extra['method']})" if r.extra.get("method") else "SLAM", "summary": summary,
+    return {"title": f"SLAM ({r.extra[S.METHOD]})" if r.extra.get(S.METHOD) else "SLAM", "summary": summary,
             "definitions": slam_definitions(r), "tables": tables, "figures": slam_figures(r, timing=timing),
             "quiet_events": "no loop closures, no degeneracy" if method == "lio" else ""}
 
@@ -203,14 +206,14 @@ def _slam_section(r: RunResult) -> dict[str, Any]:
 def _control_section(r: RunResult) -> dict[str, Any]:
     from mrnc_eval.reports.figures import control_figures
 
-    labels = r.extra.get("labels", {})
-    summary = (f"Control chain, mode {r.extra.get('mode', '?')}; controllers: "
-               + ", ".join(labels.get(c, c) for c in r.extra.get("controllers", []))
-               + f". Saturation applies to the {r.extra.get('saturation_applies_to', 'total')} command; "
-               f"pure-pursuit curvature {r.extra.get('curvature', 'standard')}.")
-    if r.extra.get("replay") and r.extra.get("definitions"):  # what the replay's references are
-        summary += " " + r.extra["definitions"][0]
-    title = "Control: wheel-speed tracking (no path)" if r.extra.get("replay") == "wheel_speed" else "Control"
+    labels = r.extra.get(C.LABELS, {})
+    summary = (f"Control chain, mode {r.extra.get(C.MODE, '?')}; controllers: "
+               + ", ".join(labels.get(c, c) for c in r.extra.get(C.CONTROLLERS, []))
+               + f". Saturation applies to the {r.extra.get(C.SATURATION_APPLIES_TO, 'total')} command; "
+               f"pure-pursuit curvature {r.extra.get(C.CURVATURE, 'standard')}.")
+    if r.extra.get(C.REPLAY) and r.extra.get(C.DEFINITIONS):  # what the replay's references are
+        summary += " " + r.extra[C.DEFINITIONS][0]
+    title = "Control: wheel-speed tracking (no path)" if r.extra.get(C.REPLAY) == "wheel_speed" else "Control"
     return {"title": title, "summary": summary, "definitions": [], "tables": report_tables(r),
             "figures": control_figures(r), "quiet_events": ""}
 
@@ -229,9 +232,10 @@ def _replay_table(r: RunResult) -> Table:
     by: dict[tuple[str, str], Metric] = {(m.group, m.name): m for m in r.metrics}
     rows = [(label, name) for label, name in CONTROL_ROWS if any((g, name) in by for g in groups)]
     values = [[(by[(g, name)].value if (g, name) in by else None) for g in groups] for _label, name in rows]
-    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c) else c) for c in row]
+    cells: list[list[Cell]] = [[("not settled" if isinstance(c, float) and math.isinf(c)  # as the legend says
+                                 else None if isinstance(c, float) and math.isnan(c) else c) for c in row]
                                for row in values]
-    what = " (wheel-speed tracking, no path)" if r.extra.get("replay") == "wheel_speed" else ""
+    what = " (wheel-speed tracking, no path)" if r.extra.get(C.REPLAY) == "wheel_speed" else ""
     return Table(f"Table II layout: control performance of the recorded run{what}", [label for label, _ in rows],
                  [g.split("/", 1)[-1].replace("/", " ") for g in groups], cells, best=None, precision=3)
 
@@ -259,11 +263,11 @@ class ConfigDiff:
     config_hash: str
     used_by: list[str]
     changed: list[tuple[str, str, str]]
-    text: str  # the full YAML, shown only in the appendix
+    text: str  # the full YAML, shown only in the appendix; "" when no config.yaml was found
 
 
 def config_differences(config_text: str) -> list[tuple[str, str, str]]:
-    """(key, value, default) of every key a config.yaml sets away from mrnc-eval's defaults."""
+    """(key, value, default) of every key a config.yaml sets away from this mrnc-eval's defaults."""
     from mrnc_eval.config import Config, as_dict, load_yaml
     from mrnc_eval.reports.compare import flatten
 
@@ -276,9 +280,10 @@ def config_differences(config_text: str) -> list[tuple[str, str, str]]:
     def shown(v: Any) -> str:
         return "(not set)" if v is _UNSET else str(list(v) if isinstance(v, tuple) else v)
 
-    return [(k, shown(given.get(k, _UNSET)), shown(defaults.get(k, _UNSET)))
-            for k in sorted(set(given) | set(defaults))
-            if _comparable(given.get(k, _UNSET)) != _comparable(defaults.get(k, _UNSET))]
+    # keys of the file only: a key the file lacks was added to mrnc-eval after the run (its default
+    # did not exist then), not set by anyone; a key today's defaults lack shows "(not set)" as default
+    return [(k, shown(given[k]), shown(defaults.get(k, _UNSET))) for k in sorted(given)
+            if _comparable(given[k]) != _comparable(defaults.get(k, _UNSET))]
 
 
 _UNSET = object()
@@ -299,7 +304,7 @@ def _config_diffs(results: list[RunResult], configs: Mapping[str, str]) -> list[
 
 def _run_label(r: RunResult) -> str:
     """"SLAM lio", "control replay": which run of the report a configuration belongs to."""
-    what = r.extra.get("method") if r.kind == "slam" else r.extra.get("mode")
+    what = r.extra.get(S.METHOD) if r.kind == "slam" else r.extra.get(C.MODE)
     return f"{'SLAM' if r.kind == 'slam' else r.kind} {what}" if what else r.kind
 
 
@@ -316,7 +321,7 @@ def render_html(results: list[RunResult], *, gates: GatesConfig, config_text: st
         configs = {hashes[0] if hashes else "": config_text}
     info = info_of(results)
     findings = [w for r in results if r.kind == "info" for w in r.warnings]
-    used = {role: topic for r in results for role, topic in (r.extra.get("roles") or {}).items()}
+    used = {role: topic for r in results for role, topic in (r.extra.get(S.ROLES) or {}).items()}
     return environment().get_template("report.html.j2").render(
         css=css(), log_id=first.log_id, log_path=first.log_path, tool_version=first.tool_version or __version__,
         config_hashes=[(h, [_run_label(r) for r in results if r.config_hash == h]) for h in hashes],

@@ -13,6 +13,7 @@ import math
 import re
 from typing import TypeGuard
 
+from mrnc_eval.errors import UnknownName
 from mrnc_eval.tables import Cell, Table
 
 FORMATS = ("markdown", "latex", "csv", "html")
@@ -57,7 +58,7 @@ def fmt_cell(c: Cell, precision: int) -> str:
 
 def render_table(table: Table, fmt: str = "markdown") -> str:
     if fmt not in FORMATS:
-        raise ValueError(f"unknown table format {fmt!r}; choose one of {', '.join(FORMATS)}")
+        raise UnknownName("table format", fmt, FORMATS)
     return {"markdown": _markdown, "latex": _latex, "csv": _csv, "html": _html}[fmt](table)
 
 

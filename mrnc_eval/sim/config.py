@@ -234,4 +234,7 @@ class SimConfig:
     motion_smoothing_s: float = param(0.1, "the driven trace is smoothed over this time (triangle kernel) before "
                                       "it becomes the ground truth: a 4.8 t machine cannot change speed or yaw rate "
                                       "within one 1 ms control step (0 = as simulated)", "s")
+    standstill_s: float = param(0.0, "the machine stands (engine running, sensors recording) this long before it "
+                                "sets off, within the requested duration; the IMU's noise and biases can be measured "
+                                "from it (0 = drive from the first sample)", "s", ge=0.0, le=3600.0)
     field: FieldConfig = section(FieldConfig, "field profile (sim.profile = field)")

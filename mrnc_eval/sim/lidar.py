@@ -185,19 +185,28 @@ class LidarSimulator:
         range_mm = np.where(valid, np.round(rng_m * 1000.0 / step_mm) * step_mm, 0.0).astype(np.uint32)
         along = np.where(valid, range_mm / 1000.0 - bm.beam_offset_m, 0.0)
         xyz = np.where(valid[..., None], bm.origins[None] + bm.directions * along[..., None], 0.0).astype(np.float32)
+        intensity, refl, ambient = self._channels(valid, found, strength, albedo, cos_inc, normal, d_world)
+        if low_bandwidth:  # no signal channel: ouster-ros fills intensity with reflectivity; NIR has 8 bits
+            intensity = refl.astype(np.float32)
+            ambient = np.minimum(ambient // 16, 255) * 16
+        return OrganisedSweep(stamp, xyz, self._t_ns, range_mm, refl, intensity, ambient.astype(np.uint16))
+
+    def _channels(self, valid: np.ndarray, found: np.ndarray, strength: np.ndarray, albedo: np.ndarray,
+                  cos_inc: np.ndarray, normal: np.ndarray, d_world: np.ndarray,
+                  ) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+        """Signal (photons, as intensity), reflectivity (0-255) and ambient (NIR photons) per pixel,
+        drawn in this order."""
+        c = self.cfg
         signal = self.rng.poisson(np.where(valid, SIGNAL_AT_DETECTION_LIMIT * strength / self._min_return, 0.0))
         intensity = np.minimum(signal, MAX_U16).astype(np.float32)
-        refl = np.where(valid, np.round(100.0 * albedo * np.sqrt(cos_inc) + self.rng.normal(0.0, 1.0, dist.shape)), 0)
+        refl = np.where(valid, np.round(100.0 * albedo * np.sqrt(cos_inc) + self.rng.normal(0.0, 1.0, valid.shape)),
+                        0)
         sunlit = np.clip(normal @ self._sun, 0.0, 1.0)
         looking_up = d_world[..., 2] > 0
         ambient_mean = np.where(found, c.ambient_sunlit_photons * (0.05 + albedo * sunlit),
                                 np.where(looking_up, c.ambient_sky_photons, 0.0))
         ambient = np.minimum(self.rng.poisson(ambient_mean), MAX_U16)
-        refl = np.clip(refl, 0, 255).astype(np.uint16)
-        if low_bandwidth:  # no signal channel: ouster-ros fills intensity with reflectivity; NIR has 8 bits
-            intensity = refl.astype(np.float32)
-            ambient = np.minimum(ambient // 16, 255) * 16
-        return OrganisedSweep(stamp, xyz, self._t_ns, range_mm, refl, intensity, ambient.astype(np.uint16))
+        return intensity, np.clip(refl, 0, 255).astype(np.uint16), ambient
 
 
     def _field_world(self, col_t, origin_w, d_world, dist, gid, cos_inc, found, albedo):

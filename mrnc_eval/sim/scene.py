@@ -12,6 +12,8 @@ from functools import partial
 
 import numpy as np
 
+from mrnc_eval.errors import UnknownName
+
 SCENES = ("yard", "forest", "corridor", "field", "open_field")
 
 
@@ -130,7 +132,7 @@ def build_scene(name: str, *, seed: int = 0, amplitude_m: float = 0.3, roughness
     `scale` stretches the layout for larger paths: distances x scale, object counts x scale^2
     (the same density over a larger area)."""
     if name not in SCENES:
-        raise ValueError(f"unknown scene {name!r}; choose from {', '.join(SCENES)}")
+        raise UnknownName("scene", name, SCENES)
     terrain = Terrain(0.0 if name == "corridor" else amplitude_m, roughness_m, seed)
     scene = Scene(name, terrain)
     cx0, cy0 = centre

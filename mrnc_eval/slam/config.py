@@ -56,6 +56,26 @@ class ImuConfig:
         "directions", "degenerate scan-to-map: directions = degenerate_pose_sigma only along the projected-out "
         "directions (the IMU carries them, the rest stays measured); all = on all six (LIO-SAM)")
     reset_every: int = param(100, "restart graph #2 every n keys, keeping its velocity and bias estimates")
+    reset_priors: Literal["marginals", "fixed"] = param(
+        "fixed", "priors of graph #2's periodic restart: marginals = the pose, velocity and bias marginal covariances "
+        "at the last key (LIO-SAM); fixed = pose_prior_sigmas, 1 m/s and bias_prior_sigmas around the estimates "
+        "(marginals measured no better: field OS0-32, seeds 0-2, online APE median 0.0167 -> 0.0173 m)")
+    noise_from_log: bool = param(True, "preintegration noise densities and the initial gyro bias from the log's "
+                                 "stationary stretches (slam/imu_noise.py; reported either way as imu_noise), and "
+                                 "acc_turn_on_sigma for the initial accelerometer bias; without a stationary "
+                                 "stretch, or off: the noise sigmas above and a zero bias held by bias_prior_sigmas "
+                                 "(field OS0-32, seeds 0-2: online APE median 0.0167 -> 0.0150 m, worst 0.0378 -> "
+                                 "0.0364 m; docs/simulation.md)")
+    bias_prior_sigmas: tuple[float, float] = param((1e-3, 1e-3), "bias prior sigmas [acc m/s^2, gyro rad/s] at "
+                                                   "each start of graph #2 (LIO-SAM: 1e-3 on both)")
+    acc_turn_on_sigma: float = param(0.1, "with noise_from_log: the initial accelerometer bias prior sigma, the "
+                                     "turn-on bias class of the part (a consumer MEMS: 0.1 m/s^2; a stationary "
+                                     "stretch cannot tell the horizontal bias from a tilt)", "m/s^2", gt=0.0, le=10.0)
+    deskew_motion: Literal["predicted", "last"] = param(
+        "last", "translation deskew (slam.deskew_translation): predicted = graph #2's velocity at the sweep's start "
+        "and end (constant acceleration over the sweep); last = the velocity of the last mapped sweep, constant")
+    stationary_min_s: float = param(1.5, "shortest stationary stretch the IMU noise is measured from", "s",
+                                    gt=0.0, le=3600.0)
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "
                                         "restart in a degenerate stretch costs more than it gains)", "m")
@@ -66,6 +86,12 @@ class ImuConfig:
                                  "else (positive when the IMU stamps are late)", "s")
     estimate_time_offset: bool = param(True, "estimate the remaining IMU-LiDAR offset after the run "
                                        "(imu_time_offset_s in metrics.json)")
+    refine_time_offset_s: float = param(0.0, "with estimate_time_offset: every this much log time, estimate the "
+                                        "offset left in every sweep so far and, when it exceeds twice its standard "
+                                        "error, apply it to the IMU stamps from then on. The LiDAR poses keep part "
+                                        "of the IMU-driven guess, so one estimate after the run reads only part of "
+                                        "a large lag (30 ms -> 23-28 ms); 0 = one estimate after the run, nothing "
+                                        "applied", "s", ge=0.0, le=86_400.0)
     max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
     max_bias: float = param(1.0, "... or above this bias norm")
 

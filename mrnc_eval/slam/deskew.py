@@ -13,18 +13,20 @@ QUANTUM_S = 1e-3  # rotations tabulated per millisecond: < 0.001 deg error at 1 
 
 @njit(cache=True)
 def _apply(points: np.ndarray, t: np.ndarray, t0: float, table: np.ndarray, velocity: np.ndarray,
-           out: np.ndarray) -> None:
+           accel: np.ndarray, out: np.ndarray) -> None:
     for i in range(points.shape[0]):
         k = int(np.floor((t[i] - t0) / 1e-3 + 0.5))
         k = min(max(k, 0), table.shape[0] - 1)
         for a in range(3):
             out[i, a] = (table[k, a, 0] * points[i, 0] + table[k, a, 1] * points[i, 1] + table[k, a, 2] * points[i, 2]
-                         + velocity[a] * t[i])
+                         + velocity[a] * t[i] + 0.5 * accel[a] * t[i] * t[i])
 
 
 def deskew(points: np.ndarray, point_time: np.ndarray, stamp: float, track: ImuTrack | None,
-           velocity_sensor: np.ndarray | None) -> np.ndarray:
-    """Points (N, 3) measured at stamp + point_time (s), expressed in the sensor frame at `stamp`."""
+           velocity_sensor: np.ndarray | None, accel_sensor: np.ndarray | None = None) -> np.ndarray:
+    """Points (N, 3) measured at stamp + point_time (s), expressed in the sensor frame at `stamp`;
+    the sensor moved by v t + a t^2 / 2 (velocity m/s and a constant acceleration m/s^2 over the
+    sweep, sensor axes at `stamp`) by point time t."""
     t = np.ascontiguousarray(point_time, dtype=np.float64)
     out = np.empty((points.shape[0], 3))
     if t.size == 0:
@@ -36,5 +38,6 @@ def deskew(points: np.ndarray, point_time: np.ndarray, stamp: float, track: ImuT
     else:
         table = np.broadcast_to(np.eye(3), (1, 3, 3)).copy()
     v = np.zeros(3) if velocity_sensor is None else np.asarray(velocity_sensor, float)
-    _apply(np.ascontiguousarray(points, dtype=np.float64), t, t0, table, v, out)
+    acc = np.zeros(3) if accel_sensor is None else np.asarray(accel_sensor, float)
+    _apply(np.ascontiguousarray(points, dtype=np.float64), t, t0, table, v, acc, out)
     return out

@@ -16,6 +16,10 @@ from scipy.spatial.transform import Rotation
 
 from mrnc_eval.data import ImuSeries
 from mrnc_eval.slam.config import ImuConfig
+from mrnc_eval.slam.imu_noise import ImuNoiseEstimate
+
+MIN_ACC_DENSITY = 1e-4  # m/s^2/sqrt(Hz): below the best tactical-grade parts
+MIN_GYRO_DENSITY = 1e-6  # rad/s/sqrt(Hz)
 
 
 def clean_imu(imu: ImuSeries) -> ImuSeries:
@@ -134,7 +138,10 @@ class ImuOdometry:
     every X, a bias random walk. The body frame has the LiDAR's axes at the IMU's position
     (accelerations are rotated into LiDAR axes), so body = lidar_pose * [I, t_imu]."""
 
-    def __init__(self, track: ImuTrack, cfg: ImuConfig, imu_in_lidar: np.ndarray) -> None:
+    def __init__(self, track: ImuTrack, cfg: ImuConfig, imu_in_lidar: np.ndarray,
+                 measured: ImuNoiseEstimate | None = None) -> None:
+        """`measured`: the IMU's noise and biases from the log's stationary stretches (IMU axes),
+        used when cfg.noise_from_log."""
         import gtsam
 
         self.g = gtsam
@@ -142,13 +149,25 @@ class ImuOdometry:
         self.lever = np.eye(4)
         self.lever[:3, 3] = imu_in_lidar[:3, 3]
         p = gtsam.PreintegrationParams.MakeSharedU(cfg.gravity)
-        if min(cfg.acc_noise, cfg.gyro_noise, cfg.integration_noise) <= 0:
+        acc_noise, gyro_noise = cfg.acc_noise, cfg.gyro_noise
+        gyro_bias = np.zeros(3)
+        self.first_bias_sigmas = np.r_[[cfg.bias_prior_sigmas[0]] * 3, [cfg.bias_prior_sigmas[1]] * 3]
+        if cfg.noise_from_log and measured is not None:
+            # floored: a quantised IMU standing still can read constant samples (density 0 -> NaN in gtsam)
+            acc_noise = max(measured.acc_noise_density, MIN_ACC_DENSITY)
+            gyro_noise = max(measured.gyro_noise_density, MIN_GYRO_DENSITY)
+            gyro_bias = imu_in_lidar[:3, :3] @ measured.gyro_bias  # LiDAR axes, as the track
+            self.first_bias_sigmas = np.r_[[cfg.acc_turn_on_sigma] * 3, [max(measured.gyro_bias_sigma, 1e-5)] * 3]
+        if min(acc_noise, gyro_noise, cfg.integration_noise) <= 0:
             raise ValueError("IMU noise sigmas must be > 0 (zero noise gives NaN, LIO-SAM#427)")
-        p.setAccelerometerCovariance(np.eye(3) * cfg.acc_noise ** 2)
-        p.setGyroscopeCovariance(np.eye(3) * cfg.gyro_noise ** 2)
+        p.setAccelerometerCovariance(np.eye(3) * acc_noise ** 2)
+        p.setGyroscopeCovariance(np.eye(3) * gyro_noise ** 2)
         p.setIntegrationCovariance(np.eye(3) * cfg.integration_noise ** 2)
         self.params = p
-        self.bias = gtsam.imuBias.ConstantBias()
+        self.noise_used = (float(acc_noise), float(gyro_noise))  # m/s^2/sqrt(Hz), rad/s/sqrt(Hz)
+        self.bias = gtsam.imuBias.ConstantBias(np.zeros(3), gyro_bias)
+        self.first_start = True
+        self.marginal_resets = 0
         self.velocity = np.zeros(3)
         self.key = -1
         self.t_last: float | None = None
@@ -188,6 +207,17 @@ class ImuOdometry:
         nxt = pim.predict(state, self.bias)
         return np.asarray(nxt.pose().matrix() @ np.linalg.inv(self.lever), np.float64)
 
+    def predict_velocity(self, lidar_pose: np.ndarray, t0: float, t1: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+        """Rotations (k, 3, 3) of the LiDAR and velocities (k, 3) m/s (map frame) at times t1 from the
+        pose at t0 with the current velocity and bias estimates."""
+        state = self.g.NavState(self.g.Pose3(lidar_pose @ self.lever), self.velocity)
+        rots, vels = [], []
+        for t in np.atleast_1d(t1):
+            nxt = self._pim(t0, float(t)).predict(state, self.bias)
+            rots.append(nxt.pose().rotation().matrix())
+            vels.append(np.asarray(nxt.velocity(), float))
+        return np.asarray(rots, np.float64), np.asarray(vels, np.float64)
+
     def add_lidar_pose(self, lidar_pose: np.ndarray, t: float, degenerate: bool,
                        directions: np.ndarray | None = None) -> str | None:
         """Correct the states with a scan-to-map pose; returns a warning text after a reset.
@@ -198,32 +228,14 @@ class ImuOdometry:
         body = g.Pose3(lidar_pose @ self.lever)
         graph, values = g.NonlinearFactorGraph(), g.Values()
         prior = self._pose_prior(lidar_pose[:3, :3], degenerate, directions)
+        if self.key >= 0 and self.key + 1 >= self.cfg.reset_every and self.cfg.reset_priors == "marginals":
+            why = self._restart_from_marginals(t, body)
+            if why:
+                return why
         if self.key < 0 or self.key + 1 >= self.cfg.reset_every:
-            # (re)start: priors on pose, velocity (loose) and bias, as LIO-SAM does
-            self._start_graph()
-            k = 0
-            graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
-            v_sigma = [1e4] * 3 if self.t_last is None else [1.0] * 3  # m/s: unknown at the start
-            graph.add(g.PriorFactorVector(g.symbol("v", k), self.velocity, self._noise(v_sigma)))
-            graph.add(g.PriorFactorConstantBias(g.symbol("b", k), self.bias, self._noise([1e-3] * 6)))
-            values.insert(g.symbol("x", k), body)
-            values.insert(g.symbol("v", k), self.velocity)
-            values.insert(g.symbol("b", k), self.bias)
+            k = self._first_key(graph, values, body, prior)
         else:
-            k = self.key + 1
-            assert self.t_last is not None  # set with the first key, kept by restart()
-            pim = self._pim(self.t_last, t)
-            dt = max(t - self.t_last, 1e-6)
-            graph.add(g.ImuFactor(g.symbol("x", k - 1), g.symbol("v", k - 1), g.symbol("x", k), g.symbol("v", k),
-                                  g.symbol("b", k - 1), pim))
-            walk = np.sqrt(dt) * np.r_[[self.cfg.acc_bias_noise] * 3, [self.cfg.gyro_bias_noise] * 3]
-            graph.add(g.BetweenFactorConstantBias(g.symbol("b", k - 1), g.symbol("b", k), g.imuBias.ConstantBias(),
-                                                  self._noise(walk)))
-            graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
-            pred = pim.predict(g.NavState(self._last_pose, self.velocity), self.bias)
-            values.insert(g.symbol("x", k), pred.pose())
-            values.insert(g.symbol("v", k), pred.velocity())
-            values.insert(g.symbol("b", k), self.bias)
+            k = self._next_key(graph, values, body, prior, t)
         try:
             self.isam.update(graph, values)
             self.isam.update()
@@ -231,12 +243,75 @@ class ImuOdometry:
         except RuntimeError as err:
             return self._reset(t, body, f"IMU preintegration graph failed ({err}); restarted")
         self.key, self.t_last = k, t
+        self.first_start = False
         self._last_pose = est.atPose3(g.symbol("x", k))
         self.velocity = np.asarray(est.atVector(g.symbol("v", k)))
         self.bias = est.atConstantBias(g.symbol("b", k))
         bias_vec = np.r_[self.bias.accelerometer(), self.bias.gyroscope()]
         if np.linalg.norm(self.velocity) > self.cfg.max_velocity_mps or np.linalg.norm(bias_vec) > self.cfg.max_bias:
             return self._reset(t, body, "Large velocity/bias, reset IMU-preintegration")
+        return None
+
+    def _first_key(self, graph: Any, values: Any, body: Any, prior: Any) -> int:
+        """(Re)start: priors on pose, velocity (loose) and bias, as LIO-SAM does; returns key 0."""
+        g = self.g
+        self._start_graph()
+        k = 0
+        graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
+        v_sigma = [1e4] * 3 if self.t_last is None else [1.0] * 3  # m/s: unknown at the start
+        graph.add(g.PriorFactorVector(g.symbol("v", k), self.velocity, self._noise(v_sigma)))
+        bias_sigmas = self.first_bias_sigmas if self.first_start else \
+            np.r_[[self.cfg.bias_prior_sigmas[0]] * 3, [self.cfg.bias_prior_sigmas[1]] * 3]
+        graph.add(g.PriorFactorConstantBias(g.symbol("b", k), self.bias, self._noise(bias_sigmas)))
+        values.insert(g.symbol("x", k), body)
+        values.insert(g.symbol("v", k), self.velocity)
+        values.insert(g.symbol("b", k), self.bias)
+        return k
+
+    def _next_key(self, graph: Any, values: Any, body: Any, prior: Any, t: float) -> int:
+        """The IMU factor from the last key to `t`, the bias random walk and the scan-to-map pose
+        prior; the new key's initial values predicted by the preintegration. Returns the key."""
+        g = self.g
+        k = self.key + 1
+        assert self.t_last is not None  # set with the first key, kept by restart()
+        pim = self._pim(self.t_last, t)
+        dt = max(t - self.t_last, 1e-6)
+        graph.add(g.ImuFactor(g.symbol("x", k - 1), g.symbol("v", k - 1), g.symbol("x", k), g.symbol("v", k),
+                              g.symbol("b", k - 1), pim))
+        walk = np.sqrt(dt) * np.r_[[self.cfg.acc_bias_noise] * 3, [self.cfg.gyro_bias_noise] * 3]
+        graph.add(g.BetweenFactorConstantBias(g.symbol("b", k - 1), g.symbol("b", k), g.imuBias.ConstantBias(),
+                                              self._noise(walk)))
+        graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
+        pred = pim.predict(g.NavState(self._last_pose, self.velocity), self.bias)
+        values.insert(g.symbol("x", k), pred.pose())
+        values.insert(g.symbol("v", k), pred.velocity())
+        values.insert(g.symbol("b", k), self.bias)
+        return k
+
+    def _restart_from_marginals(self, t: float, body: Any) -> str | None:
+        """LIO-SAM's periodic reset: a new graph whose first key is the last key's state, held by its
+        marginal covariances (pose, velocity, bias), so what graph #2 had learnt carries over with
+        the uncertainty it has; the current pose then joins as the next key with its ImuFactor."""
+        g, k = self.g, self.key
+        try:
+            covs = [self.isam.marginalCovariance(g.symbol(c, k)) for c in "xvb"]
+        except RuntimeError as err:
+            return self._reset(t, body, f"IMU preintegration marginals failed ({err}); restarted")
+        graph, values = g.NonlinearFactorGraph(), g.Values()
+        gauss = g.noiseModel.Gaussian.Covariance
+        graph.add(g.PriorFactorPose3(g.symbol("x", 0), self._last_pose, gauss(covs[0])))
+        graph.add(g.PriorFactorVector(g.symbol("v", 0), self.velocity, gauss(covs[1])))
+        graph.add(g.PriorFactorConstantBias(g.symbol("b", 0), self.bias, gauss(covs[2])))
+        values.insert(g.symbol("x", 0), self._last_pose)
+        values.insert(g.symbol("v", 0), self.velocity)
+        values.insert(g.symbol("b", 0), self.bias)
+        self._start_graph()
+        try:
+            self.isam.update(graph, values)
+        except RuntimeError as err:
+            return self._reset(t, body, f"IMU preintegration restart failed ({err}); restarted")
+        self.key = 0
+        self.marginal_resets += 1
         return None
 
     def _pose_prior(self, rot: np.ndarray, degenerate: bool, directions: np.ndarray | None) -> Any:

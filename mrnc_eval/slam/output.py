@@ -16,7 +16,7 @@ STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: wa
 @dataclass(kw_only=True)
 class SlamEvent:
     t: float  # log time, s
-    kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps"
+    kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps", "imu_time_offset"
     message: str
     data: dict[str, Any] = field(default_factory=dict)
 
@@ -42,3 +42,5 @@ class SlamOutput:
     # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
     warmup_ms: dict[str, float] = field(default_factory=dict)
     empty_sweeps: int = 0  # sweeps with no valid point (empty, all zero or non-finite): not mapped, counted
+    imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)
+    imu_time_offset_sigma_s: float | None = None  # its formal standard error, s

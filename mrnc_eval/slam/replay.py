@@ -7,6 +7,7 @@ from __future__ import annotations
 import time
 from collections.abc import Callable, Iterable
 from dataclasses import dataclass, field, replace
+from typing import Any
 
 import numpy as np
 from scipy.spatial.transform import Rotation, Slerp
@@ -20,13 +21,14 @@ from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
 from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
+from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage, project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
-from mrnc_eval.slam.time_offset import estimate_imu_time_offset
+from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
 from mrnc_eval.slam.wheel_odometry import WheelTrack, base_velocity, blend_planar, relative_motion, wheel_factor
 
@@ -97,6 +99,17 @@ class _Trace:
 
 
 @dataclass(kw_only=True)
+class _OffsetRefinement:
+    """The IMU-LiDAR offset applied during the run (slam.imu.refine_time_offset_s): `applied` s
+    subtracted from the IMU stamps (on top of slam.imu.time_offset_s) since the sweep `start` of
+    the trace, and each estimate as (stamp, estimate s)."""
+
+    applied: float = 0.0
+    start: int = 0
+    history: list[tuple[float, float]] = field(default_factory=list)
+
+
+@dataclass(kw_only=True)
 class _Replay:
     """The replay's components and state; `map_sweep` is one pass of LIO-SAM's mapping."""
 
@@ -117,6 +130,9 @@ class _Replay:
     trace: _Trace = field(default_factory=_Trace)
     wheel: WheelTrack | None = None
     base_to_sensor: np.ndarray = field(default_factory=lambda: np.eye(4))
+    gyro_bias: np.ndarray | None = None  # subtracted from the gyro in the track (slam.gyro_bias_init_s), rad/s
+    imu_noise: ImuNoiseEstimate | None = None  # from the log's stationary stretches, IMU axes
+    offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -125,12 +141,17 @@ class _Replay:
         extr = lidar_to_imu(cfg.imu, sensor_to_imu)
         if imu is not None and cfg.imu.time_offset_s != 0.0:  # a known IMU clock lag, before anything else
             imu = replace(imu, stamps=imu.stamps - cfg.imu.time_offset_s)
-        track, odom, imu = _imu_setup(imu, extr, cfg, warnings)
+        noise = None
+        if imu is not None and imu.stamps.size >= 3:
+            clean = clean_imu(imu)
+            noise = estimate_imu_noise(clean.stamps, clean.acc, clean.gyro, gravity=cfg.imu.gravity,
+                                       min_s=cfg.imu.stationary_min_s)
+        track, odom, imu, bias = _imu_setup(imu, extr, cfg, warnings, noise)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
         graph = KeyframeGraph(cfg=cfg.graph, anchored=anchored)
         return cls(cfg=cfg, extr=extr, imu=imu, track=track, odom=odom, graph=graph, aligner=aligner,
-                   timing={s: [] for s in STAGES}, warnings=warnings)
+                   timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise)
 
     # ---- one mapped sweep
     def map_sweep(self, sweep: Sweep) -> None:
@@ -149,6 +170,7 @@ class _Replay:
         clock.lap("graph", minus_ms=loop_ms)
         self.timing["loop"].append(loop_ms)
         self.record(sweep.stamp, pose, degenerate)
+        self.refine_offset(sweep.stamp)
 
     def deskew(self, image: RangeImage, sweep: Sweep) -> np.ndarray:
         """Points at the sweep stamp: rotation from the IMU track, translation at constant velocity."""
@@ -161,10 +183,17 @@ class _Replay:
         if self.track is not None and not self.track.covers(sweep.stamp, t_end):
             self.warn_once(sweep.stamp, "no_cover", f"IMU does not cover the sweep at {sweep.stamp:.3f} s: "
                            "rotation deskew clamped to the IMU span")
-        v_sensor = None
-        if cfg.deskew_translation and st.velocity is not None and st.pose is not None:
+        v_sensor = a_sensor = None
+        odom, track = self.odom, self.track
+        if cfg.deskew_translation and cfg.imu.deskew_motion == "predicted" and odom is not None and track is not None \
+                and odom.can_predict and st.pose is not None and track.covers(st.t, t_end) and t_end > sweep.stamp:
+            # graph #2's velocity at the sweep's start and end (a rocking mast changes it within 0.1 s)
+            rots, vels = odom.predict_velocity(st.pose, st.t, np.array([sweep.stamp, t_end]))
+            v_sensor = rots[0].T @ vels[0]
+            a_sensor = rots[0].T @ (vels[1] - vels[0]) / (t_end - sweep.stamp)
+        elif cfg.deskew_translation and st.velocity is not None and st.pose is not None:
             v_sensor = st.pose[:3, :3].T @ st.velocity
-        return deskew(image.points, image.point_time, sweep.stamp, self.track, v_sensor)
+        return deskew(image.points, image.point_time, sweep.stamp, self.track, v_sensor, a_sensor)
 
     def scan_to_map(self, stamp: float, feats: Features) -> tuple[np.ndarray, bool]:
         """Guess -> match against the local map -> roll/pitch blend -> correct graph #2.
@@ -315,6 +344,43 @@ class _Replay:
             st.velocity = (pose[:3, 3] - st.pose[:3, 3]) / (stamp - st.t)
         st.pose, st.t = pose, stamp
 
+    def refine_offset(self, stamp: float) -> None:
+        """Every slam.imu.refine_time_offset_s: estimate the IMU-LiDAR offset left in every sweep so
+        far against the IMU as now stamped, and shift the IMU stamps by it from now on. The matched
+        poses keep part of the IMU-driven guess, so one estimate reads only part of a large lag (30 ms
+        -> 23-28 ms); applied, the poses that follow keep less of it. An estimate at the search
+        bound is not trusted."""
+        every, tr, off = self.cfg.imu.refine_time_offset_s, self.trace, self.offset
+        if every <= 0 or not self.cfg.imu.estimate_time_offset or self.track is None or self.imu is None \
+                or stamp - tr.stamps[off.start] < every:
+            return
+        off.start = len(tr.stamps) - 1  # the next estimate after another `every` s
+        found = self.segment_offset()
+        # applied only when it stands out of its own noise (2 standard errors) and inside the search
+        if found is None or abs(found.offset_s) >= SEARCH_S - 1e-3 or abs(found.offset_s) < 2 * found.sigma_s:
+            return
+        est = found.offset_s
+        off.history.append((stamp, est))
+        off.applied += est
+        self.imu = replace(self.imu, stamps=self.imu.stamps - est)
+        self.track = imu_track(self.imu, self.extr[:3, :3], self.gyro_bias, self.cfg.imu.sample_hold)
+        if self.odom is not None:
+            self.odom.track = self.track
+        self.events.append(SlamEvent(t=stamp, kind="imu_time_offset",
+                                     message=f"IMU-LiDAR offset {est * 1e3:+.1f} ms since the last estimate: "
+                                     f"applied, {off.applied * 1e3:.1f} ms in all",
+                                     data={"estimate_s": est, "applied_s": off.applied}))
+
+    def segment_offset(self, k: int = 0) -> OffsetEstimate | None:
+        """The offset left in the sweeps from the k-th on against the IMU as now stamped (None: too few
+        or no rotation)."""
+        tr = self.trace
+        if self.track is None or len(tr.stamps) - k < 2:
+            return None
+        online = np.array(tr.online[k:])
+        return imu_time_offset(np.asarray(tr.stamps[k:]), online[:, :3, :3], self.track,
+                               np.asarray(tr.measured[k:], bool))
+
     def warn_once(self, t: float, key: str, text: str) -> None:
         """A condition that holds for the whole log: one warning (and one event at its first sweep)."""
         if key not in self.st.warned:
@@ -338,15 +404,33 @@ class _Replay:
             quality = self.map_quality(dense)
         stamps = np.asarray(tr.stamps)
         online = np.array(tr.online) if tr.online else np.zeros((0, 4, 4))
-        offset = None
+        offset = sigma = None
         if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
-            offset = estimate_imu_time_offset(stamps, online[:, :3, :3], self.track, np.asarray(tr.measured, bool))
+            left = self.segment_offset()  # what the applied estimates left (all of it when none was applied)
+            if left is not None:
+                offset, sigma = self.offset.applied + left.offset_s, left.sigma_s
+            elif self.offset.history:
+                offset = self.offset.applied
         return SlamOutput(stamps=stamps, poses=poses, kf_stamps=np.asarray(self.graph.stamps), kf_poses=kf_poses,
                           map_points=map_points, timing_ms=self.timing, events=self.events, warnings=self.warnings,
                           n_sweeps=n_sweeps, wall_s=time.perf_counter() - wall0,
                           imu_bias=self.odom.bias_vector if self.odom is not None else None,
                           degenerate=np.asarray(tr.degenerate, bool), online_poses=online,
-                          imu_time_offset_s=offset, map_quality=quality)
+                          imu_time_offset_s=offset, map_quality=quality, imu_noise=self.imu_report(),
+                          imu_time_offset_sigma_s=sigma)
+
+    def imu_report(self) -> dict[str, Any] | None:
+        """The IMU's measured noise and biases (IMU axes), what the preintegration used, and how
+        graph #2 restarted."""
+        if self.track is None:
+            return None
+        out: dict[str, Any] = {"stationary": None if self.imu_noise is None else self.imu_noise.summary()}
+        if self.odom is not None:
+            out.update(used_from_log=bool(self.cfg.imu.noise_from_log and self.imu_noise is not None),
+                       acc_noise_used=self.odom.noise_used[0], gyro_noise_used=self.odom.noise_used[1],
+                       reset_priors=self.cfg.imu.reset_priors, marginal_resets=self.odom.marginal_resets,
+                       failure_resets=self.odom.resets)
+        return out
 
     def map_quality(self, dense: np.ndarray) -> MapQuality | None:
         """Entropy and plane variance of the union of keyframe clouds in their final poses."""
@@ -369,18 +453,19 @@ class _Clock:
         self.t = now
 
 
-def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig,
-               warnings: list[str]) -> tuple[ImuTrack | None, ImuOdometry | None, ImuSeries | None]:
+def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warnings: list[str],
+               noise: ImuNoiseEstimate | None = None
+               ) -> tuple[ImuTrack | None, ImuOdometry | None, ImuSeries | None, np.ndarray | None]:
     if imu is None or imu.stamps.size < 3:
         warnings.append("no IMU: no deskew rotation, no attitude initialisation, constant-velocity guess only")
-        return None, None, None
+        return None, None, None, None
     imu = clean_imu(imu)
     bias = None
     if cfg.gyro_bias_init_s > 0:
         bias = imu.gyro[imu.stamps <= imu.stamps[0] + cfg.gyro_bias_init_s].mean(axis=0)
     track = imu_track(imu, extr[:3, :3], bias, cfg.imu.sample_hold)
-    odom = ImuOdometry(track, cfg.imu, extr) if cfg.imu.use_preintegration_graph else None
-    return track, odom, imu
+    odom = ImuOdometry(track, cfg.imu, extr, noise) if cfg.imu.use_preintegration_graph else None
+    return track, odom, imu, bias
 
 
 def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarray, t: float,

@@ -5,6 +5,8 @@ t was measured at t - offset)."""
 
 from __future__ import annotations
 
+from dataclasses import dataclass
+
 import numpy as np
 from scipy.spatial.transform import Rotation
 
@@ -38,23 +40,39 @@ def _imu_rates(t_imu: np.ndarray, integral: np.ndarray, t0: np.ndarray, t1: np.n
     return np.asarray((at(t1) - at(t0)) / (t1 - t0)[:, None], np.float64)
 
 
-def _cost(offset: float, t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t_imu: np.ndarray,
-          integral: np.ndarray) -> float:
-    """Mean squared rate difference after removing the mean difference (a constant gyro bias)."""
+def _axis_costs(offset: float, t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t_imu: np.ndarray,
+                integral: np.ndarray) -> np.ndarray:
+    """(3,) mean squared rate difference per axis after removing the mean difference (a constant
+    gyro bias)."""
     diff = _imu_rates(t_imu, integral, t0 + offset, t1 + offset) - lidar
     diff -= diff.mean(axis=0)
-    return float(np.mean(np.sum(diff * diff, axis=1)))
+    return np.asarray(np.mean(diff * diff, axis=0), np.float64)
+
+
+@dataclass(frozen=True, kw_only=True)
+class OffsetEstimate:
+    offset_s: float
+    sigma_s: float  # formal standard error (residuals taken as independent: a lower bound), s
+    intervals: int  # sweep intervals compared
 
 
 def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
-                             measured: np.ndarray | None = None) -> float | None:
+                             measured: np.ndarray | None = None, *, axis_weights: bool = True) -> float | None:
+    """The offset (s) of `imu_time_offset`, or None."""
+    est = imu_time_offset(stamps, rotations, track, measured, axis_weights=axis_weights)
+    return None if est is None else est.offset_s
+
+
+def imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
+                    measured: np.ndarray | None = None, *, axis_weights: bool = True) -> OffsetEstimate | None:
     """Offset (s) minimising the rate mismatch on a 0.5 ms grid within +/-0.1 s, refined by a
     parabola through the best grid point and its neighbours. None when fewer than 10 sweep
     intervals lie inside the IMU span, the mapped sweeps are more than MAX_INTERVAL_S apart (a
     throttled log: 1 s rotation increments do not time a few ms), or the motion has no rotation
     to correlate. `measured` (per sweep) marks poses the LiDAR determined (scan-to-map ran and was
     not degenerate): an interval counts only when both ends are, since a kept IMU guess would
-    compare the gyro with itself."""
+    compare the gyro with itself. `axis_weights`: each axis's squared rate mismatch divided by its
+    own smallest (False: summed as they are)."""
     inside = (stamps - SEARCH_S >= track.stamps[0]) & (stamps + SEARCH_S <= track.stamps[-1])
     ok = inside if measured is None else inside & np.asarray(measured, bool)
     spaced = stamps[inside] if inside.sum() >= 2 else stamps  # the mapped sweeps' spacing, where the IMU is
@@ -69,8 +87,20 @@ def estimate_imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: I
         return None
     t_imu, integral = _gyro_integral(track)
     grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
-    cost = np.array([_cost(o, t0, t1, lidar, t_imu, integral) for o in grid])
+    per_axis = np.array([_axis_costs(o, t0, t1, lidar, t_imu, integral) for o in grid])  # (G, 3)
+    # each axis weighted by the inverse of its own best residual: the LiDAR times its axes unequally
+    # (a roll held by the ground alone scatters more), and an axis that scatters should not set the
+    # offset for the others (a maximum-likelihood fit with a noise level per axis)
+    floor = max(float(per_axis.min(axis=0).max()) * 1e-3, 1e-12)
+    weighted = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor))
+    cost = weighted if axis_weights else per_axis.sum(axis=1)
     k = int(np.argmin(cost))
+    n = int(pair.sum())
     if k == 0 or k == grid.size - 1:
-        return float(grid[k])
-    return float(grid[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S)
+        return OffsetEstimate(offset_s=float(grid[k]), sigma_s=float("inf"), intervals=n)
+    # chi^2(o) = n * weighted(o) with each axis's noise its best mean square: sigma^2 = 2 / chi^2''
+    kw = min(max(int(np.argmin(weighted)), 1), grid.size - 2)
+    curv = (weighted[kw - 1] - 2 * weighted[kw] + weighted[kw + 1]) / STEP_S ** 2
+    sigma = float(np.sqrt(2.0 / (n * curv))) if curv > 0 else float("inf")
+    return OffsetEstimate(offset_s=float(grid[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S),
+                          sigma_s=sigma, intervals=n)

@@ -197,9 +197,9 @@ def test_control_cli_json_and_table(tmp_path, capsys) -> None:
     # the feed-forward's +4 % offset is overshoot only in the reference-centred reading
     assert raid["left"]["paper_overshoot_pct"] > 3.0 > 1.0 > raid["left"]["paper_stepinfo_overshoot_pct"]
     assert raid["left"]["paper_steady_offset_mps"] > 0.01
-    assert body["loop"]["raid_output_unit"] == "rpm_per_unit"
-    assert 50.0 < body["loop"]["raid_interior_gain_rpm_per_mps"] < 200.0  # literal reading: ~97 RPM per m/s
-    assert [r["scale_rpm_per_unit"] for r in body["raid_scale_study"]] == [1.0, 10.0, 100.0]
+    assert body["meta"]["loop"]["raid_output_unit"] == "rpm_per_unit"
+    assert 50.0 < body["meta"]["loop"]["raid_interior_gain_rpm_per_mps"] < 200.0  # literal reading: ~97 RPM per m/s
+    assert [r["scale_rpm_per_unit"] for r in body["meta"]["raid_scale_study"]] == [1.0, 10.0, 100.0]
     result = read_result(next(tmp_path.iterdir()))
     paper, table = result.tables[:2]
     assert paper.column_labels == ["RAID", "PID", "FF only (negative control)", "paper: RAID", "paper: PID"]

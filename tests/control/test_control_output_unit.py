@@ -7,6 +7,7 @@ from __future__ import annotations
 import math
 from dataclasses import replace
 
+import numpy as np
 import pytest
 
 from mrnc_eval.config import Config
@@ -56,3 +57,16 @@ def test_p_law_gain_margin_closed_form() -> None:
     assert critical_p_gain(drive) == pytest.approx(want, rel=2e-3)
     m = margins(pi_response(2.0 * want, 0.0) * plant_response(drive))
     assert m.gain_margin == pytest.approx(0.5, rel=2e-3)  # twice the critical gain: unstable
+
+
+def test_bode_agrees_with_the_margins() -> None:
+    from mrnc_eval.control.margins import bode, loop_margins
+
+    c = Config().control
+    g = interior_gain(c, v=0.38, phi=0.0)
+    _, loops = bode(c, g, points=20000)
+    m = loop_margins(c, g)["pid"]
+    phase = np.unwrap(np.angle(loops["pid"]))
+    k = int(np.flatnonzero(phase <= -np.pi)[0])
+    assert 1.0 / np.abs(loops["pid"][k]) == pytest.approx(m.gain_margin, rel=0.01)
+    assert np.all(np.abs(loops["raid"]) < 1.0)  # the literal reading: RAID's loop gain never reaches 1

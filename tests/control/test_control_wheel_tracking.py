@@ -231,3 +231,15 @@ def test_csv_waypoints_with_or_without_a_header(tmp_path: Path) -> None:
     want = np.array([[0.0, 0.0], [1.5, 0.25], [3.0, 1.0]])
     for path in (plain, named):
         np.testing.assert_array_equal(read_waypoints(path).xy, want)
+
+
+def test_replay_refuses_controllers_and_prints_not_settled(capsys: pytest.CaptureFixture[str],
+                                                          tmp_path: Path) -> None:
+    from mrnc_eval.cli import main as cli_main
+    from mrnc_eval.reports.control_tables import replay_cell as _replay_cell
+
+    assert cli_main(["control", str(tmp_path / "any.mcap"), "--mode", "replay", "--controllers", "pid"]) == 2
+    assert "--controllers chooses the controllers of --mode simulate and sweep" in capsys.readouterr().err
+    assert _replay_cell(float("inf")) == "not settled"  # the legend's words, not "inf"
+    assert _replay_cell(float("nan")) is None
+    assert _replay_cell(1.5) == 1.5

@@ -101,3 +101,14 @@ def test_label_names_each_estimate_in_table_json_and_plot(tmp_path: Path, capsys
     assert [r["name"] for r in json.loads(capsys.readouterr().out)["results"]] == [run.name, "other"]
     assert main([*base, "--label", "one"]) == 2
     assert "--label given 1 time(s) for 2 estimate(s)" in capsys.readouterr().err
+
+
+def test_the_fast_ape_path_stays_fast_without_label_and_leaves_label_to_typer() -> None:
+    from mrnc_eval import cli
+    from mrnc_eval.cli_fast import fast_command
+
+    commands = {"ape": cli.ape, "rpe": cli.rpe}
+    plain = fast_command(["ape", "ref.tum", "est.tum"], commands)
+    assert plain is not None
+    assert plain[1].get("label") is None  # not given: the function default
+    assert fast_command(["ape", "ref.tum", "a.tum", "b.tum", "--label", "A", "--label", "B"], commands) is None

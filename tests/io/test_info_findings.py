@@ -29,6 +29,7 @@ def test_info_reports_duplicates_fix_ratio_and_coverage(tmp_path: Path, capsys: 
     info = _info(tmp_path / "dup.bag", capsys)
     assert info["container"] == "ros1"
     topics = {t["topic"]: t for t in info["topics"]}
+    assert topics["/ouster/imu"]["msgtype"] == "sensor_msgs/Imu"  # ROS 1 names in a ROS 1 bag
     assert topics["/ouster/imu"]["count"] == 52
     assert topics["/ouster/imu"]["duplicates"] == 2
     assert topics["/ouster/imu"]["rate_hz"] == pytest.approx(51 / 0.49, abs=1e-3)
@@ -84,3 +85,9 @@ def test_duplicate_and_out_of_order_sweeps_are_skipped_and_noted(tmp_path: Path)
     assert health.duplicates == 1
     assert health.out_of_order == 1
     assert health.notes == ("2 sweep(s) skipped: header stamp not after the previous sweep",)
+
+
+def test_info_names_types_the_ros2_way_in_ros2_logs(tmp_path: Path, capsys: pytest.CaptureFixture[str]) -> None:
+    write_sample(tmp_path / "run.mcap", "mcap")
+    topics = {t["topic"]: t for t in _info(tmp_path / "run.mcap", capsys)["topics"]}
+    assert topics["/ouster/imu"]["msgtype"] == "sensor_msgs/msg/Imu"

@@ -4,6 +4,7 @@ recognise a container by its first bytes, the suffix only as a fallback."""
 
 from __future__ import annotations
 
+import re
 import shutil
 from pathlib import Path
 
@@ -46,7 +47,11 @@ def test_simulate_takes_the_format_from_the_name(tmp_path: Path, capsys: pytest.
     args = ["simulate", f"{tmp_path}/{out}", *SHORT, *(["--format", fmt] if fmt else [])]
     assert main(args) == 0, capsys.readouterr().err
     log = tmp_path / written
-    assert f"wrote {log}" in capsys.readouterr().err
+    said = capsys.readouterr().err
+    assert f"wrote {log} (" in said
+    assert re.search(r" MB|kB", said)  # the size
+    assert re.search(r", \d+\.\d s: ", said)  # the duration
+    assert f"its ground truth {log.parent / log.name.split('.')[0]}.gt.tum" in said
     assert _opens_as(log) == container
     assert (log / "metadata.yaml").is_file() == log.is_dir()
     assert main(["info", str(log)]) == 0

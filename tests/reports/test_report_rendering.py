@@ -187,12 +187,14 @@ def test_simulated_control_report_has_table_two_and_a_funnel_only_for_raid(tmp_p
     assert main(["report", str(result_dir), "--out", str(tmp_path / "rep")]) == 0
     html = (tmp_path / "rep" / "report.html").read_text(encoding="utf-8")
     captions = re.findall(r"<figcaption>([^<]*)</figcaption>", html)
-    assert len(captions) == 8  # tracking, effort, feedback share (and phi-hat for RAID), path per controller
+    # tracking, effort, feedback share (and phi-hat for RAID), path per controller; one Bode plot of the laws
+    assert len(captions) == 9
+    assert sum("Open loop" in c for c in captions) == 1
     assert sum("phi-hat" in c for c in captions) == 1
     assert [c for c in captions if "funnel" in c] == ["RAID: wheel-speed reference vs measured, funnel band "
                                                       "reference ± o(t)"]
     assert "Table II" in html
     assert (tmp_path / "rep" / "control_table2.tex").exists()
     counts, console = open_in_chromium(tmp_path / "rep" / "report.html", tmp_path)
-    assert counts["figures"] == counts["sized"] == counts["drawn"] == 8
+    assert counts["figures"] == counts["sized"] == counts["drawn"] == 9
     assert not console

@@ -75,12 +75,13 @@ def _slam_run(method: str, config_hash: str) -> RunResult:
     """A SLAM result as the slam verb writes it (the metrics each method has)."""
     names = ["ape_rmse_m", "ape_online_rmse_m", "end_drift_m", "end_drift_online_m", "keyframes", "loop_closures"]
     names += ["imu_time_offset_s", "map_entropy"] if method == "lio" else []  # the peer writes no map
-    metrics = [Metric(n, 0.02, "m", "slam/ape") for n in names]
+    metrics = [Metric(name=n, value=0.02, unit="m", group="slam/ape") for n in names]
     timing = {st: {"mean": 1.0 if method == "lio" or st in ("read", "matching") else 0.0, "p95": 0.0, "max": 0.0}
               for st in ("read", "deskew", "features", "matching", "graph", "loop")}
     extra = {"method": method, "timing_ms": timing, "deskew": False,
              "warmup_total_ms": 7000.0 if method == "lio" else 0.0}
-    return RunResult("slam", "run.mcap", "run", config_hash=config_hash, metrics=metrics, extra=extra)
+    return RunResult(kind="slam", log_path="run.mcap", log_id="run", config_hash=config_hash, metrics=metrics,
+                     extra=extra)
 
 
 LIO_ONLY_TEXT = ("re-anchored", "numba", "IMU time offset", ">keyframes<", ">loop closures<", ", online (m)<")
@@ -103,6 +104,12 @@ def test_two_slam_runs_show_no_control_cards_own_definitions_and_both_config_has
     assert "<code>slam.method</code></td><td>kiss-icp</td><td>lio</td>" in html  # the one key that differs
 
 
+def test_a_result_without_config_yaml_does_not_claim_the_defaults() -> None:
+    html = render_html([_slam_run("lio", "aaaa1111")], gates=GatesConfig(), config_text="")
+    assert "Configuration <code>aaaa1111</code>: no config.yaml beside the result" in html
+    assert "the defaults." not in html
+
+
 def test_control_cards_come_with_a_control_run() -> None:
     html = render_html([_slam_run("lio", "aaaa1111"), _control()], gates=GatesConfig(), config_text="")
     cards = re.findall(r'<div class="l">([^<]+)</div><div class="v">', html)
@@ -117,3 +124,18 @@ def test_config_differences_list_only_keys_away_from_the_defaults() -> None:
     changed = replace_path(replace_path(Config(), "slam.loop.enabled", False), "slam.mapping_interval_s", 0.3)
     assert config_differences(dump_config(changed)) == [("slam.loop.enabled", "False", "True"),
                                                         ("slam.mapping_interval_s", "0.3", "0.15")]
+    older = "slam:\n  loop:\n    enabled: false\n"  # a config.yaml of a release before most keys existed
+    assert config_differences(older) == [("slam.loop.enabled", "False", "True")]
+
+
+def test_trend_titles_name_metrics_with_units() -> None:
+    from mrnc_eval.reports.night import metric_label, render_trends
+
+    assert metric_label("slam/ape/ape_rmse_m") == "APE RMSE, smoothed (m)"
+    assert metric_label("control/recorded/left/rms_error_mps") == "RMS error (m/s), recorded left"
+    assert metric_label("slam/timing/ms_per_sweep_matching") == "matching time per sweep (ms)"
+    assert metric_label("slam/mapping_rate_hz") == "mapping rate (Hz)"
+    page = render_trends(["2026-11-01", "2026-11-02"], {"slam/ape/ape_rmse_m": {"a": {"2026-11-01": 0.1,
+                                                                                     "2026-11-02": 0.2}}},
+                         {}, 5, 0.2)
+    assert "<figcaption>APE RMSE, smoothed (m) <code>slam/ape/ape_rmse_m</code></figcaption>" in page

@@ -71,7 +71,7 @@ def test_slam_verb_on_real_recording_says_there_is_no_ground_truth(real_ouster_m
 
     assert main(["slam", str(real_ouster_mcap), "--out", str(tmp_path), "--set", "slam.mapping_interval_s=0"]) == 0
     line = capsys.readouterr().out.strip().splitlines()[-1]
-    assert "APE RMSE n/a (no ground truth)" in line
+    assert "APE RMSE n/a (no ground truth: give one as" in line
     assert "nan" not in line
     (run_dir,) = [p for p in tmp_path.iterdir() if not p.is_symlink()]  # and OUT/latest -> it
     assert len((run_dir / "trajectory.tum").read_text().splitlines()) == 3

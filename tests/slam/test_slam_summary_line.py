@@ -15,13 +15,17 @@ from mrnc_eval.slam.output import STAGES, SlamOutput
 
 
 def _inputs(n_sweeps: int) -> LogInputs:
-    return LogInputs(52.5, np.eye(4), None, np.eye(4), None, None, np.zeros(3), np.zeros(3), n_sweeps, 0.3)
+    return LogInputs(duration_s=52.5, base_to_sensor=np.eye(4), imu=None, sensor_to_imu=np.eye(4), gnss=None,
+                     ground_truth=None, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3), n_sweeps=n_sweeps,
+                     max_sweep_gap_s=0.3)
 
 
 def _output(mapped: int, decoded: int) -> SlamOutput:
     poses = np.tile(np.eye(4), (mapped, 1, 1))
-    return SlamOutput(np.arange(mapped) * 0.39, poses, np.zeros(0), np.zeros((0, 4, 4)), np.zeros((0, 3)),
-                      {st: [1.0] * mapped for st in STAGES}, [], [], decoded, 19.4)
+    return SlamOutput(stamps=np.arange(mapped) * 0.39, poses=poses, kf_stamps=np.zeros(0),
+                      kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)),
+                      timing_ms={st: [1.0] * mapped for st in STAGES}, events=[], warnings=[], n_sweeps=decoded,
+                      wall_s=19.4)
 
 
 @pytest.mark.parametrize(("method", "every"), [("lio", "every 0.15 s or more (slam.mapping_interval_s)"),
@@ -42,15 +46,16 @@ def _printed(r: RunResult, capsys: pytest.CaptureFixture[str]) -> str:
 
 
 def _run(*extra: Metric) -> RunResult:
-    base = [Metric("rtf", 2.7, "", "slam"), Metric("keyframes", 26, "", "slam"),
-            Metric("loop_closures", 12, "", "slam")]
+    base = [Metric(name="rtf", value=2.7, unit="", group="slam"),
+            Metric(name="keyframes", value=26, unit="", group="slam"),
+            Metric(name="loop_closures", value=12, unit="", group="slam")]
     r = RunResult(kind="slam", log_path="logs/loop_forest.bag", log_id="loop_forest", metrics=[*base, *extra])
     r.extra["mapping_rate"] = "mapping 134 of 236 sweeps, every 0.15 s or more (slam.mapping_interval_s), 2.6 Hz"
     return r
 
 
 def test_without_ground_truth_says_how_to_give_one_and_the_gnss_comparison(capsys) -> None:
-    line = _printed(_run(Metric("ape_gnss_rmse_m", 1.82, "m", "slam/ape")), capsys)
+    line = _printed(_run(Metric(name="ape_gnss_rmse_m", value=1.82, unit="m", group="slam/ape")), capsys)
     assert "n/a (no ground truth: give one as loop_forest.gt.tum beside the log (TUM) or --set " \
            "io.roles.ground_truth=TOPIC)" in line
     assert "vs GNSS 1.820 m (2-D" in line
@@ -58,7 +63,8 @@ def test_without_ground_truth_says_how_to_give_one_and_the_gnss_comparison(capsy
 
 
 def test_with_ground_truth_no_hint(capsys) -> None:
-    line = _printed(_run(Metric("ape_rmse_m", 0.0288, "m", "slam/ape"), Metric("ape_gnss_rmse_m", 1.82, "m", "x")),
+    line = _printed(_run(Metric(name="ape_rmse_m", value=0.0288, unit="m", group="slam/ape"),
+                         Metric(name="ape_gnss_rmse_m", value=1.82, unit="m", group="x")),
                     capsys)
     assert "smoothed 0.0288 m" in line
     assert "no ground truth" not in line

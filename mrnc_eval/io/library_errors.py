@@ -1,0 +1,45 @@
+"""What the reading libraries raise for a broken, truncated or unexpected file, by type.
+
+Caught at the io boundary (io/log_source.py, io/overview.py, io/containers.py, io/mcap_index.py,
+io/chunk_prefix.py, export/log_copy.py) and reported as InputError naming the file and topic
+(exit 4). Anything else (AttributeError, TypeError, NameError...) is a bug of ours and reaches
+cli.main as one (exit 5), instead of posing as "corrupted or truncated data".
+"""
+
+from __future__ import annotations
+
+import contextlib
+import functools
+import importlib
+import sqlite3
+import struct
+
+# raised by the libraries' own parsing on bad bytes: short buffers, bad lengths, bad text; rosbags'
+# ROS 1 reader asserts on some corrupt chunks (tests/io/test_io_bad_input.py's fuzzing finds it)
+_PARSING = (struct.error, EOFError, OSError, ValueError, KeyError, IndexError, OverflowError, MemoryError,
+            AssertionError)
+
+
+@functools.cache
+def data_errors() -> tuple[type[Exception], ...]:
+    """The exception types a log library raises for bad data (imported on first use: the
+    libraries are heavy and only needed when a log is read)."""
+    from mcap.exceptions import McapError
+    from rosbags.highlevel import AnyReaderError
+    from rosbags.rosbag1 import ReaderError as Ros1ReaderError
+    from rosbags.rosbag2 import ReaderError as Ros2ReaderError
+    from rosbags.serde import SerdeError
+    from rosbags.typesys import TypesysError
+
+    found: list[type[Exception]] = [McapError, AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError,
+                                        TypesysError, sqlite3.Error, *_PARSING]
+    for module in ("zstandard", "backports.zstd", "compression.zstd"):  # mcap's, rosbags' (py < 3.14, >= 3.14)
+        with contextlib.suppress(ImportError, AttributeError):  # not installed: that library refuses zstd itself
+            found.append(importlib.import_module(module).ZstdError)
+    try:
+        from lz4.block import LZ4BlockError
+
+        found += [LZ4BlockError, RuntimeError]  # lz4.frame reports a corrupt frame as RuntimeError
+    except ImportError:
+        pass
+    return tuple(found)

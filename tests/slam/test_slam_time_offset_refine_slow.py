@@ -1,0 +1,59 @@
+"""Slow: applying the IMU-LiDAR offset during the run (slam.imu.refine_time_offset_s) on a 40 s
+field-profile yard log (OS0-32 x 512, seed 3, standing 3 s, ideal wheels, field GNSS) whose IMU is
+30 ms late (the field's 5 ms + 25 ms shifted in the test). Run:
+    .venv/bin/python -m pytest -m slow tests/slam/test_slam_time_offset_refine_slow.py -s
+
+One estimate after the run reads only part of a large lag, since the poses keep part of the IMU-driven
+guess; applied every 10 s, the poses that follow keep less of it. Measured (the same drive as
+docs/simulation.md's yard seed 3, defaults): 23.56 ms once after the run, 27.38 ms applied every
+10 s (the log written by the CLI: 22.67 / 26.36 ms; one estimate applied, +28.1 ms at 10.2 s, and
+the sweeps before it, made with the full lag, pull the final residual to -1.7 ms). The issue's
+2 ms is not met on this log either way (2.6 ms off when applied, 6.4 ms when not).
+"""
+
+from __future__ import annotations
+
+from dataclasses import replace
+from pathlib import Path
+
+import pytest
+
+from mrnc_eval.config import Config, replace_path
+
+pytestmark = pytest.mark.slow
+TRUE_LAG_S = 0.030
+REFINED_LIMIT_S = 0.005  # measured error 2.6-3.6 ms
+ONCE_MIN_S = 0.005  # measured error 6.4-7.3 ms
+
+
+@pytest.fixture(scope="module")
+def yard_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
+
+    cfg = replace_path(replace_path(Config(), "sim.standstill_s", 3.0), "sim.lidar.packet_profile", "RNG15_RFL8_NIR8")
+    return simulate_log(tmp_path_factory.mktemp("yard") / "yard_s3.mcap", cfg,
+                        SimRequest(scene="yard", path="circle", duration_s=40.0, lidar="os0-32", columns=512,
+                                   seed=3, profile="field"))
+
+
+def _estimate(log: Path, refine_s: float) -> float:
+    from mrnc_eval.io import open_log
+    from mrnc_eval.slam.replay import run_slam
+
+    cfg = replace_path(Config(), "slam.imu.refine_time_offset_s", refine_s)
+    with open_log(log) as lg:
+        imu = lg.imu()
+        out = run_slam(lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s),
+                       replace(imu, stamps=imu.stamps + TRUE_LAG_S - cfg.sim.field.clock.imu_offset_s), cfg.slam,
+                       sensor_to_imu=lg.transform("os_sensor", "os_imu"))
+    assert out.imu_time_offset_s is not None
+    return out.imu_time_offset_s
+
+
+def test_a_30_ms_lag_applied_during_the_run_is_read_within_3_ms_and_not_without(yard_log: Path) -> None:
+    once = _estimate(yard_log, 0.0)
+    refined = _estimate(yard_log, 10.0)
+    print(f"\nIMU lag 30 ms: one estimate after the run {once * 1e3:.2f} ms, applied every 10 s "
+          f"{refined * 1e3:.2f} ms")
+    assert abs(refined - TRUE_LAG_S) < REFINED_LIMIT_S
+    assert abs(once - TRUE_LAG_S) > ONCE_MIN_S  # negative control: without applying, the lag under-reads
