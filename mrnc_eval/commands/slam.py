@@ -209,6 +209,7 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
     _add_time_offset(result, out, cfg)
+    _add_wheel_health(result, out)
     _add_map_quality(result, out, cfg)
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
@@ -586,6 +587,28 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"imu_time_offset_s": offset}))
 
 
+def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
+    """The online wheel calibration (slam/wheel_health.py): metrics, the whole record in metrics.json
+    (`wheel_health`) and the result, and a warning when the wheels disagree with the gyro or LiDAR."""
+    h = out.wheel_health
+    if h is None:
+        return
+    result.extra["wheel_health"] = h
+    result.metrics += [Metric(name="wheel_track_factor", value=h["track_factor"], unit="", group="slam/health",
+                              note=f"effective track factor (wheel yaw / gyro yaw) +- {h['track_factor_sigma']:.3f}"),
+                       Metric(name="wheel_lr_mismatch", value=h["lr_mismatch"], unit="", group="slam/health",
+                              note=f"right-minus-left radius mismatch +- {h['lr_mismatch_sigma']:.4f}"),
+                       Metric(name="wheel_scale_error", value=h["scale_error"], unit="", group="slam/health",
+                              note=f"wheel distance / LiDAR distance - 1 +- {h['scale_error_sigma']:.4f}"),
+                       Metric(name="wheel_rejected_fraction", value=h["rejected_fraction"], unit="",
+                              group="slam/health")]
+    if h["verdict"] != "ok":
+        text = (f"wheel odometry {h['verdict']}: " + "; ".join(h["reasons"])
+                + " - the SLAM used the wheels calibrated online; give these values to the odometry node")
+        result.warnings.append(text)
+        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"wheel_verdict": h["verdict"]}))
+
+
 def _add_map_quality(result: RunResult, out: SlamOutput, cfg: Config) -> None:
     q = out.map_quality
     if q is None:
@@ -622,7 +645,9 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
             for name in ("map.ply", "map.pcd"):
                 o3d.io.write_point_cloud(str(tmp / name), pc)
                 files[name] = tmp / name
-        metrics = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
+        metrics: dict[str, object] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
+        if "wheel_health" in result.extra:
+            metrics["wheel_health"] = result.extra["wheel_health"]
         (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")
         files["metrics.json"] = tmp / "metrics.json"
         write_result(result, out_dir, dump_config(cfg), files)

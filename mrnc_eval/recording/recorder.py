@@ -4,11 +4,12 @@ Deterministic: one seeded generator, consumed in a fixed order, and a fixed log 
 
 from __future__ import annotations
 
+import json
 import math
 from collections.abc import Callable, Sequence
 from dataclasses import dataclass, replace
 from pathlib import Path
-from typing import Literal, cast
+from typing import Any, Literal, cast
 
 import numpy as np
 from scipy.spatial.transform import Rotation
@@ -22,24 +23,26 @@ from mrnc_eval.io.ground_truth import gt_tum_path
 from mrnc_eval.io.trajectory_files import write_tum
 from mrnc_eval.io.writers import Format, LogWriter
 from mrnc_eval.sim.config import FieldConfig, LidarSimConfig
-from mrnc_eval.sim.gnss import simulate_field_gnss, simulate_gnss
+from mrnc_eval.sim.gnss import GnssFixes, simulate_field_gnss, simulate_gnss
 from mrnc_eval.sim.imu import ImuNoise, field_imu, simulate_imu
 from mrnc_eval.sim.lidar import BodyBox, FieldLidar, LidarSimulator, OrganisedSweep, ouster_metadata
 from mrnc_eval.sim.lidar_field import place_moving_box, scatter_puddles
 from mrnc_eval.sim.scene import SCENES, Scene, build_scene
 from mrnc_eval.sim.standstill import hold_start
 from mrnc_eval.sim.trajectory import BASE_HEIGHT_M, BodyTrajectory, stone_shake
-from mrnc_eval.sim.wheels import drive_signals
+from mrnc_eval.sim.wheels import WheelErrors, draw_wheel_errors, drive_signals
 
 LOG_EPOCH_S = 1_763_800_000.0  # sensor-clock time of every simulated log's t = 0, s
 LIDAR_MODELS = {"os0-128": 128, "os0-64": 64, "os0-32": 32}
 PATHS = ("circle", "figure8", "loop", "line")
 Profile = Literal["ideal", "field"]
 PROFILES: tuple[Profile, ...] = ("ideal", "field")
+WHEEL_STREAM, GNSS_STREAM = 17, 19  # the wheel errors and a forced GNSS mode draw from streams of their own
 FIELD_STREAM = 13  # the field profile draws from default_rng([seed, FIELD_STREAM]): ideal draws stay as they were
 TOPICS = {"lidar": "/ouster/points", "metadata": "/ouster/metadata", "imu": "/ouster/imu",
           "chassis_imu": "/chassis/imu", "gnss": "/gnss/fix", "wheels": "/wheel_speeds", "pumps": "/pump_cmd",
-          "cmd_vel": "/cmd_vel", "wheel_odom": "/wheel_odom", "plan": "/plan", "ground_truth": "/ground_truth"}
+          "cmd_vel": "/cmd_vel", "wheel_odom": "/wheel_odom", "plan": "/plan", "ground_truth": "/ground_truth",
+          "sim_errors": "/sim/errors_drawn"}
 
 
 @dataclass(frozen=True)
@@ -131,8 +134,13 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
     try:
         _write_static(writer, run, world, frames)
         _write_imus(writer, run, world, frames)
-        _write_gnss(writer, run, world, frames)
-        _write_drive(writer, world.trace, run.stamps(cfg.sim.wheel_rate_hz, world), cfg, LOG_EPOCH_S, run.host_stamps)
+        fixes = _write_gnss(writer, run, world, frames, np.random.default_rng([seed, GNSS_STREAM]))
+        errors_on = cfg.sim.wheels.model == "errors" or (cfg.sim.wheels.model == "profile" and run.field is not None)
+        wheel_errors = draw_wheel_errors(cfg.sim.wheels, errors_on, np.random.default_rng([seed, WHEEL_STREAM]))
+        _write_drive(writer, world.trace, run.stamps(cfg.sim.wheel_rate_hz, world), cfg, LOG_EPOCH_S, run.host_stamps,
+                     wheel_errors, np.random.default_rng([seed, WHEEL_STREAM, 1]))
+        drawn = _errors_drawn(cfg, wheel_errors, fixes)
+        writer.write_strings(TOPICS["sim_errors"], np.array([LOG_EPOCH_S]), [json.dumps(drawn, sort_keys=True)])
         gt = _write_ground_truth(writer, world.traj, run.stamps(cfg.sim.ground_truth_rate_hz, world), LOG_EPOCH_S)
         _write_sweeps(writer, run, world, frames, progress)
         path = writer.close()
@@ -140,6 +148,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         writer.abort()
         raise
     write_tum(gt_tum_path(path), gt)
+    errors_json_path(path).write_text(json.dumps(drawn, indent=2, sort_keys=True), encoding="utf-8")
     return path
 
 
@@ -263,18 +272,22 @@ def _write_imus(writer: LogWriter, run: _Run, world: _World, frames: _Frames) ->
         _write_imu(writer, TOPICS["chassis_imu"], chassis, chassis_noise, LOG_EPOCH_S)
 
 
-def _write_gnss(writer: LogWriter, run: _Run, world: _World, frames: _Frames) -> None:
-    """GNSS fixes: ideal, or the field receiver (fix types, multipath near structures, stamped late)."""
+def _write_gnss(writer: LogWriter, run: _Run, world: _World, frames: _Frames,
+                forced_rng: np.random.Generator) -> GnssFixes:
+    """GNSS fixes: ideal, or the field receiver (fix types, multipath near structures, stamped late);
+    sim.gnss.mode rtk/float/single forces one fix type (in the ideal profile from `forced_rng`, so
+    the ideal draws stay)."""
     scfg, field = run.cfg.sim, run.field
     times = run.stamps(scfg.gnss.rate_hz, world)
-    if field is None:
+    if field is None and scfg.gnss.mode == "profile":
         fixes = simulate_gnss(world.traj, times, frames.base_to_gnss, scfg.gnss, run.rng)
         gnss_stamps = fixes.stamps
     else:
-        fixes = simulate_field_gnss(world.traj, times, frames.base_to_gnss, scfg.gnss, field.gnss,
-                                    _structures_xy(world.scene), run.frng)
-        gnss_stamps = run.host_stamps(fixes.stamps + field.clock.gnss_latency_s)
+        fixes = simulate_field_gnss(world.traj, times, frames.base_to_gnss, scfg.gnss, scfg.field.gnss,
+                                    _structures_xy(world.scene), run.frng if field is not None else forced_rng)
+        gnss_stamps = fixes.stamps if field is None else run.host_stamps(fixes.stamps + field.clock.gnss_latency_s)
     writer.write_navsatfix(TOPICS["gnss"], gnss_stamps + LOG_EPOCH_S, fixes.lla, fixes.covariance, fixes.status)
+    return fixes
 
 
 def _write_sweeps(writer: LogWriter, run: _Run, world: _World, frames: _Frames,
@@ -355,10 +368,27 @@ def _write_imu(writer: LogWriter, topic: str, imu: ImuSeries, noise: ImuNoise, t
     writer.write_imu(topic, replace(imu, stamps=imu.stamps + t0), acc_var=acc_var, gyro_var=gyro_var)
 
 
+def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes: GnssFixes) -> dict[str, Any]:
+    """What the log's sensors got wrong on purpose, for tests and benchmarks (the /sim/errors_drawn
+    topic, a std_msgs/String of JSON, and <log>.errors.json beside the log)."""
+    status, counts = np.unique(np.asarray(fixes.status), return_counts=True)
+    return {"profile": cfg.sim.profile, "wheels": wheels.as_dict(), "track_width_m": cfg.robot.track_width_m,
+            "gnss": {"mode": cfg.sim.gnss.mode, "outages_s": [list(o) for o in cfg.sim.gnss.outages_s],
+                     "status_counts": {str(int(s)): int(c) for s, c in zip(status, counts, strict=True)}}}
+
+
+def errors_json_path(log_path: Path) -> Path:
+    """`<log name without suffix>.errors.json` beside the log (next to the .gt.tum)."""
+    gt = gt_tum_path(log_path)
+    return gt.with_name(gt.name.removesuffix(".gt.tum") + ".errors.json")
+
+
 def _write_drive(writer: LogWriter, trace: ClosedLoopTrace, times: np.ndarray, cfg: Config, t0: float,
-                 stamp: Callable[[np.ndarray], np.ndarray]) -> None:
-    """Drive-train topics; `stamp` maps true times to header stamps (the identity when ideal)."""
-    d = drive_signals(trace, times, cfg.robot.wheel_radius_m, cfg.robot.track_width_m)
+                 stamp: Callable[[np.ndarray], np.ndarray], errors: WheelErrors | None = None,
+                 rng: np.random.Generator | None = None) -> None:
+    """Drive-train topics; `stamp` maps true times to header stamps (the identity when ideal);
+    the wheel speeds and odometry carry `errors` (sim.wheels)."""
+    d = drive_signals(trace, times, cfg.robot.wheel_radius_m, cfg.robot.track_width_m, errors, rng)
     header = stamp(d.stamps) + t0
     writer.write_joint_state(TOPICS["wheels"], header, ["left_wheel", "right_wheel"], d.wheel_rad_s)
     writer.write_joint_state(TOPICS["pumps"], header, ["left_pump", "right_pump"], d.pump_rpm)

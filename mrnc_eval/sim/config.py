@@ -78,6 +78,34 @@ class GnssSimConfig:
     multipath_interval_s: tuple[float, float] = param((20.0, 25.0), "when the multipath jump is present "
                                                       "(since the log start)", "s")
     antenna_xyz_m: tuple[float, float, float] = param((0.0, 0.0, 2.2), "base_link -> gnss antenna", "m")
+    mode: Literal["profile", "rtk", "float", "single"] = param(
+        "profile", "fix type: profile (ideal: the noise above; field: from the distance to structures, "
+        "sim.field.gnss), or the same type all the time: rtk (fixed, sim.field.gnss.sigma_fixed_m), float "
+        "(sigma_float_m with multipath jumps everywhere at multipath_rate_hz), single (sigma_single_m)")
+    outages_s: tuple[tuple[float, float], ...] = param((), "intervals [start, end) since the log start without "
+                                                       "any fix (NO_FIX: under trees, a bridge, a shed)", "s")
+
+
+@dataclass(frozen=True)
+class WheelSimConfig:
+    """Wheel-odometry errors of a real skid-steer, separate from the plant: the plant drives the
+    true speeds, the odometry topic and the wheel speeds carry these. Defaults: a calibrated
+    machine (scale and left/right radii good to 0.5 %, skid 1.1x, hydraulic speed pickups)."""
+
+    model: Literal["profile", "exact", "errors"] = param(
+        "profile", "exact: the plant's wheel speeds (slip only); errors: the errors below; profile: errors with "
+        "sim.profile = field, exact with ideal")
+    scale_error: float = param(0.005, "common speed scale error, |fraction| (effective rolling radius); the sign "
+                               "is drawn per log", ge=0.0, lt=1.0)
+    lr_mismatch: float = param(0.005, "left/right radius mismatch, |fraction| (right x (1 + m/2), left x "
+                               "(1 - m/2)); the sign is drawn per log", ge=0.0, lt=1.0)
+    track_factor: float = param(1.1, "skid in turns: the odometry's yaw = this x the true yaw (effective track "
+                                "1.2-2x the geometric one on a real skid-steer; 1 = none)", gt=0.0)
+    speed_noise_mps: float = param(0.05, "1-sigma white noise of each side's speed per sample (hydraulic motor "
+                                   "speed pickups)", "m/s", ge=0.0)
+    yaw_rate_bias_rad_s: float = param(0.0, "|yaw-rate bias| of the odometry; the sign is drawn per log", "rad/s",
+                                       ge=0.0)
+    random_signs: bool = param(True, "draw the signs of scale, mismatch and bias per log (false: as given)")
 
 
 @dataclass(frozen=True)
@@ -224,6 +252,7 @@ class SimConfig:
     lidar: LidarSimConfig = section(LidarSimConfig, "Ouster OS0 model")
     imu: ImuSimConfig = section(ImuSimConfig, "IMU model")
     gnss: GnssSimConfig = section(GnssSimConfig, "GNSS model")
+    wheels: WheelSimConfig = section(WheelSimConfig, "wheel-odometry errors (scale, left/right, skid, noise)")
     path_size_m: float = param(10.0, "size of the scripted paths (figure8, loop, line); the circle is the paper's", "m")
     scene_scale: float = param(1.0, "stretch the scene for larger paths: distances x this, object counts x its square "
                                "(1: objects within ~40 m of the path's centre, enough for paths up to ~20 m)")

@@ -37,6 +37,7 @@ def simulate_gnss(traj: BodyTrajectory, times: np.ndarray, base_to_antenna: np.n
         during = (times >= a) & (times < b)
         enu[during, :2] += cfg.multipath_jump_m * np.array([np.cos(heading), np.sin(heading)])
     status = np.where(rng.random(times.size) < cfg.dropout_probability, STATUS_NO_FIX, STATUS_FIX)
+    status = with_outages(times, status, cfg.outages_s)
     cov = np.tile(np.diag(sigma ** 2), (times.size, 1, 1))
     lla = enu_to_lla(enu, np.asarray(cfg.origin_lla, float))
     return GnssFixes(np.asarray(times, float), lla, cov, status, true_enu)
@@ -45,24 +46,38 @@ def simulate_gnss(traj: BodyTrajectory, times: np.ndarray, base_to_antenna: np.n
 STATUS_SBAS_FIX, STATUS_GBAS_FIX = 1, 2  # float / SBAS and RTK fixed (GBAS) in sensor_msgs/NavSatStatus
 
 
+def with_outages(times: np.ndarray, status: np.ndarray, outages_s: tuple[tuple[float, float], ...]) -> np.ndarray:
+    """NO_FIX inside each [start, end) interval (s since the log start)."""
+    status = status.copy()
+    for a, b in outages_s:
+        status[(times >= a) & (times < b)] = STATUS_NO_FIX
+    return status
+
+
 def simulate_field_gnss(traj: BodyTrajectory, times: np.ndarray, base_to_antenna: np.ndarray, cfg: GnssSimConfig,
                         field: FieldGnssConfig, structures_xy: np.ndarray, rng: np.random.Generator) -> GnssFixes:
     """Fix type and noise from the antenna's horizontal distance to the nearest structure point
     (m): RTK fixed in the open, float within `float_within_m`, single point within
     `single_within_m`; multipath jumps (held horizontal offsets) start at `multipath_rate_hz`
-    while within `float_within_m`. NO_FIX dropouts as in the ideal model. `times` are the true
-    measurement epochs; the clock model stamps them late."""
+    while within `float_within_m`. sim.gnss.mode other than profile: that fix type everywhere
+    (float: multipath everywhere). NO_FIX dropouts as in the ideal model, and outages. `times`
+    are the true measurement epochs; the clock model stamps them late."""
     p, r = traj.pose(times)
     true_enu = p + r.apply(base_to_antenna[:3, 3])
     near = _distance_to(structures_xy, true_enu[:, :2])
     status = np.where(near < field.single_within_m, STATUS_FIX,
                       np.where(near < field.float_within_m, STATUS_SBAS_FIX, STATUS_GBAS_FIX))
+    forced = {"rtk": STATUS_GBAS_FIX, "float": STATUS_SBAS_FIX, "single": STATUS_FIX}.get(cfg.mode)
+    if forced is not None:
+        status = np.full(times.size, forced)
+        near = np.where(status == STATUS_GBAS_FIX, np.inf, 0.0)  # multipath where the fix is not RTK
     sigma_h = np.select([status == STATUS_FIX, status == STATUS_SBAS_FIX],
                         [field.sigma_single_m, field.sigma_float_m], field.sigma_fixed_m)
     sigma = np.c_[sigma_h, sigma_h, 1.7 * sigma_h]  # vertical ~1.7x horizontal (satellite geometry)
     enu = true_enu + rng.normal(0.0, 1.0, true_enu.shape) * sigma
     enu[:, :2] += _multipath(times, near < field.float_within_m, field, rng)
     status = np.where(rng.random(times.size) < cfg.dropout_probability, STATUS_NO_FIX, status)
+    status = with_outages(times, status, cfg.outages_s)
     cov = np.einsum("ni,ij->nij", sigma ** 2, np.eye(3))
     lla = enu_to_lla(enu, np.asarray(cfg.origin_lla, float))
     return GnssFixes(np.asarray(times, float), lla, cov, status, true_enu)

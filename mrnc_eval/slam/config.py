@@ -224,6 +224,39 @@ class GpsConfig:
                                        "a drifting start makes tight fixes twist the map)", "m^2")
     rtk_min_spacing_m: float = param(1.0, "distance between RTK-grade GNSS factors", "m")
     align_min_travel_m: float = param(10.0, "travel needed before the ENU -> map yaw alignment is estimated", "m")
+    gate: Literal["residual", "lio_sam"] = param(
+        "residual", "residual: a GNSS factor enters when the fixes of the last residual_window_s, against the chain "
+        "through the ENU -> map alignment re-fitted on every fix so far, disagree with it significantly (the chain "
+        "drifted), whatever the chain's own covariance says, with or without wheels; multipath outliers are dropped "
+        "against the window's median (slam/gnss_gate.py). lio_sam: LIO-SAM's gate on the pose covariance "
+        "(pose_cov_threshold_m2, min_spacing_m, the 1 m^2 floor) with the alignment fitted once")
+    align_max_travel_m: float = param(0.0, "residual gate: the alignment is re-fitted on the fixes of the first this "
+                                      "many metres of travel (the chain there as corrected so far); 0 = on every "
+                                      "fix so far", "m", ge=0.0)
+    residual_window_s: float = param(6.0, "residual gate: the fixes of this long before the keyframe: a robust line "
+                                     "through their residuals gives the chain's offset now and its drift rate", "s",
+                                     gt=0.0)
+    residual_min_fixes: int = param(5, "residual gate: at least this many inlier fixes in the window", ge=3)
+    residual_outlier_sigmas: float = param(3.0, "residual gate: a fix whose residual is further than this many of its "
+                                           "sigmas (plus residual_floor_m) from the line is an outlier (multipath)",
+                                           gt=0.0)
+    residual_drift_sigmas: float = param(3.0, "residual gate: the offset now must exceed this many of its sigmas ...",
+                                         gt=0.0)
+    residual_min_correction_m: float = param(0.1, "... and this, for a factor (the chain agrees with GNSS otherwise)",
+                                             "m", ge=0.0)
+    residual_floor_m: float = param(0.05, "residual gate: sigma floor of a factor (fix biases that do not average)",
+                                    "m", ge=0.0)
+    residual_min_spacing_m: float = param(1.0, "residual gate: distance between GNSS factors", "m", ge=0.0)
+    residual_gate_chi2: float = param(9.0, "residual gate, with wheels: an offset beyond this chi-square of (its "
+                                      "sigma^2 + the chain's real drift sigma^2) is held multipath, not drift", gt=0.0)
+    residual_chain_drift_fraction: float = param(0.03, "residual gate, with wheels: the chain's real drift sigma per "
+                                                 "metre since the last GNSS factor (calibrated wheels and the gyro)",
+                                                 "m/m", ge=0.0)
+    residual_chain_floor_m: float = param(0.3, "... plus this", "m", ge=0.0)
+    residual_velocity_correction: bool = param(True, "residual gate, without wheels: when a factor moved the keyframe, "
+                                               "graph #2 restarts with the fixes' drift rate removed from its velocity")
+    residual_huber_k: float = param(1.345, "residual gate: Huber kernel width of the factors (sigmas; 0 = none)",
+                                    ge=0.0)
 
 
 @dataclass(frozen=True)
@@ -235,6 +268,45 @@ class MapQualityConfig:
     min_neighbours: int = param(5, "skip points with fewer neighbours within the radius")
     max_neighbours: int = param(30, "use at most this many nearest neighbours within the radius")
     max_points: int = param(10000, "evaluate at most this many (evenly spread) map points")
+
+
+@dataclass(frozen=True)
+class WheelCalibrationConfig:
+    """Online calibration and gating of the wheel odometry (slam/wheel_calibration.py) and the
+    wheel_health verdict (slam/wheel_health.py)."""
+
+    enabled: bool = param(True, "estimate the effective track factor, L/R mismatch and yaw-rate offset against the "
+                          "gyro (and the scale against non-degenerate LiDAR odometry) and use the calibrated wheels")
+    bin_s: float = param(0.2, "wheel increments are compared with the gyro over bins of this length", "s", gt=0.0)
+    prior_sigmas: tuple[float, float, float] = param((0.5, 0.05, 0.002), "prior sigmas of the track factor "
+                                                     "(around 1), the L/R term a (1/m, around 0) and the yaw-rate "
+                                                     "offset (rad/s, around 0: encoders read zero at standstill, so "
+                                                     "the offset is the gyro's bias left after the standing start)")
+    yaw_rate_sigma_rad_s: float = param(0.01, "reference sigma of a bin's wheel-minus-model yaw rate (good wheels "
+                                        "and the gyro); the yaw hold is scaled by (this / measured)^2", "rad/s", gt=0.0)
+    gyro_yaw_rate_sigma_rad_s: float = param(0.002, "sigma of the gyro's bin yaw rate (bias left after the standing "
+                                             "start and the fit, vibration) when it is blended with the calibrated "
+                                             "wheels' by inverse variance; 0 = the wheels' yaw alone", "rad/s", ge=0.0)
+    gate_chi2: float = param(9.0, "reject a bin whose normalised innovation squared exceeds this (1 dof; 9 = 3 "
+                             "sigma); its yaw comes from the gyro", gt=0.0)
+    warmup_bins: int = param(25, "bins before the gate and the yaw-hold scaling act", ge=0)
+    min_yaw_quality: float = param(0.05, "lower bound of the yaw-hold scale", gt=0.0, le=1.0)
+    stationary_speed_mps: float = param(0.05, "the wheels' speed below which the start counts as standing (the "
+                                        "gyro's mean there is its bias)", "m/s", ge=0.0)
+    scale_prior_sigma: float = param(0.05, "prior sigma of the scale error (around 0)", gt=0.0)
+    scale_distance_sigma_m: float = param(0.02, "sigma of a LiDAR keyframe distance for the scale fit", "m", gt=0.0)
+    scale_max_turn_rad: float = param(0.02, "keyframe steps turning more than this do not enter the scale fit "
+                                      "(tracks slip in turns: the ideal yard circle's wheels over-read by 6 %)", "rad",
+                                      ge=0.0)
+    scale_min_distance_m: float = param(0.5, "keyframe steps shorter than this do not enter the scale fit", "m", ge=0.0)
+    track_width_m: float = param(1.6, "the track width the odometry node divides by (robot.track_width_m): turns "
+                                 "the fitted L/R term into a radius mismatch", "m", gt=0.0)
+    flag_lr_mismatch: float = param(0.01, "wheel_health flags an estimated |L/R mismatch| above this (fraction)",
+                                    ge=0.0)
+    flag_track_factor: float = param(0.25, "... |track factor - 1| above this (1.1-1.2: a calibrated machine)", ge=0.0)
+    flag_scale: float = param(0.015, "... |scale error| above this (fraction)", ge=0.0)
+    flag_rejected_fraction: float = param(0.1, "... a fraction of rejected bins above this", ge=0.0, le=1.0)
+    flag_sigmas: float = param(3.0, "... only estimates this many sigmas away from the nominal value", ge=0.0)
 
 
 @dataclass(frozen=True)
@@ -270,6 +342,7 @@ class WheelOdomConfig:
                                                "of matching.max_rotation_correction_deg (0 = that one); 1 halves the "
                                                "open-field APE but wrecks the sample logs (slip: the wheels turn "
                                                "wrongly, the gate then rejects the right match)", "deg")
+    calibration: WheelCalibrationConfig = section(WheelCalibrationConfig, "online calibration, gating, health")
     restart_imu_after_m: float = param(0.02, "restart graph #2 from graph #1's pose and the wheels' velocity when "
                                        "the wheel factor moved the keyframe by more than this (negative: never)", "m")
 

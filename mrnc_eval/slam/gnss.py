@@ -10,6 +10,7 @@ import numpy as np
 from mrnc_eval.data import GnssSeries
 from mrnc_eval.geometry.point_fit import yaw_align
 from mrnc_eval.slam.config import GpsConfig
+from mrnc_eval.slam.gnss_gate import gate
 from mrnc_eval.slam.graph import KeyframeGraph
 from mrnc_eval.slam.output import SlamEvent
 
@@ -33,6 +34,9 @@ class GnssAligner:
         self.enu_to_map: tuple[np.ndarray, np.ndarray] | None = None  # 2x2 rotation, translation (m)
         self.pairs_map: list[np.ndarray] = []
         self.pairs_enu: list[np.ndarray] = []
+        self.velocity_error: np.ndarray | None = None  # (2,) m/s map frame, of the latest residual-gate factor
+        self.wheels = False  # wheel factors bound the chain's drift (residual gate's chain sigma)
+        self.last_factor_kf = 0  # keyframe of the latest residual-gate factor
 
     def _fix_near(self, t: float) -> int | None:
         i = int(np.argmin(np.abs(self.gnss.stamps - t)))
@@ -44,6 +48,8 @@ class GnssAligner:
 
     def maybe_add(self, graph: KeyframeGraph, stamp: float, events: list[SlamEvent]) -> bool:
         """Called at each new keyframe; returns True when a GNSS factor was added."""
+        if self.cfg.gate == "residual":
+            return self.maybe_add_residual(graph, stamp, events)
         g = self.cfg
         i = self._fix_near(stamp)
         pose = graph.poses[-1]
@@ -80,4 +86,40 @@ class GnssAligner:
             return False
         graph.add_gps(len(graph.poses) - 1, p, var, self.lever, floor_m2=0.0 if rtk else 1.0)
         events.append(SlamEvent(t=stamp, kind="gps", message=f"GNSS factor at keyframe {len(graph.poses) - 1}"))
+        return True
+
+    def maybe_add_residual(self, graph: KeyframeGraph, stamp: float, events: list[SlamEvent]) -> bool:
+        """slam/gnss_gate.py: a factor when the recent fixes' median residual says the chain drifted."""
+        g = self.cfg
+        var = np.diagonal(self.gnss.covariance, axis1=1, axis2=2)
+        usable = np.all(var[:, :2] <= g.gps_cov_threshold_m2, axis=1) & np.all(np.isfinite(self.gnss.enu), axis=1)
+        chain_sigma = None
+        if self.wheels:  # the wheels bound the drift: a fraction of the distance since the last factor
+            since = np.asarray([p[:3, 3] for p in graph.poses[self.last_factor_kf:]])
+            travel = float(np.linalg.norm(np.diff(since, axis=0), axis=1).sum()) if len(since) > 1 else 0.0
+            chain_sigma = g.residual_chain_floor_m + g.residual_chain_drift_fraction * travel
+        decision, align = gate(self.gnss, usable, np.asarray(graph.stamps), np.asarray(graph.poses), self.lever, g,
+                               chain_sigma)
+        if align is not None and self.enu_to_map is None:
+            yaw = np.arctan2(align[0][1, 0], align[0][0, 0])
+            events.append(SlamEvent(t=stamp, kind="gps", message=f"ENU -> map alignment (re-fitted at every keyframe) "
+                                    f"from the fixes so far: yaw {np.degrees(yaw):.1f} deg"))
+        if align is not None:
+            self.enu_to_map = align
+        if decision is None or decision.position is None:
+            return False
+        if graph.last_gps_xy is not None and np.linalg.norm(decision.position[:2] - graph.last_gps_xy) \
+                < g.residual_min_spacing_m:
+            return False
+        assert decision.variance is not None
+        self.velocity_error = decision.velocity_error
+        self.last_factor_kf = len(graph.poses) - 1
+        graph.add_gps(len(graph.poses) - 1, decision.position, decision.variance, self.lever, floor_m2=0.0,
+                      huber_k=g.residual_huber_k)
+        events.append(SlamEvent(t=stamp, kind="gps", message=f"GNSS factor at keyframe {len(graph.poses) - 1}: the "
+                                f"chain is {np.linalg.norm(decision.residual_m):.2f} m +- {decision.sigma_m:.2f} m off "
+                                f"the fixes ({decision.inliers} inliers, {decision.outliers} outliers)",
+                                data={"residual_m": float(np.linalg.norm(decision.residual_m)),
+                                      "sigma_m": decision.sigma_m, "inliers": decision.inliers,
+                                      "outliers": decision.outliers}))
         return True

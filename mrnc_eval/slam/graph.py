@@ -80,12 +80,14 @@ class KeyframeGraph:
         self._update(graph, g.Values(), extra=self.cfg.extra_updates)
 
     def add_gps(self, k: int, position: np.ndarray, variances: np.ndarray, lever_arm: np.ndarray | None = None,
-                floor_m2: float = 1.0) -> None:
+                floor_m2: float = 1.0, huber_k: float = 0.0) -> None:
         """GNSS position (map frame) of the antenna at `lever_arm` in the LiDAR frame of keyframe k;
-        variances floored at floor_m2 (LIO-SAM: 1 m^2)."""
+        variances floored at floor_m2 (LIO-SAM: 1 m^2); a Huber kernel of width huber_k sigmas when > 0."""
         g = self.gtsam
         graph = g.NonlinearFactorGraph()
         noise = self._noise(np.maximum(variances, floor_m2))
+        if huber_k > 0:
+            noise = g.noiseModel.Robust.Create(g.noiseModel.mEstimator.Huber.Create(huber_k), noise)
         if lever_arm is not None and np.any(lever_arm != 0):
             graph.add(g.GPSFactorArm(k, np.asarray(position, float), np.asarray(lever_arm, float), noise))
         else:

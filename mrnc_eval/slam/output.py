@@ -44,3 +44,4 @@ class SlamOutput:
     empty_sweeps: int = 0  # sweeps with no valid point (empty, all zero or non-finite): not mapped, counted
     imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)
     imu_time_offset_sigma_s: float | None = None  # its formal standard error, s
+    wheel_health: dict[str, Any] | None = None  # slam/wheel_health.py: online wheel calibration and verdict

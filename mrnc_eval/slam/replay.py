@@ -30,6 +30,8 @@ from mrnc_eval.slam.range_image import RangeImage, project
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
 from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
+from mrnc_eval.slam.wheel_calibration import WheelCalibrator
+from mrnc_eval.slam.wheel_health import wheel_health
 from mrnc_eval.slam.wheel_odometry import WheelTrack, base_velocity, blend_planar, relative_motion, wheel_factor
 
 __all__ = ["STAGES", "SlamEvent", "SlamOutput", "run_slam"]
@@ -48,11 +50,18 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     warmup_ms = warm_up(cfg)
     wall0 = time.perf_counter()
     with_wheels = wheel is not None and cfg.wheel_odom.enabled
-    anchored = cfg.graph.anchor_start == "always" or (cfg.graph.anchor_start == "with_wheels" and with_wheels)
+    # the residual GNSS gate re-fits the ENU -> map alignment instead of letting fixes place the chain: anchored
+    anchored = cfg.graph.anchor_start == "always" or (cfg.graph.anchor_start == "with_wheels" and with_wheels) \
+        or (cfg.graph.anchor_start == "with_wheels" and cfg.gps.gate == "residual" and cfg.gps.enabled)
     replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor, anchored)
     if wheel is not None and with_wheels:
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
+        if replay.aligner is not None:
+            replay.aligner.wheels = True
+        if cfg.wheel_odom.calibration.enabled:
+            replay.wheel_cal = WheelCalibrator.build(wheel, replay.imu, replay.base_to_sensor @ replay.extr,
+                                                     cfg.wheel_odom.calibration)
     interval = MappingInterval(interval_s=cfg.mapping_interval_s)
     n_sweeps = n_empty = 0
     t_read = time.perf_counter()
@@ -66,9 +75,11 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
         if not interval.take(sweep.stamp):
             continue  # mappingProcessInterval
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
+        replay.calibrate_wheels(sweep.stamp)
         replay.map_sweep(sweep)
         t_read = time.perf_counter()
-    return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty)
+    health = wheel_health(replay.wheel_cal) if replay.wheel_cal is not None else None
+    return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty, wheel_health=health)
 
 
 @dataclass(kw_only=True)
@@ -133,6 +144,8 @@ class _Replay:
     gyro_bias: np.ndarray | None = None  # subtracted from the gyro in the track (slam.gyro_bias_init_s), rad/s
     imu_noise: ImuNoiseEstimate | None = None  # from the log's stationary stretches, IMU axes
     offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
+    wheel_cal: WheelCalibrator | None = None  # online calibration; `wheel` is then its calibrated track
+    wheel_flagged: bool = False  # the wheel_health event was raised
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -225,7 +238,26 @@ class _Replay:
         info = self.cfg.wheel_odom.yaw_information
         if not self.st.guess_by_wheels or info <= 0:
             return None
+        if self.wheel_cal is not None:  # scaled by the measured wheel quality
+            info *= self.wheel_cal.yaw_quality()
         return np.array([0.0, 0.0, info, 0.0, 0.0, 0.0])
+
+    def calibrate_wheels(self, t: float) -> None:
+        """Consume the wheel increments up to t into the online calibration, take its calibrated
+        track, and raise one wheel_health event when the wheels first disagree."""
+        cal = self.wheel_cal
+        if cal is None:
+            return
+        cal.update(t)
+        self.wheel = cal.track()
+        if self.wheel_flagged or cal.n_bins < cal.cfg.warmup_bins:
+            return
+        health = wheel_health(cal)
+        if health["verdict"] != "ok":
+            self.wheel_flagged = True
+            self.events.append(SlamEvent(t=t, kind="wheel_health", message=f"wheel odometry {health['verdict']}: "
+                                         + "; ".join(health["reasons"]) + " (calibrated online)",
+                                         data={k: v for k, v in health.items() if isinstance(v, float)}))
 
     def match_pivot(self) -> np.ndarray | None:
         """The base origin in the sensor frame when the wheels placed the base (wheel_guess): scan-to-map
@@ -290,6 +322,8 @@ class _Replay:
         wheel = None
         if self.wheel is not None and self.graph.stamps:
             wheel = wheel_factor(self.wheel, self.graph.stamps[-1], stamp, self.base_to_sensor, self.cfg.wheel_odom)
+        if wheel is not None and self.wheel_cal is not None and self.trace.stamps:
+            self.fit_wheel_scale(pose, stamp)
         self.graph.add_keyframe(pose, stamp, self.st.loose, wheel, self.cfg.wheel_odom.lidar_degenerate_sigma)
         if wheel is not None:
             self.restart_from_wheels(pose, stamp)
@@ -297,9 +331,12 @@ class _Replay:
         if self.aligner is not None and self.aligner.maybe_add(self.graph, stamp, self.events):
             self.map_cache.clear()
             moved = float(np.linalg.norm(self.graph.poses[-1][:3, 3] - pose[:3, 3]))
-            if self.odom is not None and self.cfg.gps.rtk_max_variance_m2 > 0 \
+            if self.odom is not None and (self.cfg.gps.rtk_max_variance_m2 > 0 or self.cfg.gps.gate == "residual") \
                     and moved > self.cfg.imu.restart_after_loop_m:
                 self.odom.restart()  # RTK fixes move the pose by decimetres: graph #2 restarts as after a loop
+                if self.aligner.velocity_error is not None and self.wheel is None \
+                        and self.cfg.gps.residual_velocity_correction:  # the fixes' drift rate
+                    self.odom.velocity = self.odom.velocity + np.r_[self.aligner.velocity_error, 0.0]
         loop_ms = 0.0
         if self.cfg.loop.enabled and stamp - self.st.last_loop_t >= self.cfg.loop.interval_s:
             self.st.last_loop_t = stamp
@@ -308,6 +345,21 @@ class _Replay:
             loop_ms = (time.perf_counter() - t0) * 1e3
         self.local_map = _local_map(self.graph, self.kf_features, self.map_cache, self.cfg)
         return self.graph.poses[-1], loop_ms
+
+    def fit_wheel_scale(self, pose: np.ndarray, stamp: float) -> None:
+        """Wheel vs LiDAR distance since the last keyframe, when every sweep since it was matched
+        without a degenerate direction (the LiDAR pinned the forward motion) and the base drove
+        straight (the rolling radius, not the slip of a turn)."""
+        cal, tr, t0 = self.wheel_cal, self.trace, self.graph.stamps[-1]
+        since = [m for t, m in zip(tr.stamps, tr.measured, strict=False) if t > t0]
+        if cal is None or not since or not all(since) or not tr.measured[-1]:
+            return
+        rel_base = self.base_to_sensor @ se3.inv(self.graph.poses[-1]) @ pose @ se3.inv(self.base_to_sensor)
+        if abs(se3.rpy(rel_base)[2]) > cal.cfg.scale_max_turn_rad:
+            return  # turning: a skid-steer's tracks slip and over-read (the ideal yard circle: +6 %)
+        lidar = float(np.linalg.norm(rel_base[:2, 3]))
+        i0, i1 = np.searchsorted(cal.inc.stamps, [t0, stamp])
+        cal.add_distance(float(np.abs(cal.inc.forward_m[i0:i1]).sum()), lidar)
 
     def restart_from_wheels(self, matched: np.ndarray, stamp: float) -> None:
         """When the wheel factor moved the keyframe, graph #2 restarts from graph #1's pose (as after

@@ -103,7 +103,7 @@ def test_label_names_each_estimate_in_table_json_and_plot(tmp_path: Path, capsys
     assert "--label given 1 time(s) for 2 estimate(s)" in capsys.readouterr().err
 
 
-def test_the_fast_ape_path_stays_fast_without_label_and_leaves_label_to_typer() -> None:
+def test_the_fast_ape_path_stays_fast_with_and_without_label() -> None:
     from mrnc_eval import cli
     from mrnc_eval.cli_fast import fast_command
 
@@ -111,4 +111,6 @@ def test_the_fast_ape_path_stays_fast_without_label_and_leaves_label_to_typer() 
     plain = fast_command(["ape", "ref.tum", "est.tum"], commands)
     assert plain is not None
     assert plain[1].get("label") is None  # not given: the function default
-    assert fast_command(["ape", "ref.tum", "a.tum", "b.tum", "--label", "A", "--label", "B"], commands) is None
+    labelled = fast_command(["ape", "ref.tum", "a.tum", "b.tum", "--label", "A", "--label", "B"], commands)
+    assert labelled is not None
+    assert labelled[1]["label"] == ["A", "B"]  # repeatable: in order, as typer gives it

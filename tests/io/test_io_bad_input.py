@@ -102,9 +102,10 @@ def test_fuzz_truncated_and_flipped(tmp_path: Path, fmt: str, name: str,
         rc = main(["info", str(case), "--json"])
         err_lines = capsys.readouterr().err.strip().splitlines()
         assert rc in (0, 4), (k, rc, err_lines)
-        if rc == 4:
-            assert len(err_lines) == 1, err_lines
-            assert str(case) in err_lines[0], err_lines
+        if rc == 4:  # one error line (a role warning read before it, e.g. a truth topic kept out, may precede it)
+            errors = [line for line in err_lines if not line.startswith("WARNING ")]
+            assert len(errors) == 1, err_lines
+            assert str(case) in errors[0], err_lines
         shutil.rmtree(case.parent)
     assert outcomes["error"] >= 20  # truncation is detected, not read as a shorter log
 

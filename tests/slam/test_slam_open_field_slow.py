@@ -26,7 +26,10 @@ pytestmark = pytest.mark.slow
 # docs/simulation.md, "Open field": the drive and the LiDAR packets of the issue-16 log
 DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
          "control.pure_pursuit.max_speed_mps": 1.0, "control.pure_pursuit.speed_cap": False,
-         "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8"}
+         "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8",
+         # the issue-16 log's wheels: the plant's speeds (the field profile's calibrated-realistic wheel
+         # errors came later, issue 28: tests/slam/test_wheels_gnss_slow.py)
+         "sim.wheels.model": "exact"}
 LIO_SAM_RULES = {"slam.matching.match_without_edges": False, "slam.matching.ground_normal_min_z": 0.0,
                  "slam.matching.plane_min_spread_m": 0.0, "slam.features.ground_max_angle_deg": 0.0,
                  "slam.matching.max_rotation_correction_deg": 0.0, "slam.imu.degenerate_prior": "all",

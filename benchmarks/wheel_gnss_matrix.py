@@ -1,0 +1,176 @@
+"""The claims matrix of issue 28: scene x wheels x GNSS x seeds, online APE and end drift.
+
+Scenes (field profile, OS0-32 x 512, 40 s, low-bandwidth packets): open line (open_field, 40 m
+line at 1 m/s), open loop (open_field, 20 m loop at 1 m/s), yard (yard circle), forest (5 m loop).
+Wheels: ideal (sim.wheels.model=exact: the plant's speeds, slip only), calibrated (the field
+profile's default: scale 0.5 %, L/R 0.5 %, track 1.1x, 0.05 m/s noise), combined (2 %, 2 %, 1.6x,
+0.05 m/s), lr2 (L/R 2 % only; for wheel_health), none (the calibrated log with
+slam.wheel_odom.enabled=false). GNSS: float and rtk (sim.gnss.mode; every fix that type, float with
+multipath jumps), none (--no-gps on the float log).
+
+Each log is simulated once into --logs (default /tmp/wheels_logs) and reused; every SLAM result
+is cached in <logs>/results-<label>.jsonl (delete it to re-run). Usage:
+
+    python benchmarks/wheel_gnss_matrix.py generate --scenes line --wheels calibrated combined \
+        --gnss float --seeds 3 4 5
+    python benchmarks/wheel_gnss_matrix.py run --scenes line --wheels calibrated combined none --gnss float none \
+        --seeds 3 4 5 --label report
+    python benchmarks/wheel_gnss_matrix.py table --label report
+
+Seeds 0-2 are for tuning, 3-5 for the report (never tuned on).
+"""
+
+from __future__ import annotations
+
+import argparse
+import json
+import os
+import statistics
+import subprocess
+import sys
+import tempfile
+from pathlib import Path
+
+COMMON = ["--profile", "field", "--lidar", "os0-32", "--columns", "512", "--duration", "40",
+          "--set", "sim.lidar.packet_profile=RNG15_RFL8_NIR8"]
+ONE_MPS = ["--set", "control.pure_pursuit.desired_speed_mps=1.0", "--set", "control.pure_pursuit.max_speed_mps=1.0",
+           "--set", "control.pure_pursuit.speed_cap=false", "--set", "control.actuator.u_max_rpm=4000"]
+SCENES = {
+    "line": ["--scene", "open_field", "--path", "line", "--set", "sim.path_size_m=40", *ONE_MPS],
+    "loop": ["--scene", "open_field", "--path", "loop", "--set", "sim.path_size_m=20", *ONE_MPS],
+    "yard": ["--scene", "yard", "--path", "circle"],
+    "forest": ["--scene", "forest", "--path", "loop", "--set", "sim.path_size_m=5"],
+}
+WHEELS = {
+    "ideal": ["--set", "sim.wheels.model=exact"],
+    "calibrated": [],
+    "combined": ["--set", "sim.wheels.scale_error=0.02", "--set", "sim.wheels.lr_mismatch=0.02",
+                 "--set", "sim.wheels.track_factor=1.6"],
+    "lr2": ["--set", "sim.wheels.scale_error=0", "--set", "sim.wheels.lr_mismatch=0.02",
+            "--set", "sim.wheels.track_factor=1.0", "--set", "sim.wheels.speed_noise_mps=0"],
+}
+GNSS = {"float": ["--set", "sim.gnss.mode=float"], "rtk": ["--set", "sim.gnss.mode=rtk"]}
+CLI = [sys.executable, "-m", "mrnc_eval.cli"]
+
+
+def log_path(logs: Path, scene: str, wheels: str, gnss: str, seed: int) -> Path:
+    """The log a cell runs on: wheels none uses the calibrated log, GNSS none the float log."""
+    wheels = "calibrated" if wheels == "none" else wheels
+    gnss = "float" if gnss == "none" else gnss
+    return logs / f"{scene}_{wheels}_{gnss}_s{seed}.mcap"
+
+
+def generate(logs: Path, scene: str, wheels: str, gnss: str, seed: int) -> Path:
+    out = log_path(logs, scene, wheels, gnss, seed)
+    if not out.exists():
+        args = [*CLI, "simulate", str(out), *COMMON, *SCENES[scene], *WHEELS[wheels], *GNSS[gnss],
+                "--seed", str(seed)]
+        subprocess.run(["nice", "-n", "5", *args], check=True, stdout=subprocess.DEVNULL)
+    return out
+
+
+def slam_args(wheels: str, gnss: str, method: str) -> list[str]:
+    args = ["--method", method]
+    if gnss == "none":
+        args.append("--no-gps")
+    if wheels == "none":
+        args += ["--set", "slam.wheel_odom.enabled=false"]
+    return args
+
+
+def run_cell(log: Path, wheels: str, gnss: str, method: str, extra: list[str]) -> dict:
+    with tempfile.TemporaryDirectory(prefix="wheel-matrix-") as out:
+        args = [*CLI, "slam", str(log), "--json", "--out", out, *slam_args(wheels, gnss, method), *extra]
+        proc = subprocess.run(["nice", "-n", "5", *args], check=False, capture_output=True, text=True)
+        try:  # a failed APE gate (gates.ape_rmse_max_m) exits non-zero after printing the summary
+            row = json.loads(proc.stdout)[0]
+        except (json.JSONDecodeError, IndexError):
+            return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "failed"}
+        health = {}
+        mfile = Path(row["run_dir"]) / "metrics.json"
+        if mfile.exists():
+            health = json.loads(mfile.read_text()).get("wheel_health", {})
+        return {"ape_online_m": row.get("ape_online_rmse_m"), "end_drift_online_m": row.get("end_drift_online_m"),
+                "ape_smoothed_m": row.get("ape_rmse_m"), "wheel_health": health}
+
+
+def cells(a: argparse.Namespace):
+    for scene in a.scenes:
+        for wheels in a.wheels:
+            for gnss in a.gnss:
+                for seed in a.seeds:
+                    yield scene, wheels, gnss, seed
+
+
+def results_file(logs: Path, label: str) -> Path:
+    return logs / f"results-{label}.jsonl"
+
+
+def load(logs: Path, label: str) -> dict[tuple, dict]:
+    f = results_file(logs, label)
+    out = {}
+    if f.exists():
+        for line in f.read_text().splitlines():
+            r = json.loads(line)
+            out[(r["scene"], r["wheels"], r["gnss"], r["seed"], r["method"])] = r
+    return out
+
+
+def table(results: dict[tuple, dict]) -> str:
+    """Markdown: per cell the median and worst online APE and end drift over the seeds."""
+    groups: dict[tuple, list[dict]] = {}
+    for (scene, wheels, gnss, _seed, method), r in sorted(results.items()):
+        groups.setdefault((scene, wheels, gnss, method), []).append(r)
+    lines = ["| scene | wheels | GNSS | method | seeds | online APE median / worst (m) | end drift median / worst (m) "
+             "| wheel_health verdicts | track factor (est.) |", "|---|---|---|---|---|---|---|---|---|"]
+    for (scene, wheels, gnss, method), rs in groups.items():
+        ok = [r for r in rs if r.get("ape_online_m") is not None]
+        seeds = ",".join(str(r["seed"]) for r in rs)
+        if not ok:
+            lines.append(f"| {scene} | {wheels} | {gnss} | {method} | {seeds} | failed | | | |")
+            continue
+        ape = [r["ape_online_m"] for r in ok]
+        drift = [r["end_drift_online_m"] for r in ok]
+        verdicts = ",".join(str(r.get("wheel_health", {}).get("verdict", "-")) for r in ok)
+        tf = ",".join(f"{r['wheel_health']['track_factor']:.2f}" for r in ok
+                      if r.get("wheel_health", {}).get("track_factor") is not None)
+        lines.append(f"| {scene} | {wheels} | {gnss} | {method} | {seeds} | {statistics.median(ape):.3f} / "
+                     f"{max(ape):.3f} | {statistics.median(drift):.2f} / {max(drift):.2f} | {verdicts} | {tf} |")
+    return "\n".join(lines)
+
+
+def main() -> None:
+    p = argparse.ArgumentParser(description=__doc__, formatter_class=argparse.RawDescriptionHelpFormatter)
+    p.add_argument("command", choices=["generate", "run", "table"])
+    p.add_argument("--logs", type=Path, default=Path(os.environ.get("MRNC_WHEEL_LOGS", "/tmp/wheels_logs")))
+    p.add_argument("--scenes", nargs="+", default=list(SCENES), choices=list(SCENES))
+    p.add_argument("--wheels", nargs="+", default=["ideal", "calibrated", "combined", "none"],
+                   choices=[*WHEELS, "none"])
+    p.add_argument("--gnss", nargs="+", default=["none", "float", "rtk"], choices=["none", *GNSS])
+    p.add_argument("--seeds", nargs="+", type=int, default=[3, 4, 5])
+    p.add_argument("--method", default="lio", choices=["lio", "kiss-icp"])
+    p.add_argument("--label", default="report", help="results file name part (a code version or experiment)")
+    p.add_argument("--set", dest="sets", action="append", default=[], help="extra slam --set KEY=VALUE")
+    a = p.parse_args()
+    a.logs.mkdir(parents=True, exist_ok=True)
+    if a.command == "table":
+        print(table(load(a.logs, a.label)))
+        return
+    done = load(a.logs, a.label)
+    extra = [x for s in a.sets for x in ("--set", s)]
+    for scene, wheels, gnss, seed in cells(a):
+        gen_wheels = "calibrated" if wheels == "none" else wheels
+        log = generate(a.logs, scene, gen_wheels, "float" if gnss == "none" else gnss, seed)
+        if a.command == "generate" or (scene, wheels, gnss, seed, a.method) in done:
+            continue
+        r = {"scene": scene, "wheels": wheels, "gnss": gnss, "seed": seed, "method": a.method,
+             **run_cell(log, wheels, gnss, a.method, extra)}
+        with results_file(a.logs, a.label).open("a") as f:
+            f.write(json.dumps(r) + "\n")
+        print(json.dumps({k: v for k, v in r.items() if k != "wheel_health"}), flush=True)
+    if a.command == "run":
+        print(table(load(a.logs, a.label)))
+
+
+if __name__ == "__main__":
+    main()

@@ -1,0 +1,244 @@
+"""Online calibration of skid-steer wheel odometry against the gyro (and the LiDAR where it pins
+the forward direction), with uncertainty, and a gate on each wheel increment.
+
+Model, per bin of `bin_s` seconds (base_link, planar):
+    wheel yaw rate  w_w = f * w_g + a * v_w + c        (f: effective track factor, the skid: wheel
+                                                         yaw = f x true yaw; a = L/R mismatch / track,
+                                                         1/m; c: yaw-rate offset, rad/s)
+    wheel distance  d_w = (1 + s) * d_lidar             (s: scale error, where the LiDAR odometry is
+                                                         not degenerate)
+w_g is the gyro's yaw rate about base_link z with the bias of the stationary start removed. The yaw
+model is a recursive least-squares fit with a weak prior (f = 1, a = c = 0); its residual variance
+gives the uncertainty. A bin whose innovation (w_w minus the prediction from the estimates before it)
+fails a chi-square test (1 dof) is rejected: it does not update the fit and its yaw comes from the gyro.
+The calibrated yaw rate of a bin is (w_w - a v_w - c) / f, its distance d_w / (1 + s)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+from scipy.spatial.transform import Rotation
+
+from mrnc_eval.data import ImuSeries
+from mrnc_eval.slam.config import WheelCalibrationConfig
+from mrnc_eval.slam.wheel_odometry import WheelTrack
+
+
+@dataclass(frozen=True, kw_only=True)
+class WheelIncrements:
+    """The wheel track as per-sample increments in base_link: forward distance (m), yaw (rad)."""
+
+    stamps: np.ndarray  # (N,) s, sample times; increment i is from stamps[i] to stamps[i + 1]
+    forward_m: np.ndarray  # (N - 1,)
+    lateral_m: np.ndarray  # (N - 1,)
+    yaw_rad: np.ndarray  # (N - 1,)
+    start: np.ndarray  # 4x4 first pose (odom frame)
+
+    @classmethod
+    def of(cls, track: WheelTrack) -> WheelIncrements:
+        yaw = np.unwrap(Rotation.from_quat(track.quat_xyzw).as_euler("ZYX")[:, 0])
+        d = np.diff(track.positions[:, :2], axis=0)
+        c, s = np.cos(yaw[:-1]), np.sin(yaw[:-1])
+        fwd, lat = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
+        start = np.eye(4)
+        start[:3, :3] = Rotation.from_euler("z", yaw[0]).as_matrix()
+        start[:3, 3] = track.positions[0]
+        return cls(stamps=np.asarray(track.stamps, float), forward_m=fwd, lateral_m=lat, yaw_rad=np.diff(yaw),
+                   start=start)
+
+
+def integrate(inc: WheelIncrements, forward_m: np.ndarray, yaw_rad: np.ndarray) -> WheelTrack:
+    """Dead-reckon increments (midpoint heading) into a planar odom -> base_link track."""
+    yaw0 = float(Rotation.from_matrix(inc.start[:3, :3]).as_euler("ZYX")[0])
+    yaw = yaw0 + np.r_[0.0, np.cumsum(yaw_rad)]
+    mid = yaw[:-1] + 0.5 * yaw_rad
+    dx = forward_m * np.cos(mid) - inc.lateral_m * np.sin(mid)
+    dy = forward_m * np.sin(mid) + inc.lateral_m * np.cos(mid)
+    pos = np.c_[inc.start[0, 3] + np.r_[0.0, np.cumsum(dx)], inc.start[1, 3] + np.r_[0.0, np.cumsum(dy)],
+                np.full(yaw.size, inc.start[2, 3])]
+    return WheelTrack(stamps=inc.stamps, positions=pos, quat_xyzw=Rotation.from_euler("z", yaw[:, None]).as_quat())
+
+
+def gyro_yaw_rate(imu: ImuSeries, imu_in_base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
+    """(stamps, yaw rate about base_link z, rad/s) from the IMU's gyro and its rotation in base_link."""
+    return np.asarray(imu.stamps, float), np.asarray(imu.gyro @ imu_in_base[:3, :3].T, float)[:, 2]
+
+
+def stationary_gyro_bias(stamps: np.ndarray, yaw_rate: np.ndarray, inc: WheelIncrements,
+                         max_speed_mps: float, window_s: float = 0.2) -> float | None:
+    """Mean gyro yaw rate while the wheels say the machine stands: from the log's start until the
+    wheel speed averaged over window_s (the pickups' noise averaged down) first exceeds
+    max_speed_mps, less one window; None without such a stretch of >= 5 gyro samples."""
+    if inc.stamps.size < 3:
+        return None
+    dist = np.r_[0.0, np.cumsum(inc.forward_m)]
+    ahead = np.searchsorted(inc.stamps, inc.stamps + window_s).clip(max=inc.stamps.size - 1)
+    span = np.maximum(inc.stamps[ahead] - inc.stamps, 1e-6)
+    speed = np.abs(dist[ahead] - dist) / span
+    moving = np.flatnonzero((speed > max_speed_mps) & (inc.stamps[ahead] > inc.stamps))
+    t_move = inc.stamps[moving[0]] if moving.size else inc.stamps[-1]
+    still = (stamps >= inc.stamps[0]) & (stamps < t_move)
+    return float(yaw_rate[still].mean()) if still.sum() >= 5 else None
+
+
+@dataclass(kw_only=True)
+class WheelCalibrator:
+    """Causal estimator: `update(t)` consumes the bins that ended by t; `track()` is the wheel track
+    re-integrated with the current estimates (rejected bins take the gyro's yaw)."""
+
+    cfg: WheelCalibrationConfig
+    inc: WheelIncrements
+    gyro_t: np.ndarray
+    gyro_w: np.ndarray
+    gyro_bias: float
+    track_width_m: float
+    # yaw model [f, a, c]: information matrix and vector (prior included)
+    info: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
+    vec: np.ndarray = field(default_factory=lambda: np.zeros(3))
+    theta: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
+    # scale: sums of d_lidar^2 / var and d_lidar d_wheel / var
+    scale_info: float = 0.0
+    scale_vec: float = 0.0
+    next_bin: int = 0
+    n_bins: int = 0
+    n_rejected: int = 0
+    raw_res: list[float] = field(default_factory=list)  # w_w - w_g per accepted bin (uncalibrated)
+    res: list[float] = field(default_factory=list)  # innovation per bin (before its update), rad/s
+    nis: list[float] = field(default_factory=list)  # normalised innovation squared per bin
+    rejected_bins: list[int] = field(default_factory=list)
+    bins: tuple[np.ndarray, np.ndarray] = (np.zeros(0, int), np.zeros(0, int))
+    bin_yaw_gyro: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    sigma2: float = 0.0  # running residual variance, (rad/s)^2
+    standing_start: bool = False  # the gyro bias was measured over a standing start
+
+    @classmethod
+    def build(cls, track: WheelTrack, imu: ImuSeries | None, imu_in_base: np.ndarray | None,
+              cfg: WheelCalibrationConfig) -> WheelCalibrator | None:
+        if imu is None or imu_in_base is None or track.stamps.size < 3 or imu.stamps.size < 10:
+            return None
+        inc = WheelIncrements.of(track)
+        gt, gw = gyro_yaw_rate(imu, imu_in_base)
+        bias = stationary_gyro_bias(gt, gw, inc, cfg.stationary_speed_mps)
+        cal = cls(cfg=cfg, inc=inc, gyro_t=gt, gyro_w=gw, gyro_bias=0.0 if bias is None else bias,
+                  track_width_m=cfg.track_width_m)
+        cal.standing_start = bias is not None
+        cal.info = np.diag(1.0 / np.square(cfg.prior_sigmas))
+        cal.vec = cal.info @ np.array([1.0, 0.0, 0.0])
+        cal.sigma2 = cfg.yaw_rate_sigma_rad_s ** 2
+        cal.scale_info = 1.0 / cfg.scale_prior_sigma ** 2
+        cal.scale_vec = cal.scale_info  # prior 1 + s = 1
+        cal.bins = _bins(inc.stamps, cfg.bin_s)
+        cal.bin_yaw_gyro = np.zeros(cal.bins[0].size)
+        return cal
+
+    # ---- estimates
+    @property
+    def track_factor(self) -> float:
+        return float(self.theta[0])
+
+    @property
+    def covariance(self) -> np.ndarray:
+        """Covariance of [f, a, c]: the information's inverse, scaled up when the measured residual
+        variance exceeds the configured one."""
+        inflate = max(1.0, self.sigma2 / self.cfg.yaw_rate_sigma_rad_s ** 2)
+        return np.asarray(np.linalg.inv(self.info) * inflate, float)
+
+    @property
+    def scale(self) -> float:
+        """1 + s: wheel distance / true distance."""
+        return self.scale_vec / self.scale_info
+
+    def lr_mismatch(self) -> tuple[float, float]:
+        """Right-minus-left radius mismatch (fraction) and its sigma: a x track width."""
+        return float(self.theta[1] * self.track_width_m), float(np.sqrt(self.covariance[1, 1]) * self.track_width_m)
+
+    def update(self, t: float) -> None:
+        """Consume the bins that end at or before t."""
+        starts, ends = self.bins
+        while self.next_bin < starts.size and self.inc.stamps[ends[self.next_bin]] <= t:
+            self._update_bin(self.next_bin)
+            self.next_bin += 1
+
+    def _update_bin(self, k: int) -> None:
+        i0, i1 = self.bins[0][k], self.bins[1][k]
+        t0, t1 = self.inc.stamps[i0], self.inc.stamps[i1]
+        dt = t1 - t0
+        if dt <= 0:
+            return
+        sel = (self.gyro_t >= t0) & (self.gyro_t < t1)
+        if not sel.any():
+            return
+        wg = float(self.gyro_w[sel].mean()) - self.gyro_bias
+        self.bin_yaw_gyro[k] = wg * dt
+        ww = float(self.inc.yaw_rad[i0:i1].sum()) / dt
+        v = float(self.inc.forward_m[i0:i1].sum()) / dt
+        x = np.array([wg, v, 1.0])
+        self.n_bins += 1
+        e = ww - float(x @ self.theta)
+        s = self.sigma2 + float(x @ self.covariance @ x)
+        nis = e * e / s
+        self.res.append(e)
+        self.nis.append(nis)
+        if nis > self.cfg.gate_chi2 and self.n_bins > self.cfg.warmup_bins:
+            self.n_rejected += 1
+            self.rejected_bins.append(k)
+            return
+        self.raw_res.append(ww - wg)
+        w = 1.0 / self.cfg.yaw_rate_sigma_rad_s ** 2
+        self.info += w * np.outer(x, x)
+        self.vec += w * x * ww
+        self.theta = np.linalg.solve(self.info, self.vec)
+        # residual variance: exponential average of accepted innovations, floored at the configured sigma
+        self.sigma2 = max(0.95 * self.sigma2 + 0.05 * e * e, (0.1 * self.cfg.yaw_rate_sigma_rad_s) ** 2)
+
+    def add_distance(self, wheel_m: float, lidar_m: float) -> None:
+        """A stretch where the LiDAR odometry pinned the forward direction: wheel vs LiDAR distance."""
+        if lidar_m < self.cfg.scale_min_distance_m:
+            return
+        var = self.cfg.scale_distance_sigma_m ** 2
+        self.scale_info += lidar_m * lidar_m / var
+        self.scale_vec += lidar_m * wheel_m / var
+
+    def track(self) -> WheelTrack:
+        """The wheel track with the current calibration. Each consumed bin's yaw is the
+        inverse-variance mean of the calibrated wheels' yaw and the gyro's (its bias measured over the
+        standing start; without one the wheels' alone), with the measured residual variance for the
+        wheels and gyro_yaw_rate_sigma_rad_s for the gyro: noisy speed pickups random-walk the wheel
+        heading, exact ones keep it. (The fitted offset c is not added to the gyro: on a straight
+        drive it trades off against the L/R term.) Rejected bins take the gyro's yaw."""
+        f, a, c = self.theta
+        f = f if abs(f) > 0.2 else 1.0
+        dt = np.diff(self.inc.stamps)
+        fwd = self.inc.forward_m / self.scale
+        yaw = (self.inc.yaw_rad - a * self.inc.forward_m - c * dt) / f
+        w_gyro = 0.0
+        if self.n_bins >= self.cfg.warmup_bins and self.cfg.gyro_yaw_rate_sigma_rad_s > 0 and self.standing_start:
+            var_w = max(self.sigma2, 1e-12) / f ** 2
+            w_gyro = var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2)
+        rejected = set(self.rejected_bins)
+        for k in range(self.next_bin):
+            i0, i1 = self.bins[0][k], self.bins[1][k]
+            span = max(dt[i0:i1].sum(), 1e-9)
+            gyro = self.bin_yaw_gyro[k] * dt[i0:i1] / span
+            weight = 1.0 if k in rejected else w_gyro
+            yaw[i0:i1] = (1.0 - weight) * yaw[i0:i1] + weight * gyro
+        return integrate(self.inc, fwd, yaw)
+
+
+    def yaw_quality(self) -> float:
+        """Weight (0-1] for the yaw hold: the reference yaw-rate sigma over the measured residual
+        sigma after calibration, squared (an information ratio)."""
+        if self.n_bins < self.cfg.warmup_bins:
+            return 1.0
+        ratio = self.cfg.yaw_rate_sigma_rad_s ** 2 / max(self.sigma2, 1e-12)
+        return float(np.clip(ratio, self.cfg.min_yaw_quality, 1.0))
+
+
+def _bins(stamps: np.ndarray, bin_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index ranges [start, end) of increments in consecutive bins of ~bin_s seconds."""
+    if stamps.size < 2:
+        return np.zeros(0, int), np.zeros(0, int)
+    edges = np.searchsorted(stamps, np.arange(stamps[0], stamps[-1], bin_s))
+    edges = np.unique(np.r_[edges, stamps.size - 1])
+    return edges[:-1], edges[1:]

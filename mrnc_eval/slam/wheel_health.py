@@ -1,0 +1,57 @@
+"""wheel_health: what the online calibration found about the wheel odometry, and a verdict.
+
+"ok": the wheels agree with the gyro (and the LiDAR) within the flag limits; "miscalibrated": an
+estimate is significantly off (L/R mismatch, effective track factor, scale), the SLAM used the
+calibrated wheels, and the values are what the odometry node should be given; "unreliable": more
+than flag_rejected_fraction of the increments failed the gate."""
+
+from __future__ import annotations
+
+from typing import Any
+
+import numpy as np
+
+from mrnc_eval.slam.config import WheelCalibrationConfig
+from mrnc_eval.slam.wheel_calibration import WheelCalibrator
+
+
+def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
+    """The estimates with their 1-sigma, innovation statistics, rejected fraction and the verdict."""
+    cfg = cal.cfg
+    cov = cal.covariance
+    lr, lr_sigma = cal.lr_mismatch()
+    scale_sigma = float(np.sqrt(1.0 / cal.scale_info))
+    res = np.asarray(cal.res, float)
+    raw = np.asarray(cal.raw_res, float)
+    rejected = cal.n_rejected / cal.n_bins if cal.n_bins else 0.0
+    est = {"track_factor": cal.track_factor, "track_factor_sigma": float(np.sqrt(cov[0, 0])),
+           "lr_mismatch": lr, "lr_mismatch_sigma": lr_sigma,
+           "yaw_rate_offset_rad_s": float(cal.theta[2]), "yaw_rate_offset_sigma_rad_s": float(np.sqrt(cov[2, 2])),
+           "scale_error": cal.scale - 1.0, "scale_error_sigma": scale_sigma}
+    reasons = flags(est, rejected, cfg)
+    verdict = "ok" if not reasons else "unreliable" if rejected > cfg.flag_rejected_fraction else "miscalibrated"
+    return {**est, "gyro_bias_at_start_rad_s": cal.gyro_bias, "bins": cal.n_bins, "rejected_fraction": rejected,
+            "innovation_rms_rad_s": float(np.sqrt(np.mean(res ** 2))) if res.size else None,
+            "innovation_nis_mean": float(np.mean(cal.nis)) if cal.nis else None,
+            "raw_yaw_rate_minus_gyro_rms_rad_s": float(np.sqrt(np.mean(raw ** 2))) if raw.size else None,
+            "yaw_hold_scale": cal.yaw_quality(), "verdict": verdict, "reasons": reasons}
+
+
+def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibrationConfig) -> list[str]:
+    """Why the wheels disagree: each estimate beyond its limit by more than flag_sigmas sigma."""
+    k = cfg.flag_sigmas
+    out = []
+
+    def off(value: float, nominal: float, sigma: float, limit: float) -> bool:
+        return abs(value - nominal) > limit and abs(value - nominal) > k * sigma
+
+    if off(est["lr_mismatch"], 0.0, est["lr_mismatch_sigma"], cfg.flag_lr_mismatch):
+        out.append(f"left/right mismatch {est['lr_mismatch'] * 100:+.2f} % +- {est['lr_mismatch_sigma'] * 100:.2f} %")
+    if off(est["track_factor"], 1.0, est["track_factor_sigma"], cfg.flag_track_factor):
+        out.append(f"effective track factor {est['track_factor']:.2f} +- {est['track_factor_sigma']:.2f} "
+                   "(wheel yaw / gyro yaw)")
+    if off(est["scale_error"], 0.0, est["scale_error_sigma"], cfg.flag_scale):
+        out.append(f"scale error {est['scale_error'] * 100:+.2f} % +- {est['scale_error_sigma'] * 100:.2f} %")
+    if rejected_fraction > cfg.flag_rejected_fraction:
+        out.append(f"{rejected_fraction * 100:.0f} % of the wheel increments failed the gate against the gyro")
+    return out

@@ -1,0 +1,186 @@
+"""Online wheel calibration, the wheel gate and wheel_health on synthetic drives with known wheel
+errors (the simulator's error model, sim/wheels.py), and the GNSS residual gate. Negative
+controls: wheels with a known error must be flagged, exact and calibrated-class wheels must not;
+a chain that agrees with GNSS gets no factor, one that drifted does, multipath does not move it."""
+
+from __future__ import annotations
+
+from dataclasses import replace
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from mrnc_eval.data import GnssSeries, ImuSeries
+from mrnc_eval.sim.wheels import WheelErrors, measured_speeds
+from mrnc_eval.slam.config import GpsConfig, WheelCalibrationConfig
+from mrnc_eval.slam.gnss_gate import gate
+from mrnc_eval.slam.wheel_calibration import WheelCalibrator, WheelIncrements, integrate
+from mrnc_eval.slam.wheel_health import wheel_health
+from mrnc_eval.slam.wheel_odometry import WheelTrack
+
+TRACK = 1.6
+GYRO_BIAS = 0.012  # rad/s, a field-profile turn-on bias
+
+
+def _drive(duration_s: float = 40.0, rate: float = 50.0, seed: int = 0) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """True forward speed and yaw rate of a drive with a standing start, speed changes and turns."""
+    t = np.arange(0.0, duration_s, 1.0 / rate)
+    v = np.clip((t - 1.0) / 3.0, 0.0, 1.0) * (0.8 + 0.2 * np.sin(2 * np.pi * t / 17.0))
+    w = 0.25 * np.sin(2 * np.pi * t / 12.0) * (t > 5.0) * v
+    return t, v, w
+
+
+def _wheel_track(t: np.ndarray, v: np.ndarray, w: np.ndarray, err: WheelErrors, seed: int) -> WheelTrack:
+    vl, vr = v - 0.5 * w * TRACK, v + 0.5 * w * TRACK
+    ml, mr = measured_speeds(vl, vr, TRACK, err, np.random.default_rng(seed))
+    dt = np.diff(t)
+    vm, wm = 0.5 * (ml + mr), (mr - ml) / TRACK
+    inc = WheelIncrements(stamps=t, forward_m=vm[:-1] * dt, lateral_m=np.zeros(dt.size), yaw_rad=wm[:-1] * dt,
+                          start=np.eye(4))
+    return integrate(inc, inc.forward_m, inc.yaw_rad)
+
+
+def _imu(t: np.ndarray, w: np.ndarray, seed: int) -> ImuSeries:
+    rng = np.random.default_rng(seed + 100)
+    ti = np.arange(t[0], t[-1], 0.01)
+    wz = np.interp(ti, t, w) + GYRO_BIAS + rng.normal(0.0, 0.002, ti.size) + 0.01 * np.sin(2 * np.pi * 30 * ti)
+    gyro = np.c_[np.zeros(ti.size), np.zeros(ti.size), wz]
+    return ImuSeries(ti, np.tile([0.0, 0.0, 9.81], (ti.size, 1)), gyro, None, "imu")
+
+
+CASES = {  # name: (errors, flagged)
+    "exact": (WheelErrors(), False),
+    "calibrated": (WheelErrors(scale_error=0.005, lr_mismatch=-0.005, track_factor=1.1, speed_noise_mps=0.05), False),
+    "lr2": (WheelErrors(lr_mismatch=0.02), True),
+    "combined": (WheelErrors(scale_error=-0.02, lr_mismatch=-0.02, track_factor=1.6, speed_noise_mps=0.05), True),
+}
+
+
+def _calibrate(err: WheelErrors, seed: int = 0) -> WheelCalibrator:
+    t, v, w = _drive(seed=seed)
+    cal = WheelCalibrator.build(_wheel_track(t, v, w, err, seed), _imu(t, w, seed), np.eye(4),
+                                WheelCalibrationConfig())
+    assert cal is not None
+    cal.update(float(t[-1]))
+    return cal
+
+
+@pytest.mark.parametrize("name", list(CASES))
+def test_wheel_health_flags_wrong_wheels_and_only_them(name: str) -> None:
+    err, flagged = CASES[name]
+    h = wheel_health(_calibrate(err))
+    assert (h["verdict"] != "ok") == flagged, h
+    # wheel yaw / true yaw = (1 + scale) x track factor
+    assert h["track_factor"] == pytest.approx(err.track_factor * (1 + err.scale_error), rel=0.02)
+    # the estimate's own sigma is honest: 0.003 without speed noise, 0.005 with 0.05 m/s
+    assert h["lr_mismatch"] == pytest.approx(err.lr_mismatch, abs=max(0.003, 3 * h["lr_mismatch_sigma"]))
+    assert h["lr_mismatch_sigma"] < 0.006
+    assert h["rejected_fraction"] < 0.05
+
+
+def test_calibrated_track_follows_the_true_heading() -> None:
+    """The combined errors' heading error over 40 s: tens of degrees raw, 0.37 deg calibrated with
+    the gyro blended in by inverse variance (its bias from the standing start); the raw track and
+    the calibrated wheels' yaw alone (1.65 deg: the 0.05 m/s pickup noise random-walks it) are the
+    negative controls."""
+    err = CASES["combined"][0]
+    t, v, w = _drive()
+    true_yaw = np.r_[0.0, np.cumsum(w[:-1] * np.diff(t))]
+    raw = _wheel_track(t, v, w, err, 0)
+    cal = _calibrate(err)
+    wheels_only = WheelCalibrator.build(raw, _imu(t, w, 0), np.eye(4),
+                                        WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0))
+    assert wheels_only is not None
+    wheels_only.update(float(t[-1]))
+
+    def yaw_err(track: WheelTrack) -> float:
+        yaw = np.unwrap(Rotation.from_quat(track.quat_xyzw).as_euler("ZYX")[:, 0])
+        return float(np.degrees(np.max(np.abs(yaw - true_yaw))))
+
+    assert yaw_err(raw) > 20.0
+    assert yaw_err(cal.track()) < 0.8 < 1.2 < yaw_err(wheels_only.track())
+    assert cal.gyro_bias == pytest.approx(GYRO_BIAS, abs=0.002)
+
+
+def test_gate_rejects_a_wheel_glitch_and_takes_the_gyro_yaw() -> None:
+    """A 0.5 s stretch where one side reads 0.5 m/s too much (a stuck pickup): its bins fail the
+    chi-square gate; the gate off (gate_chi2 huge) keeps them: the negative control."""
+    t, v, w = _drive()
+    stamps, positions, quat = _glitched(t, v, w)
+    glitch = WheelTrack(stamps=stamps, positions=positions, quat_xyzw=quat)
+    wheels_yaw = WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0)  # the gate alone, no gyro blending
+    on = WheelCalibrator.build(glitch, _imu(t, w, 0), np.eye(4), wheels_yaw)
+    off = WheelCalibrator.build(glitch, _imu(t, w, 0), np.eye(4), replace(wheels_yaw, gate_chi2=1e12))
+    assert on is not None
+    assert off is not None
+    on.update(float(t[-1]))
+    off.update(float(t[-1]))
+    assert 2 <= on.n_rejected <= 6
+    assert off.n_rejected == 0
+    true_yaw = np.r_[0.0, np.cumsum(w[:-1] * np.diff(t))]
+
+    def yaw_err(cal: WheelCalibrator) -> float:
+        return float(np.max(np.abs(np.unwrap(Rotation.from_quat(cal.track().quat_xyzw).as_euler("ZYX")[:, 0])
+                                   - true_yaw)))
+
+    assert yaw_err(on) < 0.02 < 0.05 < yaw_err(off)  # the glitch itself is 0.16 rad
+    assert abs(on.track_factor - 1.0) < 0.01 < 0.03 < abs(off.track_factor - 1.0)  # it bent the fit
+
+
+def _glitched(t: np.ndarray, v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    track = _wheel_track(t, v, w, WheelErrors(), 0)
+    inc = WheelIncrements.of(track)
+    bad = (t[:-1] >= 20.0) & (t[:-1] < 20.5)
+    yaw = inc.yaw_rad + bad * 0.5 / TRACK * np.diff(t)
+    out = integrate(inc, inc.forward_m, yaw)
+    return out.stamps, out.positions, out.quat_xyzw
+
+
+# ---- GNSS residual gate
+def _line_chain(n: int = 30, drift_m: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """Keyframes 1 s / 1 m apart along x; the last 8 drift sideways by up to drift_m."""
+    stamps = np.arange(n, dtype=float)
+    poses = np.tile(np.eye(4), (n, 1, 1))
+    poses[:, 0, 3] = stamps
+    poses[:, 1, 3] = np.clip(stamps - (n - 9), 0.0, None) / 8.0 * drift_m
+    return stamps, poses
+
+
+def _fixes(n: int, sigma: float, seed: int, multipath: tuple[float, float] | None = None) -> GnssSeries:
+    rng = np.random.default_rng(seed)
+    t = np.arange(0.0, n - 1 + 1e-9, 0.2)
+    enu = np.c_[t, np.zeros(t.size), np.zeros(t.size)] + rng.normal(0.0, sigma, (t.size, 3))
+    if multipath is not None:
+        enu[(t >= multipath[0]) & (t < multipath[1]), 1] += 2.5
+    cov = np.tile(np.diag([sigma ** 2] * 3), (t.size, 1, 1))
+    return GnssSeries(stamps=t, lla=enu, enu=enu, covariance=cov, origin_lla=np.zeros(3))
+
+
+def test_gnss_gate_lets_fixes_in_only_when_the_chain_drifted() -> None:
+    cfg = GpsConfig()
+    lever = np.zeros(3)
+    fixes = _fixes(30, 0.3, 1)
+    usable = np.ones(fixes.stamps.size, bool)
+    ok, _ = gate(fixes, usable, *_line_chain(), lever, cfg)
+    drifted, _ = gate(fixes, usable, *_line_chain(drift_m=1.5), lever, cfg)
+    assert ok is not None
+    assert ok.position is None  # the chain agrees: no factor
+    assert drifted is not None
+    assert drifted.position is not None
+    # the factor pulls the last keyframe back towards y = 0 (the re-fitted alignment takes a part)
+    assert drifted.position[1] < 1.5 - 0.5
+
+
+def test_gnss_gate_drops_a_multipath_jump() -> None:
+    """2.5 m multipath over 2 s of the 6 s window: its fixes are dropped as outliers; with the
+    outlier test off (huge outlier_sigmas) none is (the negative control)."""
+    fixes = _fixes(30, 0.3, 2, multipath=(25.0, 27.0))
+    usable = np.ones(fixes.stamps.size, bool)
+    d, _ = gate(fixes, usable, *_line_chain(), np.zeros(3), GpsConfig())
+    assert d is not None
+    assert d.position is None
+    assert d.outliers >= 8
+    loose, _ = gate(fixes, usable, *_line_chain(), np.zeros(3), GpsConfig(residual_outlier_sigmas=100.0))
+    assert loose is not None
+    assert loose.outliers == 0
