@@ -83,8 +83,10 @@ def run_cell(log: Path, wheels: str, gnss: str, method: str, extra: list[str]) -
         args = [*CLI, "slam", str(log), "--json", "--out", out, *slam_args(wheels, gnss, method), *extra]
         proc = subprocess.run(["nice", "-n", "5", *args], check=False, capture_output=True, text=True)
         try:  # a failed APE gate (gates.ape_rmse_max_m) exits non-zero after printing the summary
-            row = json.loads(proc.stdout)[0]
-        except (json.JSONDecodeError, IndexError):
+            data = json.loads(proc.stdout)  # {"schema_version", "verb", "results": [...]}; a bare list before
+            row = (data["results"] if isinstance(data, dict) else data)[0]
+            row = {**row, **row.get("stats", {})}  # the metrics moved under "stats"
+        except (json.JSONDecodeError, IndexError, KeyError, TypeError):
             return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "failed"}
         health = {}
         mfile = Path(row["run_dir"]) / "metrics.json"

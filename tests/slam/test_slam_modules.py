@@ -222,6 +222,37 @@ def test_a_wrong_fix_moves_the_anchored_chain_little_and_lio_sams_free_start_a_l
     assert moved["lio-sam"] > 1.0
 
 
+def test_without_wheels_the_start_is_free_and_a_residual_gate_factor_pulls_a_drifted_chain_onto_the_fix() -> None:
+    """slam.graph.anchor_start=with_wheels anchors only with wheel factors, whatever the GNSS gate.
+    Without wheels on bare ground the chain is IMU dead reckoning: here it read 15 % long (23 m for
+    20 m). A residual-gate factor (sigma 10 cm, no floor, Huber) at the true 20 m puts the free
+    chain onto the fix; the anchored start (negative control: the rule before, anchored with the
+    residual gate even without wheels) keeps it ~3 m off, as on the open line (issue 28)."""
+    from dataclasses import replace
+
+    from mrnc_eval.slam.config import GraphConfig, SlamConfig
+    from mrnc_eval.slam.graph import KeyframeGraph
+    from mrnc_eval.slam.replay import start_anchored
+
+    cfg = SlamConfig()
+    assert cfg.gps.gate == "residual"
+    assert cfg.graph.anchor_start == "with_wheels"
+    assert start_anchored(cfg, with_wheels=True)
+    assert not start_anchored(cfg, with_wheels=False)
+    always = replace(cfg, graph=replace(cfg.graph, anchor_start="always"), gps=replace(cfg.gps, gate="lio_sam"))
+    assert start_anchored(always, with_wheels=False)
+    off = {}
+    for anchored in (start_anchored(cfg, with_wheels=False), True):
+        graph = KeyframeGraph(cfg=GraphConfig(), anchored=anchored)
+        for k in range(21):
+            graph.add_keyframe(se3.make(np.eye(3), np.array([1.15 * k, 0.0, 0.0])), float(k))
+        graph.add_gps(20, np.array([20.0, 0.0, 0.0]), np.array([0.01, 0.01, 0.01]), np.zeros(3), floor_m2=0.0,
+                      huber_k=1.345)
+        off[anchored] = float(np.linalg.norm(graph.poses[-1][:3, 3] - [20.0, 0.0, 0.0]))
+    assert off[False] < 0.1  # measured ~0 m
+    assert off[True] > 2.0  # measured 2.97 m
+
+
 def test_gnss_factors_pull_a_drifting_keyframe_chain_onto_the_fixes() -> None:
     """Graph #1 with LIO-SAM's loose first-pose prior: odometry with a 1 %/m heading drift bends
     the chain away from the truth; GNSS factors on the antenna (lever arm 0.5 m up, variance
