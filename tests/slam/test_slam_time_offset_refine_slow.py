@@ -38,12 +38,13 @@ def yard_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _estimate(log: Path, refine_s: float) -> float:
     from mrnc_eval.io import open_log
+    from mrnc_eval.slam.mapping_interval import MappingInterval
     from mrnc_eval.slam.replay import run_slam
 
     cfg = replace_path(Config(), "slam.imu.refine_time_offset_s", refine_s)
     with open_log(log) as lg:
         imu = lg.imu()
-        out = run_slam(lg.sweeps(min_interval_s=cfg.slam.mapping_interval_s),
+        out = run_slam(lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take),
                        replace(imu, stamps=imu.stamps + TRUE_LAG_S - cfg.sim.field.clock.imu_offset_s), cfg.slam,
                        sensor_to_imu=lg.transform("os_sensor", "os_imu"))
     assert out.imu_time_offset_s is not None

@@ -38,7 +38,7 @@ def _with(cfg: Config, values: dict[str, object]) -> Config:
 
 @pytest.fixture(scope="module")
 def combined_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.sim.recorder import SimRequest, simulate_log
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     folder = tmp_path_factory.mktemp("wheels")
     return simulate_log(folder / "line_combined_float_s3.mcap", _with(Config(), DRIVE),
