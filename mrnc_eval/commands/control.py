@@ -18,11 +18,8 @@ from mrnc_eval.control.closed_loop import SIDES, ClosedLoopTrace
 from mrnc_eval.control.config import shaping_text
 from mrnc_eval.control.controllers import CONTROLLERS, LABELS
 from mrnc_eval.control.raid import rbf_centres
-from mrnc_eval.control.replay import replay_trace
 from mrnc_eval.data import Waypoints
 from mrnc_eval.errors import InputError, UsageError
-from mrnc_eval.evaluation.control_run import evaluate_trace
-from mrnc_eval.io.control_recording import read_recording
 from mrnc_eval.io.split_logs import split_log_paths
 from mrnc_eval.io.waypoint_files import read_waypoints
 from mrnc_eval.reports.control_tables import (
@@ -58,17 +55,6 @@ def simulation_topics(roles: Mapping[str, str]) -> dict[str, str]:
     """role -> topic of what a simulation along the log's path reads, for summaries and reports
     (a replay names every role it read)."""
     return {r: roles[r] for r in ("path", "ground_truth") if r in roles}
-
-
-def replay(log_path: Path, cfg: Config, path: Waypoints | None = None, path_source: str = ""
-           ) -> tuple[dict[str, ClosedLoopTrace], dict[str, Any], list[str]]:
-    """Recompute the references the chain would issue along the recorded pose (pure pursuit at its
-    rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
-    pump commands against them. Without a path (none in the log, no `path`): wheel-speed tracking
-    against the inverse kinematics of the recorded cmd_vel (or the wheel odometry's twist)."""
-    rec = read_recording(log_path, cfg.io, cfg.robot.wheel_radius_m, path, path_source)
-    tr, warnings = replay_trace(rec, cfg.control, cfg.robot)
-    return {"recorded": tr}, {"recorded": evaluate_trace(tr, cfg.control)}, warnings
 
 
 def run_log(log_path: Path | None, cfg: Config, out_dir: Path, *, mode: str = "replay",

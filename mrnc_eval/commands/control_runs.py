@@ -66,7 +66,11 @@ def simulated_run(log_path: Path | None, cfg: Config, controllers: tuple[str, ..
                       definitions=table_notes(cfg), scenario=scenario)
 
 
-def replayed_run(log_path: Path, cfg: Config, path: Waypoints | None, path_source: str) -> ControlRun:
+def replayed_run(log_path: Path, cfg: Config, path: Waypoints | None = None, path_source: str = "") -> ControlRun:
+    """Recompute the references the chain would issue along the recorded pose (pure pursuit at its
+    rate, inverse kinematics, the same reference slew) and evaluate the recorded wheel speeds and
+    pump commands against them. Without a path (none in the log, no `path`): wheel-speed tracking
+    against the inverse kinematics of the recorded cmd_vel (or the wheel odometry's twist)."""
     rec = read_recording(log_path, cfg.io, cfg.robot.wheel_radius_m, path, path_source if path is not None else "")
     tr, warnings = replay_trace(rec, cfg.control, cfg.robot)
     return ControlRun(traces={"recorded": tr}, metrics={"recorded": evaluate_trace(tr, cfg.control)},

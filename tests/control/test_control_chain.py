@@ -234,7 +234,7 @@ def test_replay_of_a_written_log_reproduces_the_simulated_tracking(tmp_path) -> 
 
 
 def test_replay_finds_the_slip_patches_of_the_paper_run(tmp_path) -> None:
-    from mrnc_eval.commands.control import replay
+    from mrnc_eval.commands.control_runs import replayed_run
     from mrnc_eval.data import Trajectory, Waypoints
     from mrnc_eval.io.writers import LogWriter
 
@@ -248,7 +248,8 @@ def test_replay_finds_the_slip_patches_of_the_paper_run(tmp_path) -> None:
         w.write_odometry("/ground_truth", Trajectory(tr.t, np.c_[tr.x, tr.y, np.zeros_like(tr.t)], quat))
         w.write_joint_state("/wheel_speeds", tr.t, ["left_wheel", "right_wheel"],
                             np.c_[tr.v_wheel_left, tr.v_wheel_right] / cfg.robot.wheel_radius_m)
-    traces, _, warnings = replay(log, cfg)
+    run = replayed_run(log, cfg)
+    traces, warnings = run.traces, run.warnings
     rec = traces["recorded"]
     assert "no pump-command topic" in warnings[0]
     for side in ("left", "right"):
