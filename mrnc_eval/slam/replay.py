@@ -153,6 +153,7 @@ class _Replay:
     offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
     wheel_cal: WheelCalibrator | None = None  # online calibration; `wheel` is then its calibrated track
     wheel_flagged: bool = False  # the wheel_health event was raised
+    wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -256,6 +257,10 @@ class _Replay:
         if cal is None:
             return
         cal.update(t)
+        state = (cal.next_bin, cal.scale_info)  # the track and the health change only with these
+        if state == self.wheel_cal_state:
+            return
+        self.wheel_cal_state = state
         self.wheel = cal.track()
         if self.wheel_flagged or cal.n_bins < cal.cfg.warmup_bins:
             return

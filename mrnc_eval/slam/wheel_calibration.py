@@ -119,6 +119,9 @@ class WheelCalibrator:
             return None
         inc = WheelIncrements.of(track)
         gt, gw = gyro_yaw_rate(imu, imu_in_base)
+        if np.any(np.diff(gt) < 0):  # the reader sorts its streams; a hand-made series may not be
+            order = np.argsort(gt, kind="stable")
+            gt, gw = gt[order], gw[order]
         bias = stationary_gyro_bias(gt, gw, inc, cfg.stationary_speed_mps)
         cal = cls(cfg=cfg, inc=inc, gyro_t=gt, gyro_w=gw, gyro_bias=0.0 if bias is None else bias,
                   track_width_m=cfg.track_width_m)
@@ -166,10 +169,10 @@ class WheelCalibrator:
         dt = t1 - t0
         if dt <= 0:
             return
-        sel = (self.gyro_t >= t0) & (self.gyro_t < t1)
-        if not sel.any():
+        i, j = np.searchsorted(self.gyro_t, [t0, t1])  # the gyro samples in [t0, t1): stamps sorted (build)
+        if i == j:
             return
-        wg = float(self.gyro_w[sel].mean()) - self.gyro_bias
+        wg = float(self.gyro_w[i:j].mean()) - self.gyro_bias
         self.bin_yaw_gyro[k] = wg * dt
         ww = float(self.inc.yaw_rad[i0:i1].sum()) / dt
         v = float(self.inc.forward_m[i0:i1].sum()) / dt
