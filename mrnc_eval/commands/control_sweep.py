@@ -24,7 +24,7 @@ from mrnc_eval.control.sweep import (
     PlantDraw,
     authority_margin,
     draw_plants,
-    feasible,
+    margin_is_feasible,
     mismatch_bins,
     plant_for,
     scenario_for,
@@ -90,13 +90,14 @@ def run_one(draw: PlantDraw, controller: str, cfg: Config, seed: int,
     cte, _ = cross_track(tr.x, tr.y, scenario.waypoints_xy)
     first = min(tr.events, key=lambda e: e["t_s"]) if tr.events else None
     demands = demands if demands is not None else nominal_demands(cfg)
+    margin = authority_margin(draw, demands, c)
     return SweepRun(draw=draw.index, controller=controller, gain_mismatch=draw.gain_mismatch,
                     funnel_violation=bool(stats[:, ST_FUNNEL].max() > 0), safety_stop=bool(tr.events),
                     saturation_fraction=float(stats[:, ST_SATURATED].max() / n_periods),
                     steady_state_error_mps=float(np.nanmax(sse)) if not np.all(np.isnan(sse)) else float("nan"),
                     iae_m=float(stats[:, ST_IAE].max()), cross_track_rms_m=float(np.sqrt(np.mean(cte ** 2))),
-                    completed=tr.completed, feasible=feasible(draw, demands, c),
-                    authority_margin_mps=authority_margin(draw, demands, c),
+                    completed=tr.completed, feasible=margin_is_feasible(margin, c),
+                    authority_margin_mps=margin,
                     stop_cause=first["cause"] if first else "", stop_side=first["side"] if first else "",
                     stop_time_s=float(first["t_s"]) if first else float("nan"),
                     stop_e_over_o=float(first["e_over_o"]) if first else float("nan"),

@@ -78,7 +78,12 @@ def authority_margin(draw: PlantDraw, demands: list[tuple[float, float]], cfg: C
 def feasible(draw: PlantDraw, demands: list[tuple[float, float]], cfg: ControlConfig) -> bool:
     """A plant on which some controller can hold |e| < o_b everywhere: the clamp and the slip leave a
     reachable speed within the funnel floor o_b of every demand."""
-    return authority_margin(draw, demands, cfg) > -cfg.funnel.o_b_mps
+    return margin_is_feasible(authority_margin(draw, demands, cfg), cfg)
+
+
+def margin_is_feasible(margin_mps: float, cfg: ControlConfig) -> bool:
+    """The feasibility rule on an authority margin already computed (m/s)."""
+    return margin_mps > -cfg.funnel.o_b_mps
 
 
 def wilson_interval(k: int, n: int, z: float = 1.959964) -> tuple[float, float]:
