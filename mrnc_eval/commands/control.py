@@ -224,7 +224,7 @@ def json_body(result: RunResult, run_dir: Path, mode: str) -> dict[str, Any]:
     items = []
     for (ctrl, side), stats in body.items():
         extra: dict[str, Any] = {}
-        t, phi = result.series.get(f"{ctrl}_t"), result.series.get(f"{ctrl}_{side}_phi_hat")
+        t, phi = result.series.get(K.time(ctrl)), result.series.get(K.side_series(ctrl, side, K.PHI_HAT))
         if phi is not None and t is not None:
             every = max(1, int(round(1.0 / max(float(np.median(np.diff(t))), 1e-9))))
             extra["phi_hat"] = {"t_s": t[::every].tolist(), "value": phi[::every].tolist()}

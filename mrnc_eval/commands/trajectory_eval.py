@@ -15,7 +15,7 @@ from mrnc_eval.evaluation.ape import ApeResult, ape
 from mrnc_eval.evaluation.decompose import Decomposition
 from mrnc_eval.evaluation.drift import DriftResult
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
-from mrnc_eval.evaluation.relations import TITLES, UNITS
+from mrnc_eval.evaluation.relations import TITLES
 from mrnc_eval.evaluation.rpe import RpeResult, rpe
 from mrnc_eval.io.trajectory_files import is_kitti_file, read_trajectory
 from mrnc_eval.outputs import claim_output, output_file, write_output
@@ -319,11 +319,6 @@ def ape_main(ref: str, est: list[str], *, align: AlignMode, n_to_align: int | No
     title = f"APE w.r.t. {TITLES[relation]}, {alignment_phrase(results[0].alignment_summary())}"
     _emit(results, title, json_out, table, plot, decompositions=decompositions, force=force, inputs=inputs,
           plot_mode=plot_mode, save_results=save_results, evo_names=(ref, est[0]))
-
-
-def _unit(relation: Relation) -> str:
-    unit = UNITS[relation]
-    return f" ({unit})" if unit else ""
 
 
 def alignment_phrase(a: dict[str, Any]) -> str:
