@@ -32,6 +32,13 @@ def _umask() -> int:
     return mask
 
 
+def follow_umask(path: Path) -> None:
+    """Give a file or folder made by mkstemp/mkdtemp (0600/0700) the mode an ordinary
+    open()/mkdir() would have given it, so teammates and web servers can read reports."""
+    base = 0o777 if path.is_dir() else 0o666
+    os.chmod(path, base & ~_umask())
+
+
 def _sha256(path: Path) -> str:
     h = hashlib.sha256()
     with path.open("rb") as fh:
@@ -106,7 +113,7 @@ def record_output(path: Path) -> None:
     try:
         with os.fdopen(fd, "w", encoding="utf-8") as fh:
             json.dump(entries, fh, indent=1, sort_keys=True)
-        os.chmod(tmp, 0o666 & ~_umask())
+        follow_umask(Path(tmp))
         os.replace(tmp, path.parent / MANIFEST)
     except BaseException:
         Path(tmp).unlink(missing_ok=True)
@@ -129,7 +136,7 @@ def output_file(path: str | Path, *, force: bool = False, inputs: Iterable[str |
     try:
         try:
             yield tmp
-            os.chmod(tmp, 0o666 & ~_umask())
+            follow_umask(tmp)
             claim_output(path, force=force, inputs=inputs)  # still ours to replace (nothing appeared meanwhile)
             os.replace(tmp, path)
             record_output(path)

@@ -38,7 +38,7 @@ import numpy as np
 from mrnc_eval import __version__
 from mrnc_eval.errors import InputError, OutputError
 from mrnc_eval.io.containers import LOG_SUFFIXES
-from mrnc_eval.outputs import describe
+from mrnc_eval.outputs import describe, follow_umask
 from mrnc_eval.tables import Table
 
 if TYPE_CHECKING:
@@ -181,19 +181,6 @@ def absolute_log_path(path: str | Path) -> str:
 def log_id_for(path: str | Path) -> str:
     """Stable id of a log from its file name (see `stable_id`), without the container suffix."""
     return stable_id(Path(path).name)
-
-
-def _umask() -> int:
-    mask = os.umask(0o022)  # read it back: there is no getter
-    os.umask(mask)
-    return mask
-
-
-def follow_umask(path: Path) -> None:
-    """Give a file or folder made by mkstemp/mkdtemp (0600/0700) the mode an ordinary
-    open()/mkdir() would have given it, so teammates and web servers can read reports."""
-    base = 0o777 if path.is_dir() else 0o666
-    os.chmod(path, base & ~_umask())
 
 
 def check_output_root(root: Path, need_bytes: int = 0) -> Path:
