@@ -52,9 +52,8 @@ def run_metrics(run: Path, label: str) -> RunMetrics:
     """The metrics of a result directory, of the result directories in a folder (one log's), or
     of an evo result zip."""
     from mrnc_eval.commands.report import result_dirs_of
-    from mrnc_eval.io.evo_results import is_evo_zip
 
-    if is_evo_zip(run) or Path(run).suffix.lower() == ".zip":
+    if Path(run).suffix.lower() == ".zip":  # read_evo_zip says what is wrong with a zip that is not evo's
         return evo_metrics(run, label)
 
     dirs = result_dirs_of([run])

@@ -166,15 +166,3 @@ def evo_result(result: ApeResult | RpeResult, *, ref_name: str, est_name: str, a
     if a is not None and a.mode is not AlignMode.none:
         arrays["alignment_transformation_sim3"] = a.sim3()
     return EvoResult(info=info, stats=dict(result.stats), arrays=arrays)
-
-
-def is_evo_zip(path: str | Path) -> bool:
-    """A .zip file holding info.json and stats.json."""
-    p = Path(path)
-    if p.suffix.lower() != ".zip" or not p.is_file():
-        return False
-    try:
-        with zipfile.ZipFile(p) as archive:
-            return {"info.json", "stats.json"} <= set(archive.namelist())
-    except (zipfile.BadZipFile, OSError):
-        return False
