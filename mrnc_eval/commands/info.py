@@ -11,6 +11,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mrnc_eval.config import Config
+from mrnc_eval.data import ImuSeries
 from mrnc_eval.io import open_log
 from mrnc_eval.text import printable
 
@@ -95,24 +96,20 @@ def _summary(path: Path, cfg: Config) -> InfoSummary:
         summary.findings.extend(_stream_findings(topics))
         _lidar_findings(lg, summary)
         _gnss_findings(lg, summary)
-        _validation_findings(lg, summary)
-        _imu_noise_findings(lg, summary, cfg)
+        imu = _validation_findings(lg, summary).get("imu")
+        _imu_noise_findings(imu if isinstance(imu, ImuSeries) else None, summary, cfg)
     return summary
 
 
-def _imu_noise_findings(lg: LogReader, summary: InfoSummary, cfg: Config) -> None:
+def _imu_noise_findings(imu: ImuSeries | None, summary: InfoSummary, cfg: Config) -> None:
     """The IMU's noise densities and biases from the log's stationary stretches (slam/imu_noise.py),
-    beside the preintegration's configured noise."""
-    from mrnc_eval.errors import InputError
+    beside the preintegration's configured noise. `imu`: the series the validation read (None
+    without an IMU role or when it was refused: already an error finding)."""
     from mrnc_eval.slam.imu_noise import estimate_imu_noise
 
     topic = summary.roles.get("imu")
-    if topic is None:
+    if topic is None or imu is None:
         return
-    try:
-        imu = lg.imu(topic)
-    except InputError:
-        return  # already an error finding
     icfg = cfg.slam.imu
     est = estimate_imu_noise(imu.stamps, imu.acc, imu.gyro, gravity=icfg.gravity, min_s=icfg.stationary_min_s)
     if est is None:
@@ -135,20 +132,22 @@ def _imu_noise_findings(lg: LogReader, summary: InfoSummary, cfg: Config) -> Non
                                         "preintegration assumes (vibration?): consider slam.imu.noise_from_log=true"))
 
 
-def _validation_findings(lg: LogReader, summary: InfoSummary) -> None:
+def _validation_findings(lg: LogReader, summary: InfoSummary) -> dict[str, object]:
     """Read each typed stream once through the reader's validation: a refused stream is an
-    error finding, dropped samples a warning (the same policy SLAM and control replay see)."""
+    error finding, dropped samples a warning (the same policy SLAM and control replay see).
+    Returns role -> the series read, for the findings that look into one."""
     from mrnc_eval.errors import InputError, NoGnssFix
 
     readers: dict[str, Callable[[str], object]] = {
         "imu": lg.imu, "chassis_imu": lg.imu, "gnss": lg.gnss, "wheel_speeds": lg.wheel_speeds,
         "commands": lg.commands, "ground_truth": lg.trajectory, "wheel_odom": lg.trajectory, "path": lg.waypoints}
+    series: dict[str, object] = {}
     for role, read in readers.items():
         topic = summary.roles.get(role)
         if topic is None:
             continue
         try:
-            read(topic)
+            series[role] = read(topic)
         except NoGnssFix as err:  # already counted by the fix-ratio finding
             summary.findings.append(Finding(level="warning", topic=topic, message=err.problem))
             continue
@@ -162,6 +161,7 @@ def _validation_findings(lg: LogReader, summary: InfoSummary) -> None:
             lg.static_transforms()
         except InputError as err:
             summary.findings.append(Finding(level="error", topic=summary.roles["tf_static"], message=err.problem))
+    return series
 
 
 def _stream_findings(topics: list[TopicInfo]) -> list[Finding]:
