@@ -668,12 +668,12 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
             write_kitti(tmp / "trajectory.kitti", trajectories["trajectory.tum"])
             files["trajectory.kitti"] = tmp / "trajectory.kitti"
         if map_points.size:
-            import open3d as o3d
+            from mrnc_eval.io.pcd import write_pcd_xyz
+            from mrnc_eval.io.ply import write_ply_xyz
 
-            pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(map_points))
-            for name in ("map.ply", "map.pcd"):
-                o3d.io.write_point_cloud(str(tmp / name), pc)
-                files[name] = tmp / name
+            write_ply_xyz(tmp / "map.ply", map_points)
+            write_pcd_xyz(tmp / "map.pcd", map_points)
+            files["map.ply"], files["map.pcd"] = tmp / "map.ply", tmp / "map.pcd"
         metrics: dict[str, object] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
         if "wheel_health" in result.extra:
             metrics["wheel_health"] = result.extra["wheel_health"]
