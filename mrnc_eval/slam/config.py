@@ -276,13 +276,16 @@ class GpsConfig:
     ins_gate_chi2: float = param(13.8, "GNSS/INS: a fix enters when its innovation's squared Mahalanobis distance "
                                  "(graph #2's marginal antenna covariance + the fix's) is at most this (2 dof; "
                                  "13.8: 0.1 %)", gt=0.0, le=1000.0)
-    ins_trend_window_s: float = param(8.0, "GNSS/INS: a fix enters when it agrees "
-                                      "with a robust line through the accepted innovations of this long",
+    ins_trend_window_s: float = param(8.0, "GNSS/INS: a fix graph #2's covariance rejects still enters when it agrees "
+                                      "with a robust line through the innovations of every fix of this long",
                                       "s", gt=0.0, le=120.0)
-    ins_trend_min_fixes: int = param(10, "GNSS/INS: ... when at least this many fixes were accepted in it (else "
-                                     "the chi-square gate on graph #2's covariance)", ge=3, le=10000)
+    ins_trend_min_fixes: int = param(10, "GNSS/INS: ... when there are at least this many", ge=3, le=10000)
     ins_trend_sigmas: float = param(3.0, "GNSS/INS: ... within this many of its sigmas", gt=0.0, le=100.0)
     ins_trend_floor_m: float = param(0.3, "GNSS/INS: ... plus this", "m", ge=0.0, le=10.0)
+    ins_step_fixes: int = param(5, "GNSS/INS: this many rejected fixes in a row that agree with each other are a "
+                                "multipath step, taken off the later fixes (0 = never)", ge=0, le=1000)
+    ins_max_offset_m: float = param(3.5, "GNSS/INS: a multipath offset beyond this is no step (the chain drifted): "
+                                    "not taken", "m", gt=0.0, le=100.0)
     ins_reacquire_s: float = param(10.0, "GNSS/INS: after this long of fixes rejected without a break, take them "
                                    "again (the chain diverged; multipath jumps last 2-8 s)", "s", gt=0.0, le=600.0)
     ins_huber_k: float = param(1.345, "GNSS/INS: Huber kernel width of the factors (sigmas; 0 = none)", ge=0.0,
@@ -295,12 +298,15 @@ class GpsConfig:
                                         "otherwise): the match there only repeats the IMU's prediction, and counted "
                                         "as a measurement it shrinks the covariance the fixes are gated against",
                                         gt=0.0, le=1e4)
-    ins_acc_noise: float = param(0.05, "GNSS/INS, once aligned: graph #2's accelerometer noise density, at least "
+    ins_acc_noise: float = param(0.2, "GNSS/INS, once aligned: graph #2's accelerometer noise density, at least "
                                  "(the machine's vibration and a drifting attitude's gravity leak, which a bench "
                                  "figure or a stationary stretch does not show)", "m/s^2/sqrt(Hz)", gt=0.0, le=10.0)
-    ins_acc_bias_walk: float = param(0.01, "GNSS/INS, once aligned: graph #2's accelerometer bias random walk, at "
+    ins_acc_bias_walk: float = param(0.1, "GNSS/INS, once aligned: graph #2's accelerometer bias random walk, at "
                                      "least (a tilt error acts as a slowly changing bias the fixes then track)",
                                      "m/s^3", gt=0.0, le=10.0)
+    ins_marginal_restarts: bool = param(True, "GNSS/INS, once aligned: graph #2's periodic restarts start from its "
+                                        "marginals (what the fixes taught carries over), whatever "
+                                        "slam.imu.reset_priors says")
     ins_max_fix_age_s: float = param(0.3, "GNSS/INS: a fix older than this at its key is dropped (it is moved to the "
                                      "key's stamp by the chain's velocity)", "s", gt=0.0, le=5.0)
 

@@ -114,6 +114,17 @@ def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarra
     return np.asarray(coef[0], np.float64)
 
 
+def _ramp(t: np.ndarray, values: np.ndarray, sigma_m: float) -> bool:
+    """Whether values (n, 2) against t (n,) lie on a line (residuals within 2 sigma + 0.1 m) that moves
+    faster than 0.5 m/s: fixes that agree on a chain running away, unlike a multipath step (flat)."""
+    if t.size < 3 or np.ptp(t) <= 0:
+        return False
+    x = np.c_[np.ones(t.size), t - t[-1]]
+    coef = np.linalg.lstsq(x, values, rcond=None)[0]
+    res = np.linalg.norm(values - x @ coef, axis=1)
+    return bool(np.all(res <= 2.0 * sigma_m + 0.1) and np.linalg.norm(coef[1]) > 0.5)
+
+
 def gate_fix(innovation: np.ndarray, chain_cov: np.ndarray, fix_var: np.ndarray, chi2: float) -> tuple[bool, float]:
     """Whether a fix's horizontal innovation (2,) is consistent with the chain's position covariance
     (2, 2) plus the fix's variances (2,): Mahalanobis distance^2 against chi2. Returns (ok, d2)."""
@@ -138,7 +149,11 @@ class GnssIns:
     chain_antenna: list[np.ndarray] = field(default_factory=list)  # (3,) map
     rejected_since: float | None = None  # stamp of the first fix of the current run of rejections
     reacquiring: bool = False
-    history: list[tuple[float, np.ndarray]] = field(default_factory=list)  # accepted: (stamp, innovation (2,) m)
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(2))  # multipath offset taken off the fixes, m
+    pending: list[np.ndarray] = field(default_factory=list)  # rejected fixes' innovations less the trend, m
+    pending_t: list[float] = field(default_factory=list)  # ... their stamps, s
+    steps: int = 0
+    history: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (stamp, innovation (2,) m) of every fix
     accepted: int = 0
     rejected: int = 0
 
@@ -208,35 +223,66 @@ class GnssIns:
         self.next_fix = max(self.next_fix, end)
         return out
 
-    def judge(self, fix: FixUpdate, predicted_xy: np.ndarray, chain_cov_xy: np.ndarray) -> tuple[bool, float]:
-        """Gate one fix. With enough fixes accepted in the last ins_trend_window_s it enters when its
-        innovation is within ins_trend_sigmas of its sigma plus ins_trend_floor_m of a robust line
-        through their innovations (a multipath jump is a step away from it, while a chain that drifts
-        moves the line smoothly; graph #2's covariance does not know the drift a drifting attitude's
-        gravity leak makes); else when it passes chi-square against graph #2's covariance. After a
-        run of rejections longer than ins_reacquire_s every fix enters until one passes again."""
+    def judge(self, fix: FixUpdate, predicted_xy: np.ndarray, chain_cov_xy: np.ndarray) -> tuple[bool, np.ndarray]:
+        """Gate one fix; returns whether it enters and its position (2,) less the current multipath
+        offset. It enters when its innovation passes chi-square against graph #2's covariance, or
+        when it lies within ins_trend_sigmas of its sigma plus ins_trend_floor_m of a robust line
+        through the innovations of every fix of the last ins_trend_window_s (graph #2's covariance
+        does not know the drift a tilted attitude's gravity leak makes; a chain that drifts moves the
+        line, a multipath jump shorter than about half the window stands out of it). With
+        ins_step_fixes > 0: that many rejected fixes in a row that agree with each other are a
+        multipath step, whose size is taken off every later fix; if they lie on a line running away
+        it is the chain, and they enter. After a run of rejections longer than ins_reacquire_s every
+        fix enters until one passes again."""
         c = self.cfg
-        innovation = fix.position[:2] - predicted_xy
-        ok, d2 = gate_fix(innovation, chain_cov_xy, fix.sigmas[:2] ** 2, c.ins_gate_chi2)
+        sigma = float(fix.sigmas[0])
+        xy = fix.position[:2] - self.offset
+        innovation = xy - predicted_xy
+        ok, _ = gate_fix(innovation, chain_cov_xy, fix.sigmas[:2] ** 2, c.ins_gate_chi2)
         self.history = [(t, v) for t, v in self.history if t >= fix.stamp - c.ins_trend_window_s]
-        if len(self.history) >= c.ins_trend_min_fixes:
+        self.history.append((fix.stamp, innovation))
+        trend = None
+        if not ok and len(self.history) >= c.ins_trend_min_fixes:
             t = np.array([h[0] for h in self.history]) - fix.stamp
-            trend = robust_line(t, np.array([h[1] for h in self.history]), float(fix.sigmas[0]))
-            ok = bool(np.linalg.norm(innovation - trend) <= c.ins_trend_sigmas * fix.sigmas[0] + c.ins_trend_floor_m)
+            trend = robust_line(t, np.array([h[1] for h in self.history]), sigma)
+            ok = bool(np.linalg.norm(innovation - trend) <= c.ins_trend_sigmas * sigma + c.ins_trend_floor_m)
+        if not ok and trend is not None and c.ins_step_fixes > 0:
+            ok, xy = self._step(fix, xy, innovation - trend, sigma)
         if ok:
             self.reacquiring = False
+            self.pending, self.pending_t = [], []
         elif self.rejected_since is not None and fix.stamp - self.rejected_since >= c.ins_reacquire_s:
-            self.reacquiring = True
-            self.history = []
+            self.reacquiring = True  # the chain diverged: the offset is no longer known either
+            self.history, self.pending, self.pending_t, self.offset = [], [], [], np.zeros(2)
         if ok or self.reacquiring:
             self.accepted += 1
             self.rejected_since = None
-            self.history.append((fix.stamp, innovation))
-            return True, d2
+            return True, xy
         self.rejected += 1
         if self.rejected_since is None:
             self.rejected_since = fix.stamp
-        return False, d2
+        return False, xy
+
+    def _step(self, fix: FixUpdate, xy: np.ndarray, off_trend: np.ndarray, sigma: float) -> tuple[bool, np.ndarray]:
+        """A rejected fix joins the pending run; a flat run is a multipath step (taken off from now
+        on), a run on a line running away is the chain (the fixes enter)."""
+        c = self.cfg
+        self.pending.append(off_trend)
+        self.pending_t.append(fix.stamp)
+        if len(self.pending) < c.ins_step_fixes:
+            return False, xy
+        steps = np.array(self.pending[-c.ins_step_fixes:])
+        step = np.median(steps, axis=0)
+        if _ramp(np.array(self.pending_t[-c.ins_step_fixes:]), steps, sigma):
+            self.reacquiring = True
+            return True, xy
+        if np.linalg.norm(self.offset + step) <= c.ins_max_offset_m and \
+                np.all(np.linalg.norm(steps - step, axis=1) <= 2.0 * sigma + 0.1):
+            self.offset = self.offset + step
+            self.steps += 1
+            self.history = [(t, v - step) for t, v in self.history]  # as if taken off before
+            return True, xy - step
+        return False, xy
 
 def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
           base_to_sensor: np.ndarray | None, with_wheels: bool) -> GnssIns | None:
@@ -260,6 +306,7 @@ def step(ins: GnssIns, odom: ImuOdometry, matched: np.ndarray, t: float, events:
         odom.degenerate_sigma = ins.cfg.ins_degenerate_sigma
         odom.acc_bias_walk = max(ins.cfg.ins_acc_bias_walk, odom.cfg.acc_bias_noise)
         odom.use_acc_noise(ins.cfg.ins_acc_noise)
+        odom.marginal_restarts = ins.cfg.ins_marginal_restarts
         events.append(SlamEvent(t=t, kind="gps", message=f"GNSS/INS: ENU -> map alignment fixed from the fixes' "
                                 f"course: yaw {np.degrees(align.yaw_rad):.1f} deg", data={"yaw_rad": align.yaw_rad}))
     fused = odom.lidar_pose()
@@ -268,4 +315,8 @@ def step(ins: GnssIns, odom: ImuOdometry, matched: np.ndarray, t: float, events:
     z = float((fused[:3, :3] @ ins.antenna_in_lidar + fused[:3, 3])[2])
     odom.add_fixes(ins.fixes_until(t, odom.velocity, z), ins.antenna_in_lidar, ins.judge, ins.cfg.ins_huber_k)
     out = odom.lidar_pose()
+    import os, sys
+    if os.environ.get("INS_DEBUG") and out is not None:
+        print(f"S {t % 1000:.1f} m={matched[:3, 3].round(2)} f={out[:3, 3].round(2)} v={odom.velocity.round(2)} "
+              f"ba={odom.bias.accelerometer().round(3)} bg={odom.bias.gyroscope().round(4)} k={odom.key}", file=sys.stderr)
     return matched if out is None else out

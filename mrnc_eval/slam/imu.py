@@ -177,6 +177,7 @@ class ImuOdometry:
         # the match there only repeats the prediction, and the fixes carry those directions)
         self.degenerate_sigma: float | None = None
         self.acc_bias_walk: float | None = None  # m/s^3, instead of cfg.acc_bias_noise (GNSS/INS)
+        self.marginal_restarts = False  # periodic restarts from the marginals whatever cfg.reset_priors (GNSS/INS)
 
     def use_acc_noise(self, density: float) -> None:
         """Preintegrate from now on with this accelerometer noise density (m/s^2/sqrt(Hz)), at least
@@ -240,8 +241,9 @@ class ImuOdometry:
         body = g.Pose3(lidar_pose @ self.lever)
         graph, values = g.NonlinearFactorGraph(), g.Values()
         prior = self._pose_prior(lidar_pose[:3, :3], degenerate, directions)
-        self._loose = (degenerate, None if directions is None else np.abs(directions).sum(axis=0).round(1))
-        if self.key >= 0 and self.key + 1 >= self.cfg.reset_every and self.cfg.reset_priors == "marginals":
+        # GNSS/INS (degenerate_sigma set): always from marginals, or the fixed priors forget what the fixes taught
+        marginals = self.cfg.reset_priors == "marginals" or self.marginal_restarts
+        if self.key >= 0 and self.key + 1 >= self.cfg.reset_every and marginals:
             why = self._restart_from_marginals(t, body)
             if why:
                 return why
@@ -266,10 +268,11 @@ class ImuOdometry:
         return None
 
     def add_fixes(self, fixes: Sequence[Any], antenna_in_lidar: np.ndarray,
-                  judge: Callable[[Any, np.ndarray, np.ndarray], tuple[bool, float]], huber_k: float) -> int:
+                  judge: Callable[[Any, np.ndarray, np.ndarray], tuple[bool, np.ndarray]], huber_k: float) -> int:
         """GNSS/INS (slam/gnss_ins.py): antenna positions (map) as GPSFactorArm on the latest key, each
-        first judged on its innovation against the key's marginal covariance (antenna x, y; map
-        axes); a Huber kernel of huber_k sigmas when > 0. Returns how many entered."""
+        first judged by `judge(fix, predicted antenna x, y, the key's marginal covariance of them (map
+        axes))`, which returns whether it enters and the x, y to use; a Huber kernel of huber_k sigmas
+        when > 0. Returns how many entered."""
         g, k = self.g, self.key
         if k < 0 or not fixes or self._last_pose is None:
             return 0
@@ -283,18 +286,13 @@ class ImuOdometry:
         predicted = (self._last_pose.translation() + rot @ lever)[:2]
         graph = g.NonlinearFactorGraph()
         for fix in fixes:
-            ok, _d2 = judge(fix, predicted, cov_xy)
-            import os, sys
-            if os.environ.get("INS_DEBUG"):
-                print(f"INS {fix.stamp % 1000:.2f} ok={ok} loose={self._loose} d2={_d2:.1f} innov={(fix.position[:2] - predicted).round(2)} "
-                      f"cov={np.sqrt(np.diag(cov_xy)).round(2)} v={self.velocity.round(2)} "
-                      f"ba={self.bias.accelerometer().round(3)}", file=sys.stderr)
+            ok, xy = judge(fix, predicted, cov_xy)
             if not ok:
                 continue
             noise = self._noise(fix.sigmas)
             if huber_k > 0:
                 noise = g.noiseModel.Robust.Create(g.noiseModel.mEstimator.Huber.Create(huber_k), noise)
-            graph.add(g.GPSFactorArm(g.symbol("x", k), np.asarray(fix.position, float), lever, noise))
+            graph.add(g.GPSFactorArm(g.symbol("x", k), np.r_[xy, fix.position[2]], lever, noise))
         if graph.size() == 0:
             return 0
         try:
