@@ -260,10 +260,12 @@ class GpsConfig:
     residual_huber_k: float = param(1.345, "residual gate: Huber kernel width of the factors (sigmas; 0 = none)",
                                     ge=0.0)
     ins: Literal["off", "without_wheels", "always"] = param(
-        "without_wheels", "GNSS/INS (slam/gnss_ins.py): fixes as antenna-position factors in graph #2 (the IMU "
+        "off", "GNSS/INS (slam/gnss_ins.py): fixes as antenna-position factors in graph #2 (the IMU "
         "preintegration graph), so they steer its velocity and accelerometer bias, with the ENU -> map alignment "
         "fixed once from the fixes' own course against the chain's forward-axis heading; the online pose is then "
-        "graph #2's fused pose and graph #1 gets no GNSS factors. without_wheels: only when no wheel odometry is used")
+        "graph #2's fused pose and graph #1 gets no GNSS factors. without_wheels: only when no wheel odometry is used. "
+        "Off by default: it does not hold the open line without wheels (float GNSS) yet and costs the yard "
+        "(docs/simulation.md, issue 28)")
     ins_align_travel_m: float = param(5.0, "GNSS/INS: the fixes' travel along their course before the alignment is "
                                       "fixed", "m", gt=0.0, le=100.0)
     ins_align_max_turn_deg: float = param(30.0, "GNSS/INS: ... over a stretch whose chain heading spans at most "
@@ -276,10 +278,16 @@ class GpsConfig:
     ins_gate_chi2: float = param(13.8, "GNSS/INS: a fix enters when its innovation's squared Mahalanobis distance "
                                  "(graph #2's marginal antenna covariance + the fix's) is at most this (2 dof; "
                                  "13.8: 0.1 %)", gt=0.0, le=1000.0)
-    ins_trend_window_s: float = param(8.0, "GNSS/INS: a fix graph #2's covariance rejects still enters when it agrees "
-                                      "with a robust line through the innovations of every fix of this long",
+    ins_trend_window_s: float = param(8.0, "GNSS/INS: a fix enters when it agrees with a robust line through the "
+                                      "innovations of the fixes accepted in this long",
                                       "s", gt=0.0, le=120.0)
-    ins_trend_min_fixes: int = param(10, "GNSS/INS: ... when there are at least this many", ge=3, le=10000)
+    ins_trend_min_fixes: int = param(10, "GNSS/INS: ... when at least this many were accepted in it (else the "
+                                     "chi-square gate on graph #2's covariance decides)", ge=3, le=10000)
+    ins_trend_of: Literal["accepted", "all"] = param(
+        "all", "GNSS/INS: the trend line is fitted on the accepted fixes and decides alone once there are "
+        "ins_trend_min_fixes of them (accepted), or on every fix, a fix entering when the chi-square gate or the trend "
+        "takes it (all: a chain that drifts faster than its covariance says is followed sooner, and so is a long "
+        "multipath jump)")
     ins_trend_sigmas: float = param(3.0, "GNSS/INS: ... within this many of its sigmas", gt=0.0, le=100.0)
     ins_trend_floor_m: float = param(0.3, "GNSS/INS: ... plus this", "m", ge=0.0, le=10.0)
     ins_step_fixes: int = param(5, "GNSS/INS: this many rejected fixes in a row that agree with each other are a "

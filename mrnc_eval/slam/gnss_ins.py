@@ -7,19 +7,27 @@ only), and graph #1 factors cannot reach graph #2's velocity; the chain is metre
 chain-vs-fixes alignment has travel enough (docs/simulation.md, issue 28).
 
 The ENU -> map alignment comes from the fixes' own track, not from the drifting chain: a ground
-vehicle drives along its forward axis, so the yaw is the fixes' course (a robust line through
-every fix so far) minus the chain's mean forward-axis heading over the same stamps (the gyro's
-yaw, good to a fraction of a degree over seconds while x, y drift by metres); the translation puts
+vehicle drives along its forward axis, so the yaw is the fixes' course (the median direction of
+pairs of fixes inside one multipath segment) minus the chain's median forward-axis heading over
+the same stamps (the gyro's yaw, good to a degree over seconds while x, y drift by metres); the
+translation puts
 the fixes of the first `ins_origin_s` on the chain's antenna there (it has hardly drifted yet).
 It is fixed once, when the fixes have travelled `ins_align_travel_m` on a near-straight stretch
 (the course equals the mean heading on a line and on a constant-curvature arc), and never
 re-fitted, so it cannot slide the chain. Whatever the alignment got wrong is rigid (a rotation and
 offset of the whole track). Before it, graph #2 runs as before (IMU dead reckoning).
 
-Each fix is gated on its innovation against graph #2's own marginal covariance of the antenna
-position plus the fix's variance (chi-square, 2 dof): a multipath jump of metres is rejected once
-the INS has converged; a factor also has a Huber kernel. After `ins_reacquire_s` of rejections
-without a break the fixes are taken again (the chain, not the fixes, has diverged)."""
+Each fix is gated (GnssIns.judge): on its innovation against graph #2's own marginal covariance of
+the antenna position plus the fix's variance (chi-square, 2 dof) and against the trend of the
+recent innovations; a held multipath jump (a flat run of rejected fixes) is taken off the later
+fixes as an offset; a factor has a Huber kernel. After `ins_reacquire_s` of rejections without a
+break the fixes are taken again (the chain, not the fixes, has diverged). Once aligned, graph #2's
+degenerate directions along yaw, x and y are left to the fixes, its accelerometer noise and bias
+walk are raised to what the field IMU does, and its periodic restarts start from its marginals.
+
+Measured (docs/simulation.md, "GNSS/INS in graph #2"): it holds a synthetic drive and the tuning
+seeds of the open line without wheels near a metre, but diverges on the report seeds; off by default
+(slam.gps.ins)."""
 
 from __future__ import annotations
 
@@ -114,17 +122,6 @@ def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarra
     return np.asarray(coef[0], np.float64)
 
 
-def _ramp(t: np.ndarray, values: np.ndarray, sigma_m: float) -> bool:
-    """Whether values (n, 2) against t (n,) lie on a line (residuals within 2 sigma + 0.1 m) that moves
-    faster than 0.5 m/s: fixes that agree on a chain running away, unlike a multipath step (flat)."""
-    if t.size < 3 or np.ptp(t) <= 0:
-        return False
-    x = np.c_[np.ones(t.size), t - t[-1]]
-    coef = np.linalg.lstsq(x, values, rcond=None)[0]
-    res = np.linalg.norm(values - x @ coef, axis=1)
-    return bool(np.all(res <= 2.0 * sigma_m + 0.1) and np.linalg.norm(coef[1]) > 0.5)
-
-
 def gate_fix(innovation: np.ndarray, chain_cov: np.ndarray, fix_var: np.ndarray, chi2: float) -> tuple[bool, float]:
     """Whether a fix's horizontal innovation (2,) is consistent with the chain's position covariance
     (2, 2) plus the fix's variances (2,): Mahalanobis distance^2 against chi2. Returns (ok, d2)."""
@@ -153,7 +150,7 @@ class GnssIns:
     pending: list[np.ndarray] = field(default_factory=list)  # rejected fixes' innovations less the trend, m
     pending_t: list[float] = field(default_factory=list)  # ... their stamps, s
     steps: int = 0
-    history: list[tuple[float, np.ndarray]] = field(default_factory=list)  # (stamp, innovation (2,) m) of every fix
+    history: list[tuple[float, np.ndarray]] = field(default_factory=list)  # accepted: (stamp, innovation (2,) m)
     accepted: int = 0
     rejected: int = 0
 
@@ -225,24 +222,26 @@ class GnssIns:
 
     def judge(self, fix: FixUpdate, predicted_xy: np.ndarray, chain_cov_xy: np.ndarray) -> tuple[bool, np.ndarray]:
         """Gate one fix; returns whether it enters and its position (2,) less the current multipath
-        offset. It enters when its innovation passes chi-square against graph #2's covariance, or
-        when it lies within ins_trend_sigmas of its sigma plus ins_trend_floor_m of a robust line
-        through the innovations of every fix of the last ins_trend_window_s (graph #2's covariance
-        does not know the drift a tilted attitude's gravity leak makes; a chain that drifts moves the
-        line, a multipath jump shorter than about half the window stands out of it). With
-        ins_step_fixes > 0: that many rejected fixes in a row that agree with each other are a
-        multipath step, whose size is taken off every later fix; if they lie on a line running away
-        it is the chain, and they enter. After a run of rejections longer than ins_reacquire_s every
-        fix enters until one passes again."""
+        offset. Its innovation is tested against graph #2's covariance (chi-square) and, with
+        ins_trend_min_fixes in the last ins_trend_window_s, against a robust line through their
+        innovations (within ins_trend_sigmas of its sigma plus ins_trend_floor_m): graph #2's
+        covariance does not know the drift a tilted attitude's gravity leak makes, a drifting chain
+        moves the line, a multipath jump is a step off it. ins_trend_of = accepted: the line of the
+        accepted fixes decides alone; all: the line of every fix, and either test lets a fix in.
+        With ins_step_fixes > 0, that many rejected fixes in a row that agree with each other are a
+        multipath step whose size is taken off every later fix. After a run of rejections longer
+        than ins_reacquire_s every fix enters until one passes again."""
         c = self.cfg
         sigma = float(fix.sigmas[0])
         xy = fix.position[:2] - self.offset
         innovation = xy - predicted_xy
         ok, _ = gate_fix(innovation, chain_cov_xy, fix.sigmas[:2] ** 2, c.ins_gate_chi2)
         self.history = [(t, v) for t, v in self.history if t >= fix.stamp - c.ins_trend_window_s]
-        self.history.append((fix.stamp, innovation))
+        every = c.ins_trend_of == "all"
+        if every:
+            self.history.append((fix.stamp, innovation))
         trend = None
-        if not ok and len(self.history) >= c.ins_trend_min_fixes:
+        if len(self.history) >= c.ins_trend_min_fixes and not (every and ok):  # the fixes' own trend decides
             t = np.array([h[0] for h in self.history]) - fix.stamp
             trend = robust_line(t, np.array([h[1] for h in self.history]), sigma)
             ok = bool(np.linalg.norm(innovation - trend) <= c.ins_trend_sigmas * sigma + c.ins_trend_floor_m)
@@ -257,6 +256,8 @@ class GnssIns:
         if ok or self.reacquiring:
             self.accepted += 1
             self.rejected_since = None
+            if not every:
+                self.history.append((fix.stamp, fix.position[:2] - self.offset - predicted_xy))
             return True, xy
         self.rejected += 1
         if self.rejected_since is None:
@@ -264,8 +265,8 @@ class GnssIns:
         return False, xy
 
     def _step(self, fix: FixUpdate, xy: np.ndarray, off_trend: np.ndarray, sigma: float) -> tuple[bool, np.ndarray]:
-        """A rejected fix joins the pending run; a flat run is a multipath step (taken off from now
-        on), a run on a line running away is the chain (the fixes enter)."""
+        """A rejected fix joins the pending run; a flat run within ins_max_offset_m is a multipath step,
+        taken off from now on."""
         c = self.cfg
         self.pending.append(off_trend)
         self.pending_t.append(fix.stamp)
@@ -273,16 +274,13 @@ class GnssIns:
             return False, xy
         steps = np.array(self.pending[-c.ins_step_fixes:])
         step = np.median(steps, axis=0)
-        if _ramp(np.array(self.pending_t[-c.ins_step_fixes:]), steps, sigma):
-            self.reacquiring = True
-            return True, xy
         if np.linalg.norm(self.offset + step) <= c.ins_max_offset_m and \
                 np.all(np.linalg.norm(steps - step, axis=1) <= 2.0 * sigma + 0.1):
             self.offset = self.offset + step
             self.steps += 1
-            self.history = [(t, v - step) for t, v in self.history]  # as if taken off before
             return True, xy - step
         return False, xy
+
 
 def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
           base_to_sensor: np.ndarray | None, with_wheels: bool) -> GnssIns | None:
@@ -315,8 +313,4 @@ def step(ins: GnssIns, odom: ImuOdometry, matched: np.ndarray, t: float, events:
     z = float((fused[:3, :3] @ ins.antenna_in_lidar + fused[:3, 3])[2])
     odom.add_fixes(ins.fixes_until(t, odom.velocity, z), ins.antenna_in_lidar, ins.judge, ins.cfg.ins_huber_k)
     out = odom.lidar_pose()
-    import os, sys
-    if os.environ.get("INS_DEBUG") and out is not None:
-        print(f"S {t % 1000:.1f} m={matched[:3, 3].round(2)} f={out[:3, 3].round(2)} v={odom.velocity.round(2)} "
-              f"ba={odom.bias.accelerometer().round(3)} bg={odom.bias.gyroscope().round(4)} k={odom.key}", file=sys.stderr)
     return matched if out is None else out

@@ -55,7 +55,8 @@ def _drive(with_ins: bool, seed: int = 0) -> np.ndarray:
     cfg = replace(ImuConfig(), noise_from_log=False)
     track = imu_track(_imu(np.array([0.04, -0.05, 0.0])), np.eye(3))
     odom = ImuOdometry(track, cfg, np.eye(4))
-    gps = replace(GpsConfig(), ins="always")
+    # the process noise of this IMU (white noise and a constant bias only); the defaults are the field IMU's
+    gps = replace(GpsConfig(), ins="always", ins_acc_noise=0.05, ins_acc_bias_walk=0.01)
     ins = gnss_ins.build(_fixes(rng, (12.0, 16.0, 2.5)), gps, np.zeros(3), np.eye(4), with_wheels=False) \
         if with_ins else None
     free = np.array([[0, 0, 1.0, 0, 0, 0], [0, 0, 0, 1.0, 0, 0], [0, 0, 0, 0, 1.0, 0]])
@@ -79,31 +80,32 @@ def _drive(with_ins: bool, seed: int = 0) -> np.ndarray:
 
 def test_gnss_ins_holds_an_imu_chain_that_drifts() -> None:
     """0.05 m/s^2 of uncalibrated accelerometer bias: the chain alone is metres off within 30 s; with
-    the fixes in graph #2 (0.3 m noise, a 2.5 m multipath jump for 4 s) it stays within a metre.
-    Measured: with 0.2x m RMS (max 0.6x m); without: 1x m RMS."""
+    the fixes in graph #2 (0.3 m noise, a 2.5 m multipath jump across the track for 4 s) it stays
+    within a metre. Measured: RMS 0.36 m (max 0.86 m) with, 7.8 m without; limits ~2x."""
     held = _drive(with_ins=True)
     alone = _drive(with_ins=False)
-    rms = float(np.sqrt(np.mean(held ** 2)))
-    print(f"GNSS/INS: RMS {rms:.2f} m, max {held.max():.2f} m; IMU alone RMS {np.sqrt(np.mean(alone ** 2)):.2f} m")
-    assert rms < 0.6 and held.max() < 1.5
-    assert float(np.sqrt(np.mean(alone ** 2))) > 3.0  # negative control: the same limits fail without it
+    rms, rms_alone = float(np.sqrt(np.mean(held ** 2))), float(np.sqrt(np.mean(alone ** 2)))
+    print(f"GNSS/INS: RMS {rms:.2f} m, max {held.max():.2f} m; IMU alone RMS {rms_alone:.2f} m")
+    assert rms < 0.75
+    assert held.max() < 1.8
+    assert not (rms_alone < 0.75)  # negative control: without the fixes in graph #2 the same limit fails
 
 
 def test_course_from_fixes_survives_a_held_multipath_jump() -> None:
     """The fixes' course over 8 m with a 2.4 m jump across the track for most of it: the pairs inside
-    a jump segment give the course within 3 deg; the straight line through all fixes (the negative
-    control) is turned by the jump far more."""
+    one jump segment give the course within 6 deg; the same pairs without the segments (the negative
+    control) are turned by the pairs across the jump's steps."""
     rng = np.random.default_rng(2)
     t = np.arange(0.0, 8.0, 0.2)
     xy = np.c_[t * 1.0, np.zeros_like(t)] + rng.normal(0.0, 0.3, (t.size, 2))
     xy[(t >= 2.0) & (t < 7.0), 1] -= 2.4
     seg = jump_segments(xy, np.c_[t * 1.0, np.zeros_like(t)], 0.8)
     course, travel, _ = robust_course(t, xy, 0.3, seg)
-    assert abs(np.degrees(course)) < 3.0 and travel > 6.0
-    c = xy - xy.mean(axis=0)
-    d = np.linalg.svd(c, full_matrices=False)[2][0]
-    assert abs(np.degrees(np.arctan2(d[1], d[0]) % np.pi - (np.pi if d[0] < 0 else 0))) > 3.0 or \
-        abs(np.degrees(np.arctan2(d[1], abs(d[0])))) > 3.0
+    plain, _, _ = robust_course(t, xy, 0.3)
+    print(f"course {np.degrees(course):.1f} deg with segments, {np.degrees(plain):.1f} deg without")
+    assert abs(np.degrees(course)) < 6.0
+    assert travel > 6.0
+    assert abs(np.degrees(plain)) >= 6.0
 
 
 def _ins(**over: object) -> GnssIns:
@@ -114,12 +116,13 @@ def _ins(**over: object) -> GnssIns:
                    antenna_in_lidar=np.zeros(3))
 
 
-@pytest.mark.parametrize("step_fixes", [5, 0])
-def test_gate_drops_a_jump_and_takes_a_held_one_as_a_step(step_fixes: int) -> None:
-    """Fixes agreeing with the chain enter; a 2.5 m jump is rejected; held for 5 fixes it becomes the
-    offset taken off the later fixes, which then enter at the chain's position. With step detection
-    off (the negative control) the held jump keeps being rejected."""
-    ins = _ins(ins_step_fixes=step_fixes)
+@pytest.mark.parametrize(("trend_of", "step_fixes"), [("accepted", 5), ("accepted", 0), ("all", 5)])
+def test_gate_drops_a_jump_and_takes_a_held_one_as_a_step(trend_of: str, step_fixes: int) -> None:
+    """Fixes agreeing with the chain enter; a 2.5 m jump is rejected. With the trend of the accepted
+    fixes, held for 5 fixes it becomes the offset taken off the later fixes, which then enter at the
+    chain's position; with step detection off (the negative control) the held jump keeps being
+    rejected. With the trend of every fix (the default) the jump's first fix is rejected."""
+    ins = _ins(ins_step_fixes=step_fixes, ins_trend_of=trend_of)
     rng = np.random.default_rng(0)
     cov = np.eye(2) * 0.04
     for k in range(15):
@@ -127,15 +130,18 @@ def test_gate_drops_a_jump_and_takes_a_held_one_as_a_step(step_fixes: int) -> No
                                     sigmas=np.r_[0.3, 0.3, 100.0]), np.zeros(2), cov)
         assert ok
     jump = np.array([0.0, 2.5])
-    took = []
+    took, where = [], []
     for k in range(15, 30):
         ok, xy = ins.judge(FixUpdate(stamp=k * 0.2, position=np.r_[jump + rng.normal(0, 0.1, 2), 0.0],
                                      sigmas=np.r_[0.3, 0.3, 100.0]), np.zeros(2), cov)
         took.append(ok)
-        if ok:
-            assert np.linalg.norm(xy) < 0.6  # the step taken off: the fix says where the chain is
+        where.append(float(np.linalg.norm(xy)))
     assert not took[0]
+    if trend_of == "all":
+        return
     if step_fixes:
-        assert all(took[step_fixes - 1:]) and np.allclose(ins.offset, jump, atol=0.3)
+        assert all(took[step_fixes - 1:])
+        assert np.allclose(ins.offset, jump, atol=0.3)
+        assert max(w for w, ok in zip(where, took, strict=True) if ok) < 0.6  # the step taken off
     else:
         assert not any(took)
