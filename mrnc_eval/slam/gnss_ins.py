@@ -42,7 +42,7 @@ from mrnc_eval.slam.output import SlamEvent
 
 
 @dataclass(frozen=True, kw_only=True)
-class Alignment:
+class EnuAlignment:
     """ENU -> map: map_xy = rot @ enu_xy + t."""
 
     rot: np.ndarray  # (2, 2)
@@ -138,7 +138,7 @@ class GnssIns:
     cfg: GpsConfig
     forward_in_lidar: np.ndarray  # (3,) the vehicle's forward axis in the LiDAR frame
     antenna_in_lidar: np.ndarray  # (3,) m
-    alignment: Alignment | None = None
+    alignment: EnuAlignment | None = None
     usable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     next_fix: int = 0  # the first fix not consumed yet
     chain_t: list[float] = field(default_factory=list)
@@ -166,7 +166,7 @@ class GnssIns:
         self.chain_heading.append(float(np.arctan2(fwd[1], fwd[0])))
         self.chain_antenna.append(lidar_pose[:3, :3] @ self.antenna_in_lidar + lidar_pose[:3, 3])
 
-    def try_align(self, t: float) -> Alignment | None:
+    def try_align(self, t: float) -> EnuAlignment | None:
         """Fix the alignment once the fixes since the first sweep have travelled far enough on a
         near-straight stretch; returns it when it was fixed now."""
         if self.alignment is not None or len(self.chain_t) < 2:
@@ -197,7 +197,7 @@ class GnssIns:
             early = sel & (self.gnss.stamps <= stamps[min(4, stamps.size - 1)])
         chain_xy = np.column_stack([np.interp(self.gnss.stamps[early], self.chain_t, ant[:, i]) for i in range(2)])
         offset = np.median(chain_xy - self.gnss.enu[early, :2] @ rot.T, axis=0)
-        self.alignment = Alignment(rot=rot, t=offset, yaw_rad=yaw)
+        self.alignment = EnuAlignment(rot=rot, t=offset, yaw_rad=yaw)
         self.next_fix = int(np.searchsorted(self.gnss.stamps, t, side="right"))  # from now on
         return self.alignment
 
