@@ -53,6 +53,10 @@ TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
 METHODS = ("lio", "kiss-icp")
 THROTTLED_GAP_PERIODS = 1.5  # kiss-icp's deskew is off when sweeps are further apart than this many periods
 IMU_OFFSET_FINDING_S = 0.002  # an estimated IMU-LiDAR offset above this is reported as a health finding
+# The trajectory disagrees with GNSS when its RMS distance from the fixes (yaw + translation aligned)
+# exceeds both: float fixes with multipath sit 1-2 m from the truth (the sample logs' 1.8-2.0 m).
+GNSS_DISAGREE_MIN_M = 5.0
+GNSS_DISAGREE_SIGMAS = 10.0  # times the fixes' own median horizontal sigma
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -209,6 +213,7 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
         result.warnings.append(f"no ground truth: APE not computed ({hint})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
         _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
+        _add_gnss_disagreement(result, inputs.gnss, out)
     _add_time_offset(result, out, cfg)
     _add_wheel_health(result, out)
     _add_map_quality(result, out, cfg)
@@ -592,6 +597,29 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
                                      note="2-D, yaw + translation alignment, against GNSS in ENU"))
     except EvaluationError as err:
         result.warnings.append(f"APE against GNSS failed: {err}")
+
+
+def _add_gnss_disagreement(result: RunResult, gnss: GnssSeries, out: SlamOutput) -> None:
+    """A health finding when the trajectory is far from the fixes, beyond what the fixes' own sigma
+    explains, naming the likely cause: a LiDAR that saw too little structure with nothing else to
+    hold x, y and yaw (the IMU dead-reckons), or else the GNSS (antenna lever arm, fix quality)."""
+    rmse = next((m.value for m in result.metrics if m.name == "ape_gnss_rmse_m"), None)
+    sigma = float(np.median(np.sqrt(np.max(np.diagonal(gnss.covariance, axis1=1, axis2=2)[:, :2], axis=1))))
+    if rmse is None or not np.isfinite(rmse) or rmse <= max(GNSS_DISAGREE_MIN_M, GNSS_DISAGREE_SIGMAS * sigma):
+        return
+    degenerate = 0.0 if out.degenerate is None or out.degenerate.size == 0 else float(np.mean(out.degenerate))
+    wheels = "wheel_odom" in result.extra.get("inputs", {})
+    if degenerate > 0.5:
+        why = (f"the LiDAR saw too little structure (scan-to-map degenerate on {degenerate:.0%} of the sweeps)"
+               + ("" if wheels else " and no wheel odometry was used, so x, y and yaw are IMU dead reckoning")
+               + ": the trajectory, not the GNSS, is the likely culprit")
+    else:
+        why = "check the GNSS (the antenna's base_link -> gnss transform in /tf_static, fix quality) and the LiDAR"
+    text = (f"the trajectory is {rmse:.1f} m RMS from the GNSS fixes (yaw + translation aligned), whose own "
+            f"sigma is {sigma:.2f} m: {why}")
+    result.warnings.append(text)
+    data = {"ape_gnss_rmse_m": rmse, "gnss_sigma_m": sigma, "degenerate_fraction": degenerate}
+    result.events.append(Event(t_s=0.0, kind="health", message=text, data=data))
 
 
 def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:

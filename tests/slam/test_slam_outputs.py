@@ -261,3 +261,38 @@ def test_offset_passes_rerun_while_the_offset_left_stands_out(monkeypatch: pytes
     one = slam_command._replay_offset_passes(None, None, replace(cfg, slam=replace(cfg.slam, imu=replace(
         cfg.slam.imu, time_offset_passes=1))), False, None)
     assert one.imu_time_offset_s == pytest.approx(0.024)  # negative control: one pass under-reads
+
+
+@pytest.mark.parametrize(("rmse_m", "degenerate", "wheels", "says"), [
+    (13.7, 0.82, False, "IMU dead reckoning"),  # the open line without wheels, RTK fixes
+    (13.7, 0.82, True, "the trajectory, not the GNSS"),
+    (13.7, 0.05, False, "check the GNSS"),  # a LiDAR that held: the fixes or the lever arm are suspect
+    (2.0, 0.82, False, None),  # negative control: float fixes 2 m off (the sample logs) say nothing
+])
+def test_a_trajectory_far_from_the_fixes_is_a_finding_that_names_the_likely_culprit(
+        rmse_m: float, degenerate: float, wheels: bool, says: str | None) -> None:
+    import numpy as np
+
+    from mrnc_eval.commands.slam import _add_gnss_disagreement
+    from mrnc_eval.data import GnssSeries
+    from mrnc_eval.results import Metric, RunResult
+    from mrnc_eval.slam.output import SlamOutput
+
+    n = 50
+    gnss = GnssSeries(np.arange(n) * 0.2, np.zeros((n, 3)), np.zeros((n, 3)), np.tile(np.diag([4e-4, 4e-4, 1e-3]),
+                                                                                       (n, 1, 1)), np.zeros(3))
+    result = RunResult(kind="slam", log_path="x.mcap", log_id="x",
+                       metrics=[Metric(name="ape_gnss_rmse_m", value=rmse_m, unit="m")],
+                       extra={"inputs": {"lidar": "/points", **({"wheel_odom": "/odom"} if wheels else {})}})
+    out = SlamOutput(stamps=np.arange(10.0), poses=np.zeros((10, 4, 4)), kf_stamps=np.zeros(0),
+                     kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)), timing_ms={}, events=[], warnings=[],
+                     n_sweeps=10, wall_s=0.0, degenerate=np.arange(10) < round(10 * degenerate))
+    _add_gnss_disagreement(result, gnss, out)
+    if says is None:
+        assert not result.warnings
+        assert not result.events
+    else:
+        assert len(result.warnings) == 1
+        assert says in result.warnings[0]
+        assert "0.02 m" in result.warnings[0]  # the fixes' own sigma, for the reader to compare
+        assert result.events[0].kind == "health"
