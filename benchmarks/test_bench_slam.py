@@ -10,10 +10,11 @@ Each run is its own process, so memory is its own: "imports" is the resident siz
 what that method's run imports (RUN_IMPORTS; lio: numpy, scipy, numba, gtsam, pykdtree, no open3d)
 and before reading the log, "run holds" is the peak resident size minus that, "peak" the whole peak.
 kiss-icp runs twice: inside mrnc-eval (`--method kiss-icp`: the same reader and imports as lio) and
-as its own `kiss_icp_pipeline` command on the log's clouds written as .bin scans (its peer peak). "CPU s" is the process's user + system
-time over all its threads (decoding, OpenMP, TBB) for the same span as "wall s": on a shared
-machine it moves less with the load than the wall time does. Both methods are warmed up on the
-committed sample log first (numba's one-off compilation, then cached on disk).
+as its own `kiss_icp_pipeline` command on the log's clouds written as .bin scans (its peer peak).
+"CPU s" is the process's user + system time over all its threads (decoding, OpenMP, TBB) for the
+same span as "wall s": on a shared machine it moves less with the load than the wall time does.
+Both methods are warmed up on the committed sample log first (numba's one-off compilation, then
+cached on disk).
 
 Growth per 100 keyframes (test_slam_memory_growth_per_100_keyframes) needs a long log with many
 keyframes, which at full resolution would be ~12 GB: keyframes come by distance and angle, not by
