@@ -10,7 +10,9 @@ import numpy as np
 
 from mrnc_eval.slam.map_quality import MapQuality
 
-STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: waiting for the sweep iterator (decode)
+# read: waiting for the sweep iterator (decoding, or only the wait when it runs ahead in another thread);
+# projection: range image and feature labels (slam/sweep_prep.py), in the thread that prepared the sweep
+STAGES = ("read", "projection", "deskew", "features", "matching", "graph", "loop")
 
 
 @dataclass(kw_only=True)

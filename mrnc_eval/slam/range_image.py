@@ -49,7 +49,7 @@ def outside_box(points: np.ndarray, box: tuple[float, ...] | None) -> np.ndarray
     return keep
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _range_and_keep(points: np.ndarray, min_range: float, max_range: float, box: np.ndarray,
                     use_box: bool) -> tuple[np.ndarray, np.ndarray]:
     """One pass over the cloud: each point's range (m, float64) and whether it is kept (finite,

@@ -26,8 +26,9 @@ from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
-from mrnc_eval.slam.range_image import RangeImage, project
+from mrnc_eval.slam.range_image import RangeImage
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
+from mrnc_eval.slam.sweep_prep import PreparedSweep, prepare_sweep
 from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
 from mrnc_eval.slam.wheel_calibration import WheelCalibrator
@@ -46,12 +47,13 @@ def start_anchored(cfg: SlamConfig, with_wheels: bool) -> bool:
     return cfg.graph.anchor_start == "always" or (cfg.graph.anchor_start == "with_wheels" and with_wheels)
 
 
-def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
+def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg: SlamConfig, *,
              sensor_to_imu: np.ndarray | None = None, gnss: GnssSeries | None = None,
              antenna_in_sensor: np.ndarray | None = None, wheel: WheelTrack | None = None,
              base_to_sensor: np.ndarray | None = None,
              progress: Callable[[int], None] | None = None) -> SlamOutput:
-    """Replay the SLAM over `sweeps` (LiDAR frame). `sensor_to_imu` is the IMU pose in the LiDAR
+    """Replay the SLAM over `sweeps` (LiDAR frame; each prepared ahead, slam/sweep_prep.py, or prepared
+    here in line: the same arrays either way). `sensor_to_imu` is the IMU pose in the LiDAR
     frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors;
     `wheel` (odom -> base_link, with `base_to_sensor` the LiDAR pose in base_link) enables wheel
     factors when slam.wheel_odom.enabled. The stages are warmed first (slam/warmup.py): their
@@ -72,7 +74,8 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
     interval = MappingInterval(interval_s=cfg.mapping_interval_s)
     n_sweeps = n_empty = 0
     t_read = time.perf_counter()
-    for sweep in sweeps:
+    for item in sweeps:
+        sweep = item.sweep if isinstance(item, PreparedSweep) else item
         n_sweeps += 1
         if progress is not None:
             progress(n_sweeps)
@@ -83,7 +86,7 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
             continue  # mappingProcessInterval
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
         replay.calibrate_wheels(sweep.stamp)
-        replay.map_sweep(sweep)
+        replay.map_sweep(item if isinstance(item, PreparedSweep) else prepare_sweep(sweep, cfg))
         t_read = time.perf_counter()
     health = wheel_health(replay.wheel_cal) if replay.wheel_cal is not None else None
     return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty, wheel_health=health)
@@ -175,13 +178,14 @@ class _Replay:
                    timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise)
 
     # ---- one mapped sweep
-    def map_sweep(self, sweep: Sweep) -> None:
-        """Range image and deskew -> features -> scan-to-map -> keyframe -> bookkeeping."""
+    def map_sweep(self, prep: PreparedSweep) -> None:
+        """Deskew the prepared range image -> features -> scan-to-map -> keyframe -> bookkeeping."""
         clock = _Clock(self.timing)
-        image = project(sweep, self.cfg.sensor, self.cfg.features)
+        self.timing["projection"].append(prep.ms)
+        sweep, image = prep.sweep, prep.image
         points = self.deskew(image, sweep)
         clock.lap("deskew")
-        feats = extract_features(image, points, self.cfg.features)
+        feats = extract_features(image, points, self.cfg.features, labels=prep.labels, vertical=prep.vertical)
         clock.lap("features")
         pose, degenerate = self.scan_to_map(sweep.stamp, feats)
         clock.lap("matching")
