@@ -73,7 +73,7 @@ def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg
                                                      cfg.wheel_odom.calibration)
     interval = MappingInterval(interval_s=cfg.mapping_interval_s)
     n_sweeps = n_empty = 0
-    t_read = time.perf_counter()
+    t_read, c_read = time.perf_counter(), time.thread_time()
     for item in sweeps:
         sweep = item.sweep if isinstance(item, PreparedSweep) else item
         n_sweeps += 1
@@ -85,9 +85,10 @@ def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg
         if not interval.take(sweep.stamp):
             continue  # mappingProcessInterval
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
+        replay.cpu["read"].append((time.thread_time() - c_read) * 1e3)
         replay.calibrate_wheels(sweep.stamp)
         replay.map_sweep(item if isinstance(item, PreparedSweep) else prepare_sweep(sweep, cfg))
-        t_read = time.perf_counter()
+        t_read, c_read = time.perf_counter(), time.thread_time()
     health = wheel_health(replay.wheel_cal) if replay.wheel_cal is not None else None
     return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty, wheel_health=health)
 
@@ -143,6 +144,8 @@ class _Replay:
     aligner: GnssAligner | None
     timing: dict[str, list[float]]
     warnings: list[str]
+    cpu: dict[str, list[float]] = field(default_factory=lambda: {s: [] for s in STAGES})  # this thread's, ms
+    loop_cpu_ms: float = 0.0  # CPU time of the current sweep's loop closure, ms
     events: list[SlamEvent] = field(default_factory=list)
     kf_features: list[Features] = field(default_factory=list)
     map_cache: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
@@ -180,8 +183,9 @@ class _Replay:
     # ---- one mapped sweep
     def map_sweep(self, prep: PreparedSweep) -> None:
         """Deskew the prepared range image -> features -> scan-to-map -> keyframe -> bookkeeping."""
-        clock = _Clock(self.timing)
+        clock = _Clock(self.timing, self.cpu)
         self.timing["projection"].append(prep.ms)
+        self.cpu["projection"].append(prep.cpu_ms)
         sweep, image = prep.sweep, prep.image
         points = self.deskew(image, sweep)
         clock.lap("deskew")
@@ -190,10 +194,12 @@ class _Replay:
         pose, degenerate = self.scan_to_map(sweep.stamp, feats)
         clock.lap("matching")
         loop_ms = 0.0
+        self.loop_cpu_ms = 0.0
         if _is_keyframe(self.graph, pose, self.cfg):
             pose, loop_ms = self.add_keyframe(pose, sweep.stamp, feats)
-        clock.lap("graph", minus_ms=loop_ms)
+        clock.lap("graph", minus_ms=loop_ms, minus_cpu_ms=self.loop_cpu_ms)
         self.timing["loop"].append(loop_ms)
+        self.cpu["loop"].append(self.loop_cpu_ms)
         self.record(sweep.stamp, pose, degenerate)
         self.refine_offset(sweep.stamp)
 
@@ -353,12 +359,12 @@ class _Replay:
                 if self.aligner.velocity_error is not None and self.wheel is None \
                         and self.cfg.gps.residual_velocity_correction:  # the fixes' drift rate
                     self.odom.velocity = self.odom.velocity + np.r_[self.aligner.velocity_error, 0.0]
-        loop_ms = 0.0
+        loop_ms = self.loop_cpu_ms = 0.0
         if self.cfg.loop.enabled and stamp - self.st.last_loop_t >= self.cfg.loop.interval_s:
             self.st.last_loop_t = stamp
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             self.close_loop(stamp)
-            loop_ms = (time.perf_counter() - t0) * 1e3
+            loop_ms, self.loop_cpu_ms = (time.perf_counter() - t0) * 1e3, (time.thread_time() - c0) * 1e3
         self.local_map = _local_map(self.graph, self.kf_features, self.map_cache, self.cfg)
         return self.graph.poses[-1], loop_ms
 
@@ -480,8 +486,8 @@ class _Replay:
             elif self.offset.history:
                 offset = self.offset.applied
         return SlamOutput(stamps=stamps, poses=poses, kf_stamps=np.asarray(self.graph.stamps), kf_poses=kf_poses,
-                          map_points=map_points, timing_ms=self.timing, events=self.events, warnings=self.warnings,
-                          n_sweeps=n_sweeps, wall_s=time.perf_counter() - wall0,
+                          map_points=map_points, timing_ms=self.timing, cpu_ms=self.cpu, events=self.events,
+                          warnings=self.warnings, n_sweeps=n_sweeps, wall_s=time.perf_counter() - wall0,
                           imu_bias=self.odom.bias_vector if self.odom is not None else None,
                           degenerate=np.asarray(tr.degenerate, bool), online_poses=online,
                           imu_time_offset_s=offset, map_quality=quality, imu_noise=self.imu_report(),
@@ -510,15 +516,17 @@ class _Replay:
 
 
 class _Clock:
-    """Per-stage wall time (ms) of one sweep."""
+    """Per-stage wall time and this thread's CPU time (ms) of one sweep."""
 
-    def __init__(self, timing: dict[str, list[float]]) -> None:
-        self.timing, self.t = timing, time.perf_counter()
+    def __init__(self, timing: dict[str, list[float]], cpu: dict[str, list[float]]) -> None:
+        self.timing, self.cpu = timing, cpu
+        self.t, self.c = time.perf_counter(), time.thread_time()
 
-    def lap(self, stage: str, minus_ms: float = 0.0) -> None:
-        now = time.perf_counter()
+    def lap(self, stage: str, minus_ms: float = 0.0, minus_cpu_ms: float = 0.0) -> None:
+        now, cpu = time.perf_counter(), time.thread_time()
         self.timing[stage].append((now - self.t) * 1e3 - minus_ms)
-        self.t = now
+        self.cpu[stage].append((cpu - self.c) * 1e3 - minus_cpu_ms)
+        self.t, self.c = now, cpu
 
 
 def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warnings: list[str],

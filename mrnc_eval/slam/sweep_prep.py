@@ -25,11 +25,12 @@ class PreparedSweep:
     labels: np.ndarray | None  # feature_labels; None: computed after deskew (smoothness "paper" reads points)
     vertical: np.ndarray | None  # vertical_neighbours; None: the ground test is off
     ms: float  # wall time of the preparation, ms, in the thread that ran it
+    cpu_ms: float  # that thread's CPU time for it, ms
 
 
 def prepare_sweep(sweep: Sweep, cfg: SlamConfig) -> PreparedSweep:
     """Range image, feature labels and vertical neighbours of one sweep (sensor frame, not deskewed)."""
-    t0 = time.perf_counter()
+    t0, c0 = time.perf_counter(), time.thread_time()
     image = project(sweep, cfg.sensor, cfg.features)
     labels = vertical = None
     if len(image) >= 12:
@@ -38,4 +39,4 @@ def prepare_sweep(sweep: Sweep, cfg: SlamConfig) -> PreparedSweep:
         if cfg.features.ground_max_angle_deg > 0:
             vertical = vertical_neighbours(image)
     return PreparedSweep(sweep=sweep, image=image, labels=labels, vertical=vertical,
-                         ms=(time.perf_counter() - t0) * 1e3)
+                         ms=(time.perf_counter() - t0) * 1e3, cpu_ms=(time.thread_time() - c0) * 1e3)
