@@ -44,7 +44,9 @@ def main(log: Path, interval: float, threads: int) -> None:
         return out
 
     replay.run_slam = capture  # type: ignore[assignment]  # commands/slam.py imports it when it runs
-    cfg = replace_path(replace_path(Config(), "slam.mapping_interval_s", interval), "slam.threads", threads)
+    cfg = replace_path(Config(), "slam.mapping_interval_s", interval)
+    if hasattr(cfg.slam, "threads"):  # not before issue 30 (run against an older checkout for "before")
+        cfg = replace_path(cfg, "slam.threads", threads)
     load0 = os.getloadavg()[0]
     cpu0, main0, t0 = _cpu_s(), time.thread_time(), time.perf_counter()
     with tempfile.TemporaryDirectory() as tmp:
@@ -56,7 +58,7 @@ def main(log: Path, interval: float, threads: int) -> None:
     print("| stage | wall ms/sweep | CPU ms/sweep |\n|---|---|---|")
     for stage in STAGES:
         w = np.asarray(out.timing_ms[stage][1:] or [0.0])
-        c = np.asarray(out.cpu_ms.get(stage, [])[1:] or [0.0])
+        c = np.asarray(getattr(out, "cpu_ms", {}).get(stage, [])[1:] or [0.0])  # none before issue 30
         print(f"| {stage} | {w.mean():.1f} | {c.mean():.1f} |")
     per = {s: float(np.sum(out.timing_ms[s])) / 1e3 for s in STAGES}
     print(f"run_log: wall {wall:.2f} s, CPU {cpu:.2f} s (main thread {main_cpu:.2f} s, other threads "
