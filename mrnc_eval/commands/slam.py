@@ -300,7 +300,9 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
                 return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
         prepared = (prepare_sweep(s, cfg.slam) for s in stream)  # what needs no pose: in the reader's thread
         threads = run_threads(cfg.slam.threads)
-        with openmp_threads(1 if threads == 1 else None), \
+        # the reader takes one core; the KD-tree queries' OpenMP team the rest (two cores: one each,
+        # no team to wake per query batch while the reader holds the other core)
+        with openmp_threads(max(1, threads - 1)), \
                 (Prefetched(prepared, depth=4) if threads > 1 else closing(prepared)) as sweeps:
             return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
                             antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),

@@ -42,8 +42,9 @@ def _openmp_libraries() -> list[ctypes.CDLL]:
 @contextmanager
 def openmp_threads(n: int | None) -> Iterator[None]:
     """OpenMP teams started from this thread run on at most n threads inside the block; None: as
-    configured (OMP_NUM_THREADS, else every core). Restored afterwards."""
-    libs = _openmp_libraries() if n is not None else []
+    configured (OMP_NUM_THREADS, else every core). Restored afterwards. An explicit OMP_NUM_THREADS
+    in the environment wins, as for OpenMP itself."""
+    libs = _openmp_libraries() if n is not None and "OMP_NUM_THREADS" not in os.environ else []
     before = [lib.omp_get_max_threads() for lib in libs]
     for lib in libs:
         lib.omp_set_num_threads(ctypes.c_int(n or 1))
