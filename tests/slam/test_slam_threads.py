@@ -15,6 +15,7 @@ from typing import Any
 import numpy as np
 import pytest
 
+from mrnc_eval.cli import main
 from mrnc_eval.commands.slam import SweepWindow, run_log
 from mrnc_eval.config import Config, replace_path
 from mrnc_eval.io import open_log
@@ -89,3 +90,9 @@ def test_prepared_sweeps_depend_on_the_sweep_alone_and_the_ground_kernel_matches
         expected = ground_mask(image, image.points, cfg.features.ground_max_angle_deg)[edges]
         assert 0 < expected.sum() < edges.size  # both answers occur
         np.testing.assert_array_equal(_ground_of(image.points, edges, a.vertical, tan_max), expected)
+
+
+def test_threads_option_sets_the_config_key(capsys: pytest.CaptureFixture[str]) -> None:
+    assert main(["slam", "--dump-config", "--threads", "1"]) == 0
+    assert "threads: 1" in capsys.readouterr().out
+    assert main(["slam", "--dump-config", "--threads", "-1"]) != 0  # a usage error, not a run
