@@ -75,19 +75,19 @@ def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg
     n_sweeps = n_empty = 0
     t_read, c_read = time.perf_counter(), time.thread_time()
     for item in sweeps:
-        sweep = item.sweep if isinstance(item, PreparedSweep) else item
+        stamp = item.stamp
         n_sweeps += 1
         if progress is not None:
             progress(n_sweeps)
-        if len(sweep) == 0:
+        if (item.n_points if isinstance(item, PreparedSweep) else len(item)) == 0:
             n_empty += 1  # nothing to map: counted, so the result says so
             continue
-        if not interval.take(sweep.stamp):
+        if not interval.take(stamp):
             continue  # mappingProcessInterval
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
         replay.cpu["read"].append((time.thread_time() - c_read) * 1e3)
-        replay.calibrate_wheels(sweep.stamp)
-        replay.map_sweep(item if isinstance(item, PreparedSweep) else prepare_sweep(sweep, cfg))
+        replay.calibrate_wheels(stamp)
+        replay.map_sweep(item if isinstance(item, PreparedSweep) else prepare_sweep(item, cfg))
         t_read, c_read = time.perf_counter(), time.thread_time()
     health = wheel_health(replay.wheel_cal) if replay.wheel_cal is not None else None
     return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty, wheel_health=health)
@@ -186,45 +186,45 @@ class _Replay:
         clock = _Clock(self.timing, self.cpu)
         self.timing["projection"].append(prep.ms)
         self.cpu["projection"].append(prep.cpu_ms)
-        sweep, image = prep.sweep, prep.image
-        points = self.deskew(image, sweep)
+        stamp, image = prep.stamp, prep.image
+        points = self.deskew(image, stamp)
         clock.lap("deskew")
         feats = extract_features(image, points, self.cfg.features, labels=prep.labels, vertical=prep.vertical)
         clock.lap("features")
-        pose, degenerate = self.scan_to_map(sweep.stamp, feats)
+        pose, degenerate = self.scan_to_map(stamp, feats)
         clock.lap("matching")
         loop_ms = 0.0
         self.loop_cpu_ms = 0.0
         if _is_keyframe(self.graph, pose, self.cfg):
-            pose, loop_ms = self.add_keyframe(pose, sweep.stamp, feats)
+            pose, loop_ms = self.add_keyframe(pose, stamp, feats)
         clock.lap("graph", minus_ms=loop_ms, minus_cpu_ms=self.loop_cpu_ms)
         self.timing["loop"].append(loop_ms)
         self.cpu["loop"].append(self.loop_cpu_ms)
-        self.record(sweep.stamp, pose, degenerate)
-        self.refine_offset(sweep.stamp)
+        self.record(stamp, pose, degenerate)
+        self.refine_offset(stamp)
 
-    def deskew(self, image: RangeImage, sweep: Sweep) -> np.ndarray:
+    def deskew(self, image: RangeImage, stamp: float) -> np.ndarray:
         """Points at the sweep stamp: rotation from the IMU track, translation at constant velocity."""
         st, cfg = self.st, self.cfg
         if image.point_time is None:
-            self.warn_once(sweep.stamp, "no_time", "sweeps have no per-point time: processed without deskew "
+            self.warn_once(stamp, "no_time", "sweeps have no per-point time: processed without deskew "
                            "(the trajectory will drift with fast rotation)")
             return image.points
-        t_end = sweep.stamp + float(image.point_time.max(initial=0.0))
-        if self.track is not None and not self.track.covers(sweep.stamp, t_end):
-            self.warn_once(sweep.stamp, "no_cover", f"IMU does not cover the sweep at {sweep.stamp:.3f} s: "
+        t_end = stamp + float(image.point_time.max(initial=0.0))
+        if self.track is not None and not self.track.covers(stamp, t_end):
+            self.warn_once(stamp, "no_cover", f"IMU does not cover the sweep at {stamp:.3f} s: "
                            "rotation deskew clamped to the IMU span")
         v_sensor = a_sensor = None
         odom, track = self.odom, self.track
         if cfg.deskew_translation and cfg.imu.deskew_motion == "predicted" and odom is not None and track is not None \
-                and odom.can_predict and st.pose is not None and track.covers(st.t, t_end) and t_end > sweep.stamp:
+                and odom.can_predict and st.pose is not None and track.covers(st.t, t_end) and t_end > stamp:
             # graph #2's velocity at the sweep's start and end (a rocking mast changes it within 0.1 s)
-            rots, vels = odom.predict_velocity(st.pose, st.t, np.array([sweep.stamp, t_end]))
+            rots, vels = odom.predict_velocity(st.pose, st.t, np.array([stamp, t_end]))
             v_sensor = rots[0].T @ vels[0]
-            a_sensor = rots[0].T @ (vels[1] - vels[0]) / (t_end - sweep.stamp)
+            a_sensor = rots[0].T @ (vels[1] - vels[0]) / (t_end - stamp)
         elif cfg.deskew_translation and st.velocity is not None and st.pose is not None:
             v_sensor = st.pose[:3, :3].T @ st.velocity
-        return deskew(image.points, image.point_time, sweep.stamp, self.track, v_sensor, a_sensor)
+        return deskew(image.points, image.point_time, stamp, self.track, v_sensor, a_sensor)
 
     def scan_to_map(self, stamp: float, feats: Features) -> tuple[np.ndarray, bool]:
         """Guess -> match against the local map -> roll/pitch blend -> correct graph #2.

@@ -20,8 +20,9 @@ from mrnc_eval.slam.range_image import RangeImage, project
 
 @dataclass(frozen=True, kw_only=True)
 class PreparedSweep:
-    sweep: Sweep
-    image: RangeImage
+    stamp: float  # the sweep's, s
+    n_points: int  # the decoded sweep's points (0: an empty sweep, counted and skipped)
+    image: RangeImage  # the sweep's points in range-image order (the decoded arrays themselves are not kept)
     labels: np.ndarray | None  # feature_labels; None: computed after deskew (smoothness "paper" reads points)
     vertical: np.ndarray | None  # vertical_neighbours; None: the ground test is off
     ms: float  # wall time of the preparation, ms, in the thread that ran it
@@ -38,5 +39,5 @@ def prepare_sweep(sweep: Sweep, cfg: SlamConfig) -> PreparedSweep:
             labels = feature_labels(image, None, cfg.features)
         if cfg.features.ground_max_angle_deg > 0:
             vertical = vertical_neighbours(image)
-    return PreparedSweep(sweep=sweep, image=image, labels=labels, vertical=vertical,
+    return PreparedSweep(stamp=sweep.stamp, n_points=len(sweep), image=image, labels=labels, vertical=vertical,
                          ms=(time.perf_counter() - t0) * 1e3, cpu_ms=(time.thread_time() - c0) * 1e3)

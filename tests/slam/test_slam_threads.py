@@ -55,11 +55,11 @@ def test_a_stale_prediction_for_deskew_changes_the_poses(serial: bytes, tmp_path
         stale[id(self)] = copy.copy(self.st)  # the state as it was before this sweep's pose
         real_record(self, *args)
 
-    def deskew(self: Any, image: Any, sweep: Any) -> np.ndarray:
+    def deskew(self: Any, image: Any, stamp: float) -> np.ndarray:
         fresh = self.st
         self.st = stale.get(id(self), fresh)
         try:
-            return np.asarray(real_deskew(self, image, sweep))
+            return np.asarray(real_deskew(self, image, stamp))
         finally:
             self.st = fresh
 
