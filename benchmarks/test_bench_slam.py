@@ -8,11 +8,14 @@ MRNC_BENCH_SLAM_LOG=<log> uses an existing log (a 30 s one is simulated otherwis
 ~600 MB); MRNC_BENCH_SLAM_SECONDS sets the simulated duration.
 
 Each run is its own process, so memory is its own: "imports" is the resident size after importing
-the libraries (open3d, gtsam, numba, scipy, kiss-icp) and before reading the log, "run holds" is
-the peak resident size minus that, "peak" the whole peak. "CPU s" is the process's user + system
-time over all its threads (decoding, OpenMP, TBB) for the same span as "wall s": on a shared
-machine it moves less with the load than the wall time does. Both methods are warmed up on the
-committed sample log first (numba's one-off compilation, then cached on disk).
+what that method's run imports (RUN_IMPORTS; lio: numpy, scipy, numba, gtsam, pykdtree, no open3d)
+and before reading the log, "run holds" is the peak resident size minus that, "peak" the whole peak.
+kiss-icp runs twice: inside mrnc-eval (`--method kiss-icp`: the same reader and imports as lio) and
+as its own `kiss_icp_pipeline` command on the log's clouds written as .bin scans (its peer peak).
+"CPU s" is the process's user + system time over all its threads (decoding, OpenMP, TBB) for the
+same span as "wall s": on a shared machine it moves less with the load than the wall time does.
+Both methods are warmed up on the committed sample log first (numba's one-off compilation, then
+cached on disk).
 
 Growth per 100 keyframes (test_slam_memory_growth_per_100_keyframes) needs a long log with many
 keyframes, which at full resolution would be ~12 GB: keyframes come by distance and angle, not by
@@ -48,21 +51,28 @@ REPEATS = 3  # alternating rounds; each row is the median run (by wall time) of 
 MIN_WALL_RATIO = 2.0
 
 # One run in a fresh interpreter: imports first (measured), then the log; RSS sampled per keyframe.
+# "Imports" are what that method's run imports (RUN_IMPORTS), no more (until issue 30 every run
+# imported open3d here, 180 MB that no run needs); the run is checked to import no other heavy
+# module (HEAVY) on its own, so imports + run holds = peak is the whole process.
+RUN_IMPORTS = {"lio": ("mrnc_eval.commands.slam", "mrnc_eval.slam.replay", "gtsam", "pykdtree.kdtree"),
+               "kiss-icp": ("mrnc_eval.commands.slam", "mrnc_eval.slam.range_image", "kiss_icp.kiss_icp",
+                            "kiss_icp.config")}
+HEAVY = ("open3d", "gtsam", "numba", "scipy", "pykdtree", "kiss_icp", "matplotlib", "pandas", "weasyprint", "dask")
 _RUN = r"""
-import json, resource, sys, time
+import importlib, json, resource, sys, time
 def rss_mb():
     with open("/proc/self/statm") as f:
         return int(f.read().split()[1]) * resource.getpagesize() / 1e6
+bare = rss_mb()
 import mrnc_eval  # first, as in every entry point: it sets OpenMP's wait policy before pykdtree loads
-import numpy, scipy.spatial, numba, open3d, gtsam, pykdtree.kdtree  # noqa
-try:
-    import kiss_icp.kiss_icp  # noqa
-except ImportError:
-    pass
+imports, heavy = json.loads(sys.argv[5]), json.loads(sys.argv[6])
+for name in imports:
+    importlib.import_module(name)
 from mrnc_eval.commands import slam
 from mrnc_eval.config import Config, replace_path
 from mrnc_eval.slam import graph as graph_module
 after_imports = rss_mb()
+heavy_before = sorted({m.split(".")[0] for m in sys.modules} & set(heavy))
 samples = []
 add = graph_module.KeyframeGraph.add_keyframe
 def add_and_sample(self, *args, **kwargs):
@@ -70,7 +80,7 @@ def add_and_sample(self, *args, **kwargs):
     samples.append((len(self.poses), rss_mb()))
     return out
 graph_module.KeyframeGraph.add_keyframe = add_and_sample
-log, out_dir, method, interval, threads = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4]), int(sys.argv[5])
+log, out_dir, method, interval, threads = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4]), int(sys.argv[7])
 cfg = replace_path(replace_path(Config(), "slam.mapping_interval_s", interval), "slam.threads", threads)
 ru0 = resource.getrusage(resource.RUSAGE_SELF)
 cpu0 = ru0.ru_utime + ru0.ru_stime
@@ -81,8 +91,10 @@ peak = resource.getrusage(resource.RUSAGE_SELF).ru_maxrss / 1e3
 ru = resource.getrusage(resource.RUSAGE_SELF)
 cpu = ru.ru_utime + ru.ru_stime - cpu0
 vals = {m.name: m.value for m in r.metrics}
-print(json.dumps({"wall_s": wall, "cpu_s": cpu, "after_imports_mb": after_imports, "peak_mb": peak, "samples": samples,
-                  "metrics": vals, "mapping_rate": r.extra.get("mapping_rate")}))
+heavy_after = sorted({m.split(".")[0] for m in sys.modules} & set(heavy))
+print(json.dumps({"wall_s": wall, "cpu_s": cpu, "bare_mb": bare, "after_imports_mb": after_imports, "peak_mb": peak,
+                  "samples": samples, "metrics": vals, "mapping_rate": r.extra.get("mapping_rate"),
+                  "heavy_before": heavy_before, "heavy_after": heavy_after}))
 """
 
 
@@ -101,10 +113,13 @@ def bench_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def _run(log: Path, out: Path, method: str, interval: float, threads: int = 0) -> dict:
     load = os.getloadavg()[0]
-    proc = subprocess.run([sys.executable, "-c", _RUN, str(log), str(out), method, str(interval), str(threads)],
+    proc = subprocess.run([sys.executable, "-c", _RUN, str(log), str(out), method, str(interval),
+                           json.dumps(RUN_IMPORTS[method]), json.dumps(HEAVY), str(threads)],
                           capture_output=True, text=True, check=False, env=os.environ.copy())
     assert proc.returncode == 0, proc.stderr[-2000:]
-    return {**json.loads(proc.stdout.strip().splitlines()[-1]), "load": load}
+    out_ = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out_["heavy_after"] == out_["heavy_before"], "the run imported a heavy module the imports did not count"
+    return {**out_, "load": load}
 
 
 def _median_run(runs: list[dict]) -> dict:
@@ -122,18 +137,50 @@ def _growth_per_100_keyframes(samples: list[list[float]]) -> float:
     return float(np.polyfit(k, mb, 1)[0] * 100)
 
 
-def _imports_only_mb() -> tuple[float, float]:
-    """Resident size of a bare interpreter and after importing the heavy libraries (MB)."""
-    code = ("import resource, sys\nbase = open('/proc/self/statm').read().split()[1]\n"
-            "import numpy, scipy.spatial, numba, open3d, gtsam, pykdtree.kdtree\n"
-            "after = open('/proc/self/statm').read().split()[1]\n"
-            "print(int(base) * resource.getpagesize() / 1e6, int(after) * resource.getpagesize() / 1e6)")
-    out = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, check=True).stdout.split()
-    return float(out[0]), float(out[1])
+def _resident_mb_per_import(modules: tuple[str, ...]) -> dict[str, float]:
+    """Resident MB a fresh interpreter adds by importing each module in turn ("bare": the interpreter)."""
+    code = ("import importlib, json, resource, sys\n"
+            "rss = lambda: int(open('/proc/self/statm').read().split()[1]) * resource.getpagesize() / 1e6\n"
+            "prev = rss(); out = {'bare': prev}\n"
+            "for m in sys.argv[1:]:\n"
+            "    importlib.import_module(m); now = rss(); out[m] = now - prev; prev = now\n"
+            "print(json.dumps(out))")
+    proc = subprocess.run([sys.executable, "-c", code, *modules], capture_output=True, text=True, check=True)
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def _sweeps_as_bin_folder(log: Path, folder: Path) -> Path:
+    """The log's clouds as KITTI-style .bin scans (float32 x, y, z, intensity): kiss_icp_pipeline's
+    own reader takes a folder of them (its mcap reader rejects the simulator's clouds)."""
+    import numpy as np
+
+    from mrnc_eval.io import open_log
+
+    folder.mkdir(parents=True, exist_ok=True)
+    with open_log(log) as lg:
+        for k, s in enumerate(lg.sweeps()):
+            inten = s.intensity if s.intensity is not None else np.zeros(len(s.points), np.float32)
+            np.c_[s.points, inten].astype(np.float32).tofile(folder / f"{k:06d}.bin")
+    return folder
+
+
+def _kiss_icp_pipeline(folder: Path, cwd: Path) -> dict[str, float]:
+    """kiss-icp's own command on the scans, in a child process: wall s, CPU s and peak resident MB."""
+    exe = Path(sys.executable).with_name("kiss_icp_pipeline")
+    code = ("import json, resource, subprocess, sys, time\nt = time.perf_counter()\n"
+            "subprocess.run(sys.argv[1:], check=True, capture_output=True)\n"
+            "ru = resource.getrusage(resource.RUSAGE_CHILDREN)\n"
+            "print(json.dumps({'wall_s': time.perf_counter() - t, 'cpu_s': ru.ru_utime + ru.ru_stime, "
+            "'peak_mb': ru.ru_maxrss / 1e3}))")
+    cwd.mkdir(parents=True, exist_ok=True)
+    proc = subprocess.run([sys.executable, "-c", code, str(exe), str(folder)], capture_output=True, text=True,
+                          check=True, cwd=cwd)
+    return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
 def test_slam_equal_work_speed_and_memory_vs_kiss_icp(bench_log: Path, tmp_path: Path) -> None:
     pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
+    print(f"\nload average before: {os.getloadavg()}")
     for method in ("lio", "kiss-icp"):  # warm-up: compile and cache outside the measurement
         _run(SAMPLE, tmp_path / f"warm-{method}", method, 0.15)
     rounds: dict[str, list[dict]] = {name: [] for name in RUNS}
@@ -142,13 +189,14 @@ def test_slam_equal_work_speed_and_memory_vs_kiss_icp(bench_log: Path, tmp_path:
             rounds[name].append(_run(bench_log, tmp_path / f"{k}-{i}", method, interval, threads))
     runs = {name: _median_run(rs) for name, rs in rounds.items()}
     loads = [r["load"] for rs in rounds.values() for r in rs]
-    bare, imports = _imports_only_mb()
+    pipeline = _kiss_icp_pipeline(_sweeps_as_bin_folder(bench_log, tmp_path / "scans"), tmp_path / "kiss_out")
+    per_import = _resident_mb_per_import(("numpy", *RUN_IMPORTS["lio"]))
     profile = "as recorded" if os.environ.get("MRNC_BENCH_SLAM_LOG") else "field sensor profile"
-    print(f"\n{bench_log.name} ({bench_log.stat().st_size / 1e9:.2f} GB), {profile}; medians of {REPEATS} "
-          f"alternating runs; load average (1 min) before the runs {min(loads):.2f}-{max(loads):.2f} on "
-          f"{os.cpu_count()} cores")
-    print(f"importing numpy, scipy, numba, open3d, gtsam, pykdtree: {imports - bare:.0f} MB "
-          f"(bare interpreter {bare:.0f} MB)")
+    print(f"{bench_log.name} ({bench_log.stat().st_size / 1e9:.2f} GB), {profile}; medians of {REPEATS} alternating "
+          f"runs; load average (1 min) before the runs {min(loads):.2f}-{max(loads):.2f} on {os.cpu_count()} cores, "
+          f"after: {os.getloadavg()}")
+    print("resident MB added by each import of a lio run, in order: "
+          + ", ".join(f"{k} {v:.0f}" for k, v in per_import.items()))
     print("| run | mapping rate | wall s (3 runs) | CPU s | RTF | APE online m | keyframes | imports MB | run holds MB "
           "| peak MB |")
     print("|---|---|---|---|---|---|---|---|---|---|")
@@ -158,18 +206,40 @@ def test_slam_equal_work_speed_and_memory_vs_kiss_icp(bench_log: Path, tmp_path:
         print(f"| {name} | {r['mapping_rate']} | {r['wall_s']:.1f} ({walls}) | {r['cpu_s']:.1f} | {m['rtf']:.2f} at "
               f"{m['mapping_rate_hz']:.1f} Hz | {m.get('ape_online_rmse_m', float('nan')):.4f} | {m['keyframes']} | "
               f"{r['after_imports_mb']:.0f} | {r['peak_mb'] - r['after_imports_mb']:.0f} | {r['peak_mb']:.0f} |")
+    print(f"| kiss_icp_pipeline (its own command, .bin scans) | every sweep | {pipeline['wall_s']:.1f} | "
+          f"{pipeline['cpu_s']:.1f} | - | - | - | - | - | {pipeline['peak_mb']:.0f} |")
     full, kiss = runs["lio @ every sweep"], runs["kiss-icp @ every sweep"]
     serial = runs["lio @ every sweep, --threads 1"]
+    holds = full["peak_mb"] - full["after_imports_mb"]
     print(f"equal work (every sweep): lio {kiss['wall_s'] / full['wall_s']:.2f}x kiss-icp's speed in wall time, "
-          f"{kiss['cpu_s'] / full['cpu_s']:.2f}x in CPU time (all threads); lio holds "
-          f"{full['peak_mb'] - full['after_imports_mb']:.0f} MB against kiss-icp's whole peak "
-          f"{kiss['peak_mb']:.0f} MB; "
-          f"two cores against one: {serial['wall_s'] / full['wall_s']:.2f}x in wall time")
+          f"{kiss['cpu_s'] / full['cpu_s']:.2f}x in CPU time (all threads); lio's peak {full['peak_mb']:.0f} MB = "
+          f"{full['peak_mb'] / kiss['peak_mb']:.2f}x kiss-icp's in mrnc-eval ({kiss['peak_mb']:.0f} MB), "
+          f"{full['peak_mb'] / pipeline['peak_mb']:.2f}x kiss_icp_pipeline's ({pipeline['peak_mb']:.0f} MB); "
+          f"lio's run holds {holds:.0f} MB; two cores against one: {serial['wall_s'] / full['wall_s']:.2f}x in wall "
+          "time")
     assert full["metrics"]["mapping_rate_hz"] > 9.0  # every sweep of a 10 Hz log
     assert full["metrics"]["ape_online_rmse_m"] == serial["metrics"]["ape_online_rmse_m"]  # same poses, any threads
     assert kiss["wall_s"] / full["wall_s"] >= MIN_WALL_RATIO
-    assert full["peak_mb"] - full["after_imports_mb"] < kiss["peak_mb"]
     assert full["metrics"]["ape_online_rmse_m"] < kiss["metrics"]["ape_online_rmse_m"]
+    # memory, as ratios (the same reader and imports on both sides of the first pair)
+    assert full["peak_mb"] <= 2.0 * kiss["peak_mb"]  # measured 1.17x (363 / 311 MB)
+    assert holds < kiss["peak_mb"]  # measured 190 < 311 MB
+
+
+@pytest.mark.xfail(strict=True, reason="issue 30's target against kiss-icp's own command is not met yet: "
+                                       "lio's peak 363 MB vs 2 x 144 MB, run 190 MB vs 144 MB (docs/performance.md)")
+def test_slam_memory_within_issue_30_targets_vs_kiss_icp_pipeline(bench_log: Path, tmp_path: Path) -> None:
+    """Issue 30: peak (imports included) <= 2x kiss-icp's peak, and what the run holds beyond its
+    imports below kiss-icp's peak; kiss-icp = its own kiss_icp_pipeline command, every sweep."""
+    pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
+    _run(SAMPLE, tmp_path / "warm", "lio", 0.15)
+    full = _run(bench_log, tmp_path / "lio", "lio", 0.0)
+    pipeline = _kiss_icp_pipeline(_sweeps_as_bin_folder(bench_log, tmp_path / "scans"), tmp_path / "kiss_out")
+    holds = full["peak_mb"] - full["after_imports_mb"]
+    print(f"\nload average {os.getloadavg()}: lio peak {full['peak_mb']:.0f} MB (run holds {holds:.0f} MB), "
+          f"kiss_icp_pipeline peak {pipeline['peak_mb']:.0f} MB")
+    assert full["peak_mb"] <= 2.0 * pipeline["peak_mb"]
+    assert holds < pipeline["peak_mb"]
 
 
 @pytest.fixture(scope="module")

@@ -20,7 +20,7 @@ from typer.exceptions import TyperException
 from mrnc_eval import __version__
 from mrnc_eval.cli_fast import fast_command
 from mrnc_eval.cli_help import PlainGroup
-from mrnc_eval.errors import Interrupted, MrncError, UsageError
+from mrnc_eval.errors import Interrupted, MrncError, UsageError, forget_interrupt, interrupt, raise_if_interrupted
 from mrnc_eval.evaluation.modes import AlignMode, DeltaUnit, PairsFrom, Relation, SyncMethod
 from mrnc_eval.text import install_log_format, printable
 
@@ -682,7 +682,7 @@ BROKEN_PIPE = 0  # the reader stopped early (`info LOG | head -1`): it took what
 
 
 def _on_sigint(signum: int, frame: Any) -> None:
-    raise Interrupted()
+    interrupt()
 
 
 def _stdout_gone() -> int:
@@ -715,10 +715,13 @@ def main(argv: list[str] | None = None) -> int:
     import threading
 
     previous = None
+    forget_interrupt()
     if threading.current_thread() is threading.main_thread():
         previous = signal.signal(signal.SIGINT, _on_sigint)
     try:
-        return _run(argv)
+        code = _run(argv)
+        raise_if_interrupted()  # a Ctrl-C swallowed on the way (see errors.raise_if_interrupted) is still one
+        return code
     except (Interrupted, KeyboardInterrupt):  # KeyboardInterrupt: where the handler is not installed
         sys.stderr.write("mrnc-eval: interrupted\n")
         return INTERRUPTED

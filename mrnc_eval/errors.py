@@ -106,3 +106,29 @@ class Interrupted(BaseException):
     which typer turns into a silent exit 130. Exit code 130 (128 + SIGINT)."""
 
     exit_code = 130
+
+
+_interrupt_seen: list[bool] = [False]  # set by the SIGINT handler; read before any result is committed
+
+
+def interrupt() -> None:
+    """The SIGINT handler's body (cli.main installs it): remember the Ctrl-C, then raise."""
+    _interrupt_seen[0] = True
+    raise Interrupted()
+
+
+def forget_interrupt() -> None:
+    """A new command starts (tests call cli.main many times in one process)."""
+    _interrupt_seen[0] = False
+
+
+def interrupt_seen() -> bool:
+    return _interrupt_seen[0]
+
+
+def raise_if_interrupted() -> None:
+    """Before a result or output is moved into place. Python swallows an exception raised in a
+    finaliser or a generator's close ("Exception ignored in ..."), so a Ctrl-C landing there would
+    let the run go on with a stage cut short and commit a partial result that looks finished."""
+    if _interrupt_seen[0]:
+        raise Interrupted()

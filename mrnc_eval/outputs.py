@@ -21,7 +21,7 @@ import tempfile
 from collections.abc import Iterable, Iterator
 from pathlib import Path
 
-from mrnc_eval.errors import OutputError
+from mrnc_eval.errors import OutputError, raise_if_interrupted
 
 MANIFEST = ".mrnc-eval-outputs.json"  # name -> sha256 of the files this tool wrote in a folder
 
@@ -137,6 +137,7 @@ def output_file(path: str | Path, *, force: bool = False, inputs: Iterable[str |
         try:
             yield tmp
             follow_umask(tmp)
+            raise_if_interrupted()  # never commit an output a Ctrl-C may have cut short
             claim_output(path, force=force, inputs=inputs)  # still ours to replace (nothing appeared meanwhile)
             os.replace(tmp, path)
             record_output(path)

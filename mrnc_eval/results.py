@@ -36,7 +36,7 @@ from typing import TYPE_CHECKING, Any
 import numpy as np
 
 from mrnc_eval import __version__
-from mrnc_eval.errors import InputError, OutputError
+from mrnc_eval.errors import InputError, OutputError, raise_if_interrupted
 from mrnc_eval.io.containers import LOG_SUFFIXES
 from mrnc_eval.outputs import describe, follow_umask
 from mrnc_eval.tables import Table
@@ -278,6 +278,7 @@ def write_result(result: RunResult, run_dir: Path, config_yaml: str, files: dict
         for name, src in (files or {}).items():
             dest = tmp / safe_name(name, max_len=120)
             shutil.move(str(src), dest)
+        raise_if_interrupted()  # never commit a run a Ctrl-C may have cut short
         if run_dir.exists():
             old = run_dir.with_name(f".{run_dir.name}.old")
             shutil.rmtree(old, ignore_errors=True)

@@ -103,7 +103,7 @@ def process_log(job: LogJob) -> LogSummary:
     import yaml
 
     from mrnc_eval.config import build, config_hash
-    from mrnc_eval.errors import MrncError
+    from mrnc_eval.errors import MrncError, raise_if_interrupted
 
     target = Path(job.out_dir)
     partial = target.with_name(f".{target.name}.partial")
@@ -121,8 +121,10 @@ def process_log(job: LogJob) -> LogSummary:
                        metrics=tuple((str(n), _finite(v), str(u)) for n, v, u in outcome.metrics),
                        gates_failed=tuple(outcome.gates_failed), report=str(report) if report.exists() else "")
     except MrncError as err:
+        raise_if_interrupted()  # a stage cut short by a swallowed Ctrl-C is the interrupt, not this log's failure
         return replace(partial_summary, error=str(err))
     except Exception as err:  # noqa: BLE001 - a bug on one log fails that log (traceback kept), not the night
+        raise_if_interrupted()
         return replace(partial_summary, error=f"{type(err).__name__}: {err}", traceback=traceback.format_exc())
     finally:
         shutil.rmtree(partial, ignore_errors=True)

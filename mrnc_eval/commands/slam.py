@@ -2,6 +2,7 @@
 
 from __future__ import annotations
 
+import dataclasses
 import itertools
 import json
 import logging
@@ -42,7 +43,7 @@ from mrnc_eval.results import (
 )
 from mrnc_eval.schema import slam as K
 from mrnc_eval.slam.mapping_interval import MappingInterval
-from mrnc_eval.slam.output import STAGES, SlamOutput
+from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.wheel_odometry import WheelTrack
 from mrnc_eval.text import printable
 
@@ -147,7 +148,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         if window is not None and window.active:
             result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
             result.warnings.append(window.describe())
-        out = _replay(lg, inputs, cfg, progress, window)
+        out = _replay_offset_passes(lg, inputs, cfg, progress, window)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
         read_notes += container_notes(Path(log_path), lg.container)  # lost or unverifiable data
     if out.stamps.size < 2:
@@ -307,6 +308,34 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
             return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
                             antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
                             base_to_sensor=inputs.base_to_sensor, progress=tick)
+
+
+def _replay_offset_passes(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool,
+                          window: SweepWindow | None) -> SlamOutput:
+    """slam.imu.time_offset_passes: while the IMU-LiDAR offset left stands out, run the log again
+    with what was found so far subtracted from the IMU stamps; the result is the last pass's, with
+    the offset as all passes found it (after the configured slam.imu.time_offset_s)."""
+    out = _replay(lg, inputs, cfg, progress, window)
+    applied, left, sigma = 0.0, out.imu_time_offset_s, out.imu_time_offset_sigma_s
+    for k in range(2, cfg.slam.imu.time_offset_passes + 1):
+        if cfg.slam.method != "lio" or left is None or not _offset_stands_out(left, sigma):
+            break
+        applied += left
+        log.info("IMU-LiDAR offset %.1f ms left: pass %d with %.1f ms applied", left * 1e3, k, applied * 1e3)
+        shifted = replace_path(cfg, "slam.imu.time_offset_s", cfg.slam.imu.time_offset_s + applied)
+        out = _replay(lg, inputs, shifted, progress, window)
+        left, sigma = out.imu_time_offset_s, out.imu_time_offset_sigma_s
+        found = None if left is None else applied + left
+        note = SlamEvent(t=float(out.stamps[0]) if out.stamps.size else 0.0, kind="imu_time_offset",
+                         message=f"pass {k} of the log with the IMU stamps {applied * 1e3:+.1f} ms earlier "
+                         f"(slam.imu.time_offset_passes)", data={"pass": k, "applied_s": applied})
+        out = dataclasses.replace(out, imu_time_offset_s=found, events=[note, *out.events])
+    return out
+
+
+def _offset_stands_out(offset: float, sigma: float | None) -> bool:
+    """The health finding's rule: more than IMU_OFFSET_FINDING_S and more than 2 standard errors."""
+    return abs(offset) > IMU_OFFSET_FINDING_S and (sigma is None or abs(offset) > 2 * sigma)
 
 
 def _inputs_used(lg: LogReader, inputs: LogInputs, cfg: Config) -> dict[str, str]:
@@ -589,7 +618,7 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
         result.metrics.append(Metric(name="imu_time_offset_sigma_s", value=sigma, unit="s", group="slam/health",
                                      note="formal standard error of imu_time_offset_s (rate residuals taken as "
                                           "independent, so a lower bound; ~1.5 ms on a 40 s log mapped at 5 Hz)"))
-    if abs(offset) > IMU_OFFSET_FINDING_S and (sigma is None or abs(offset) > 2 * sigma):
+    if _offset_stands_out(offset, sigma):
         text = (f"IMU-LiDAR time offset {offset * 1e3:.1f} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
                 f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
                 f"{cfg.slam.imu.time_offset_s + offset:.4f}")
@@ -649,12 +678,12 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
             write_kitti(tmp / "trajectory.kitti", trajectories["trajectory.tum"])
             files["trajectory.kitti"] = tmp / "trajectory.kitti"
         if map_points.size:
-            import open3d as o3d
+            from mrnc_eval.io.pcd import write_pcd_xyz
+            from mrnc_eval.io.ply import write_ply_xyz
 
-            pc = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(map_points))
-            for name in ("map.ply", "map.pcd"):
-                o3d.io.write_point_cloud(str(tmp / name), pc)
-                files[name] = tmp / name
+            write_ply_xyz(tmp / "map.ply", map_points)
+            write_pcd_xyz(tmp / "map.pcd", map_points)
+            files["map.ply"], files["map.pcd"] = tmp / "map.ply", tmp / "map.pcd"
         metrics: dict[str, object] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
         if "wheel_health" in result.extra:
             metrics["wheel_health"] = result.extra["wheel_health"]

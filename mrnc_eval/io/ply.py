@@ -63,3 +63,14 @@ def read_ply_xyz(path: Path) -> NDArray[np.float64]:
     if data.shape[0] != count:
         raise InputError(path, f"PLY body has {data.shape[0]} of {count} vertices (truncated)")
     return np.column_stack([data[a].astype(np.float64) for a in "xyz"])
+
+
+def write_ply_xyz(path: Path, points: NDArray[np.floating]) -> None:
+    """(N, 3) positions as a binary little-endian PLY with double x, y, z (the layout open3d writes
+    for a cloud without colours or normals, so readers of the old map.ply read the same values)."""
+    xyz = np.ascontiguousarray(points, dtype="<f8").reshape(-1, 3)
+    header = (f"ply\nformat binary_little_endian 1.0\ncomment Created by mrnc-eval\nelement vertex {len(xyz)}\n"
+              "property double x\nproperty double y\nproperty double z\nend_header\n")
+    with open(path, "wb") as fh:
+        fh.write(header.encode("ascii"))
+        xyz.tofile(fh)

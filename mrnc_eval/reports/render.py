@@ -159,7 +159,8 @@ def _warmup_text(r: RunResult) -> str:
     if not total:
         return ""
     return (f", after a warm-up of {total:.0f} ms before the timed loop (numba's one-off compilation, or loading it "
-            "from its cache, and open3d's import; in neither the per-stage statistics nor the processing time)")
+            "from its cache, and the loop-closure ICP's first call; in neither the per-stage statistics nor the "
+            "processing time)")
 
 
 def slam_definitions(r: RunResult) -> list[str]:

@@ -92,6 +92,12 @@ class ImuConfig:
                                         "of the IMU-driven guess, so one estimate after the run reads only part of "
                                         "a large lag (30 ms -> 23-28 ms); 0 = one estimate after the run, nothing "
                                         "applied", "s", ge=0.0, le=86_400.0)
+    time_offset_passes: int = param(1, "with estimate_time_offset: run the log up to this many times, each "
+                                    "later pass with the offset found so far applied to the IMU stamps, while "
+                                    "the offset left stands out (> 2 ms and > 2 standard errors). One pass reads "
+                                    "only part of a large lag (the LiDAR poses keep part of the IMU-driven "
+                                    "guess: 30 ms -> 24-29 ms); a second pass reads what the first left. Each "
+                                    "pass costs a whole run", ge=1, le=5)
     max_velocity_mps: float = param(30.0, "reset graph #2 above this velocity (LIO-SAM failure check)", "m/s")
     max_bias: float = param(1.0, "... or above this bias norm")
 
@@ -259,6 +265,64 @@ class GpsConfig:
                                                "graph #2 restarts with the fixes' drift rate removed from its velocity")
     residual_huber_k: float = param(1.345, "residual gate: Huber kernel width of the factors (sigmas; 0 = none)",
                                     ge=0.0)
+    ins: Literal["off", "without_wheels", "always"] = param(
+        "off", "GNSS/INS (slam/gnss_ins.py): fixes as antenna-position factors in graph #2 (the IMU "
+        "preintegration graph), so they steer its velocity and accelerometer bias, with the ENU -> map alignment "
+        "fixed once from the fixes' own course against the chain's forward-axis heading; the online pose is then "
+        "graph #2's fused pose and graph #1 gets no GNSS factors. without_wheels: only when no wheel odometry is used. "
+        "Off by default: it does not hold the open line without wheels (float GNSS) yet and costs the yard "
+        "(docs/simulation.md, issue 28)")
+    ins_align_travel_m: float = param(5.0, "GNSS/INS: the fixes' travel along their course before the alignment is "
+                                      "fixed", "m", gt=0.0, le=100.0)
+    ins_align_max_turn_deg: float = param(30.0, "GNSS/INS: ... over a stretch whose chain heading spans at most "
+                                          "this", "deg", gt=0.0, le=180.0)
+    ins_jump_m: float = param(0.8, "GNSS/INS alignment: a step of the fixes (median of 3 to median of 3) this much "
+                              "beyond the chain's own motion starts a new multipath segment; the course is taken "
+                              "from pairs of fixes inside one segment", "m", gt=0.0, le=100.0)
+    ins_origin_s: float = param(2.0, "GNSS/INS: the alignment's translation puts the fixes of this long after the "
+                                "first sweep on the chain's antenna there", "s", gt=0.0, le=60.0)
+    ins_gate_chi2: float = param(13.8, "GNSS/INS: a fix enters when its innovation's squared Mahalanobis distance "
+                                 "(graph #2's marginal antenna covariance + the fix's) is at most this (2 dof; "
+                                 "13.8: 0.1 %)", gt=0.0, le=1000.0)
+    ins_trend_window_s: float = param(8.0, "GNSS/INS: a fix enters when it agrees with a robust line through the "
+                                      "innovations of the fixes accepted in this long",
+                                      "s", gt=0.0, le=120.0)
+    ins_trend_min_fixes: int = param(10, "GNSS/INS: ... when at least this many were accepted in it (else the "
+                                     "chi-square gate on graph #2's covariance decides)", ge=3, le=10000)
+    ins_trend_of: Literal["accepted", "all"] = param(
+        "all", "GNSS/INS: the trend line is fitted on the accepted fixes and decides alone once there are "
+        "ins_trend_min_fixes of them (accepted), or on every fix, a fix entering when the chi-square gate or the trend "
+        "takes it (all: a chain that drifts faster than its covariance says is followed sooner, and so is a long "
+        "multipath jump)")
+    ins_trend_sigmas: float = param(3.0, "GNSS/INS: ... within this many of its sigmas", gt=0.0, le=100.0)
+    ins_trend_floor_m: float = param(0.3, "GNSS/INS: ... plus this", "m", ge=0.0, le=10.0)
+    ins_step_fixes: int = param(5, "GNSS/INS: this many rejected fixes in a row that agree with each other are a "
+                                "multipath step, taken off the later fixes (0 = never)", ge=0, le=1000)
+    ins_max_offset_m: float = param(3.5, "GNSS/INS: a multipath offset beyond this is no step (the chain drifted): "
+                                    "not taken", "m", gt=0.0, le=100.0)
+    ins_reacquire_s: float = param(10.0, "GNSS/INS: after this long of fixes rejected without a break, take them "
+                                   "again (the chain diverged; multipath jumps last 2-8 s)", "s", gt=0.0, le=600.0)
+    ins_huber_k: float = param(1.345, "GNSS/INS: Huber kernel width of the factors (sigmas; 0 = none)", ge=0.0,
+                               le=100.0)
+    ins_sigma_floor_m: float = param(0.05, "GNSS/INS: floor of a fix's horizontal sigma", "m", ge=0.0, le=10.0)
+    ins_vertical_sigma_m: float = param(100.0, "GNSS/INS: sigma of the factors' height (the chain's own: the ground "
+                                        "holds z)", "m", gt=0.0, le=1e4)
+    ins_degenerate_sigma: float = param(10.0, "GNSS/INS, once aligned: graph #2's sigma (m, rad) of a degenerate "
+                                        "scan-to-map pose along its free directions (slam.imu.degenerate_pose_sigma "
+                                        "otherwise): the match there only repeats the IMU's prediction, and counted "
+                                        "as a measurement it shrinks the covariance the fixes are gated against",
+                                        gt=0.0, le=1e4)
+    ins_acc_noise: float = param(0.2, "GNSS/INS, once aligned: graph #2's accelerometer noise density, at least "
+                                 "(the machine's vibration and a drifting attitude's gravity leak, which a bench "
+                                 "figure or a stationary stretch does not show)", "m/s^2/sqrt(Hz)", gt=0.0, le=10.0)
+    ins_acc_bias_walk: float = param(0.1, "GNSS/INS, once aligned: graph #2's accelerometer bias random walk, at "
+                                     "least (a tilt error acts as a slowly changing bias the fixes then track)",
+                                     "m/s^3", gt=0.0, le=10.0)
+    ins_marginal_restarts: bool = param(True, "GNSS/INS, once aligned: graph #2's periodic restarts start from its "
+                                        "marginals (what the fixes taught carries over), whatever "
+                                        "slam.imu.reset_priors says")
+    ins_max_fix_age_s: float = param(0.3, "GNSS/INS: a fix older than this at its key is dropped (it is moved to the "
+                                     "key's stamp by the chain's velocity)", "s", gt=0.0, le=5.0)
 
 
 @dataclass(frozen=True)

@@ -13,6 +13,7 @@ import numpy as np
 from mrnc_eval.errors import ProcessingError
 from mrnc_eval.geometry import se3
 from mrnc_eval.slam.config import GraphConfig, LoopConfig
+from mrnc_eval.slam.icp import icp_point_to_point
 from mrnc_eval.slam.nearest import KdTree
 
 
@@ -114,7 +115,11 @@ class KeyframeGraph:
 
 def icp_fitness(source: np.ndarray, target: np.ndarray, max_dist: float) -> float:
     """PCL's fitness score: mean squared distance to the nearest target point (within max_dist)."""
-    d, _ = KdTree(target).query(source, k=1, max_dist=max_dist)
+    return _fitness(KdTree(target), source, max_dist)
+
+
+def _fitness(tree: KdTree, source: np.ndarray, max_dist: float) -> float:
+    d, _ = tree.query(source, k=1, max_dist=max_dist)
     d = d[np.isfinite(d)]
     return float(np.mean(d * d)) if d.size else float("inf")
 
@@ -154,17 +159,13 @@ def loop_candidate(graph: KeyframeGraph, cfg: LoopConfig) -> int | None:
 
 def register_loop(src: np.ndarray, tgt: np.ndarray, guess: np.ndarray,
                   cfg: LoopConfig) -> tuple[np.ndarray, float, bool]:
-    """Point-to-point ICP (open3d) of the current keyframe cloud onto the submap, both in the
-    map frame; returns the correction, the PCL-style fitness and whether ICP converged."""
-    import open3d as o3d
-
-    s = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(src))
-    t = o3d.geometry.PointCloud(o3d.utility.Vector3dVector(tgt))
-    crit = o3d.pipelines.registration.ICPConvergenceCriteria(relative_fitness=1e-6, relative_rmse=1e-6,
-                                                             max_iteration=cfg.icp_iterations)
-    est = o3d.pipelines.registration.TransformationEstimationPointToPoint()
-    res = o3d.pipelines.registration.registration_icp(s, t, cfg.icp_max_correspondence_m, guess, est, crit)
-    res = o3d.pipelines.registration.registration_icp(s, t, 1.0, res.transformation, est, crit)  # refine
-    T = np.asarray(res.transformation)
-    fitness = icp_fitness(se3.apply(T, src), tgt, cfg.icp_max_correspondence_m)
+    """Point-to-point ICP (slam/icp.py) of the current keyframe cloud onto the submap, both in the
+    map frame: from `guess` within cfg.icp_max_correspondence_m, then refined within 1 m; returns
+    the correction, the PCL-style fitness and whether the refined ICP kept any pairs."""
+    tree = KdTree(tgt)  # one tree for both stages and the fitness
+    coarse = icp_point_to_point(src, tgt, cfg.icp_max_correspondence_m, guess, max_iterations=cfg.icp_iterations,
+                                tree=tree)
+    res = icp_point_to_point(src, tgt, 1.0, coarse.transform, max_iterations=cfg.icp_iterations, tree=tree)
+    T = res.transform
+    fitness = _fitness(tree, se3.apply(T, src), cfg.icp_max_correspondence_m)
     return T, fitness, bool(res.fitness > 0)

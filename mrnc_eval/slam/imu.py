@@ -6,7 +6,7 @@ velocity and bias estimates."""
 
 from __future__ import annotations
 
-from collections.abc import Sequence
+from collections.abc import Callable, Sequence
 from dataclasses import dataclass
 from typing import Any
 
@@ -173,6 +173,19 @@ class ImuOdometry:
         self.t_last: float | None = None
         self.resets = 0
         self._last_pose: Any = None  # gtsam.Pose3 of the latest key
+        # a degenerate match's sigma along its free directions instead of degenerate_pose_sigma (GNSS/INS:
+        # the match there only repeats the prediction, and the fixes carry those directions)
+        self.degenerate_sigma: float | None = None
+        self.acc_bias_walk: float | None = None  # m/s^3, instead of cfg.acc_bias_noise (GNSS/INS)
+        self.marginal_restarts = False  # periodic restarts from the marginals whatever cfg.reset_priors (GNSS/INS)
+
+    def use_acc_noise(self, density: float) -> None:
+        """Preintegrate from now on with this accelerometer noise density (m/s^2/sqrt(Hz)), at least
+        the one in use: a GNSS/INS's fixes then weigh against what the IMU really does on the
+        machine (vibration, the tilt a drifting attitude leaks from gravity), not a bench figure."""
+        density = max(float(density), self.noise_used[0])
+        self.params.setAccelerometerCovariance(np.eye(3) * density ** 2)
+        self.noise_used = (density, self.noise_used[1])
         self._start_graph()
 
     # ---- helpers
@@ -228,7 +241,9 @@ class ImuOdometry:
         body = g.Pose3(lidar_pose @ self.lever)
         graph, values = g.NonlinearFactorGraph(), g.Values()
         prior = self._pose_prior(lidar_pose[:3, :3], degenerate, directions)
-        if self.key >= 0 and self.key + 1 >= self.cfg.reset_every and self.cfg.reset_priors == "marginals":
+        # GNSS/INS (degenerate_sigma set): always from marginals, or the fixed priors forget what the fixes taught
+        marginals = self.cfg.reset_priors == "marginals" or self.marginal_restarts
+        if self.key >= 0 and self.key + 1 >= self.cfg.reset_every and marginals:
             why = self._restart_from_marginals(t, body)
             if why:
                 return why
@@ -251,6 +266,51 @@ class ImuOdometry:
         if np.linalg.norm(self.velocity) > self.cfg.max_velocity_mps or np.linalg.norm(bias_vec) > self.cfg.max_bias:
             return self._reset(t, body, "Large velocity/bias, reset IMU-preintegration")
         return None
+
+    def add_fixes(self, fixes: Sequence[Any], antenna_in_lidar: np.ndarray,
+                  judge: Callable[[Any, np.ndarray, np.ndarray], tuple[bool, np.ndarray]], huber_k: float) -> int:
+        """GNSS/INS (slam/gnss_ins.py): antenna positions (map) as GPSFactorArm on the latest key, each
+        first judged by `judge(fix, predicted antenna x, y, the key's marginal covariance of them (map
+        axes))`, which returns whether it enters and the x, y to use; a Huber kernel of huber_k sigmas
+        when > 0. Returns how many entered."""
+        g, k = self.g, self.key
+        if k < 0 or not fixes or self._last_pose is None:
+            return 0
+        lever = np.asarray(antenna_in_lidar, float) - self.lever[:3, 3]  # antenna in the body (LiDAR axes)
+        try:
+            cov_body = self.isam.marginalCovariance(g.symbol("x", k))[3:, 3:]
+        except RuntimeError:
+            return 0
+        rot = self._last_pose.rotation().matrix()
+        cov_xy = (rot @ cov_body @ rot.T)[:2, :2]
+        predicted = (self._last_pose.translation() + rot @ lever)[:2]
+        graph = g.NonlinearFactorGraph()
+        for fix in fixes:
+            ok, xy = judge(fix, predicted, cov_xy)
+            if not ok:
+                continue
+            noise = self._noise(fix.sigmas)
+            if huber_k > 0:
+                noise = g.noiseModel.Robust.Create(g.noiseModel.mEstimator.Huber.Create(huber_k), noise)
+            graph.add(g.GPSFactorArm(g.symbol("x", k), np.r_[xy, fix.position[2]], lever, noise))
+        if graph.size() == 0:
+            return 0
+        try:
+            self.isam.update(graph, g.Values())
+            self.isam.update()
+            est = self.isam.calculateEstimate()
+        except RuntimeError:
+            return 0
+        self._last_pose = est.atPose3(g.symbol("x", k))
+        self.velocity = np.asarray(est.atVector(g.symbol("v", k)))
+        self.bias = est.atConstantBias(g.symbol("b", k))
+        return int(graph.size())
+
+    def lidar_pose(self) -> np.ndarray | None:
+        """The LiDAR pose of the latest key as graph #2 now estimates it (None before the first key)."""
+        if self._last_pose is None or self.key < 0:
+            return None
+        return np.asarray(self._last_pose.matrix() @ np.linalg.inv(self.lever), np.float64)
 
     def _first_key(self, graph: Any, values: Any, body: Any, prior: Any) -> int:
         """(Re)start: priors on pose, velocity (loose) and bias, as LIO-SAM does; returns key 0."""
@@ -278,7 +338,8 @@ class ImuOdometry:
         dt = max(t - self.t_last, 1e-6)
         graph.add(g.ImuFactor(g.symbol("x", k - 1), g.symbol("v", k - 1), g.symbol("x", k), g.symbol("v", k),
                               g.symbol("b", k - 1), pim))
-        walk = np.sqrt(dt) * np.r_[[self.cfg.acc_bias_noise] * 3, [self.cfg.gyro_bias_noise] * 3]
+        acc_walk = self.cfg.acc_bias_noise if self.acc_bias_walk is None else self.acc_bias_walk
+        walk = np.sqrt(dt) * np.r_[[acc_walk] * 3, [self.cfg.gyro_bias_noise] * 3]
         graph.add(g.BetweenFactorConstantBias(g.symbol("b", k - 1), g.symbol("b", k), g.imuBias.ConstantBias(),
                                               self._noise(walk)))
         graph.add(g.PriorFactorPose3(g.symbol("x", k), body, prior))
@@ -323,10 +384,15 @@ class ImuOdometry:
         if not degenerate:
             return self._noise(cfg.pose_prior_sigmas)
         if directions is None or cfg.degenerate_prior == "all":
-            return self._noise([cfg.degenerate_pose_sigma] * 6)
+            if self.degenerate_sigma is None:
+                return self._noise([cfg.degenerate_pose_sigma] * 6)
+            directions = np.eye(6)
         to_body = np.kron(np.eye(2), rot.T)  # map-axes perturbation -> body frame
         u = directions @ to_body.T
         cov = np.diag(np.square(cfg.pose_prior_sigmas)) + cfg.degenerate_pose_sigma ** 2 * (u.T @ u)
+        if self.degenerate_sigma is not None:  # GNSS/INS: the free parts along yaw, x and y (map) go to the fixes
+            free = (directions * np.array([0.0, 0.0, 1.0, 1.0, 1.0, 0.0])) @ to_body.T
+            cov += self.degenerate_sigma ** 2 * (free.T @ free)
         return self.g.noiseModel.Gaussian.Covariance(cov)
 
     @property

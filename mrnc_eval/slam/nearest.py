@@ -1,7 +1,7 @@
 """Nearest-neighbour search for the SLAM: one KD-tree library (pykdtree, OpenMP) for every query
 we make. It is 3x faster to build and 1.4x faster to query than scipy's cKDTree on 120k map
 points on 2 cores (benchmarks/test_bench_slam.py), with the same distances to the bit.
-(open3d's ICP in loop closure searches with its own internal tree.)"""
+Loop closure's ICP (slam/icp.py) searches with it too."""
 
 from __future__ import annotations
 

@@ -15,6 +15,7 @@ from scipy.spatial.transform import Rotation, Slerp
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep
 from mrnc_eval.errors import ProcessingError
 from mrnc_eval.geometry import se3
+from mrnc_eval.slam import gnss_ins
 from mrnc_eval.slam.config import SlamConfig
 from mrnc_eval.slam.deskew import deskew
 from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
@@ -63,6 +64,8 @@ def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg
     with_wheels = wheel is not None and cfg.wheel_odom.enabled
     anchored = start_anchored(cfg, with_wheels)
     replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor, anchored)
+    if replay.odom is not None:  # GNSS/INS: the fixes into graph #2
+        replay.ins = gnss_ins.build(gnss, cfg.gps, antenna_in_sensor, base_to_sensor, with_wheels)
     if wheel is not None and with_wheels:
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
@@ -160,6 +163,7 @@ class _Replay:
     wheel_cal: WheelCalibrator | None = None  # online calibration; `wheel` is then its calibrated track
     wheel_flagged: bool = False  # the wheel_health event was raised
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
+    ins: gnss_ins.GnssIns | None = None  # GNSS/INS in graph #2; graph #1 then gets no GNSS factors
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -247,6 +251,8 @@ class _Replay:
             why = self.odom.add_lidar_pose(pose, stamp, degenerate or unmatched, self.st.loose)
             if why:
                 self.events.append(SlamEvent(t=stamp, kind="warning", message=why))
+            if self.ins is not None:
+                pose = gnss_ins.step(self.ins, self.odom, pose, stamp, self.events)
         return pose, degenerate
 
     def guess_prior(self) -> np.ndarray | None:
@@ -350,7 +356,7 @@ class _Replay:
         if wheel is not None:
             self.restart_from_wheels(pose, stamp)
         self.kf_features.append(_compact(feats))
-        if self.aligner is not None and self.aligner.maybe_add(self.graph, stamp, self.events):
+        if self.aligner is not None and self.ins is None and self.aligner.maybe_add(self.graph, stamp, self.events):
             self.map_cache.clear()
             moved = float(np.linalg.norm(self.graph.poses[-1][:3, 3] - pose[:3, 3]))
             if self.odom is not None and (self.cfg.gps.rtk_max_variance_m2 > 0 or self.cfg.gps.gate == "residual") \

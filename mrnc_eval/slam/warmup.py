@@ -1,6 +1,6 @@
 """Warm the per-sweep loop before it is timed: run every stage once on a small synthetic sweep, so
-numba's one-off compilation (or the load from its on-disk cache) and the first import of open3d
-for loop closure are paid here, measured and reported on their own, instead of landing in one
+numba's one-off compilation (or the load from its on-disk cache) and the loop-closure ICP's first
+call (pykdtree's OpenMP start-up) are paid here, measured and reported on their own, instead of landing in one
 sweep's stage time (where a 2-4 s compilation made a stage's mean exceed its 95th percentile).
 
 The stages are called through their public functions with the dtypes the replay uses (they

@@ -1,0 +1,62 @@
+"""Slow (issue 28): the GNSS/INS in graph #2 (slam.gps.ins, off by default) on the open line of the
+claims matrix without wheel odometry (field profile, OS0-32 x 512, 40 s, float GNSS; the calibrated
+-wheel log with slam.wheel_odom.enabled=false), seed 2. Run:
+    .venv/bin/python -m pytest -m slow tests/slam/test_gnss_ins_slow.py -s
+
+Seed 2 is a tuning seed: on the report seeds 3-5 the GNSS/INS does not hold this cell yet
+(docs/simulation.md, "GNSS/INS in graph #2"); this test guards what it does where it works. Held at
+about 2x what was measured; the negative control is the same log without it (the default): it must
+fail the same limit.
+"""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import pytest
+
+from mrnc_eval.config import Config, replace_path
+
+pytestmark = pytest.mark.slow
+
+DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
+         "control.pure_pursuit.max_speed_mps": 1.0, "control.pure_pursuit.speed_cap": False,
+         "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8",
+         "sim.gnss.mode": "float"}
+NO_WHEELS = {"slam.wheel_odom.enabled": False}
+# measured (/tmp/wheels_logs/line_calibrated_float_s2.mcap, benchmarks/wheel_gnss_matrix.py's log): online APE
+# 0.769 m, end drift 0.85 m with slam.gps.ins=without_wheels; 7.5 m (drift 44 m) without it
+APE_LIMIT_M = 1.5
+
+
+def _with(cfg: Config, values: dict[str, object]) -> Config:
+    for key, value in values.items():
+        cfg = replace_path(cfg, key, value)
+    return cfg
+
+
+@pytest.fixture(scope="module")
+def line_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
+
+    folder = tmp_path_factory.mktemp("gnss_ins")
+    return simulate_log(folder / "line_calibrated_float_s2.mcap", _with(Config(), DRIVE),
+                        SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
+                                   seed=2, profile="field"))
+
+
+def _run(log: Path, out: Path, rules: dict[str, object]) -> dict[str, float]:
+    from mrnc_eval.commands.slam import run_log
+
+    r = run_log(log, _with(Config(), rules), out, method="lio")
+    return {m.name: float(m.value) for m in r.metrics if isinstance(m.value, (int, float))}
+
+
+def test_gnss_ins_holds_the_open_line_without_wheels(line_log: Path, tmp_path: Path) -> None:
+    m = _run(line_log, tmp_path / "ins", {**NO_WHEELS, "slam.gps.ins": "without_wheels"})
+    print(f"GNSS/INS: online APE {m['ape_online_rmse_m']:.3f} m, end drift {m['end_drift_online_m']:.2f} m")
+    assert m["ape_online_rmse_m"] < APE_LIMIT_M
+
+    before = _run(line_log, tmp_path / "off", NO_WHEELS)
+    print(f"without (the default): {before['ape_online_rmse_m']:.3f} m, {before['end_drift_online_m']:.2f} m")
+    assert not (before["ape_online_rmse_m"] < APE_LIMIT_M)
