@@ -1,6 +1,7 @@
 """SLAM speed and memory at equal work, side by side in one run on one log: lio at LIO-SAM's
 mapping rate (slam.mapping_interval_s = 0.15 s: every other sweep of a 10 Hz sensor, 5 Hz), lio mapping
-every sweep (0 s), and kiss-icp (every sweep), on a simulated OS0-128 x 1024 10 Hz forest loop
+every sweep (0 s) on every core and with --threads 1 (the serial run), and kiss-icp (every sweep), on a
+simulated OS0-128 x 1024 10 Hz forest loop
 (field sensor profile). Every RTF is printed with its mapping rate. Run:
     .venv/bin/python -m pytest -m benchmark benchmarks/test_bench_slam.py -s
 MRNC_BENCH_SLAM_LOG=<log> uses an existing log (a 30 s one is simulated otherwise: ~2 minutes,
@@ -39,8 +40,16 @@ from mrnc_eval.config import Config
 
 pytestmark = pytest.mark.benchmark
 SAMPLE = Path(__file__).resolve().parents[1] / "sample_logs" / "loop_forest.bag"
-RUNS = {"lio @ 0.15 s (LIO-SAM rate)": ("lio", 0.15), "lio @ every sweep": ("lio", 0.0),
-        "kiss-icp @ every sweep": ("kiss-icp", 0.0)}
+# name -> (method, slam.mapping_interval_s, slam.threads: 0 = every core, 1 = the serial run)
+RUNS = {"lio @ 0.15 s (LIO-SAM rate)": ("lio", 0.15, 0), "lio @ every sweep": ("lio", 0.0, 0),
+        "lio @ every sweep, --threads 1": ("lio", 0.0, 1), "kiss-icp @ every sweep": ("kiss-icp", 0.0, 0)}
+REPEATS = 3  # alternating rounds; each row is the median run (by wall time) of its three
+# lio mapping every sweep against kiss-icp at equal work, wall time, same session. Issue 30 asks >= 3x on a
+# quiet 2-core machine; not shown yet: measured 2.27x at load 1.9-3.3 (medians of 3; CPU 2.66x), 3.22x at
+# load 2.2-4.5 (kiss-icp, on both cores, loses more to the load), 1.97x at load 4.5-11; the CPU ratio bounds
+# a quiet machine's wall ratio near 2.5x (docs/performance.md, "SLAM, where the time goes"). The assertion
+# holds what was reached.
+MIN_WALL_RATIO = 2.0
 
 # One run in a fresh interpreter: imports first (measured), then the log; RSS sampled per keyframe.
 # "Imports" are what that method's run imports (RUN_IMPORTS), no more (until issue 30 every run
@@ -72,8 +81,8 @@ def add_and_sample(self, *args, **kwargs):
     samples.append((len(self.poses), rss_mb()))
     return out
 graph_module.KeyframeGraph.add_keyframe = add_and_sample
-log, out_dir, method, interval = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4])
-cfg = replace_path(Config(), "slam.mapping_interval_s", interval)
+log, out_dir, method, interval, threads = sys.argv[1], sys.argv[2], sys.argv[3], float(sys.argv[4]), int(sys.argv[7])
+cfg = replace_path(replace_path(Config(), "slam.mapping_interval_s", interval), "slam.threads", threads)
 ru0 = resource.getrusage(resource.RUSAGE_SELF)
 cpu0 = ru0.ru_utime + ru0.ru_stime
 t0 = time.perf_counter()
@@ -103,14 +112,20 @@ def bench_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
                                    seed=0, profile="field"))
 
 
-def _run(log: Path, out: Path, method: str, interval: float) -> dict:
+def _run(log: Path, out: Path, method: str, interval: float, threads: int = 0) -> dict:
+    load = os.getloadavg()[0]
     proc = subprocess.run([sys.executable, "-c", _RUN, str(log), str(out), method, str(interval),
-                           json.dumps(RUN_IMPORTS[method]), json.dumps(HEAVY)],
+                           json.dumps(RUN_IMPORTS[method]), json.dumps(HEAVY), str(threads)],
                           capture_output=True, text=True, check=False, env=os.environ.copy())
     assert proc.returncode == 0, proc.stderr[-2000:]
     out_ = json.loads(proc.stdout.strip().splitlines()[-1])
     assert out_["heavy_after"] == out_["heavy_before"], "the run imported a heavy module the imports did not count"
-    return out_
+    return {**out_, "load": load}
+
+
+def _median_run(runs: list[dict]) -> dict:
+    """The run with the median wall time (its CPU time, memory and metrics with it)."""
+    return sorted(runs, key=lambda r: r["wall_s"])[len(runs) // 2]
 
 
 def _growth_per_100_keyframes(samples: list[list[float]]) -> float:
@@ -169,34 +184,43 @@ def test_slam_equal_work_speed_and_memory_vs_kiss_icp(bench_log: Path, tmp_path:
     print(f"\nload average before: {os.getloadavg()}")
     for method in ("lio", "kiss-icp"):  # warm-up: compile and cache outside the measurement
         _run(SAMPLE, tmp_path / f"warm-{method}", method, 0.15)
-    runs = {name: _run(bench_log, tmp_path / name.split()[0] / str(i), method, interval)
-            for i, (name, (method, interval)) in enumerate(RUNS.items())}
+    rounds: dict[str, list[dict]] = {name: [] for name in RUNS}
+    for k in range(REPEATS):  # alternating, so a change of the machine's load hits every row alike
+        for i, (name, (method, interval, threads)) in enumerate(RUNS.items()):
+            rounds[name].append(_run(bench_log, tmp_path / f"{k}-{i}", method, interval, threads))
+    runs = {name: _median_run(rs) for name, rs in rounds.items()}
+    loads = [r["load"] for rs in rounds.values() for r in rs]
     pipeline = _kiss_icp_pipeline(_sweeps_as_bin_folder(bench_log, tmp_path / "scans"), tmp_path / "kiss_out")
     per_import = _resident_mb_per_import(("numpy", *RUN_IMPORTS["lio"]))
     profile = "as recorded" if os.environ.get("MRNC_BENCH_SLAM_LOG") else "field sensor profile"
-    print(f"{bench_log.name} ({bench_log.stat().st_size / 1e9:.2f} GB), {profile}; load average after: "
-          f"{os.getloadavg()}")
+    print(f"{bench_log.name} ({bench_log.stat().st_size / 1e9:.2f} GB), {profile}; medians of {REPEATS} alternating "
+          f"runs; load average (1 min) before the runs {min(loads):.2f}-{max(loads):.2f} on {os.cpu_count()} cores, "
+          f"after: {os.getloadavg()}")
     print("resident MB added by each import of a lio run, in order: "
           + ", ".join(f"{k} {v:.0f}" for k, v in per_import.items()))
-    print("| run | mapping rate | wall s | CPU s | RTF | APE online m | keyframes | imports MB | run holds MB "
+    print("| run | mapping rate | wall s (3 runs) | CPU s | RTF | APE online m | keyframes | imports MB | run holds MB "
           "| peak MB |")
     print("|---|---|---|---|---|---|---|---|---|---|")
     for name, r in runs.items():
         m = r["metrics"]
-        print(f"| {name} | {r['mapping_rate']} | {r['wall_s']:.1f} | {r['cpu_s']:.1f} | {m['rtf']:.2f} at "
+        walls = "/".join(f"{x['wall_s']:.1f}" for x in sorted(rounds[name], key=lambda x: x["wall_s"]))
+        print(f"| {name} | {r['mapping_rate']} | {r['wall_s']:.1f} ({walls}) | {r['cpu_s']:.1f} | {m['rtf']:.2f} at "
               f"{m['mapping_rate_hz']:.1f} Hz | {m.get('ape_online_rmse_m', float('nan')):.4f} | {m['keyframes']} | "
               f"{r['after_imports_mb']:.0f} | {r['peak_mb'] - r['after_imports_mb']:.0f} | {r['peak_mb']:.0f} |")
     print(f"| kiss_icp_pipeline (its own command, .bin scans) | every sweep | {pipeline['wall_s']:.1f} | "
           f"{pipeline['cpu_s']:.1f} | - | - | - | - | - | {pipeline['peak_mb']:.0f} |")
     full, kiss = runs["lio @ every sweep"], runs["kiss-icp @ every sweep"]
+    serial = runs["lio @ every sweep, --threads 1"]
     holds = full["peak_mb"] - full["after_imports_mb"]
     print(f"equal work (every sweep): lio {kiss['wall_s'] / full['wall_s']:.2f}x kiss-icp's speed in wall time, "
           f"{kiss['cpu_s'] / full['cpu_s']:.2f}x in CPU time (all threads); lio's peak {full['peak_mb']:.0f} MB = "
           f"{full['peak_mb'] / kiss['peak_mb']:.2f}x kiss-icp's in mrnc-eval ({kiss['peak_mb']:.0f} MB), "
           f"{full['peak_mb'] / pipeline['peak_mb']:.2f}x kiss_icp_pipeline's ({pipeline['peak_mb']:.0f} MB); "
-          f"lio's run holds {holds:.0f} MB")
+          f"lio's run holds {holds:.0f} MB; two cores against one: {serial['wall_s'] / full['wall_s']:.2f}x in wall "
+          "time")
     assert full["metrics"]["mapping_rate_hz"] > 9.0  # every sweep of a 10 Hz log
-    assert full["wall_s"] < kiss["wall_s"]
+    assert full["metrics"]["ape_online_rmse_m"] == serial["metrics"]["ape_online_rmse_m"]  # same poses, any threads
+    assert kiss["wall_s"] / full["wall_s"] >= MIN_WALL_RATIO
     assert full["metrics"]["ape_online_rmse_m"] < kiss["metrics"]["ape_online_rmse_m"]
     # memory, as ratios (the same reader and imports on both sides of the first pair)
     assert full["peak_mb"] <= 2.0 * kiss["peak_mb"]  # measured 1.17x (363 / 311 MB)

@@ -177,6 +177,9 @@ def slam(
     n_scans: Annotated[int | None, typer.Option(
         "--n-scans", "-n", help="At most this many sweeps (kiss-icp's --n-scans; lio: after its mapping-interval "
         "thinning).")] = None,
+    threads: Annotated[int | None, typer.Option(
+        "--threads", min=0, help="lio: threads (sets slam.threads; 0 = every core, 1 = one thread in turn, the "
+        "serial run the default's poses equal to the bit).")] = None,
     json_out: JsonOpt = False,
     config: ConfigOpt = None,
     set_: SetOpt = None,
@@ -187,6 +190,8 @@ def slam(
     Ground truth: a pose topic (Odometry, PoseStamped, ...) named like ground_truth or gt, or the one
     --set io.roles.ground_truth=TOPIC names (io.roles.ROLE=TOPIC picks the topic of any role), else
     <log>.gt.tum beside the log (TUM)."""
+    if threads is not None:  # as --set slam.threads=N, so --dump-config shows it
+        set_ = [*(set_ or []), f"slam.threads={threads}"]
     cfg = _config(config, set_, dump_config)  # --dump-config needs no LOG
     if not logs:
         raise UsageError("slam needs LOG... (one or more logs; a folder of logs: mrnc-eval nightly FOLDER --out ROOT)")

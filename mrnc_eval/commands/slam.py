@@ -11,6 +11,7 @@ import sys
 import tempfile
 import time
 from collections.abc import Iterable, Iterator
+from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
 from typing import TYPE_CHECKING
@@ -20,6 +21,7 @@ from scipy.spatial.transform import Rotation
 
 from mrnc_eval.commands.gates import raise_on_failed_gates
 from mrnc_eval.commands.progress import progress_bar
+from mrnc_eval.commands.slam_threads import openmp_threads, run_threads
 from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, NoGnssFix, UsageError
@@ -286,9 +288,11 @@ def _gnss_or_none(lg: LogReader, cfg: Config) -> tuple[GnssSeries | None, str]:
 
 def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, window: SweepWindow | None = None
             ) -> SlamOutput:
-    """Run the configured method over the sweep stream; both methods read the same way (decoding
-    runs ahead in a thread; "read" = the time still waited)."""
+    """Run the configured method over the sweep stream; both methods decode ahead in a reader thread
+    ("read" = the time still waited), lio also prepares each sweep there (slam/sweep_prep.py), unless
+    slam.threads is 1: then everything runs in turn on this thread."""
     from mrnc_eval.slam.replay import run_slam
+    from mrnc_eval.slam.sweep_prep import prepare_sweep
 
     lio = cfg.slam.method == "lio"
     with progress_bar(inputs.n_sweeps, progress) as b:
@@ -297,12 +301,18 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
         stream = lg.sweeps(keep=MappingInterval(interval_s=cfg.slam.mapping_interval_s).take) if lio else lg.sweeps()
         if window is not None and window.active:
             stream = windowed(stream, window, lg.start_s)
-        with Prefetched(stream, depth=4) as sweeps:
-            if lio:
-                return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
-                                antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
-                                base_to_sensor=inputs.base_to_sensor, progress=tick)
-            return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
+        if not lio:
+            with Prefetched(stream, depth=4) as sweeps:
+                return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
+        prepared = (prepare_sweep(s, cfg.slam) for s in stream)  # what needs no pose: in the reader's thread
+        threads = run_threads(cfg.slam.threads)
+        # the reader takes one core; the KD-tree queries' OpenMP team the rest (two cores: one each,
+        # no team to wake per query batch while the reader holds the other core)
+        with openmp_threads(max(1, threads - 1)), \
+                (Prefetched(prepared, depth=4) if threads > 1 else closing(prepared)) as sweeps:
+            return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
+                            antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
+                            base_to_sensor=inputs.base_to_sensor, progress=tick)
 
 
 def _replay_offset_passes(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool,

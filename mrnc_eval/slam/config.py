@@ -422,6 +422,12 @@ class SlamConfig:
         "the paper's real-time system had) or smoothed (re-anchored to the final loop-corrected keyframes)")
     mapping_interval_s: float = param(0.15, "process a sweep only if this much later than the last "
                                       "(mappingProcessInterval)", "s")
+    threads: int = param(0, "threads of the lio run: 1 decodes, prepares (range image, feature labels) and maps "
+                         "each sweep in turn on one thread, the KD-tree searches too; N >= 2 decode and prepare "
+                         "the next sweeps in a reader thread while this one is mapped, the KD-tree searches on N - 1 "
+                         "OpenMP threads; 0 = every core the process may use. The poses are the same to the bit "
+                         "whatever the number (--threads sets it)",
+                         ge=0, le=1024)
     deskew_translation: bool = param(True, "also remove the translation during the sweep (constant velocity); "
                                      "LIO-SAM deskews rotation only")
     gyro_bias_init_s: float = param(0.0, "average the gyro over the first seconds as its bias (0 = off)", "s")

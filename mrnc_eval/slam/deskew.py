@@ -11,7 +11,7 @@ from mrnc_eval.slam.imu import ImuTrack
 QUANTUM_S = 1e-3  # rotations tabulated per millisecond: < 0.001 deg error at 1 rad/s
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _apply(points: np.ndarray, t: np.ndarray, t0: float, table: np.ndarray, velocity: np.ndarray,
            accel: np.ndarray, out: np.ndarray) -> None:
     for i in range(points.shape[0]):

@@ -18,7 +18,7 @@ class Features:
     surfs: np.ndarray  # (Ns, 3)
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mark_neighbours(picked: np.ndarray, col: np.ndarray, i: int) -> None:
     """A selected feature blocks its +/-5 neighbours on the ring, up to a column gap > 10."""
     n = picked.size
@@ -35,7 +35,7 @@ def _mark_neighbours(picked: np.ndarray, col: np.ndarray, i: int) -> None:
             break
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _smoothness(rng: np.ndarray, xyz: np.ndarray, paper: bool) -> np.ndarray:
     """LIO-SAM's code: c = (sum of the 10 neighbour ranges - 10 r_i)^2 (m^2). The paper's formula
     (LOAM): c = |sum_u (p_i - p_u)| / (|S| |p_i|) over the same 10 neighbours (dimensionless; the
@@ -60,7 +60,7 @@ def _smoothness(rng: np.ndarray, xyz: np.ndarray, paper: bool) -> np.ndarray:
     return curv
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _mark_occluded_and_parallel(rng: np.ndarray, col: np.ndarray, occ_jump: float, par_ratio: float) -> np.ndarray:
     """LIO-SAM's unreliable points: the far side of an occlusion (a range jump > occ_jump between
     neighbouring columns) and beams nearly parallel to the surface (both neighbours' ranges differ
@@ -81,7 +81,7 @@ def _mark_occluded_and_parallel(rng: np.ndarray, col: np.ndarray, occ_jump: floa
     return picked
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _label_sector(sp: int, ep: int, curv: np.ndarray, col: np.ndarray, picked: np.ndarray, label: np.ndarray,
                   edge_thr: float, surf_thr: float, max_edges: int) -> None:
     """One sector [sp, ep]: the sharpest unpicked points above edge_thr become edges (at most
@@ -109,7 +109,7 @@ def _label_sector(sp: int, ep: int, curv: np.ndarray, col: np.ndarray, picked: n
             label[i] = -2
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _extract(rng: np.ndarray, curv: np.ndarray, col: np.ndarray, ring_start: np.ndarray, ring_end: np.ndarray,
              edge_thr: float, surf_thr: float, max_edges: int, sectors: int, occ_jump: float,
              par_ratio: float) -> np.ndarray:
@@ -129,7 +129,7 @@ def _extract(rng: np.ndarray, curv: np.ndarray, col: np.ndarray, ring_start: np.
     return label
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _voxel_centroids(points: np.ndarray, leaf: float) -> np.ndarray:
     """Open-addressing hash of packed voxel keys (21 bits per axis): O(N), first-seen order."""
     n = points.shape[0]
@@ -199,21 +199,82 @@ def ground_mask(image: RangeImage, points: np.ndarray, max_angle_deg: float) -> 
     return ground
 
 
-def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig) -> Features:
-    """Edges and planes of one sweep. `image` gives the ring-major order and the (raw) ranges,
-    `points` (N, 3) the same points deskewed."""
-    if len(image) < 12:
-        return Features(edges=np.zeros((0, 3)), surfs=np.zeros((0, 3)))
+def feature_labels(image: RangeImage, points: np.ndarray | None, cfg: FeatureConfig) -> np.ndarray:
+    """Labels per point of the ring-major image: 1 edge candidate, -1 / -2 planar, 0 neither.
+    With smoothness "range" (LIO-SAM's code) they depend on the ranges and columns alone, so they
+    can be computed before the sweep is deskewed (slam/sweep_prep.py: ahead, in another thread);
+    "paper" needs the deskewed `points`."""
     ring, rng = image.ring, image.range_m
     starts = np.flatnonzero(np.r_[True, ring[1:] != ring[:-1]])
     counts = np.diff(np.r_[starts, ring.size])
-    curv = _smoothness(rng, points, cfg.smoothness == "paper")
-    label = _extract(rng, curv, image.column, starts + 5, starts + counts - 6, cfg.edge_threshold,
-                     cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
-                     cfg.parallel_ratio)
-    edge = label == 1
+    xyz = image.points if points is None else points
+    curv = _smoothness(rng, xyz, cfg.smoothness == "paper")
+    out: np.ndarray = _extract(rng, curv, image.column, starts + 5, starts + counts - 6, cfg.edge_threshold,
+                               cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
+                               cfg.parallel_ratio)
+    return out
+
+
+def vertical_neighbours(image: RangeImage) -> np.ndarray:
+    """(N, 2) int64: each point's neighbour in the same column on the ring above (row - 1) and
+    below (row + 1) of the image, -1 where that pixel is empty; from the image layout alone."""
+    n = len(image)
+    if n == 0:
+        return np.full((0, 2), -1, np.int64)
+    out: np.ndarray = _vertical_neighbours(image.ring, image.column, int(image.ring.max()) + 1,
+                                           int(image.column.max()) + 1)
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _vertical_neighbours(ring: np.ndarray, col: np.ndarray, rows: int, width: int) -> np.ndarray:
+    grid = np.full((rows, width), -1, np.int64)
+    for i in range(ring.size):
+        grid[ring[i], col[i]] = i
+    out = np.full((ring.size, 2), -1, np.int64)
+    for i in range(ring.size):
+        if ring[i] > 0:
+            out[i, 0] = grid[ring[i] - 1, col[i]]
+        if ring[i] + 1 < rows:
+            out[i, 1] = grid[ring[i] + 1, col[i]]
+    return out
+
+
+@njit(cache=True, nogil=True)
+def _flat_pair(points: np.ndarray, a: int, b: int, tan_max: float) -> bool:
+    """`ground_mask`'s test of one pair, a on the upper ring and b below it, in the same arithmetic."""
+    d0, d1, d2 = points[b, 0] - points[a, 0], points[b, 1] - points[a, 1], points[b, 2] - points[a, 2]
+    return bool(abs(d2) < tan_max * np.hypot(d0, d1) and points[a, 2] < 0 and points[b, 2] < 0)
+
+
+@njit(cache=True, nogil=True)
+def _ground_of(points: np.ndarray, candidates: np.ndarray, vertical: np.ndarray, tan_max: float) -> np.ndarray:
+    """`ground_mask` at the `candidates` only: a point is ground when the pair with its upper or its
+    lower neighbour is flat."""
+    out = np.zeros(candidates.size, np.bool_)
+    for q in range(candidates.size):
+        i = candidates[q]
+        up, down = vertical[i, 0], vertical[i, 1]
+        out[q] = (up >= 0 and _flat_pair(points, up, i, tan_max)) or (down >= 0 and _flat_pair(points, i, down,
+                                                                                                 tan_max))
+    return out
+
+
+def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig, *, labels: np.ndarray | None = None,
+                     vertical: np.ndarray | None = None) -> Features:
+    """Edges and planes of one sweep. `image` gives the ring-major order and the (raw) ranges,
+    `points` (N, 3) the same points deskewed. `labels` (`feature_labels`) and `vertical`
+    (`vertical_neighbours`), when given, were computed ahead from the image alone."""
+    if len(image) < 12:
+        return Features(edges=np.zeros((0, 3)), surfs=np.zeros((0, 3)))
+    if labels is None:
+        labels = feature_labels(image, points, cfg)
+    edge_idx = np.flatnonzero(labels == 1)
     if cfg.ground_max_angle_deg > 0:  # ground rings are smooth arcs: their "edges" are roughness and noise
-        edge &= ~ground_mask(image, points, cfg.ground_max_angle_deg)
-    edges = points[edge]
-    surfs = voxel_downsample(points[label < 0], cfg.surf_leaf_m)
+        if vertical is None:
+            vertical = vertical_neighbours(image)
+        tan_max = float(np.tan(np.radians(cfg.ground_max_angle_deg)))
+        edge_idx = edge_idx[~_ground_of(points, edge_idx, vertical, tan_max)]
+    edges = points[edge_idx]
+    surfs = voxel_downsample(points[labels < 0], cfg.surf_leaf_m)
     return Features(edges=edges, surfs=surfs)

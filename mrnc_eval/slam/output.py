@@ -10,7 +10,9 @@ import numpy as np
 
 from mrnc_eval.slam.map_quality import MapQuality
 
-STAGES = ("read", "deskew", "features", "matching", "graph", "loop")  # read: waiting for the sweep iterator (decode)
+# read: waiting for the sweep iterator (decoding, or only the wait when it runs ahead in another thread);
+# projection: range image and feature labels (slam/sweep_prep.py), in the thread that prepared the sweep
+STAGES = ("read", "projection", "deskew", "features", "matching", "graph", "loop")
 
 
 @dataclass(kw_only=True)
@@ -44,4 +46,7 @@ class SlamOutput:
     empty_sweeps: int = 0  # sweeps with no valid point (empty, all zero or non-finite): not mapped, counted
     imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)
     imu_time_offset_sigma_s: float | None = None  # its formal standard error, s
+    # per stage and sweep, CPU time of the thread that ran it (projection: the preparing thread), ms;
+    # the KD-tree's OpenMP helpers are not in it (slam.threads = 1 holds them to the calling thread)
+    cpu_ms: dict[str, list[float]] = field(default_factory=dict)
     wheel_health: dict[str, Any] | None = None  # slam/wheel_health.py: online wheel calibration and verdict

@@ -49,7 +49,7 @@ def outside_box(points: np.ndarray, box: tuple[float, ...] | None) -> np.ndarray
     return keep
 
 
-@njit(cache=True)
+@njit(cache=True, nogil=True)
 def _range_and_keep(points: np.ndarray, min_range: float, max_range: float, box: np.ndarray,
                     use_box: bool) -> tuple[np.ndarray, np.ndarray]:
     """One pass over the cloud: each point's range (m, float64) and whether it is kept (finite,
@@ -83,16 +83,51 @@ def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> Rang
     else:
         column = azimuth_column(sweep.points.astype(np.float64), sensor.horizon_scan)
         width = sensor.horizon_scan
-    if sensor.downsample_rate > 1:
-        keep &= ring % sensor.downsample_rate == 0
-    idx = np.flatnonzero(keep)
-    pixel = ring[idx] * width + column[idx]
-    if pixel.size > 1 and np.any(np.diff(pixel) <= 0):  # organised clouds arrive ring-major already
+    rate = max(sensor.downsample_rate, 1)
+    idx, ordered = _kept_in_pixel_order(keep, ring, column, width, rate)
+    if not ordered:  # organised clouds arrive ring-major already; others are sorted here
+        pixel = ring[idx] * width + column[idx]
         order = np.argsort(pixel, kind="stable")
         pixel, idx = pixel[order], idx[order]
         first = np.r_[True, pixel[1:] != pixel[:-1]]  # first point per pixel wins
         idx = idx[first]
-    t = sweep.point_time[idx].astype(np.float64) if sweep.point_time is not None else None
-    return RangeImage(points=sweep.points[idx].astype(np.float64), ring=ring[idx] // max(sensor.downsample_rate, 1),
-                      column=column[idx],
-                      range_m=rng[idx], point_time=t)
+    has_time = sweep.point_time is not None
+    t_in = np.ascontiguousarray(sweep.point_time) if sweep.point_time is not None else np.zeros(0, np.float32)
+    points, ring_out, col_out, rng_out, t = _gather(np.ascontiguousarray(sweep.points), ring, column, rng, t_in,
+                                                    idx, rate)
+    return RangeImage(points=points, ring=ring_out, column=col_out, range_m=rng_out, point_time=t if has_time else None)
+
+
+@njit(cache=True, nogil=True)
+def _kept_in_pixel_order(keep: np.ndarray, ring: np.ndarray, column: np.ndarray, width: int,
+                         rate: int) -> tuple[np.ndarray, bool]:
+    """Indices of the kept points on every rate-th ring, and whether their pixels (ring * width +
+    column) strictly ascend (then they are the image as they come: one point per pixel, in order)."""
+    idx = np.empty(keep.size, np.int64)
+    m, last, ordered = 0, np.int64(-1), True
+    for i in range(keep.size):
+        if keep[i] and ring[i] % rate == 0:
+            pixel = ring[i] * width + column[i]
+            if m > 0 and pixel <= last:
+                ordered = False
+            last = pixel
+            idx[m] = i
+            m += 1
+    return idx[:m], ordered
+
+
+@njit(cache=True, nogil=True)
+def _gather(points: np.ndarray, ring: np.ndarray, column: np.ndarray, rng: np.ndarray, point_time: np.ndarray,
+            idx: np.ndarray, rate: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+    """The image's arrays at idx in one pass: points and times as float64, ring // rate."""
+    n = idx.size
+    out = np.empty((n, 3))
+    ring_out, col_out, rng_out = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
+    t = np.empty(n if point_time.size else 0)
+    for j in range(n):
+        i = idx[j]
+        out[j, 0], out[j, 1], out[j, 2] = np.float64(points[i, 0]), np.float64(points[i, 1]), np.float64(points[i, 2])
+        ring_out[j], col_out[j], rng_out[j] = ring[i] // rate, column[i], rng[i]
+        if point_time.size:
+            t[j] = np.float64(point_time[i])
+    return out, ring_out, col_out, rng_out, t

@@ -27,8 +27,9 @@ from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
-from mrnc_eval.slam.range_image import RangeImage, project
+from mrnc_eval.slam.range_image import RangeImage
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
+from mrnc_eval.slam.sweep_prep import PreparedSweep, prepare_sweep
 from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
 from mrnc_eval.slam.wheel_calibration import WheelCalibrator
@@ -47,12 +48,13 @@ def start_anchored(cfg: SlamConfig, with_wheels: bool) -> bool:
     return cfg.graph.anchor_start == "always" or (cfg.graph.anchor_start == "with_wheels" and with_wheels)
 
 
-def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
+def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg: SlamConfig, *,
              sensor_to_imu: np.ndarray | None = None, gnss: GnssSeries | None = None,
              antenna_in_sensor: np.ndarray | None = None, wheel: WheelTrack | None = None,
              base_to_sensor: np.ndarray | None = None,
              progress: Callable[[int], None] | None = None) -> SlamOutput:
-    """Replay the SLAM over `sweeps` (LiDAR frame). `sensor_to_imu` is the IMU pose in the LiDAR
+    """Replay the SLAM over `sweeps` (LiDAR frame; each prepared ahead, slam/sweep_prep.py, or prepared
+    here in line: the same arrays either way). `sensor_to_imu` is the IMU pose in the LiDAR
     frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors;
     `wheel` (odom -> base_link, with `base_to_sensor` the LiDAR pose in base_link) enables wheel
     factors when slam.wheel_odom.enabled. The stages are warmed first (slam/warmup.py): their
@@ -74,20 +76,22 @@ def run_slam(sweeps: Iterable[Sweep], imu: ImuSeries | None, cfg: SlamConfig, *,
                                                      cfg.wheel_odom.calibration)
     interval = MappingInterval(interval_s=cfg.mapping_interval_s)
     n_sweeps = n_empty = 0
-    t_read = time.perf_counter()
-    for sweep in sweeps:
+    t_read, c_read = time.perf_counter(), time.thread_time()
+    for item in sweeps:
+        stamp = item.stamp
         n_sweeps += 1
         if progress is not None:
             progress(n_sweeps)
-        if len(sweep) == 0:
+        if (item.n_points if isinstance(item, PreparedSweep) else len(item)) == 0:
             n_empty += 1  # nothing to map: counted, so the result says so
             continue
-        if not interval.take(sweep.stamp):
+        if not interval.take(stamp):
             continue  # mappingProcessInterval
         replay.timing["read"].append((time.perf_counter() - t_read) * 1e3)
-        replay.calibrate_wheels(sweep.stamp)
-        replay.map_sweep(sweep)
-        t_read = time.perf_counter()
+        replay.cpu["read"].append((time.thread_time() - c_read) * 1e3)
+        replay.calibrate_wheels(stamp)
+        replay.map_sweep(item if isinstance(item, PreparedSweep) else prepare_sweep(item, cfg))
+        t_read, c_read = time.perf_counter(), time.thread_time()
     health = wheel_health(replay.wheel_cal) if replay.wheel_cal is not None else None
     return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty, wheel_health=health)
 
@@ -143,6 +147,8 @@ class _Replay:
     aligner: GnssAligner | None
     timing: dict[str, list[float]]
     warnings: list[str]
+    cpu: dict[str, list[float]] = field(default_factory=lambda: {s: [] for s in STAGES})  # this thread's, ms
+    loop_cpu_ms: float = 0.0  # CPU time of the current sweep's loop closure, ms
     events: list[SlamEvent] = field(default_factory=list)
     kf_features: list[Features] = field(default_factory=list)
     map_cache: dict[int, tuple[np.ndarray, np.ndarray]] = field(default_factory=dict)
@@ -179,46 +185,50 @@ class _Replay:
                    timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise)
 
     # ---- one mapped sweep
-    def map_sweep(self, sweep: Sweep) -> None:
-        """Range image and deskew -> features -> scan-to-map -> keyframe -> bookkeeping."""
-        clock = _Clock(self.timing)
-        image = project(sweep, self.cfg.sensor, self.cfg.features)
-        points = self.deskew(image, sweep)
+    def map_sweep(self, prep: PreparedSweep) -> None:
+        """Deskew the prepared range image -> features -> scan-to-map -> keyframe -> bookkeeping."""
+        clock = _Clock(self.timing, self.cpu)
+        self.timing["projection"].append(prep.ms)
+        self.cpu["projection"].append(prep.cpu_ms)
+        stamp, image = prep.stamp, prep.image
+        points = self.deskew(image, stamp)
         clock.lap("deskew")
-        feats = extract_features(image, points, self.cfg.features)
+        feats = extract_features(image, points, self.cfg.features, labels=prep.labels, vertical=prep.vertical)
         clock.lap("features")
-        pose, degenerate = self.scan_to_map(sweep.stamp, feats)
+        pose, degenerate = self.scan_to_map(stamp, feats)
         clock.lap("matching")
         loop_ms = 0.0
+        self.loop_cpu_ms = 0.0
         if _is_keyframe(self.graph, pose, self.cfg):
-            pose, loop_ms = self.add_keyframe(pose, sweep.stamp, feats)
-        clock.lap("graph", minus_ms=loop_ms)
+            pose, loop_ms = self.add_keyframe(pose, stamp, feats)
+        clock.lap("graph", minus_ms=loop_ms, minus_cpu_ms=self.loop_cpu_ms)
         self.timing["loop"].append(loop_ms)
-        self.record(sweep.stamp, pose, degenerate)
-        self.refine_offset(sweep.stamp)
+        self.cpu["loop"].append(self.loop_cpu_ms)
+        self.record(stamp, pose, degenerate)
+        self.refine_offset(stamp)
 
-    def deskew(self, image: RangeImage, sweep: Sweep) -> np.ndarray:
+    def deskew(self, image: RangeImage, stamp: float) -> np.ndarray:
         """Points at the sweep stamp: rotation from the IMU track, translation at constant velocity."""
         st, cfg = self.st, self.cfg
         if image.point_time is None:
-            self.warn_once(sweep.stamp, "no_time", "sweeps have no per-point time: processed without deskew "
+            self.warn_once(stamp, "no_time", "sweeps have no per-point time: processed without deskew "
                            "(the trajectory will drift with fast rotation)")
             return image.points
-        t_end = sweep.stamp + float(image.point_time.max(initial=0.0))
-        if self.track is not None and not self.track.covers(sweep.stamp, t_end):
-            self.warn_once(sweep.stamp, "no_cover", f"IMU does not cover the sweep at {sweep.stamp:.3f} s: "
+        t_end = stamp + float(image.point_time.max(initial=0.0))
+        if self.track is not None and not self.track.covers(stamp, t_end):
+            self.warn_once(stamp, "no_cover", f"IMU does not cover the sweep at {stamp:.3f} s: "
                            "rotation deskew clamped to the IMU span")
         v_sensor = a_sensor = None
         odom, track = self.odom, self.track
         if cfg.deskew_translation and cfg.imu.deskew_motion == "predicted" and odom is not None and track is not None \
-                and odom.can_predict and st.pose is not None and track.covers(st.t, t_end) and t_end > sweep.stamp:
+                and odom.can_predict and st.pose is not None and track.covers(st.t, t_end) and t_end > stamp:
             # graph #2's velocity at the sweep's start and end (a rocking mast changes it within 0.1 s)
-            rots, vels = odom.predict_velocity(st.pose, st.t, np.array([sweep.stamp, t_end]))
+            rots, vels = odom.predict_velocity(st.pose, st.t, np.array([stamp, t_end]))
             v_sensor = rots[0].T @ vels[0]
-            a_sensor = rots[0].T @ (vels[1] - vels[0]) / (t_end - sweep.stamp)
+            a_sensor = rots[0].T @ (vels[1] - vels[0]) / (t_end - stamp)
         elif cfg.deskew_translation and st.velocity is not None and st.pose is not None:
             v_sensor = st.pose[:3, :3].T @ st.velocity
-        return deskew(image.points, image.point_time, sweep.stamp, self.track, v_sensor, a_sensor)
+        return deskew(image.points, image.point_time, stamp, self.track, v_sensor, a_sensor)
 
     def scan_to_map(self, stamp: float, feats: Features) -> tuple[np.ndarray, bool]:
         """Guess -> match against the local map -> roll/pitch blend -> correct graph #2.
@@ -355,12 +365,12 @@ class _Replay:
                 if self.aligner.velocity_error is not None and self.wheel is None \
                         and self.cfg.gps.residual_velocity_correction:  # the fixes' drift rate
                     self.odom.velocity = self.odom.velocity + np.r_[self.aligner.velocity_error, 0.0]
-        loop_ms = 0.0
+        loop_ms = self.loop_cpu_ms = 0.0
         if self.cfg.loop.enabled and stamp - self.st.last_loop_t >= self.cfg.loop.interval_s:
             self.st.last_loop_t = stamp
-            t0 = time.perf_counter()
+            t0, c0 = time.perf_counter(), time.thread_time()
             self.close_loop(stamp)
-            loop_ms = (time.perf_counter() - t0) * 1e3
+            loop_ms, self.loop_cpu_ms = (time.perf_counter() - t0) * 1e3, (time.thread_time() - c0) * 1e3
         self.local_map = _local_map(self.graph, self.kf_features, self.map_cache, self.cfg)
         return self.graph.poses[-1], loop_ms
 
@@ -482,8 +492,8 @@ class _Replay:
             elif self.offset.history:
                 offset = self.offset.applied
         return SlamOutput(stamps=stamps, poses=poses, kf_stamps=np.asarray(self.graph.stamps), kf_poses=kf_poses,
-                          map_points=map_points, timing_ms=self.timing, events=self.events, warnings=self.warnings,
-                          n_sweeps=n_sweeps, wall_s=time.perf_counter() - wall0,
+                          map_points=map_points, timing_ms=self.timing, cpu_ms=self.cpu, events=self.events,
+                          warnings=self.warnings, n_sweeps=n_sweeps, wall_s=time.perf_counter() - wall0,
                           imu_bias=self.odom.bias_vector if self.odom is not None else None,
                           degenerate=np.asarray(tr.degenerate, bool), online_poses=online,
                           imu_time_offset_s=offset, map_quality=quality, imu_noise=self.imu_report(),
@@ -512,15 +522,17 @@ class _Replay:
 
 
 class _Clock:
-    """Per-stage wall time (ms) of one sweep."""
+    """Per-stage wall time and this thread's CPU time (ms) of one sweep."""
 
-    def __init__(self, timing: dict[str, list[float]]) -> None:
-        self.timing, self.t = timing, time.perf_counter()
+    def __init__(self, timing: dict[str, list[float]], cpu: dict[str, list[float]]) -> None:
+        self.timing, self.cpu = timing, cpu
+        self.t, self.c = time.perf_counter(), time.thread_time()
 
-    def lap(self, stage: str, minus_ms: float = 0.0) -> None:
-        now = time.perf_counter()
+    def lap(self, stage: str, minus_ms: float = 0.0, minus_cpu_ms: float = 0.0) -> None:
+        now, cpu = time.perf_counter(), time.thread_time()
         self.timing[stage].append((now - self.t) * 1e3 - minus_ms)
-        self.t = now
+        self.cpu[stage].append((cpu - self.c) * 1e3 - minus_cpu_ms)
+        self.t, self.c = now, cpu
 
 
 def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warnings: list[str],
