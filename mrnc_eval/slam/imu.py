@@ -178,6 +178,7 @@ class ImuOdometry:
         self.degenerate_sigma: float | None = None
         self.acc_bias_walk: float | None = None  # m/s^3, instead of cfg.acc_bias_noise (GNSS/INS)
         self.marginal_restarts = False  # periodic restarts from the marginals whatever cfg.reset_priors (GNSS/INS)
+        self._start_graph()
 
     def use_acc_noise(self, density: float) -> None:
         """Preintegrate from now on with this accelerometer noise density (m/s^2/sqrt(Hz)), at least
@@ -186,7 +187,6 @@ class ImuOdometry:
         density = max(float(density), self.noise_used[0])
         self.params.setAccelerometerCovariance(np.eye(3) * density ** 2)
         self.noise_used = (density, self.noise_used[1])
-        self._start_graph()
 
     # ---- helpers
     def _noise(self, sigmas: Sequence[float] | np.ndarray) -> Any:
