@@ -10,7 +10,7 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Iterable, Iterator
+from collections.abc import Generator, Iterable, Iterator
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
@@ -49,6 +49,8 @@ from mrnc_eval.text import printable
 
 if TYPE_CHECKING:
     from mrnc_eval.io.reader import LogReader
+    from mrnc_eval.slam.config import SlamConfig
+    from mrnc_eval.slam.sweep_prep import PreparedSweep
 
 log = logging.getLogger(__name__)
 TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
@@ -292,7 +294,7 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
     ("read" = the time still waited), lio also prepares each sweep there (slam/sweep_prep.py), unless
     slam.threads is 1: then everything runs in turn on this thread."""
     from mrnc_eval.slam.replay import run_slam
-    from mrnc_eval.slam.sweep_prep import prepare_sweep
+    from mrnc_eval.slam.warmup import warm_up
 
     lio = cfg.slam.method == "lio"
     with progress_bar(inputs.n_sweeps, progress) as b:
@@ -304,15 +306,33 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
         if not lio:
             with Prefetched(stream, depth=4) as sweeps:
                 return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
-        prepared = (prepare_sweep(s, cfg.slam) for s in stream)  # what needs no pose: in the reader's thread
         threads = run_threads(cfg.slam.threads)
-        # the reader takes one core; the KD-tree queries' OpenMP team the rest (two cores: one each,
-        # no team to wake per query batch while the reader holds the other core)
+        warmup_ms = warm_up(cfg.slam)  # before the reader starts: numba's compiler is not shared with it
+        # the reader takes one core and prepares what needs no pose there; the KD-tree queries' OpenMP
+        # team the rest (two cores: one each, no team to wake per query batch while the reader holds
+        # the other core). One thread: the raw sweeps, prepared in line by run_slam after its read timer.
+        items = _run_items(stream, cfg.slam, prepare=threads > 1)
         with openmp_threads(max(1, threads - 1)), \
-                (Prefetched(prepared, depth=4) if threads > 1 else closing(prepared)) as sweeps:
+                (Prefetched(items, depth=4) if threads > 1 else closing(items)) as sweeps:
             return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
                             antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
-                            base_to_sensor=inputs.base_to_sensor, progress=tick)
+                            base_to_sensor=inputs.base_to_sensor, progress=tick, warmup_ms=warmup_ms)
+
+
+def _run_items(stream: Iterator[Sweep], cfg: SlamConfig, *, prepare: bool
+               ) -> Generator[Sweep | PreparedSweep, None, None]:
+    """The sweeps, with what needs no pose prepared where the stream is read when `prepare`; the
+    log's stream is closed in the reading thread whatever happens (a generator expression would
+    leave that to the garbage collector, after the log is closed)."""
+    from mrnc_eval.slam.sweep_prep import prepare_sweep
+
+    try:
+        for sweep in stream:
+            yield prepare_sweep(sweep, cfg) if prepare else sweep
+    finally:
+        close = getattr(stream, "close", None)
+        if close is not None:
+            close()
 
 
 def _replay_offset_passes(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool,
@@ -330,7 +350,7 @@ def _replay_offset_passes(lg: LogReader, inputs: LogInputs, cfg: Config, progres
         shifted = replace_path(cfg, "slam.imu.time_offset_s", cfg.slam.imu.time_offset_s + applied)
         out = _replay(lg, inputs, shifted, progress, window)
         left, sigma = out.imu_time_offset_s, out.imu_time_offset_sigma_s
-        found = None if left is None else applied + left
+        found = applied if left is None else applied + left  # a pass without an estimate keeps what was applied
         note = SlamEvent(t=float(out.stamps[0]) if out.stamps.size else 0.0, kind="imu_time_offset",
                          message=f"pass {k} of the log with the IMU stamps {applied * 1e3:+.1f} ms earlier "
                          f"(slam.imu.time_offset_passes)", data={"pass": k, "applied_s": applied})

@@ -25,7 +25,8 @@ def _openmp_libraries() -> list[ctypes.CDLL]:
 
     try:
         with open("/proc/self/maps", encoding="ascii", errors="replace") as f:
-            paths = {line.split()[-1] for line in f if "libgomp" in line and "/" in line}
+            fields = (line.split(maxsplit=5) for line in f if "libgomp" in line and "/" in line)
+            paths = {f[5].removesuffix(" (deleted)").strip() for f in fields if len(f) == 6}
     except OSError:  # not on Linux: left as it is
         return []
     libs = []

@@ -80,6 +80,19 @@ def jump_segments(xy: np.ndarray, moved: np.ndarray, jump_m: float) -> np.ndarra
     return label
 
 
+def _pairs_within(t: np.ndarray, max_dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """Index pairs i < j of the sorted stamps t with t[j] - t[i] <= max_dt_s, in np.triu_indices'
+    order: a band, not all n^2 pairs (minutes of fixes before the alignment is fixed)."""
+    n = len(t)
+    end = np.searchsorted(t, t + max_dt_s, side="right")  # one past each fix's last partner
+    width = int((end - np.arange(n)).max(initial=1))
+    i = np.concatenate([np.arange(n - k) for k in range(1, width)] or [np.zeros(0, int)])
+    j = np.concatenate([np.arange(k, n) for k in range(1, width)] or [np.zeros(0, int)])
+    keep = j < end[i]
+    order = np.lexsort((j[keep], i[keep]))
+    return i[keep][order], j[keep][order]
+
+
 def robust_course(t: np.ndarray, xy: np.ndarray, sigma_m: float, segment: np.ndarray | None = None,
                   max_dt_s: float = 3.0) -> tuple[float, float, np.ndarray]:
     """Course (rad, ENU) and travel (m) of a stretch of fixes (stamps t, s; positions xy, m),
@@ -90,9 +103,9 @@ def robust_course(t: np.ndarray, xy: np.ndarray, sigma_m: float, segment: np.nda
     in at least one pair within 30 deg of the course."""
     n = max(3, len(xy) // 5)
     travel = float(np.linalg.norm(np.median(xy[-n:], axis=0) - np.median(xy[:n], axis=0)))
-    i, j = np.triu_indices(len(xy), k=1)
+    i, j = _pairs_within(t, max_dt_s)
     d = xy[j] - xy[i]
-    use = (t[j] - t[i] <= max_dt_s) & (np.linalg.norm(d, axis=1) >= max(5.0 * sigma_m, 1.5))
+    use = np.linalg.norm(d, axis=1) >= max(5.0 * sigma_m, 1.5)
     if segment is not None:
         use &= segment[i] == segment[j]
     if use.sum() < 5:

@@ -12,12 +12,14 @@ class KdTree:
     def __init__(self, points: np.ndarray) -> None:
         from pykdtree.kdtree import KDTree
 
-        self._tree = KDTree(np.ascontiguousarray(points))
+        points = np.ascontiguousarray(points)
+        self._dtype = points.dtype  # pykdtree refuses queries of another float type than its points
+        self._tree = KDTree(points)
 
     def query(self, q: np.ndarray, k: int, max_dist: float | None = None) -> tuple[np.ndarray, np.ndarray]:
         """Distances (m) and indices of the k nearest points; beyond max_dist: inf and index = size."""
         if max_dist is None:
-            d, i = self._tree.query(np.ascontiguousarray(q), k=k)
+            d, i = self._tree.query(np.ascontiguousarray(q, self._dtype), k=k)
         else:
-            d, i = self._tree.query(np.ascontiguousarray(q), k=k, distance_upper_bound=max_dist)
+            d, i = self._tree.query(np.ascontiguousarray(q, self._dtype), k=k, distance_upper_bound=max_dist)
         return np.asarray(d, np.float64), np.asarray(i, np.int64)

@@ -52,14 +52,16 @@ def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg
              sensor_to_imu: np.ndarray | None = None, gnss: GnssSeries | None = None,
              antenna_in_sensor: np.ndarray | None = None, wheel: WheelTrack | None = None,
              base_to_sensor: np.ndarray | None = None,
-             progress: Callable[[int], None] | None = None) -> SlamOutput:
+             progress: Callable[[int], None] | None = None,
+             warmup_ms: dict[str, float] | None = None) -> SlamOutput:
     """Replay the SLAM over `sweeps` (LiDAR frame; each prepared ahead, slam/sweep_prep.py, or prepared
     here in line: the same arrays either way). `sensor_to_imu` is the IMU pose in the LiDAR
     frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors;
     `wheel` (odom -> base_link, with `base_to_sensor` the LiDAR pose in base_link) enables wheel
-    factors when slam.wheel_odom.enabled. The stages are warmed first (slam/warmup.py): their
-    one-off cost is reported as `warmup_ms`, outside the per-sweep timing and `wall_s`."""
-    warmup_ms = warm_up(cfg)
+    factors when slam.wheel_odom.enabled. The stages are warmed first (slam/warmup.py; `warmup_ms`
+    given: the caller did it, before its reader thread started): their one-off cost is reported as
+    `warmup_ms`, outside the per-sweep timing and `wall_s`."""
+    warmup_ms = warm_up(cfg) if warmup_ms is None else warmup_ms
     wall0 = time.perf_counter()
     with_wheels = wheel is not None and cfg.wheel_odom.enabled
     anchored = start_anchored(cfg, with_wheels)
