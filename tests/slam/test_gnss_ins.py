@@ -149,3 +149,19 @@ def test_gate_drops_a_jump_and_takes_a_held_one_as_a_step(trend_of: str, step_fi
         assert max(w for w, ok in zip(where, took, strict=True) if ok) < 0.6  # the step taken off
     else:
         assert not any(took)
+
+
+def test_course_pairs_are_the_band_of_all_pairs_within_max_dt() -> None:
+    """The alignment's fix pairs come from a band (minutes of fixes before the alignment is fixed
+    would be n^2 pairs): the same pairs, in np.triu_indices' order, as filtering all of them."""
+    rng = np.random.default_rng(3)
+    t = np.sort(rng.uniform(0.0, 60.0, 400))
+    t[100:104] = t[100]  # repeated stamps
+    i, j = gnss_ins._pairs_within(t, 3.0)
+    ai, aj = np.triu_indices(t.size, k=1)
+    near = t[aj] - t[ai] <= 3.0
+    assert np.array_equal(i, ai[near])
+    assert np.array_equal(j, aj[near])
+    assert i.size < ai.size / 5  # a band, not every pair
+    for n in (0, 1):
+        assert gnss_ins._pairs_within(np.zeros(n), 3.0)[0].size == 0
