@@ -95,12 +95,19 @@ def gate(gnss: GnssSeries, usable: np.ndarray, kf_stamps: np.ndarray, kf_poses: 
                         variance=np.array([sigma ** 2, sigma ** 2, 0.01]), velocity_error=velocity), (rot, t)
 
 
-def _robust_line(dt: np.ndarray, res: np.ndarray, sig: np.ndarray, cfg: GpsConfig
+def _robust_line(dt: np.ndarray, res: np.ndarray, sig: np.ndarray, cfg: GpsConfig, *, scatter_floor: bool = True
                  ) -> tuple[np.ndarray, float, np.ndarray | None, np.ndarray] | None:
     """A robust line per axis through the residuals, res = a + b dt (dt <= 0, s): the offset now
     (a, m), its sigma, the drift rate (b, m/s; None when not significant) and the inlier mask;
     fixes far from the line are outliers (multipath jumps). None with too few inliers or too
     short a span."""
+    # The fixes' real scatter: a receiver in multipath keeps claiming centimetres while its fixes
+    # wander by decimetres for seconds. As a per-axis sigma (the median distance of 2-D Gaussian
+    # scatter is 1.1774 sigma), first about the window's median (a jump over a third of it does not
+    # move that) to bound the claimed sigma in the outlier test.
+    claimed = float(np.median(sig)) if sig.size else 0.0
+    if scatter_floor and dt.size:
+        sig = np.maximum(sig, float(np.median(np.linalg.norm(res - np.median(res, axis=0), axis=1))) / 1.1774)
     inl = np.ones(dt.size, bool)
     for _ in range(2):
         if inl.sum() < cfg.residual_min_fixes:
@@ -115,6 +122,10 @@ def _robust_line(dt: np.ndarray, res: np.ndarray, sig: np.ndarray, cfg: GpsConfi
     x = np.c_[np.ones(n), dt[inl]]
     cov = np.linalg.inv(x.T @ x) * float(np.median(sig[inl])) ** 2
     sigma = float(np.hypot(np.sqrt(cov[0, 0]), cfg.residual_floor_m))
+    if scatter_floor:  # then the inliers' scatter about their line (a drifting chain is a line, not
+        # scatter): above the claim, the errors are not white, so averaging the fixes does not shrink them
+        scatter = float(np.median(np.linalg.norm(res[inl] - (coef[0] + np.outer(dt[inl], coef[1])), axis=1))) / 1.1774
+        sigma = max(sigma, scatter if scatter > claimed else 0.0)
     slope_ok = np.linalg.norm(coef[1]) > cfg.residual_drift_sigmas * float(np.sqrt(cov[1, 1]))
     return coef[0], sigma, (coef[1] if slope_ok else None), inl
 

@@ -184,3 +184,43 @@ def test_gnss_gate_drops_a_multipath_jump() -> None:
     loose, _ = gate(fixes, usable, *_line_chain(), np.zeros(3), GpsConfig(residual_outlier_sigmas=100.0))
     assert loose is not None
     assert loose.outliers == 0
+
+
+def _overconfident(n: int, seed: int) -> GnssSeries:
+    """Fixes that claim 2 cm (RTK) while multipath moves them by decimetres over seconds, as the
+    field profile's receiver does near structures (0.9 m RMS off the truth on the open line)."""
+    fixes = _fixes(n, 0.02, seed)
+    t = fixes.stamps
+    rng = np.random.default_rng(seed + 100)
+    wander = 0.35 * np.sin(2 * np.pi * t / 7.0 + 1.0) + rng.normal(0.0, 0.15, t.size)
+    enu = fixes.enu + np.c_[np.zeros(t.size), wander, np.zeros(t.size)]
+    return GnssSeries(stamps=t, lla=enu, enu=enu, covariance=fixes.covariance, origin_lla=np.zeros(3))
+
+
+@pytest.mark.parametrize("seed", [1, 2, 3, 4])
+def test_gnss_gate_judges_fixes_by_their_scatter_not_their_claimed_sigma(seed: int) -> None:
+    """An exact chain and overconfident fixes: no factor (one would pull the chain off by the
+    fixes' multipath; the field-profile open line went 0.022 -> 0.158 m that way). The same fixes
+    when the chain really drifted 3 m (half of it left after the re-fitted alignment): a factor.
+    Negative control: with the claimed sigma taken as it is (the scatter bypassed), a factor
+    enters on the exact chain."""
+    from mrnc_eval.slam import gnss_gate
+
+    fixes, cfg, lever = _overconfident(30, seed), GpsConfig(), np.zeros(3)
+    usable = np.ones(fixes.stamps.size, bool)
+    exact, _ = gate(fixes, usable, *_line_chain(), lever, cfg, chain_sigma_m=1.0)
+    drifted, _ = gate(fixes, usable, *_line_chain(drift_m=3.0), lever, cfg, chain_sigma_m=1.0)
+    assert exact is not None
+    assert exact.position is None
+    assert drifted is not None
+    assert drifted.position is not None
+    real = gnss_gate._robust_line
+
+    def trusting(dt: np.ndarray, res: np.ndarray, sig: np.ndarray, c: GpsConfig):  # type: ignore[no-untyped-def]
+        return real(dt, res, sig, c, scatter_floor=False)
+
+    with pytest.MonkeyPatch.context() as mp:
+        mp.setattr(gnss_gate, "_robust_line", trusting)
+        fooled, _ = gate(fixes, usable, *_line_chain(), lever, cfg, chain_sigma_m=1.0)
+    assert fooled is not None
+    assert fooled.position is not None
