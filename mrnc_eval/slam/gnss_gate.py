@@ -77,7 +77,9 @@ def gate(gnss: GnssSeries, usable: np.ndarray, kf_stamps: np.ndarray, kf_poses: 
     sig = np.sqrt(np.max(np.diagonal(gnss.covariance[sel][recent], axis1=1, axis2=2)[:, :2], axis=1))
     if res.shape[0] == 0:
         return None, (rot, t)
-    fit = _robust_line(gnss.stamps[sel][recent] - t_now, res, sig, cfg)
+    # with wheels the chain is smooth over the window, so the residuals' scatter is the fixes'; without,
+    # a chain dead-reckoning on bare ground bends away and its own curvature would pass for it
+    fit = _robust_line(gnss.stamps[sel][recent] - t_now, res, sig, cfg, scatter_floor=chain_sigma_m is not None)
     if fit is None:
         return GateDecision(residual_m=np.zeros(2), sigma_m=float("inf"), inliers=0, outliers=int(recent.sum())), \
             (rot, t)

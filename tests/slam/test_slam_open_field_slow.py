@@ -9,7 +9,7 @@ pitch on every degenerate sweep, and the initial attitude averages the start-up 
 into a tilted map. Without the wheels the issue's 0.15 m is not reached (docs/simulation.md,
 "Open field", says why); with the wheel odometry (slam.wheel_odom, on by default), its yaw hold
 an anchored first keyframe and scan-to-map turning about the base, the field profile comes to
-0.038 m and the ideal one to 0.003 m; the same replay without the wheels, with the wheels but none
+0.025 m and the ideal one to 0.007 m; the same replay without the wheels, with the wheels but none
 of the three, and with the wheels turning about the sensor are the negative controls.
 """
 
@@ -77,13 +77,14 @@ def test_open_field_drive_stays_within_the_limit_and_lio_sam_rules_do_not(profil
     assert lio_sam["ape_online_rmse_m"] > limit  # the negative control fails the same test
 
 
-# (profile, LiDAR): online APE limit with the wheel odometry (defaults), m, ~2x the measured 0.038 m
-# (field, OS0-32; seeds 3-7 of the same drive 0.012-0.027) and 0.003 m (ideal, OS0-64). Negative
-# controls, all above the limits: without the wheels 10.9 m and 0.435 m; the wheels as at the start
-# of this work (BEFORE: no yaw hold, LIO-SAM's free first keyframe, turning about the sensor) 0.254 m
-# and 0.142 m; the wheels with the yaw hold and the anchor but turning about the sensor (SENSOR_PIVOT)
-# 0.112 m and 0.054 m.
-WHEEL_CASES = {("field", "os0-32"): 0.08, ("ideal", "os0-64"): 0.01}
+# (profile, LiDAR): online APE limit with the wheel odometry (defaults), m, ~2x the measured 0.025 m
+# (field, OS0-32: the field receiver claims 2 cm while its fixes wander 0.9 m RMS; 0.158 m before the
+# GNSS gate bounded the claim by the fixes' scatter, 2026-11-26) and 0.007 m (ideal, OS0-64). Negative
+# controls, all above the limits (measured 2026-11-26): without the wheels 11.6 m and 0.400 m; the
+# wheels as at the start of this work (BEFORE: no yaw hold, LIO-SAM's free first keyframe, turning
+# about the sensor) 0.139 m and 0.059 m; the wheels with the yaw hold and the anchor but turning
+# about the sensor (SENSOR_PIVOT) 0.112 m and 0.053 m.
+WHEEL_CASES = {("field", "os0-32"): 0.05, ("ideal", "os0-64"): 0.015}
 SENSOR_PIVOT = {"slam.wheel_odom.pivot_max_gap_s": 0.0}
 BEFORE = {**SENSOR_PIVOT, "slam.wheel_odom.yaw_information": 0.0, "slam.graph.anchor_start": "never"}
 

@@ -208,7 +208,10 @@ def test_gnss_gate_judges_fixes_by_their_scatter_not_their_claimed_sigma(seed: i
 
     fixes, cfg, lever = _overconfident(30, seed), GpsConfig(), np.zeros(3)
     usable = np.ones(fixes.stamps.size, bool)
-    exact, _ = gate(fixes, usable, *_line_chain(), lever, cfg, chain_sigma_m=1.0)
+    exact, _ = gate(fixes, usable, *_line_chain(), lever, cfg, chain_sigma_m=1.0)  # with wheels
+    no_wheels, _ = gate(fixes, usable, *_line_chain(), lever, cfg)  # the scatter is the chain's there
+    assert no_wheels is not None
+    assert no_wheels.position is not None  # as before: without wheels the claim is taken
     drifted, _ = gate(fixes, usable, *_line_chain(drift_m=3.0), lever, cfg, chain_sigma_m=1.0)
     assert exact is not None
     assert exact.position is None
@@ -216,7 +219,8 @@ def test_gnss_gate_judges_fixes_by_their_scatter_not_their_claimed_sigma(seed: i
     assert drifted.position is not None
     real = gnss_gate._robust_line
 
-    def trusting(dt: np.ndarray, res: np.ndarray, sig: np.ndarray, c: GpsConfig):  # type: ignore[no-untyped-def]
+    def trusting(dt: np.ndarray, res: np.ndarray, sig: np.ndarray, c: GpsConfig,  # type: ignore[no-untyped-def]
+                 scatter_floor: bool = True):
         return real(dt, res, sig, c, scatter_floor=False)
 
     with pytest.MonkeyPatch.context() as mp:
