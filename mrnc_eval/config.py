@@ -436,6 +436,13 @@ def dump_config(cfg: Any) -> str:
     return "\n".join(lines) + "\n"
 
 
+def replace_paths(cfg: T, values: typing.Mapping[str, Any]) -> T:
+    """replace_path for each dotted key of `values`, in order."""
+    for dotted, value in values.items():
+        cfg = replace_path(cfg, dotted, value)
+    return cfg
+
+
 def replace_path(cfg: T, dotted: str, value: Any) -> T:
     """Functional update of one nested field, e.g. replace_path(cfg, "slam.loop.enabled", False)."""
     head, _, rest = dotted.partition(".")

@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from mrnc_eval.config import Config, replace_path
+from mrnc_eval.config import Config, replace_paths
 
 pytestmark = pytest.mark.slow
 
@@ -29,18 +29,12 @@ NO_WHEELS = {"slam.wheel_odom.enabled": False}
 APE_LIMIT_M = 1.5
 
 
-def _with(cfg: Config, values: dict[str, object]) -> Config:
-    for key, value in values.items():
-        cfg = replace_path(cfg, key, value)
-    return cfg
-
-
 @pytest.fixture(scope="module")
 def line_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     folder = tmp_path_factory.mktemp("gnss_ins")
-    return simulate_log(folder / "line_calibrated_float_s2.mcap", _with(Config(), DRIVE),
+    return simulate_log(folder / "line_calibrated_float_s2.mcap", replace_paths(Config(), DRIVE),
                         SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
                                    seed=2, profile="field"))
 
@@ -48,7 +42,7 @@ def line_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _run(log: Path, out: Path, rules: dict[str, object]) -> dict[str, float]:
     from mrnc_eval.commands.slam import run_log
 
-    r = run_log(log, _with(Config(), rules), out, method="lio")
+    r = run_log(log, replace_paths(Config(), rules), out, method="lio")
     return {m.name: float(m.value) for m in r.metrics if isinstance(m.value, (int, float))}
 
 

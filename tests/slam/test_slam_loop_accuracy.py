@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from mrnc_eval.config import Config, replace_path
+from mrnc_eval.config import Config, replace_path, replace_paths
 
 pytestmark = pytest.mark.slow
 HARSH = {"sim.path_size_m": 16.0, "sim.lidar.range_noise_m": 0.03, "sim.imu.gyro_bias_walk": 1e-4,
@@ -26,9 +26,7 @@ HARSH = {"sim.path_size_m": 16.0, "sim.lidar.range_noise_m": 0.03, "sim.imu.gyro
 def loop_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
-    cfg = Config()
-    for key, value in HARSH.items():
-        cfg = replace_path(cfg, key, value)
+    cfg = replace_paths(Config(), HARSH)
     return simulate_log(tmp_path_factory.mktemp("loop") / "loop_forest_150s.mcap", cfg,
                         SimRequest(scene="forest", path="loop", duration_s=150.0, lidar="os0-64", columns=1024,
                                    seed=2))
@@ -73,9 +71,7 @@ def crown_log(tmp_path_factory: pytest.TempPathFactory, monkeypatch_module) -> P
 
     build = recorder.build_scene
     monkeypatch_module.setattr(recorder, "build_scene", lambda *a, **k: build(*a, **{**k, "keep_clear_xy": None}))
-    cfg = Config()
-    for key, value in HARSH.items():
-        cfg = replace_path(cfg, key, value)
+    cfg = replace_paths(Config(), HARSH)
     return recorder.simulate_log(tmp_path_factory.mktemp("crown") / "crown.mcap", cfg,
                                  recorder.SimRequest(scene="forest", path="loop", duration_s=150.0, lidar="os0-64",
                                                      columns=1024, seed=2))

@@ -19,7 +19,7 @@ from pathlib import Path
 
 import pytest
 
-from mrnc_eval.config import Config, replace_path
+from mrnc_eval.config import Config, replace_paths
 
 pytestmark = pytest.mark.slow
 
@@ -43,16 +43,10 @@ NO_WHEELS = {"slam.wheel_odom.enabled": False}
 CASES = {("field", "os0-32"): 14.0, ("ideal", "os0-64"): 1.3}
 
 
-def _with(cfg: Config, values: dict[str, object]) -> Config:
-    for key, value in values.items():
-        cfg = replace_path(cfg, key, value)
-    return cfg
-
-
 def _open_field_log(folder: Path, profile: str, lidar: str) -> Path:
     from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
-    return simulate_log(folder / f"open_field_{profile}_{lidar}.mcap", _with(Config(), DRIVE),
+    return simulate_log(folder / f"open_field_{profile}_{lidar}.mcap", replace_paths(Config(), DRIVE),
                         SimRequest(scene="open_field", path="line", duration_s=40.0, lidar=lidar, columns=512,
                                    seed=2, profile=profile))
 
@@ -60,7 +54,7 @@ def _open_field_log(folder: Path, profile: str, lidar: str) -> Path:
 def _metrics(log: Path, out: Path, rules: dict[str, object]) -> dict[str, float]:
     from mrnc_eval.commands.slam import run_log
 
-    r = run_log(log, _with(Config(), rules), out, method="lio")
+    r = run_log(log, replace_paths(Config(), rules), out, method="lio")
     return {m.name: float(m.value) for m in r.metrics if isinstance(m.value, (int, float))}
 
 

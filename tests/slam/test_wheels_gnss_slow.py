@@ -15,7 +15,7 @@ from pathlib import Path
 
 import pytest
 
-from mrnc_eval.config import Config, replace_path
+from mrnc_eval.config import Config, replace_paths
 
 pytestmark = pytest.mark.slow
 
@@ -30,18 +30,12 @@ BEFORE = {"slam.wheel_odom.calibration.enabled": False, "slam.gps.gate": "lio_sa
 APE_LIMIT_M, DRIFT_LIMIT_M = 0.6, 3.0
 
 
-def _with(cfg: Config, values: dict[str, object]) -> Config:
-    for key, value in values.items():
-        cfg = replace_path(cfg, key, value)
-    return cfg
-
-
 @pytest.fixture(scope="module")
 def combined_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
     from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
     folder = tmp_path_factory.mktemp("wheels")
-    return simulate_log(folder / "line_combined_float_s3.mcap", _with(Config(), DRIVE),
+    return simulate_log(folder / "line_combined_float_s3.mcap", replace_paths(Config(), DRIVE),
                         SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
                                    seed=3, profile="field"))
 
@@ -49,7 +43,7 @@ def combined_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
 def _run(log: Path, out: Path, rules: dict[str, object]) -> tuple[dict[str, float], dict]:
     from mrnc_eval.commands.slam import run_log
 
-    r = run_log(log, _with(Config(), rules), out, method="lio")
+    r = run_log(log, replace_paths(Config(), rules), out, method="lio")
     metrics = {m.name: float(m.value) for m in r.metrics if isinstance(m.value, (int, float))}
     return metrics, r.extra.get("wheel_health", {})
 
