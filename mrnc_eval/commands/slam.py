@@ -216,8 +216,8 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
                 else ground_truth_hint(where))
         result.warnings.append(f"no ground truth: APE not computed ({hint})")
     if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
-        _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
-        _add_gnss_disagreement(result, inputs.gnss, out)
+        rmse = _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
+        _add_gnss_disagreement(result, inputs.gnss, out, rmse)
     _add_time_offset(result, out, cfg)
     _add_wheel_health(result, out)
     _add_map_quality(result, out, cfg)
@@ -614,8 +614,9 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
 
 
 def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str,
-                  max_diff_s: float) -> None:
-    """2-D APE of the antenna track against the GNSS fixes (yaw + translation aligned)."""
+                  max_diff_s: float) -> float | None:
+    """2-D APE of the antenna track against the GNSS fixes (yaw + translation aligned); its RMSE (m),
+    None when it could not be computed."""
     from mrnc_eval.evaluation.ape import ape
 
     try:
@@ -625,15 +626,17 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
         rg = ape(ref, shifted, align="yaw", relation="point", max_diff=max_diff_s, plane="xy")
         result.metrics.append(Metric(name="ape_gnss_rmse_m", value=rg.stats["rmse"], unit="m", group="slam/ape",
                                      note="2-D, yaw + translation alignment, against GNSS in ENU"))
+        return float(rg.stats["rmse"])
     except EvaluationError as err:
         result.warnings.append(f"APE against GNSS failed: {err}")
+        return None
 
 
-def _add_gnss_disagreement(result: RunResult, gnss: GnssSeries, out: SlamOutput) -> None:
+def _add_gnss_disagreement(result: RunResult, gnss: GnssSeries, out: SlamOutput, rmse: float | None) -> None:
     """A health finding when the trajectory is far from the fixes, beyond what the fixes' own sigma
     explains, naming the likely cause: a LiDAR that saw too little structure with nothing else to
-    hold x, y and yaw (the IMU dead-reckons), or else the GNSS (antenna lever arm, fix quality)."""
-    rmse = next((m.value for m in result.metrics if m.name == "ape_gnss_rmse_m"), None)
+    hold x, y and yaw (the IMU dead-reckons), or else the GNSS (antenna lever arm, fix quality).
+    `rmse`: the trajectory's 2-D APE against the fixes (_add_gnss_ape), m."""
     sigma = float(np.median(np.sqrt(np.max(np.diagonal(gnss.covariance, axis1=1, axis2=2)[:, :2], axis=1))))
     if rmse is None or not np.isfinite(rmse) or rmse <= max(GNSS_DISAGREE_MIN_M, GNSS_DISAGREE_SIGMAS * sigma):
         return

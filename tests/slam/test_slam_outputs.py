@@ -275,19 +275,18 @@ def test_a_trajectory_far_from_the_fixes_is_a_finding_that_names_the_likely_culp
 
     from mrnc_eval.commands.slam import _add_gnss_disagreement
     from mrnc_eval.data import GnssSeries
-    from mrnc_eval.results import Metric, RunResult
+    from mrnc_eval.results import RunResult
     from mrnc_eval.slam.output import SlamOutput
 
     n = 50
     gnss = GnssSeries(np.arange(n) * 0.2, np.zeros((n, 3)), np.zeros((n, 3)), np.tile(np.diag([4e-4, 4e-4, 1e-3]),
                                                                                        (n, 1, 1)), np.zeros(3))
     result = RunResult(kind="slam", log_path="x.mcap", log_id="x",
-                       metrics=[Metric(name="ape_gnss_rmse_m", value=rmse_m, unit="m")],
                        extra={"inputs": {"lidar": "/points", **({"wheel_odom": "/odom"} if wheels else {})}})
     out = SlamOutput(stamps=np.arange(10.0), poses=np.zeros((10, 4, 4)), kf_stamps=np.zeros(0),
                      kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)), timing_ms={}, events=[], warnings=[],
                      n_sweeps=10, wall_s=0.0, degenerate=np.arange(10) < round(10 * degenerate))
-    _add_gnss_disagreement(result, gnss, out)
+    _add_gnss_disagreement(result, gnss, out, rmse_m)
     if says is None:
         assert not result.warnings
         assert not result.events
