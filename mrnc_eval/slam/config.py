@@ -323,6 +323,14 @@ class GpsConfig:
                                         "slam.imu.reset_priors says")
     ins_max_fix_age_s: float = param(0.3, "GNSS/INS: a fix older than this at its key is dropped (it is moved to the "
                                      "key's stamp by the chain's velocity)", "s", gt=0.0, le=5.0)
+    track: Literal["never", "without_wheels"] = param(
+        "without_wheels", "without_wheels: when no wheel odometry is used, the x, y that a degenerate scan-to-map "
+        "leaves to the IMU come from a Kalman filter on the fixes (slam/gnss_track.py), as the wheels would "
+        "otherwise give them; never: IMU dead reckoning there (LIO-SAM)")
+    track_accel_sigma: float = param(0.3, "GNSS track: the filter's white acceleration (a skid-steer at walking "
+                                     "pace)", "m/s^2", gt=0.0, le=20.0)
+    track_step_fixes: int = param(4, "GNSS track: this many rejected fixes in a row that agree are a multipath step "
+                                  "(on or off), held as an offset", ge=2, le=100)
 
 
 @dataclass(frozen=True)

@@ -20,6 +20,8 @@ from mrnc_eval.slam.config import SlamConfig
 from mrnc_eval.slam.deskew import deskew
 from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
 from mrnc_eval.slam.gnss import GnssAligner
+from mrnc_eval.slam.gnss_track import GnssTrack, move_along_free
+from mrnc_eval.slam.gnss_track import build as build_gnss_track
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
 from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
 from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
@@ -68,6 +70,8 @@ def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg
     replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor, anchored)
     if replay.odom is not None:  # GNSS/INS: the fixes into graph #2
         replay.ins = gnss_ins.build(gnss, cfg.gps, antenna_in_sensor, base_to_sensor, with_wheels)
+    if replay.ins is None:
+        replay.gnss_track = build_gnss_track(gnss, cfg.gps, antenna_in_sensor, base_to_sensor, with_wheels)
     if wheel is not None and with_wheels:
         replay.wheel = wheel
         replay.base_to_sensor = np.eye(4) if base_to_sensor is None else base_to_sensor
@@ -166,6 +170,7 @@ class _Replay:
     wheel_flagged: bool = False  # the wheel_health event was raised
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
     ins: gnss_ins.GnssIns | None = None  # GNSS/INS in graph #2; graph #1 then gets no GNSS factors
+    gnss_track: GnssTrack | None = None  # x, y by the fixes where the match is degenerate (no wheels)
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -249,6 +254,7 @@ class _Replay:
         # the directions the IMU carries; no match (too few features, a rejected turn): all six
         unmatched = res is not None and not res.optimised
         self.st.loose = np.eye(6) if unmatched else res.degenerate_directions if degenerate and res else None
+        pose = self.pose_by_fixes(pose, stamp)
         if self.odom is not None:
             why = self.odom.add_lidar_pose(pose, stamp, degenerate or unmatched, self.st.loose)
             if why:
@@ -256,6 +262,26 @@ class _Replay:
             if self.ins is not None:
                 pose = gnss_ins.step(self.ins, self.odom, pose, stamp, self.events)
         return pose, degenerate
+
+    def pose_by_fixes(self, pose: np.ndarray, stamp: float) -> np.ndarray:
+        """slam/gnss_track.py: the translation the match left free, from the fixes (no wheels). At the
+        first degenerate sweep after the alignment graph #2 restarts there with the track's velocity
+        (it dead-reckoned until then; its velocity would fight the new positions)."""
+        track = self.gnss_track
+        if track is None:
+            return pose
+        antenna_xy = track.antenna_xy(stamp, pose)
+        if antenna_xy is None or self.st.loose is None:
+            return pose
+        if not track.engaged:
+            track.engaged = True
+            self.events.append(SlamEvent(t=stamp, kind="gps", message="GNSS track: x, y along the directions "
+                                         "scan-to-map leaves free follow the fixes from here (ENU -> map "
+                                         "alignment from the fixes' course)"))
+            if self.odom is not None and self.odom.can_predict:
+                self.odom.restart()
+                self.odom.velocity = np.r_[track.velocity_map(stamp), self.odom.velocity[2]]
+        return move_along_free(pose, track.ins.antenna_in_lidar, antenna_xy, self.st.loose)
 
     def guess_prior(self) -> np.ndarray | None:
         """Information (J^T J's units) holding the matched yaw towards a wheel guess: over one sweep the
@@ -358,7 +384,8 @@ class _Replay:
         if wheel is not None:
             self.restart_from_wheels(pose, stamp)
         self.kf_features.append(_compact(feats))
-        if self.aligner is not None and self.ins is None and self.aligner.maybe_add(self.graph, stamp, self.events):
+        if self.aligner is not None and self.ins is None and not (self.gnss_track and self.gnss_track.engaged) \
+                and self.aligner.maybe_add(self.graph, stamp, self.events):
             self.map_cache.clear()
             moved = float(np.linalg.norm(self.graph.poses[-1][:3, 3] - pose[:3, 3]))
             if self.odom is not None and (self.cfg.gps.rtk_max_variance_m2 > 0 or self.cfg.gps.gate == "residual") \

@@ -1,0 +1,166 @@
+"""x and y from the fixes where the LiDAR cannot see them and no wheel odometry is used.
+
+On bare ground scan-to-map pins z, roll and pitch (the ground) and leaves x, y and yaw to the IMU;
+without wheels that is accelerometer dead reckoning, whose horizontal error grows by ~0.5 m/s^2 on
+the field IMU (turn-on bias and vibration), and graph #1's GNSS factors cannot reach graph #2's
+velocity (docs/simulation.md, issue 28). Here the fixes themselves carry x and y along the directions
+a degenerate match leaves free, exactly where wheels would otherwise carry them (replay.wheel_guess):
+
+- a causal constant-velocity Kalman filter on the fixes (ENU, m), its acceleration noise
+  `track_accel_sigma`; each fix gated on its innovation (chi-square, 2 dof);
+- a multipath jump is a held offset (0.5-3 m for seconds): `track_step_fixes` rejected fixes in a row
+  that agree with each other are a step, taken off the later fixes until they step back;
+- the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
+  (slam/gnss_ins.py's), so a drifting chain cannot slide it;
+- the sweep's pose keeps its rotation, z and every direction scan-to-map measured; only its
+  translation along the match's degenerate directions moves to the track (the antenna lever arm
+  taken off)."""
+
+from __future__ import annotations
+
+from dataclasses import dataclass, field
+
+import numpy as np
+
+from mrnc_eval.data import GnssSeries
+from mrnc_eval.slam.config import GpsConfig
+from mrnc_eval.slam.gnss_ins import GnssIns
+
+CHI2_2DOF = 13.8  # 0.1 % of consistent fixes rejected
+
+
+@dataclass(kw_only=True)
+class TrackFilter:
+    """Constant-velocity Kalman filter in ENU: state [x, y, vx, vy] (m, m/s)."""
+
+    accel_sigma: float  # m/s^2, white acceleration
+    step_fixes: int
+    max_offset_m: float
+    x: np.ndarray | None = None
+    p: np.ndarray = field(default_factory=lambda: np.eye(4))
+    t: float = 0.0
+    offset: np.ndarray = field(default_factory=lambda: np.zeros(2))  # held multipath offset, m
+    pending: list[np.ndarray] = field(default_factory=list)  # innovations of the latest rejected run, m
+    accepted: int = 0
+    rejected: int = 0
+    steps: int = 0
+
+    def predict(self, t: float) -> tuple[np.ndarray, np.ndarray]:
+        """State and covariance at t (not stored)."""
+        assert self.x is not None
+        dt = max(t - self.t, 0.0)
+        f = np.eye(4)
+        f[0, 2] = f[1, 3] = dt
+        g = np.array([[dt * dt / 2, 0.0], [0.0, dt * dt / 2], [dt, 0.0], [0.0, dt]])
+        return f @ self.x, f @ self.p @ f.T + self.accel_sigma ** 2 * (g @ g.T)
+
+    def update(self, t: float, z: np.ndarray, sigma: float) -> bool:
+        """One fix (ENU xy, m; its 1-sigma, m); returns whether it entered."""
+        if self.x is None:
+            self.x, self.t = np.r_[z, 0.0, 0.0], t
+            self.p = np.diag([sigma ** 2, sigma ** 2, 1.0, 1.0])
+            return True
+        x, p = self.predict(t)
+        nu = z - self.offset - x[:2]
+        s = p[:2, :2] + sigma ** 2 * np.eye(2)
+        if float(nu @ np.linalg.solve(s, nu)) > CHI2_2DOF and not self._step(nu, sigma):
+            self.rejected += 1
+            return False
+        nu = z - self.offset - x[:2]
+        gain = p[:, :2] @ np.linalg.inv(p[:2, :2] + sigma ** 2 * np.eye(2))
+        self.x, self.p, self.t = x + gain @ nu, (np.eye(4) - gain @ np.eye(4)[:2]) @ p, t
+        self.accepted += 1
+        self.pending = []
+        return True
+
+    def _step(self, nu: np.ndarray, sigma: float) -> bool:
+        """A rejected fix joins the run; a run of step_fixes that agree is a multipath step (on or
+        off), added to the held offset. True when this fix completed one. An offset beyond
+        max_offset_m is no jump a receiver makes: the filter lost the track and restarts at the fixes."""
+        self.pending.append(nu)
+        if len(self.pending) < self.step_fixes:
+            return False
+        run = np.array(self.pending[-self.step_fixes:])
+        step = np.median(run, axis=0)
+        if np.any(np.linalg.norm(run - step, axis=1) > 3.0 * sigma + 0.1):
+            return False
+        new = self.offset + step
+        if np.linalg.norm(new) > self.max_offset_m:
+            assert self.x is not None
+            self.x[:2] = self.x[:2] + new
+            new = np.zeros(2)
+        self.offset = new
+        self.steps += 1
+        self.pending = []
+        return True
+
+
+@dataclass(kw_only=True)
+class GnssTrack:
+    """The filter fed with every usable fix up to each sweep, and the alignment (via GnssIns)."""
+
+    ins: GnssIns
+    filter: TrackFilter
+    next_fix: int = 0
+    engaged: bool = False  # the replay has moved a sweep to the track
+
+    @classmethod
+    def build(cls, gnss: GnssSeries, cfg: GpsConfig, antenna_in_lidar: np.ndarray,
+              forward_in_lidar: np.ndarray) -> GnssTrack:
+        return cls(ins=GnssIns(gnss=gnss, cfg=cfg, forward_in_lidar=forward_in_lidar,
+                               antenna_in_lidar=antenna_in_lidar),
+                   filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
+                                      max_offset_m=cfg.ins_max_offset_m))
+
+    def antenna_xy(self, t: float, pose: np.ndarray) -> np.ndarray | None:
+        """The antenna's map x, y at t by the fixes (None before the alignment); `pose` is the
+        sweep's LiDAR pose as matched, for the alignment's heading."""
+        ins = self.ins
+        ins.observe(t, pose)
+        if ins.alignment is None:
+            ins.try_align(t)
+        gnss = ins.gnss
+        end = int(np.searchsorted(gnss.stamps, t, side="right"))
+        for i in range(self.next_fix, end):
+            if ins.usable[i]:
+                sigma = float(np.sqrt(np.max(np.diag(gnss.covariance[i])[:2])))
+                self.filter.update(float(gnss.stamps[i]), gnss.enu[i, :2], sigma)
+        self.next_fix = max(self.next_fix, end)
+        if ins.alignment is None or self.filter.x is None:
+            return None
+        x, _ = self.filter.predict(t)
+        return ins.alignment.to_map(x[:2])
+
+
+    def velocity_map(self, t: float) -> np.ndarray:
+        """The filter's horizontal velocity (map, m/s) at t; zero before the alignment."""
+        if self.ins.alignment is None or self.filter.x is None:
+            return np.zeros(2)
+        x, _ = self.filter.predict(t)
+        return np.asarray(self.ins.alignment.rot @ x[2:], np.float64)
+
+
+def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
+          base_to_sensor: np.ndarray | None, with_wheels: bool) -> GnssTrack | None:
+    """The track when slam.gps.track asks for it: fixes in the log, GNSS on, no wheel odometry used."""
+    if gnss is None or not gnss.stamps.size or not cfg.enabled or cfg.track != "without_wheels" or with_wheels:
+        return None
+    base = np.eye(4) if base_to_sensor is None else np.asarray(base_to_sensor, float)
+    antenna = np.zeros(3) if antenna_in_sensor is None else np.asarray(antenna_in_sensor, float)
+    return GnssTrack.build(gnss, cfg, antenna, base[:3, :3].T @ np.array([1.0, 0.0, 0.0]))
+
+
+def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,
+                    directions: np.ndarray) -> np.ndarray:
+    """The pose with its translation moved toward putting the antenna at antenna_xy (map, m), only
+    within the span of the translation parts of `directions` (k, 6; [rot, trans], map axes) and in
+    x, y: what the match measured stays."""
+    ant = pose[:3, :3] @ antenna_in_lidar + pose[:3, 3]
+    want = np.r_[antenna_xy - ant[:2], 0.0]
+    trans = np.asarray(directions, float)[:, 3:6].copy()
+    trans[:, 2] = 0.0
+    u, s, _ = np.linalg.svd(trans.T, full_matrices=False)
+    basis = u[:, s > 0.5]  # horizontal directions the match left free
+    out = pose.copy()
+    out[:3, 3] += basis @ (basis.T @ want)
+    return out
