@@ -8,9 +8,8 @@ from enum import Enum
 
 import numpy as np
 from numba import njit
-from scipy.spatial.transform import Rotation
 
-from mrnc_eval.geometry import se3
+from mrnc_eval.geometry import rotation, se3
 from mrnc_eval.slam.config import MatchingConfig
 from mrnc_eval.slam.nearest import KdTree
 
@@ -319,7 +318,7 @@ def _moved(q: np.ndarray, queried_at: np.ndarray, requery_m: float) -> np.ndarra
 
 def _tangent_from(guess: np.ndarray, T: np.ndarray) -> np.ndarray:
     """T - guess as [rotation vector of R_T R_guess^T, t_T - t_guess] (map axes, the update's tangent)."""
-    rot = Rotation.from_matrix(T[:3, :3] @ guess[:3, :3].T).as_rotvec()
+    rot = rotation.log(T[:3, :3] @ guess[:3, :3].T)
     return np.asarray(np.r_[rot, T[:3, 3] - guess[:3, 3]], np.float64)
 
 
