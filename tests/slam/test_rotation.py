@@ -46,6 +46,12 @@ def test_exp_and_log_match_scipy_at_every_angle() -> None:
     np.testing.assert_allclose(got[~near_pi], v[~near_pi], rtol=0, atol=TOL)
     _same_rotation(rotation.exp(got[near_pi]), r[near_pi].as_matrix())
     np.testing.assert_allclose(rotation.angle(r.as_matrix()), r.magnitude(), rtol=0, atol=TOL)
+    for i in range(40):  # one rotation at a time: the Python-float paths
+        _same_rotation(rotation.exp(v[i]), r[i].as_matrix())
+        _same_rotation(rotation.exp(rotation.log(r[i].as_matrix())), r[i].as_matrix())
+        if not near_pi[i]:
+            np.testing.assert_allclose(rotation.log(r[i].as_matrix()), v[i], rtol=0, atol=TOL)
+        np.testing.assert_allclose(rotation.matrix_to_quat(r[i].as_matrix()), r[i].as_quat(), rtol=0, atol=TOL)
 
 
 @pytest.mark.filterwarnings("ignore:Gimbal lock")
