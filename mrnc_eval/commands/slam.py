@@ -17,7 +17,6 @@ from pathlib import Path
 from typing import TYPE_CHECKING
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mrnc_eval.commands.gates import raise_on_failed_gates
 from mrnc_eval.commands.progress import progress_bar
@@ -26,6 +25,7 @@ from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, NoGnssFix, UsageError
 from mrnc_eval.evaluation.comparison import Cell, judge, table_one
+from mrnc_eval.geometry import rotation
 from mrnc_eval.io.ground_truth import ground_truth_of, ground_truth_spec
 from mrnc_eval.io.prefetch import Prefetched
 from mrnc_eval.results import (
@@ -447,7 +447,7 @@ def _kiss_icp(sweeps: Iterable[Sweep], cfg: Config, max_gap_s: float) -> SlamOut
 def _to_base(stamps: np.ndarray, sensor_poses: np.ndarray, base_to_sensor: np.ndarray, name: str) -> Trajectory:
     """LiDAR poses in the map as base_link poses (through /tf_static)."""
     base = sensor_poses.reshape(-1, 4, 4) @ np.linalg.inv(base_to_sensor)
-    return Trajectory(stamps, base[:, :3, 3], Rotation.from_matrix(base[:, :3, :3]).as_quat(), name=name,
+    return Trajectory(stamps, base[:, :3, 3], rotation.matrix_to_quat(base[:, :3, :3]), name=name,
                       frame_id="map", child_frame_id="base_link")
 
 
@@ -621,7 +621,7 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
 
     try:
         ref = Trajectory(gnss.stamps, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
-        shifted = Trajectory(est.stamps, est.positions + Rotation.from_quat(est.quat_xyzw).apply(antenna),
+        shifted = Trajectory(est.stamps, est.positions + rotation.quat_to_matrix(est.quat_xyzw) @ antenna,
                              est.quat_xyzw, name=method)
         rg = ape(ref, shifted, align="yaw", relation="point", max_diff=max_diff_s, plane="xy")
         result.metrics.append(Metric(name="ape_gnss_rmse_m", value=rg.stats["rmse"], unit="m", group="slam/ape",

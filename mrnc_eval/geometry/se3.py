@@ -4,13 +4,12 @@ Pose matrices are assembled by geometry.lie.homogeneous, the project's one build
 from __future__ import annotations
 
 import numpy as np
-from scipy.spatial.transform import Rotation
-
+from mrnc_eval.geometry import rotation
 from mrnc_eval.geometry.lie import homogeneous
 
 
 def exp_so3(w: np.ndarray) -> np.ndarray:
-    return np.asarray(Rotation.from_rotvec(w).as_matrix(), np.float64)
+    return rotation.exp(w)
 
 
 def make(R: np.ndarray, t: np.ndarray) -> np.ndarray:
@@ -28,8 +27,8 @@ def apply(T: np.ndarray, p: np.ndarray) -> np.ndarray:
 
 
 def delta_angle(T: np.ndarray) -> float:
-    return float(np.linalg.norm(Rotation.from_matrix(T[:3, :3]).as_rotvec()))
+    return float(rotation.angle(T[:3, :3]))
 
 
 def rpy(T: np.ndarray) -> np.ndarray:
-    return np.asarray(Rotation.from_matrix(T[:3, :3]).as_euler("xyz"), np.float64)
+    return rotation.rpy(T[:3, :3])

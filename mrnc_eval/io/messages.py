@@ -177,12 +177,12 @@ def twist_stamped(ts: Typestore, t: float, frame_id: str, v: float, omega: float
 
 
 def tf_message(ts: Typestore, t: float, transforms: Sequence[tuple[str, str, ArrayLike]], ros1: bool) -> RosMsg:
-    from scipy.spatial.transform import Rotation
+    from mrnc_eval.geometry import rotation
 
     out = []
     for parent, child, mat in transforms:
         mat = np.asarray(mat, dtype=float)
-        q = Rotation.from_matrix(mat[:3, :3]).as_quat()
+        q = rotation.matrix_to_quat(mat[:3, :3])
         tr = ts.types["geometry_msgs/msg/Transform"](translation=vector3(ts, mat[:3, 3]), rotation=quaternion(ts, q))
         out.append(ts.types["geometry_msgs/msg/TransformStamped"](
             header=header(ts, t, parent, ros1), child_frame_id=child, transform=tr))

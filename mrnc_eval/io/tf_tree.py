@@ -17,9 +17,9 @@ StaticTransforms = dict[tuple[str, str], np.ndarray]  # (parent, child) -> 4x4 p
 
 
 def _quat_to_matrix(q: np.ndarray) -> np.ndarray:
-    from scipy.spatial.transform import Rotation
+    from mrnc_eval.geometry import rotation
 
-    matrix: np.ndarray = Rotation.from_quat(q).as_matrix()
+    matrix: np.ndarray = rotation.quat_to_matrix(q)
     return matrix
 
 

@@ -34,7 +34,7 @@ def deskew(points: np.ndarray, point_time: np.ndarray, stamp: float, track: ImuT
     t0, t1 = float(t.min()), float(t.max())
     n = int(np.floor((t1 - t0) / QUANTUM_S + 0.5)) + 1
     if track is not None:
-        table = track.rotation_between(stamp, stamp + t0 + QUANTUM_S * np.arange(n)).as_matrix()
+        table = track.rotation_between(stamp, stamp + t0 + QUANTUM_S * np.arange(n))
     else:
         table = np.broadcast_to(np.eye(3), (1, 3, 3)).copy()
     v = np.zeros(3) if velocity_sensor is None else np.asarray(velocity_sensor, float)

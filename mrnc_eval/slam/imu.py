@@ -12,9 +12,9 @@ from typing import Any
 
 import numpy as np
 from numba import njit
-from scipy.spatial.transform import Rotation
 
 from mrnc_eval.data import ImuSeries
+from mrnc_eval.geometry import rotation
 from mrnc_eval.slam.config import ImuConfig
 from mrnc_eval.slam.imu_noise import ImuNoiseEstimate
 
@@ -80,17 +80,17 @@ class ImuTrack:
     gyro: np.ndarray  # (N, 3) LiDAR axes, rad/s
     quat_wxyz: np.ndarray  # (N, 4) orientation at each stamp relative to the first sample
 
-    def orientation(self, t: np.ndarray) -> Rotation:
+    def orientation(self, t: np.ndarray) -> np.ndarray:
         """Orientation at times t: the gyro is constant between samples, so R(t) = R_i exp(w_i (t - t_i))
-        exactly; clamped to the track's span."""
+        exactly; clamped to the track's span. (n, 3, 3) matrices."""
         t = np.clip(np.atleast_1d(np.asarray(t, float)), self.stamps[0], self.stamps[-1])
         i = np.clip(np.searchsorted(self.stamps, t, side="right") - 1, 0, self.stamps.size - 1)
-        base = Rotation.from_quat(self.quat_wxyz[i][:, [1, 2, 3, 0]])
-        return base * Rotation.from_rotvec(self.gyro[i] * (t - self.stamps[i])[:, None])
+        base = rotation.quat_to_matrix(self.quat_wxyz[i][:, [1, 2, 3, 0]])
+        return np.asarray(base @ rotation.exp(self.gyro[i] * (t - self.stamps[i])[:, None]), np.float64)
 
-    def rotation_between(self, t0: float, t1: np.ndarray) -> Rotation:
-        """Rotation of the sensor at times t1 relative to t0."""
-        return self.orientation(np.array([t0]))[0].inv() * self.orientation(t1)
+    def rotation_between(self, t0: float, t1: np.ndarray) -> np.ndarray:
+        """Rotation (n, 3, 3) of the sensor at times t1 relative to t0."""
+        return np.asarray(self.orientation(np.array([t0]))[0].T @ self.orientation(t1), np.float64)
 
     def covers(self, t0: float, t1: float) -> bool:
         return self.stamps.size > 1 and self.stamps[0] <= t0 and self.stamps[-1] >= t1
@@ -113,23 +113,22 @@ def imu_track(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, gyro_bias: np.ndarra
     return ImuTrack(stamps=stamps, acc=acc, gyro=gyro, quat_wxyz=q)
 
 
-def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig, t0: float | None = None) -> Rotation:
+def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig, t0: float | None = None) -> np.ndarray:
     """Attitude of the LiDAR at t0 (default: the first sample): 9-axis IMU -> its orientation
     (yaw kept only with use_heading_init); 6-axis -> roll/pitch from the mean specific force
-    from attitude_window_s before t0 to attitude_lookahead_s after it, yaw = 0."""
+    from attitude_window_s before t0 to attitude_lookahead_s after it, yaw = 0. A 3x3 matrix."""
     t0 = imu.stamps[0] if t0 is None else t0
     if imu.orientation_xyzw is not None:
         i = max(int(np.searchsorted(imu.stamps, t0, side="right")) - 1, 0)  # last orientation <= t0
-        q = Rotation.from_quat(imu.orientation_xyzw[i]) * Rotation.from_matrix(lidar_to_imu_rot).inv()
-        r, p, y = q.as_euler("xyz")
-        return Rotation.from_euler("xyz", [r, p, y if cfg.use_heading_init else 0.0])
+        r, p, y = rotation.rpy(rotation.quat_to_matrix(imu.orientation_xyzw[i]) @ lidar_to_imu_rot.T)
+        return rotation.from_rpy([r, p, y if cfg.use_heading_init else 0.0])
     sel = (imu.stamps >= t0 - cfg.attitude_window_s) & (imu.stamps <= t0 + cfg.attitude_lookahead_s)
     if not sel.any():
         sel = imu.stamps <= imu.stamps[0] + cfg.attitude_lookahead_s
     f = (imu.acc[sel] @ lidar_to_imu_rot.T).mean(axis=0)
     roll = np.arctan2(f[1], f[2])
     pitch = np.arctan2(-f[0], np.hypot(f[1], f[2]))
-    return Rotation.from_euler("xyz", [roll, pitch, 0.0])
+    return rotation.from_rpy([roll, pitch, 0.0])
 
 
 class ImuOdometry:

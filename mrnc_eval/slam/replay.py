@@ -10,11 +10,10 @@ from dataclasses import dataclass, field, replace
 from typing import Any
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep
 from mrnc_eval.errors import ProcessingError
-from mrnc_eval.geometry import se3
+from mrnc_eval.geometry import rotation, se3
 from mrnc_eval.slam import gnss_ins
 from mrnc_eval.slam.config import SlamConfig
 from mrnc_eval.slam.deskew import deskew
@@ -343,15 +342,15 @@ class _Replay:
         st.guess_by_wheels = st.about_base = False
         if st.pose is None:
             att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t) if self.imu is not None \
-                else Rotation.identity()
-            return se3.make(att.as_matrix(), np.zeros(3))
+                else np.eye(3)
+            return se3.make(att, np.zeros(3))
         covered = track is not None and track.covers(st.t, t)
         if odom is not None and covered and odom.can_predict:  # also right after a loop restarted graph #2
             return self.wheel_guess(odom.predict(st.pose, st.t, t), t)
         step = (st.velocity if st.velocity is not None else np.zeros(3)) * (t - st.t)
         rot = st.pose[:3, :3]
         if covered and track is not None:
-            rot = rot @ track.rotation_between(st.t, np.array([t]))[0].as_matrix()
+            rot = rot @ track.rotation_between(st.t, np.array([t]))[0]
         return se3.make(rot, st.pose[:3, 3] + step)
 
     def wheel_guess(self, predicted: np.ndarray, t: float) -> np.ndarray:
@@ -585,14 +584,13 @@ def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarra
     (LIO-SAM, |pitch| < 1.4 rad). A 6-axis IMU has no orientation to blend towards: unchanged."""
     if imu is None or imu.orientation_xyzw is None or cfg.imu.rpy_weight <= 0:
         return pose
-    r, p, y = Rotation.from_matrix(pose[:3, :3]).as_euler("xyz")
-    ir, ip, _ = initial_attitude(imu, extr[:3, :3], cfg.imu, t).as_euler("xyz")
+    r, p, y = rotation.rpy(pose[:3, :3])
+    ir, ip, _ = rotation.rpy(initial_attitude(imu, extr[:3, :3], cfg.imu, t))
     if abs(ip) >= 1.4:
         return pose
     w = cfg.imu.rpy_weight
-    blend = Slerp([0.0, 1.0], Rotation.from_euler("xyz", [[r, p, 0.0], [ir, ip, 0.0]]))([w])[0]
-    br, bp, _ = blend.as_euler("xyz")
-    return se3.make(Rotation.from_euler("xyz", [br, bp, y]).as_matrix(), pose[:3, 3])
+    br, bp, _ = rotation.rpy(rotation.slerp(rotation.from_rpy([r, p, 0.0]), rotation.from_rpy([ir, ip, 0.0]), w))
+    return se3.make(rotation.from_rpy([br, bp, y]), pose[:3, 3])
 
 
 def _match_events(res: MatchResult, t: float, cfg: SlamConfig) -> list[SlamEvent]:

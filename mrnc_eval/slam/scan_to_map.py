@@ -8,9 +8,8 @@ from enum import Enum
 
 import numpy as np
 from numba import njit
-from scipy.spatial.transform import Rotation
 
-from mrnc_eval.geometry import se3
+from mrnc_eval.geometry import rotation, se3
 from mrnc_eval.slam.config import MatchingConfig
 from mrnc_eval.slam.nearest import KdTree
 
@@ -254,17 +253,20 @@ class Correspondence(Enum):
 
 
 class _Correspondences:
-    """The map's plane or line at each feature, from its 5 nearest map points; re-queried and
-    re-fitted only when the pose has moved more than `requery_m` since the last query (0 = every
-    iteration, as LIO-SAM). Neighbours farther than sqrt(max_sq) are not searched for: a feature
-    whose 5th neighbour is that far has no correspondence anyway."""
+    """The map's plane or line at each feature, from its 5 nearest map points. A feature's
+    neighbours are re-queried and its fit redone only once it has moved more than `requery_m`
+    since its last query (0 = every iteration, as LIO-SAM): the first Gauss-Newton step moves the
+    near features by millimetres and the far ones by centimetres, and with the map's 0.2-0.4 m
+    voxels the neighbours of a feature that moved a few centimetres fit the same line or plane.
+    Neighbours farther than sqrt(max_sq) are not searched for: a feature whose 5th neighbour is
+    that far has no correspondence anyway."""
 
     def __init__(self, tree: KdTree, cloud: np.ndarray, kind: Correspondence, max_sq: float, max_offset: float,
                  requery_m: float, min_spread: float = 0.0) -> None:
         self.tree, self.cloud, self.kind = tree, cloud, kind
         self.max_dist, self.max_offset, self.requery_m = max_sq ** 0.5, max_offset, requery_m
         self.min_spread = min_spread
-        self.at: np.ndarray | None = None
+        self.queried_at: np.ndarray | None = None  # (n, 3) map position of each feature at its last query
         self.fits = np.zeros((0, 6))
 
     def rows(self, features: np.ndarray, T: np.ndarray,
@@ -273,33 +275,50 @@ class _Correspondences:
         perturbation T <- [exp(dtheta) R, t + dt] (rotation about the sensor, map axes; about the
         point `pivot` of the sensor frame when given) and residual (m,)."""
         q = se3.apply(T, features)
-        if self.at is None or _motion(self.at, T) > self.requery_m:
-            d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
-            ok = d[:, 4] < self.max_dist
-            idx[~ok] = 0  # unmatched rows point past the cloud's end
-            if self.kind is Correspondence.PLANE:
-                self.fits = np.empty((len(q), 4))
-                _fit_planes(self.cloud, idx, ok, self.max_offset, self.min_spread, self.fits)
-            else:
-                self.fits = np.empty((len(q), 6))
-                _fit_lines(self.cloud, idx, ok, self.fits)
-            self.at = T
+        if self.queried_at is None:
+            self.fits, self.queried_at = self._fit(q), q
+        else:
+            moved = _moved(q, self.queried_at, self.requery_m)
+            if moved.size:
+                self.fits[moved] = self._fit(q[moved])
+                self.queried_at[moved] = q[moved]
         J, r = np.empty((len(q), 6)), np.empty(len(q))
         origin = np.ascontiguousarray(T[:3, 3] if pivot is None else T[:3, :3] @ pivot + T[:3, 3])
         m = (_plane_rows(q, origin, self.fits, J, r) if self.kind is Correspondence.PLANE
              else _edge_rows(q, origin, self.fits, J, r))
         return J[:m], r[:m]
 
+    def _fit(self, q: np.ndarray) -> np.ndarray:
+        """The plane (n, 4) or line (n, 6) rows of the map points q (`_fit_planes`, `_fit_lines`)."""
+        d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
+        ok = d[:, 4] < self.max_dist
+        idx[~ok] = 0  # unmatched rows point past the cloud's end
+        if self.kind is Correspondence.PLANE:
+            fits = np.empty((len(q), 4))
+            _fit_planes(self.cloud, idx, ok, self.max_offset, self.min_spread, fits)
+        else:
+            fits = np.empty((len(q), 6))
+            _fit_lines(self.cloud, idx, ok, fits)
+        return fits
 
-def _motion(a: np.ndarray, b: np.ndarray) -> float:
-    """Largest displacement (m) of a point 10 m from the sensor between poses a and b."""
-    d = se3.inv(a) @ b
-    return float(np.linalg.norm(d[:3, 3]) + 10.0 * se3.delta_angle(d))
+
+@njit(cache=True, nogil=True)
+def _moved(q: np.ndarray, queried_at: np.ndarray, requery_m: float) -> np.ndarray:
+    """Indices of the rows of q (n, 3) farther than requery_m (m) from the same row of queried_at."""
+    out = np.empty(q.shape[0], np.int64)
+    n = 0
+    lim = requery_m * requery_m
+    for i in range(q.shape[0]):
+        d0, d1, d2 = q[i, 0] - queried_at[i, 0], q[i, 1] - queried_at[i, 1], q[i, 2] - queried_at[i, 2]
+        if d0 * d0 + d1 * d1 + d2 * d2 > lim:
+            out[n] = i
+            n += 1
+    return out[:n]
 
 
 def _tangent_from(guess: np.ndarray, T: np.ndarray) -> np.ndarray:
     """T - guess as [rotation vector of R_T R_guess^T, t_T - t_guess] (map axes, the update's tangent)."""
-    rot = Rotation.from_matrix(T[:3, :3] @ guess[:3, :3].T).as_rotvec()
+    rot = rotation.log(T[:3, :3] @ guess[:3, :3].T)
     return np.asarray(np.r_[rot, T[:3, 3] - guess[:3, 3]], np.float64)
 
 

@@ -8,8 +8,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from mrnc_eval.geometry import rotation
 from mrnc_eval.peaks import parabola_vertex
 from mrnc_eval.slam.imu import ImuTrack
 
@@ -20,8 +20,7 @@ STEP_S = 5e-4  # grid step before the parabolic refinement, s
 
 def lidar_angular_rates(stamps: np.ndarray, rotations: np.ndarray) -> np.ndarray:
     """(N-1, 3) mean body angular velocity (rad/s, LiDAR axes) between consecutive poses."""
-    r = Rotation.from_matrix(rotations)
-    step = (r[:-1].inv() * r[1:]).as_rotvec()
+    step = rotation.log(np.swapaxes(rotations[:-1], 1, 2) @ rotations[1:])
     return np.asarray(step / np.diff(stamps)[:, None], np.float64)
 
 

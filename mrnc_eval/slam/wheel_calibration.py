@@ -18,9 +18,9 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
 from mrnc_eval.data import ImuSeries
+from mrnc_eval.geometry import rotation
 from mrnc_eval.slam.config import WheelCalibrationConfig
 from mrnc_eval.slam.wheel_odometry import WheelTrack
 
@@ -37,12 +37,12 @@ class WheelIncrements:
 
     @classmethod
     def of(cls, track: WheelTrack) -> WheelIncrements:
-        yaw = np.unwrap(Rotation.from_quat(track.quat_xyzw).as_euler("ZYX")[:, 0])
+        yaw = np.unwrap(rotation.rpy(rotation.quat_to_matrix(track.quat_xyzw))[:, 2])
         d = np.diff(track.positions[:, :2], axis=0)
         c, s = np.cos(yaw[:-1]), np.sin(yaw[:-1])
         fwd, lat = c * d[:, 0] + s * d[:, 1], -s * d[:, 0] + c * d[:, 1]
         start = np.eye(4)
-        start[:3, :3] = Rotation.from_euler("z", yaw[0]).as_matrix()
+        start[:3, :3] = rotation.yaw_matrix(yaw[0])
         start[:3, 3] = track.positions[0]
         return cls(stamps=np.asarray(track.stamps, float), forward_m=fwd, lateral_m=lat, yaw_rad=np.diff(yaw),
                    start=start)
@@ -50,14 +50,14 @@ class WheelIncrements:
 
 def integrate(inc: WheelIncrements, forward_m: np.ndarray, yaw_rad: np.ndarray) -> WheelTrack:
     """Dead-reckon increments (midpoint heading) into a planar odom -> base_link track."""
-    yaw0 = float(Rotation.from_matrix(inc.start[:3, :3]).as_euler("ZYX")[0])
+    yaw0 = float(rotation.rpy(inc.start[:3, :3])[2])
     yaw = yaw0 + np.r_[0.0, np.cumsum(yaw_rad)]
     mid = yaw[:-1] + 0.5 * yaw_rad
     dx = forward_m * np.cos(mid) - inc.lateral_m * np.sin(mid)
     dy = forward_m * np.sin(mid) + inc.lateral_m * np.cos(mid)
     pos = np.c_[inc.start[0, 3] + np.r_[0.0, np.cumsum(dx)], inc.start[1, 3] + np.r_[0.0, np.cumsum(dy)],
                 np.full(yaw.size, inc.start[2, 3])]
-    return WheelTrack(stamps=inc.stamps, positions=pos, quat_xyzw=Rotation.from_euler("z", yaw[:, None]).as_quat())
+    return WheelTrack(stamps=inc.stamps, positions=pos, quat_xyzw=rotation.matrix_to_quat(rotation.yaw_matrix(yaw)))
 
 
 def gyro_yaw_rate(imu: ImuSeries, imu_in_base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:

@@ -8,10 +8,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from scipy.spatial.transform import Rotation, Slerp
 
 from mrnc_eval.errors import ProcessingError
-from mrnc_eval.geometry import se3
+from mrnc_eval.geometry import rotation, se3
 from mrnc_eval.slam.config import WheelOdomConfig
 
 
@@ -34,8 +33,8 @@ class WheelTrack:
         t0, t1 = self.stamps[i], self.stamps[i + 1]
         a = 0.0 if t1 <= t0 else (t - t0) / (t1 - t0)
         p = (1 - a) * self.positions[i] + a * self.positions[i + 1]
-        rot = Slerp([0.0, 1.0], Rotation.from_quat(self.quat_xyzw[i:i + 2]))([a])[0]
-        return se3.make(rot.as_matrix(), p)
+        r0, r1 = rotation.quat_to_matrix(self.quat_xyzw[i:i + 2])
+        return se3.make(rotation.slerp(r0, r1, a), p)
 
 
 def base_velocity(track: WheelTrack, t: float, half_window_s: float = 0.05) -> np.ndarray | None:
@@ -93,7 +92,7 @@ def wheel_factor(track: WheelTrack, t0: float, t1: float, base_to_sensor: np.nda
 
 def blend_planar(tilted: np.ndarray, planar: np.ndarray) -> np.ndarray:
     """A map pose with z, roll and pitch of `tilted` and x, y and yaw (ZYX Euler) of `planar`."""
-    _, pitch, roll = Rotation.from_matrix(tilted[:3, :3]).as_euler("ZYX")
-    yaw = Rotation.from_matrix(planar[:3, :3]).as_euler("ZYX")[0]
-    rot = Rotation.from_euler("ZYX", [yaw, pitch, roll]).as_matrix()
+    roll, pitch, _ = rotation.rpy(tilted[:3, :3])
+    yaw = rotation.rpy(planar[:3, :3])[2]
+    rot = rotation.from_rpy([roll, pitch, yaw])
     return se3.make(rot, np.r_[planar[:2, 3], tilted[2, 3]])

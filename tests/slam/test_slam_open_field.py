@@ -135,7 +135,7 @@ def test_rtk_fixes_bend_the_chain_only_where_scan_to_map_left_x_y_to_the_imu() -
 def test_a_wheel_guess_holds_a_weakly_measured_yaw_and_a_room_still_corrects_it() -> None:
     """slam.wheel_odom.yaw_information: on rough bare ground a yaw-and-translation mixture passes
     the degeneracy threshold (eigenvalue ~150) and, unheld, drives the yaw 17 deg off an exact
-    guess; held towards the wheel guess it stays within 0.05 deg, also with an overwhelming hold
+    guess; held towards the wheel guess it stays within 0.06 deg, also with an overwhelming hold
     (solving within the measured directions: projecting the held solution afterwards turned its
     translation into 9 deg of yaw). In a hall, where the sweep measures yaw strongly, the same hold
     still corrects a 0.5 deg guess error to within 0.1 deg."""
@@ -160,7 +160,9 @@ def test_a_wheel_guess_holds_a_weakly_measured_yaw_and_a_room_still_corrects_it(
     assert abs(yaw_deg(unheld.pose)) > 5.0  # negative control: the weak direction runs off
     for info in (1e4, 1e12):
         held = match(f.edges, f.surfs, local, guess, MatchingConfig(), hold(info))
-        assert abs(yaw_deg(held.pose)) < 0.05
+        # 0.053 deg at 1e4 (neighbours re-queried per feature after 5 cm); re-querying every iteration
+        # gives 0.044-0.051 deg for guesses 1-5 cm apart, so 0.05 was within the held yaw's own noise
+        assert abs(yaw_deg(held.pose)) < 0.06
         assert held.degenerate  # the degeneracy test still looks at the sweep's own J^T J
     hall = _room()
     start = se3.make(np.eye(3), np.array([2.0, 0.0, 1.0]))

@@ -1,6 +1,6 @@
 """A SLAM run imports only what it uses: with open3d refused by the import system it still closes
 loops (slam/icp.py) and writes map.ply and map.pcd (io/ply.py, io/pcd.py), and it imports neither
-open3d nor the report stack (matplotlib, pandas, weasyprint, dask). The same block makes `simulate`,
+open3d nor the report stack (matplotlib, pandas, weasyprint, dask), nor scipy.spatial. The same block makes `simulate`,
 which does need open3d (ray casting), fail: the negative control that the block works."""
 
 from __future__ import annotations
@@ -20,7 +20,8 @@ from mrnc_eval.results import read_result
 REPO = Path(__file__).resolve().parents[2]
 LOG = REPO / "sample_logs" / "loop_forest.bag"
 BLOCKED = ("open3d",)
-NOT_IN_A_SLAM_RUN = ("open3d", "matplotlib", "pandas", "weasyprint", "dask")
+# scipy.spatial: the SLAM's rotations are geometry/rotation.py's (numba itself still imports scipy's core)
+NOT_IN_A_SLAM_RUN = ("open3d", "matplotlib", "pandas", "weasyprint", "dask", "scipy.spatial")
 
 SCRIPT = textwrap.dedent("""
     import importlib.abc, json, sys
@@ -37,7 +38,7 @@ SCRIPT = textwrap.dedent("""
     codes, loaded = {{}}, {{}}
     for key, argv in json.loads(sys.argv[1]).items():
         codes[key] = main(argv)
-        loaded[key] = sorted({{m.split(".")[0] for m in sys.modules}} & set({watch!r}))
+        loaded[key] = sorted(({{m.split(".")[0] for m in sys.modules}} | set(sys.modules)) & set({watch!r}))
     print(json.dumps({{"codes": codes, "loaded": loaded}}))
 """).format(blocked=BLOCKED, watch=NOT_IN_A_SLAM_RUN)
 
