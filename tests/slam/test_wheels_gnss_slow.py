@@ -65,3 +65,32 @@ def test_combined_wheel_errors_with_float_gnss(combined_line: Path, tmp_path: Pa
     print(f"before (no calibration, LIO-SAM's GNSS gate): {before['ape_online_rmse_m']:.3f} m, "
           f"{before['end_drift_online_m']:.2f} m")
     assert before["ape_online_rmse_m"] > APE_LIMIT_M or before["end_drift_online_m"] > DRIFT_LIMIT_M
+
+
+# No wheel odometry on the same open line (calibrated-wheel log, wheels off), float GNSS, seed 4 (a report
+# seed): the GNSS track (slam.gps.track) against IMU dead reckoning along the degenerate directions.
+# Measured (benchmarks/wheel_gnss_matrix.py --label trackm, main after the third session's merges): 1.66 m
+# online APE with the track, 59.1 m with slam.gps.track=never; limit ~2x the first.
+NO_WHEELS = {"slam.wheel_odom.enabled": False}
+TRACK_LIMIT_M = 3.5
+
+
+@pytest.fixture(scope="module")
+def calibrated_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
+
+    drive = {k: v for k, v in DRIVE.items() if not k.startswith("sim.wheels.")}
+    return simulate_log(tmp_path_factory.mktemp("track") / "line_calibrated_float_s4.mcap",
+                        replace_paths(Config(), drive),
+                        SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
+                                   seed=4, profile="field"))
+
+
+def test_without_wheels_the_gnss_track_holds_the_open_line(calibrated_line: Path, tmp_path: Path) -> None:
+    m, _ = _run(calibrated_line, tmp_path / "track", NO_WHEELS)
+    print(f"no wheels, float GNSS, track: online APE {m['ape_online_rmse_m']:.3f} m, "
+          f"end drift {m['end_drift_online_m']:.2f} m")
+    assert m["ape_online_rmse_m"] < TRACK_LIMIT_M
+    never, _ = _run(calibrated_line, tmp_path / "never", {**NO_WHEELS, "slam.gps.track": "never"})
+    print(f"no wheels, float GNSS, track=never: online APE {never['ape_online_rmse_m']:.3f} m")
+    assert never["ape_online_rmse_m"] > TRACK_LIMIT_M  # negative control: dead reckoning there
