@@ -365,6 +365,10 @@ class WheelCalibrationConfig:
                                       "(tracks slip in turns: the ideal yard circle's wheels over-read by 6 %)", "rad",
                                       ge=0.0)
     scale_min_distance_m: float = param(0.5, "keyframe steps shorter than this do not enter the scale fit", "m", ge=0.0)
+    scale_gate_chi2: float = param(9.0, "a distance step whose wheel-minus-LiDAR residual against the fit of the "
+                                   "others exceeds this normalised square (1 dof) is slip (soft or wet ground: the "
+                                   "wheels turn, the ground does not move as far), not scale: left out of the fit "
+                                   "and counted in wheel_health", gt=0.0)
     track_width_m: float = param(1.6, "the track width the odometry node divides by (robot.track_width_m): turns "
                                  "the fitted L/R term into a radius mismatch", "m", gt=0.0)
     flag_lr_mismatch: float = param(0.01, "wheel_health flags an estimated |L/R mismatch| above this (fraction)",

@@ -275,7 +275,7 @@ class _Replay:
         if cal is None:
             return
         cal.update(t)
-        state = (cal.next_bin, cal.scale_info)  # the track and the health change only with these
+        state = (cal.next_bin, len(cal.steps_lidar_m))  # the track and the health change only with these
         if state == self.wheel_cal_state:
             return
         self.wheel_cal_state = state

@@ -20,7 +20,8 @@ def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
     cfg = cal.cfg
     cov = cal.covariance
     lr, lr_sigma = cal.lr_mismatch()
-    scale_sigma = float(np.sqrt(1.0 / cal.scale_info))
+    fit = cal.scale_fit
+    scale_sigma = fit.sigma if fit is not None else cal.cfg.scale_prior_sigma
     res = np.asarray(cal.res, float)
     raw = np.asarray(cal.raw_res, float)
     rejected = cal.n_rejected / cal.n_bins if cal.n_bins else 0.0
@@ -34,7 +35,10 @@ def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
             "innovation_rms_rad_s": float(np.sqrt(np.mean(res ** 2))) if res.size else None,
             "innovation_nis_mean": float(np.mean(cal.nis)) if cal.nis else None,
             "raw_yaw_rate_minus_gyro_rms_rad_s": float(np.sqrt(np.mean(raw ** 2))) if raw.size else None,
-            "yaw_hold_scale": cal.yaw_quality(), "verdict": verdict, "reasons": reasons}
+            "yaw_hold_scale": cal.yaw_quality(), "scale_steps": fit.steps if fit is not None else 0,
+            "slip_steps": fit.slip_steps if fit is not None else 0,
+            "slip_mean_over_read": fit.slip_mean if fit is not None else None,
+            "verdict": verdict, "reasons": reasons}
 
 
 def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibrationConfig) -> list[str]:
