@@ -6,6 +6,7 @@ a chain that agrees with GNSS gets no factor, one that drifted does, multipath d
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -151,7 +152,7 @@ def _distance_steps(scale_error: float, seed: int) -> tuple[np.ndarray, np.ndarr
     return wheel, STEPS_LIDAR_M * (1 + rng.normal(0.0, 0.01, STEPS_LIDAR_M.size))
 
 
-def _with_steps(wheel: np.ndarray, lidar: np.ndarray, cfg: WheelCalibrationConfig) -> dict:
+def _with_steps(wheel: np.ndarray, lidar: np.ndarray, cfg: WheelCalibrationConfig) -> dict[str, Any]:
     t, v, w = _drive()
     cal = WheelCalibrator.build(_wheel_track(t, v, w, WheelErrors(), 0), _imu(t, w, 0), np.eye(4), cfg)
     assert cal is not None
@@ -172,20 +173,24 @@ def test_slip_on_a_wet_patch_is_not_a_scale_error_but_a_real_one_is(seed: int) -
     cfg = WheelCalibrationConfig()
     slip = _with_steps(*_distance_steps(0.0, seed), cfg)
     assert slip["verdict"] == "ok", slip
-    assert slip["slip_steps"] == 2 and slip["scale_steps"] == 4
+    assert slip["slip_steps"] == 2
+    assert slip["scale_steps"] == 4
     assert slip["slip_mean_over_read"] == pytest.approx(0.18, abs=0.03)
     assert abs(slip["scale_error"]) < 0.01
     real = _with_steps(*_distance_steps(0.04, seed), cfg)
-    assert real["verdict"] == "miscalibrated" and any("scale error" in r for r in real["reasons"]), real
+    assert real["verdict"] == "miscalibrated", real
+    assert any("scale error" in r for r in real["reasons"])
     assert real["scale_error"] == pytest.approx(0.04, abs=0.01)
     assert real["slip_steps"] == 2
     wheel, lidar = _distance_steps(0.0, seed)
     info = 1 / cfg.scale_prior_sigma ** 2 + np.sum(lidar ** 2) / cfg.scale_distance_sigma_m ** 2
     lsq = (1 / cfg.scale_prior_sigma ** 2 + np.sum(lidar * wheel) / cfg.scale_distance_sigma_m ** 2) / info - 1
-    assert lsq > max(cfg.flag_scale, cfg.flag_sigmas / np.sqrt(info)) and lsq > 0.04
+    assert lsq > max(cfg.flag_scale, cfg.flag_sigmas / np.sqrt(info), 0.04)
     no_gate = _with_steps(wheel, lidar, replace(cfg, scale_gate_chi2=1e12))
-    assert no_gate["scale_error"] > 0.04 and no_gate["slip_steps"] == 0
-    assert no_gate["scale_error_sigma"] > 2 / np.sqrt(info) and no_gate["verdict"] == "ok"
+    assert no_gate["scale_error"] > 0.04
+    assert no_gate["slip_steps"] == 0
+    assert no_gate["scale_error_sigma"] > 2 / np.sqrt(info)
+    assert no_gate["verdict"] == "ok"
 
 
 def test_scale_sigma_follows_the_scatter_when_steps_cannot_tell_slip_from_scale() -> None:
