@@ -362,8 +362,9 @@ class WheelCalibrationConfig:
     scale_prior_sigma: float = param(0.05, "prior sigma of the scale error (around 0)", gt=0.0)
     scale_distance_sigma_m: float = param(0.02, "sigma of a LiDAR keyframe distance for the scale fit", "m", gt=0.0)
     scale_max_turn_rad: float = param(0.02, "keyframe steps turning more than this do not enter the scale fit "
-                                      "(tracks slip in turns: the ideal yard circle's wheels over-read by 6 %)", "rad",
-                                      ge=0.0)
+                                      "(a skid-steer's tracks slip in turns; the simulated yard circle's +6 % "
+                                      "over-read came from its wet patch instead, which scale_gate_chi2 handles)",
+                                      "rad", ge=0.0)
     scale_min_distance_m: float = param(0.5, "keyframe steps shorter than this do not enter the scale fit", "m", ge=0.0)
     scale_gate_chi2: float = param(9.0, "a distance step whose wheel-minus-LiDAR residual against the fit of the "
                                    "others exceeds this normalised square (1 dof) is slip (soft or wet ground: the "

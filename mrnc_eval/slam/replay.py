@@ -386,7 +386,7 @@ class _Replay:
             return
         rel_base = self.base_to_sensor @ se3.inv(self.graph.poses[-1]) @ pose @ se3.inv(self.base_to_sensor)
         if abs(se3.rpy(rel_base)[2]) > cal.cfg.scale_max_turn_rad:
-            return  # turning: a skid-steer's tracks slip and over-read (the ideal yard circle: +6 %)
+            return  # turning: a skid-steer's tracks slip and over-read (slip on wet ground: fit_scale's gate)
         lidar = float(np.linalg.norm(rel_base[:2, 3]))
         i0, i1 = np.searchsorted(cal.inc.stamps, [t0, stamp])
         cal.add_distance(float(np.abs(cal.inc.forward_m[i0:i1]).sum()), lidar)
