@@ -376,7 +376,8 @@ class WheelCalibrationConfig:
                                     ge=0.0)
     flag_track_factor: float = param(0.25, "... |track factor - 1| above this (1.1-1.2: a calibrated machine)", ge=0.0)
     flag_scale: float = param(0.015, "... |scale error| above this (fraction)", ge=0.0)
-    flag_rejected_fraction: float = param(0.1, "... a fraction of rejected bins above this", ge=0.0, le=1.0)
+    flag_rejected_fraction: float = param(0.1, "... a fraction of rejected bins above this by flag_sigmas binomial "
+                                          "sigmas (at this rate over the bins so far)", ge=0.0, le=1.0)
     flag_sigmas: float = param(3.0, "... only estimates this many sigmas away from the nominal value", ge=0.0)
 
 
