@@ -14,7 +14,7 @@ from collections.abc import Generator, Iterable, Iterator
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
-from typing import TYPE_CHECKING
+from typing import TYPE_CHECKING, Any
 
 import numpy as np
 
@@ -689,7 +689,8 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
                        Metric(name="wheel_lr_mismatch", value=h["lr_mismatch"], unit="", group="slam/health",
                               note=f"right-minus-left radius mismatch +- {h['lr_mismatch_sigma']:.4f}"),
                        Metric(name="wheel_scale_error", value=h["scale_error"], unit="", group="slam/health",
-                              note=f"wheel distance / LiDAR distance - 1 +- {h['scale_error_sigma']:.4f}"),
+                              note=f"wheel distance / LiDAR distance - 1 +- {h['scale_error_sigma']:.4f}"
+                                   + _slip_note(h)),
                        Metric(name="wheel_rejected_fraction", value=h["rejected_fraction"], unit="",
                               group="slam/health")]
     if h["verdict"] != "ok":
@@ -697,6 +698,14 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
                 + " - the SLAM used the wheels calibrated online; give these values to the odometry node")
         result.warnings.append(text)
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"wheel_verdict": h["verdict"]}))
+
+
+def _slip_note(h: dict[str, Any]) -> str:
+    """The distance steps the scale fit put down to slip (soft or wet ground), not to calibration."""
+    if not h.get("slip_steps"):
+        return ""
+    return (f" ({h['scale_steps']} straight steps; {h['slip_steps']} more left out as slip, the wheels over-reading "
+            f"the LiDAR by {h['slip_mean_over_read'] * 100:.0f} % there)")
 
 
 def _add_map_quality(result: RunResult, out: SlamOutput, cfg: Config) -> None:

@@ -371,16 +371,22 @@ class WheelCalibrationConfig:
     scale_prior_sigma: float = param(0.05, "prior sigma of the scale error (around 0)", gt=0.0)
     scale_distance_sigma_m: float = param(0.02, "sigma of a LiDAR keyframe distance for the scale fit", "m", gt=0.0)
     scale_max_turn_rad: float = param(0.02, "keyframe steps turning more than this do not enter the scale fit "
-                                      "(tracks slip in turns: the ideal yard circle's wheels over-read by 6 %)", "rad",
-                                      ge=0.0)
+                                      "(a skid-steer's tracks slip in turns; the simulated yard circle's +6 % "
+                                      "over-read came from its wet patch instead, which scale_gate_chi2 handles)",
+                                      "rad", ge=0.0)
     scale_min_distance_m: float = param(0.5, "keyframe steps shorter than this do not enter the scale fit", "m", ge=0.0)
+    scale_gate_chi2: float = param(9.0, "a distance step whose wheel-minus-LiDAR residual against the fit of the "
+                                   "others exceeds this normalised square (1 dof) is slip (soft or wet ground: the "
+                                   "wheels turn, the ground does not move as far), not scale: left out of the fit "
+                                   "and counted in wheel_health", gt=0.0)
     track_width_m: float = param(1.6, "the track width the odometry node divides by (robot.track_width_m): turns "
                                  "the fitted L/R term into a radius mismatch", "m", gt=0.0)
     flag_lr_mismatch: float = param(0.01, "wheel_health flags an estimated |L/R mismatch| above this (fraction)",
                                     ge=0.0)
     flag_track_factor: float = param(0.25, "... |track factor - 1| above this (1.1-1.2: a calibrated machine)", ge=0.0)
     flag_scale: float = param(0.015, "... |scale error| above this (fraction)", ge=0.0)
-    flag_rejected_fraction: float = param(0.1, "... a fraction of rejected bins above this", ge=0.0, le=1.0)
+    flag_rejected_fraction: float = param(0.1, "... a fraction of rejected bins above this by flag_sigmas binomial "
+                                          "sigmas (at this rate over the bins so far)", ge=0.0, le=1.0)
     flag_sigmas: float = param(3.0, "... only estimates this many sigmas away from the nominal value", ge=0.0)
 
 

@@ -300,7 +300,7 @@ class _Replay:
         if cal is None:
             return
         cal.update(t)
-        state = (cal.next_bin, cal.scale_info)  # the track and the health change only with these
+        state = (cal.next_bin, len(cal.steps_lidar_m))  # the track and the health change only with these
         if state == self.wheel_cal_state:
             return
         self.wheel_cal_state = state
@@ -412,7 +412,7 @@ class _Replay:
             return
         rel_base = self.base_to_sensor @ se3.inv(self.graph.poses[-1]) @ pose @ se3.inv(self.base_to_sensor)
         if abs(se3.rpy(rel_base)[2]) > cal.cfg.scale_max_turn_rad:
-            return  # turning: a skid-steer's tracks slip and over-read (the ideal yard circle: +6 %)
+            return  # turning: a skid-steer's tracks slip and over-read (slip on wet ground: fit_scale's gate)
         lidar = float(np.linalg.norm(rel_base[:2, 3]))
         i0, i1 = np.searchsorted(cal.inc.stamps, [t0, stamp])
         cal.add_distance(float(np.abs(cal.inc.forward_m[i0:i1]).sum()), lidar)

@@ -5,13 +5,19 @@ Model, per bin of `bin_s` seconds (base_link, planar):
     wheel yaw rate  w_w = f * w_g + a * v_w + c        (f: effective track factor, the skid: wheel
                                                          yaw = f x true yaw; a = L/R mismatch / track,
                                                          1/m; c: yaw-rate offset, rad/s)
-    wheel distance  d_w = (1 + s) * d_lidar             (s: scale error, where the LiDAR odometry is
-                                                         not degenerate)
+    wheel distance  d_w = (1 + s) * d_lidar             (s: scale error, on straight keyframe steps
+                                                         where the LiDAR odometry is not degenerate)
 w_g is the gyro's yaw rate about base_link z with the bias of the stationary start removed. The yaw
 model is a recursive least-squares fit with a weak prior (f = 1, a = c = 0); its residual variance
 gives the uncertainty. A bin whose innovation (w_w minus the prediction from the estimates before it)
 fails a chi-square test (1 dof) is rejected: it does not update the fit and its yaw comes from the gyro.
-The calibrated yaw rate of a bin is (w_w - a v_w - c) / f, its distance d_w / (1 + s)."""
+The calibrated yaw rate of a bin is (w_w - a v_w - c) / f, its distance d_w / (1 + s).
+
+The scale is a robust fit over the distance steps so far (`fit_scale`): tracks that slip on soft or
+wet ground over-read on the steps crossing it (the yard circle's wet patch: +17-19 %) and not
+elsewhere, while a rolling-radius error is in every step. A step whose wheel-minus-LiDAR residual
+fails the chi-square test (1 dof) against the fit of the others is counted as slip and left out;
+the sigma is inflated by the scatter of the steps kept when it exceeds the configured one."""
 
 from __future__ import annotations
 
@@ -97,9 +103,10 @@ class WheelCalibrator:
     info: np.ndarray = field(default_factory=lambda: np.zeros((3, 3)))
     vec: np.ndarray = field(default_factory=lambda: np.zeros(3))
     theta: np.ndarray = field(default_factory=lambda: np.array([1.0, 0.0, 0.0]))
-    # scale: sums of d_lidar^2 / var and d_lidar d_wheel / var
-    scale_info: float = 0.0
-    scale_vec: float = 0.0
+    # scale: the distance steps (wheel m, LiDAR m) and the robust fit of them
+    steps_wheel_m: list[float] = field(default_factory=list)
+    steps_lidar_m: list[float] = field(default_factory=list)
+    scale_fit: ScaleFit | None = None
     next_bin: int = 0
     n_bins: int = 0
     n_rejected: int = 0
@@ -129,8 +136,7 @@ class WheelCalibrator:
         cal.info = np.diag(1.0 / np.square(cfg.prior_sigmas))
         cal.vec = cal.info @ np.array([1.0, 0.0, 0.0])
         cal.sigma2 = cfg.yaw_rate_sigma_rad_s ** 2
-        cal.scale_info = 1.0 / cfg.scale_prior_sigma ** 2
-        cal.scale_vec = cal.scale_info  # prior 1 + s = 1
+        cal.scale_fit = fit_scale(np.zeros(0), np.zeros(0), cfg)
         cal.bins = _bins(inc.stamps, cfg.bin_s)
         cal.bin_yaw_gyro = np.zeros(cal.bins[0].size)
         return cal
@@ -150,7 +156,7 @@ class WheelCalibrator:
     @property
     def scale(self) -> float:
         """1 + s: wheel distance / true distance."""
-        return self.scale_vec / self.scale_info
+        return self.scale_fit.scale if self.scale_fit is not None else 1.0
 
     def lr_mismatch(self) -> tuple[float, float]:
         """Right-minus-left radius mismatch (fraction) and its sigma: a x track width."""
@@ -199,9 +205,9 @@ class WheelCalibrator:
         """A stretch where the LiDAR odometry pinned the forward direction: wheel vs LiDAR distance."""
         if lidar_m < self.cfg.scale_min_distance_m:
             return
-        var = self.cfg.scale_distance_sigma_m ** 2
-        self.scale_info += lidar_m * lidar_m / var
-        self.scale_vec += lidar_m * wheel_m / var
+        self.steps_wheel_m.append(wheel_m)
+        self.steps_lidar_m.append(lidar_m)
+        self.scale_fit = fit_scale(np.asarray(self.steps_wheel_m), np.asarray(self.steps_lidar_m), self.cfg)
 
     def track(self) -> WheelTrack:
         """The wheel track with the current calibration. Each consumed bin's yaw is the
@@ -236,6 +242,64 @@ class WheelCalibrator:
             return 1.0
         ratio = self.cfg.yaw_rate_sigma_rad_s ** 2 / max(self.sigma2, 1e-12)
         return float(np.clip(ratio, self.cfg.min_yaw_quality, 1.0))
+
+
+@dataclass(frozen=True, kw_only=True)
+class ScaleFit:
+    """The scale fit over the distance steps: 1 + s, its 1-sigma, the steps kept and those put down
+    to slip (with their mean wheel over-read, a fraction of the LiDAR distance)."""
+
+    scale: float
+    sigma: float
+    steps: int = 0
+    slip_steps: int = 0
+    slip_mean: float | None = None
+
+
+def fit_scale(wheel_m: np.ndarray, lidar_m: np.ndarray, cfg: WheelCalibrationConfig) -> ScaleFit:
+    """Robust fit of wheel = (1 + s) lidar over the steps, with the prior 1 + s = 1 +- scale_prior_sigma.
+    Start at the steps' median ratio (weighted by distance squared, the least-squares weights), then
+    alternate: keep the steps whose residual passes the chi-square test (scale_gate_chi2, 1 dof)
+    against the step's sigma (scale_distance_sigma_m) and the fit's, and refit on them. Slip is the
+    minority explanation: unless at least two steps agree and carry more than half the weight, the
+    steps cannot tell slip from scale, and all are kept. The sigma is the least-squares one times
+    sqrt(chi-square / dof) of the kept steps when that exceeds 1: slip below the gate, or steps
+    noisier than configured, widen it instead of passing as a scale."""
+    if wheel_m.size == 0:
+        return ScaleFit(scale=1.0, sigma=cfg.scale_prior_sigma)
+    weight = lidar_m ** 2
+    scale, var_s = _weighted_median(wheel_m / lidar_m, weight), 0.0
+    keep = np.ones(wheel_m.size, bool)
+    for _ in range(10):
+        res = wheel_m - scale * lidar_m
+        new = res ** 2 <= cfg.scale_gate_chi2 * (cfg.scale_distance_sigma_m ** 2 + weight * var_s)
+        if new.sum() < 2 or weight[new].sum() <= 0.5 * weight.sum():
+            new = np.ones(wheel_m.size, bool)
+        scale, var_s = _scale_lsq(wheel_m[new], lidar_m[new], cfg)
+        if np.array_equal(new, keep):
+            break
+        keep = new
+    res = wheel_m - scale * lidar_m
+    dof = int(keep.sum()) - 1
+    chi2 = float(np.sum(res[keep] ** 2)) / cfg.scale_distance_sigma_m ** 2
+    inflate = max(1.0, chi2 / dof) if dof > 0 else 1.0
+    slip = ~keep
+    return ScaleFit(scale=scale, sigma=float(np.sqrt(var_s * inflate)), steps=int(keep.sum()),
+                    slip_steps=int(slip.sum()),
+                    slip_mean=float(np.mean(res[slip] / lidar_m[slip])) if slip.any() else None)
+
+
+def _scale_lsq(wheel_m: np.ndarray, lidar_m: np.ndarray, cfg: WheelCalibrationConfig) -> tuple[float, float]:
+    """Least-squares 1 + s and its variance from the steps and the prior (1 +- scale_prior_sigma)."""
+    var_d, info0 = cfg.scale_distance_sigma_m ** 2, 1.0 / cfg.scale_prior_sigma ** 2
+    info = info0 + float(np.sum(lidar_m ** 2)) / var_d
+    return (info0 + float(np.sum(lidar_m * wheel_m)) / var_d) / info, 1.0 / info
+
+
+def _weighted_median(x: np.ndarray, w: np.ndarray) -> float:
+    order = np.argsort(x)
+    cum = np.cumsum(w[order])
+    return float(x[order][np.searchsorted(cum, 0.5 * cum[-1])])
 
 
 def _bins(stamps: np.ndarray, bin_s: float) -> tuple[np.ndarray, np.ndarray]:

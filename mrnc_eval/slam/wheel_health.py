@@ -2,8 +2,10 @@
 
 "ok": the wheels agree with the gyro (and the LiDAR) within the flag limits; "miscalibrated": an
 estimate is significantly off (L/R mismatch, effective track factor, scale), the SLAM used the
-calibrated wheels, and the values are what the odometry node should be given; "unreliable": more
-than flag_rejected_fraction of the increments failed the gate."""
+calibrated wheels, and the values are what the odometry node should be given; "unreliable":
+significantly more than flag_rejected_fraction of the increments failed the gate (by flag_sigmas
+binomial sigmas at that fraction: early in a drive one slip episode, a burst of a few rejected bins,
+is not a fraction of the drive)."""
 
 from __future__ import annotations
 
@@ -20,25 +22,32 @@ def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
     cfg = cal.cfg
     cov = cal.covariance
     lr, lr_sigma = cal.lr_mismatch()
-    scale_sigma = float(np.sqrt(1.0 / cal.scale_info))
+    fit = cal.scale_fit
+    scale_sigma = fit.sigma if fit is not None else cal.cfg.scale_prior_sigma
     res = np.asarray(cal.res, float)
     raw = np.asarray(cal.raw_res, float)
     rejected = cal.n_rejected / cal.n_bins if cal.n_bins else 0.0
     est = {"track_factor": cal.track_factor, "track_factor_sigma": float(np.sqrt(cov[0, 0])),
            "lr_mismatch": lr, "lr_mismatch_sigma": lr_sigma,
            "yaw_rate_offset_rad_s": float(cal.theta[2]), "yaw_rate_offset_sigma_rad_s": float(np.sqrt(cov[2, 2])),
-           "scale_error": cal.scale - 1.0, "scale_error_sigma": scale_sigma}
+           "scale_error": cal.scale - 1.0, "scale_error_sigma": scale_sigma,
+           "rejected_fraction_sigma": rejected_sigma(cal.n_bins, cfg)}
     reasons = flags(est, rejected, cfg)
-    verdict = "ok" if not reasons else "unreliable" if rejected > cfg.flag_rejected_fraction else "miscalibrated"
+    unreliable = too_many_rejected(rejected, est["rejected_fraction_sigma"], cfg)
+    verdict = "ok" if not reasons else "unreliable" if unreliable else "miscalibrated"
     return {**est, "gyro_bias_at_start_rad_s": cal.gyro_bias, "bins": cal.n_bins, "rejected_fraction": rejected,
             "innovation_rms_rad_s": float(np.sqrt(np.mean(res ** 2))) if res.size else None,
             "innovation_nis_mean": float(np.mean(cal.nis)) if cal.nis else None,
             "raw_yaw_rate_minus_gyro_rms_rad_s": float(np.sqrt(np.mean(raw ** 2))) if raw.size else None,
-            "yaw_hold_scale": cal.yaw_quality(), "verdict": verdict, "reasons": reasons}
+            "yaw_hold_scale": cal.yaw_quality(), "scale_steps": fit.steps if fit is not None else 0,
+            "slip_steps": fit.slip_steps if fit is not None else 0,
+            "slip_mean_over_read": fit.slip_mean if fit is not None else None,
+            "verdict": verdict, "reasons": reasons}
 
 
 def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibrationConfig) -> list[str]:
-    """Why the wheels disagree: each estimate beyond its limit by more than flag_sigmas sigma."""
+    """Why the wheels disagree: each estimate beyond its limit by more than flag_sigmas sigma, the
+    rejected fraction beyond its limit by more than flag_sigmas binomial sigmas."""
     k = cfg.flag_sigmas
     out = []
 
@@ -52,6 +61,19 @@ def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibration
                    "(wheel yaw / gyro yaw)")
     if off(est["scale_error"], 0.0, est["scale_error_sigma"], cfg.flag_scale):
         out.append(f"scale error {est['scale_error'] * 100:+.2f} % +- {est['scale_error_sigma'] * 100:.2f} %")
-    if rejected_fraction > cfg.flag_rejected_fraction:
+    if too_many_rejected(rejected_fraction, est["rejected_fraction_sigma"], cfg):
         out.append(f"{rejected_fraction * 100:.0f} % of the wheel increments failed the gate against the gyro")
     return out
+
+
+def rejected_sigma(n_bins: int, cfg: WheelCalibrationConfig) -> float:
+    """Binomial sigma of the rejected fraction over n_bins bins if the true rate were
+    flag_rejected_fraction (bins taken as independent; rejections come in bursts, so this is the
+    small end of it)."""
+    p = cfg.flag_rejected_fraction
+    return float(np.sqrt(p * (1.0 - p) / max(n_bins, 1)))
+
+
+def too_many_rejected(fraction: float, sigma: float, cfg: WheelCalibrationConfig) -> bool:
+    """The rejected fraction is above flag_rejected_fraction by more than flag_sigmas sigma."""
+    return fraction - cfg.flag_rejected_fraction > max(cfg.flag_sigmas * sigma, 0.0)

@@ -6,6 +6,7 @@ a chain that agrees with GNSS gets no factor, one that drifted does, multipath d
 from __future__ import annotations
 
 from dataclasses import replace
+from typing import Any
 
 import numpy as np
 import pytest
@@ -15,7 +16,7 @@ from mrnc_eval.data import GnssSeries, ImuSeries
 from mrnc_eval.sim.wheels import WheelErrors, measured_speeds
 from mrnc_eval.slam.config import GpsConfig, WheelCalibrationConfig
 from mrnc_eval.slam.gnss_gate import gate
-from mrnc_eval.slam.wheel_calibration import WheelCalibrator, WheelIncrements, integrate
+from mrnc_eval.slam.wheel_calibration import WheelCalibrator, WheelIncrements, fit_scale, integrate
 from mrnc_eval.slam.wheel_health import wheel_health
 from mrnc_eval.slam.wheel_odometry import WheelTrack
 
@@ -128,13 +129,106 @@ def test_gate_rejects_a_wheel_glitch_and_takes_the_gyro_yaw() -> None:
     assert abs(on.track_factor - 1.0) < 0.01 < 0.03 < abs(off.track_factor - 1.0)  # it bent the fit
 
 
-def _glitched(t: np.ndarray, v: np.ndarray, w: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _glitched(t: np.ndarray, v: np.ndarray, w: np.ndarray,
+              spans: tuple[tuple[float, float], ...] = ((20.0, 20.5),)) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     track = _wheel_track(t, v, w, WheelErrors(), 0)
     inc = WheelIncrements.of(track)
-    bad = (t[:-1] >= 20.0) & (t[:-1] < 20.5)
+    bad = np.zeros(t.size - 1, bool)
+    for t0, t1 in spans:
+        bad |= (t[:-1] >= t0) & (t[:-1] < t1)
     yaw = inc.yaw_rad + bad * 0.5 / TRACK * np.diff(t)
     out = integrate(inc, inc.forward_m, yaw)
     return out.stamps, out.positions, out.quat_xyzw
+
+
+def test_one_burst_of_rejected_bins_early_is_not_unreliable_wheels() -> None:
+    """A 1.4 s episode of wheel yaw off the gyro (one side on a wet patch: the yard circle's ideal
+    wheels have one at 11.8-13.0 s) seen 13 s into the drive: 8 of 65 bins rejected, above the 10 %
+    limit but not significantly (binomial sigma 3.7 % at 65 bins): `ok`. Negative control: a pickup
+    that fails every 3 s all drive long (about a quarter of the bins) is `unreliable`."""
+    t, v, w = _drive()
+    wheels_yaw = WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0)
+
+    def health(spans: tuple[tuple[float, float], ...], until: float) -> dict[str, Any]:
+        stamps, positions, quat = _glitched(t, v, w, spans)
+        cal = WheelCalibrator.build(WheelTrack(stamps=stamps, positions=positions, quat_xyzw=quat), _imu(t, w, 0),
+                                    np.eye(4), wheels_yaw)
+        assert cal is not None
+        cal.update(until)
+        return wheel_health(cal)
+
+    burst = health(((11.6, 13.0),), 13.0)
+    assert burst["rejected_fraction"] > wheels_yaw.flag_rejected_fraction
+    assert burst["verdict"] == "ok", burst
+    broken = health(tuple((t0, t0 + 0.8) for t0 in np.arange(6.0, 39.0, 3.0)), float(t[-1]))
+    assert broken["rejected_fraction"] > 0.2
+    assert broken["verdict"] == "unreliable", broken
+
+
+# ---- scale against the LiDAR: slip on wet ground is not a scale error
+# Keyframe distance steps as on the yard circle (straight steps, 0.9-1.2 m, LiDAR good to ~1 %); the
+# steps crossing the wet patch over-read by 17-19 % (the plant's slip, measured against ground truth).
+STEPS_LIDAR_M = np.array([1.17, 0.95, 0.80, 1.18, 0.92, 1.05])
+ON_PATCH = np.array([False, False, True, False, False, True])
+
+
+def _distance_steps(scale_error: float, seed: int) -> tuple[np.ndarray, np.ndarray]:
+    """(wheel m, LiDAR m) per step: the wheels read (1 + scale_error) x the ground, x 1.18 on the patch."""
+    rng = np.random.default_rng(seed)
+    wheel = STEPS_LIDAR_M * (1 + scale_error) * np.where(ON_PATCH, 1.18, 1.0)
+    return wheel, STEPS_LIDAR_M * (1 + rng.normal(0.0, 0.01, STEPS_LIDAR_M.size))
+
+
+def _with_steps(wheel: np.ndarray, lidar: np.ndarray, cfg: WheelCalibrationConfig) -> dict[str, Any]:
+    t, v, w = _drive()
+    cal = WheelCalibrator.build(_wheel_track(t, v, w, WheelErrors(), 0), _imu(t, w, 0), np.eye(4), cfg)
+    assert cal is not None
+    cal.update(float(t[-1]))
+    for wm, lm in zip(wheel, lidar, strict=True):
+        cal.add_distance(float(wm), float(lm))
+    return wheel_health(cal)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_slip_on_a_wet_patch_is_not_a_scale_error_but_a_real_one_is(seed: int) -> None:
+    """Exact wheels whose steps over the wet patch over-read by 18 %: `ok`, the two steps counted
+    as slip, the scale near 0. Negative controls: the same steps with a planted +4 % scale error
+    (every step, on the patch too) are flagged for scale; the plain least-squares fit with the
+    configured 2 cm per step (wheel_health's fit before) flags the slip alone as a +5 % scale; with
+    the gate off (scale_gate_chi2 huge) the scale reads +5 % too, and only the sigma widened by the
+    steps' scatter keeps it from being flagged."""
+    cfg = WheelCalibrationConfig()
+    slip = _with_steps(*_distance_steps(0.0, seed), cfg)
+    assert slip["verdict"] == "ok", slip
+    assert slip["slip_steps"] == 2
+    assert slip["scale_steps"] == 4
+    assert slip["slip_mean_over_read"] == pytest.approx(0.18, abs=0.03)
+    assert abs(slip["scale_error"]) < 0.01
+    real = _with_steps(*_distance_steps(0.04, seed), cfg)
+    assert real["verdict"] == "miscalibrated", real
+    assert any("scale error" in r for r in real["reasons"])
+    assert real["scale_error"] == pytest.approx(0.04, abs=0.01)
+    assert real["slip_steps"] == 2
+    wheel, lidar = _distance_steps(0.0, seed)
+    info = 1 / cfg.scale_prior_sigma ** 2 + np.sum(lidar ** 2) / cfg.scale_distance_sigma_m ** 2
+    lsq = (1 / cfg.scale_prior_sigma ** 2 + np.sum(lidar * wheel) / cfg.scale_distance_sigma_m ** 2) / info - 1
+    assert lsq > max(cfg.flag_scale, cfg.flag_sigmas / np.sqrt(info), 0.04)
+    no_gate = _with_steps(wheel, lidar, replace(cfg, scale_gate_chi2=1e12))
+    assert no_gate["scale_error"] > 0.04
+    assert no_gate["slip_steps"] == 0
+    assert no_gate["scale_error_sigma"] > 2 / np.sqrt(info)
+    assert no_gate["verdict"] == "ok"
+
+
+def test_scale_sigma_follows_the_scatter_when_steps_cannot_tell_slip_from_scale() -> None:
+    """Two steps that disagree by 17 % (one slipped, which one is unknown): no step is called slip,
+    and the sigma is widened by their scatter (chi-square / dof) instead of the configured 2 cm per
+    step, so the 9 % mean is not flagged. Control: two steps agreeing on +4 % keep the narrow sigma."""
+    cfg = WheelCalibrationConfig()
+    split = fit_scale(np.array([1.02, 1.19]), np.array([1.0, 1.0]), cfg)
+    assert split.slip_steps == 0
+    assert split.sigma > 0.05 > 0.02 > fit_scale(np.array([1.04, 1.04]), np.array([1.0, 1.0]), cfg).sigma
+    assert fit_scale(np.zeros(0), np.zeros(0), cfg).sigma == cfg.scale_prior_sigma
 
 
 # ---- GNSS residual gate
