@@ -116,6 +116,7 @@ class WheelCalibrator:
     rejected_bins: list[int] = field(default_factory=list)
     bins: tuple[np.ndarray, np.ndarray] = (np.zeros(0, int), np.zeros(0, int))
     bin_yaw_gyro: np.ndarray = field(default_factory=lambda: np.zeros(0))
+    bin_span: np.ndarray = field(default_factory=lambda: np.zeros(0))  # each bin's duration, s
     sigma2: float = 0.0  # running residual variance, (rad/s)^2
     standing_start: bool = False  # the gyro bias was measured over a standing start
 
@@ -139,6 +140,8 @@ class WheelCalibrator:
         cal.scale_fit = fit_scale(np.zeros(0), np.zeros(0), cfg)
         cal.bins = _bins(inc.stamps, cfg.bin_s)
         cal.bin_yaw_gyro = np.zeros(cal.bins[0].size)
+        dt = np.diff(inc.stamps)
+        cal.bin_span = np.array([max(dt[a:b].sum(), 1e-9) for a, b in zip(*cal.bins, strict=True)])
         return cal
 
     # ---- estimates
@@ -225,13 +228,15 @@ class WheelCalibrator:
         if self.n_bins >= self.cfg.warmup_bins and self.cfg.gyro_yaw_rate_sigma_rad_s > 0 and self.standing_start:
             var_w = max(self.sigma2, 1e-12) / f ** 2
             w_gyro = var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2)
-        rejected = set(self.rejected_bins)
-        for k in range(self.next_bin):
-            i0, i1 = self.bins[0][k], self.bins[1][k]
-            span = max(dt[i0:i1].sum(), 1e-9)
-            gyro = self.bin_yaw_gyro[k] * dt[i0:i1] / span
-            weight = 1.0 if k in rejected else w_gyro
-            yaw[i0:i1] = (1.0 - weight) * yaw[i0:i1] + weight * gyro
+        n = self.next_bin
+        if n:  # the consumed bins cover dt[bins[0][0]:bins[1][n - 1]] contiguously (_bins)
+            idx = np.arange(self.bins[0][0], self.bins[1][n - 1])
+            bin_of = np.repeat(np.arange(n), self.bins[1][:n] - self.bins[0][:n])
+            gyro = self.bin_yaw_gyro[bin_of] * dt[idx] / self.bin_span[bin_of]
+            weight = np.full(n, w_gyro)
+            weight[self.rejected_bins] = 1.0
+            w = weight[bin_of]
+            yaw[idx] = (1.0 - w) * yaw[idx] + w * gyro
         return integrate(self.inc, fwd, yaw)
 
 

@@ -322,3 +322,29 @@ def test_gnss_gate_judges_fixes_by_their_scatter_not_their_claimed_sigma(seed: i
         fooled, _ = gate(fixes, usable, *_line_chain(), lever, cfg, chain_sigma_m=1.0)
     assert fooled is not None
     assert fooled.position is not None
+
+
+def test_calibrated_track_equals_the_per_bin_blend() -> None:
+    """track() blends every consumed bin at once; the same as blending bin by bin (the rule it
+    replaced), bit for bit, with rejected bins (the gyro's yaw) and blended ones."""
+    t, v, w = _drive()
+    stamps, positions, quat = _glitched(t, v, w)
+    cal = WheelCalibrator.build(WheelTrack(stamps=stamps, positions=positions, quat_xyzw=quat), _imu(t, w, 0),
+                                np.eye(4), WheelCalibrationConfig())
+    assert cal is not None
+    cal.update(float(t[-1]) * 0.8)
+    assert cal.n_rejected >= 2  # the glitch's bins
+    f, a, c = cal.theta
+    dt = np.diff(cal.inc.stamps)
+    yaw = (cal.inc.yaw_rad - a * cal.inc.forward_m - c * dt) / f
+    var_w = max(cal.sigma2, 1e-12) / f ** 2
+    w_gyro = var_w / (var_w + cal.cfg.gyro_yaw_rate_sigma_rad_s ** 2)
+    assert 0.0 < w_gyro < 1.0
+    for k in range(cal.next_bin):
+        i0, i1 = cal.bins[0][k], cal.bins[1][k]
+        weight = 1.0 if k in cal.rejected_bins else w_gyro
+        gyro = cal.bin_yaw_gyro[k] * dt[i0:i1] / max(dt[i0:i1].sum(), 1e-9)
+        yaw[i0:i1] = (1.0 - weight) * yaw[i0:i1] + weight * gyro
+    expected = integrate(cal.inc, cal.inc.forward_m / cal.scale, yaw)
+    np.testing.assert_array_equal(cal.track().quat_xyzw, expected.quat_xyzw)
+    np.testing.assert_array_equal(cal.track().positions, expected.positions)
