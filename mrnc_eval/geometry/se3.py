@@ -4,6 +4,7 @@ Pose matrices are assembled by geometry.lie.homogeneous, the project's one build
 from __future__ import annotations
 
 import numpy as np
+
 from mrnc_eval.geometry import rotation
 from mrnc_eval.geometry.lie import homogeneous
 
