@@ -21,10 +21,10 @@ _SMALL = 1e-4  # rad (or |vector part| of a quaternion): below it the series rep
 
 def quat_to_matrix(q: ArrayLike) -> F64:
     """(..., 4) xyzw quaternions (any norm > 0) -> (..., 3, 3) rotation matrices."""
-    q = np.asarray(q, dtype=np.float64)
-    q = q / np.linalg.norm(q, axis=-1, keepdims=True)
-    x, y, z, w = q[..., 0], q[..., 1], q[..., 2], q[..., 3]
-    out = np.empty((*q.shape[:-1], 3, 3))
+    qa = np.asarray(q, dtype=np.float64)
+    qa = qa / np.linalg.norm(qa, axis=-1, keepdims=True)
+    x, y, z, w = qa[..., 0], qa[..., 1], qa[..., 2], qa[..., 3]
+    out = np.empty((*qa.shape[:-1], 3, 3))
     out[..., 0, 0] = w * w + x * x - y * y - z * z
     out[..., 0, 1] = 2.0 * (x * y - z * w)
     out[..., 0, 2] = 2.0 * (x * z + y * w)

@@ -113,7 +113,8 @@ def imu_track(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, gyro_bias: np.ndarra
     return ImuTrack(stamps=stamps, acc=acc, gyro=gyro, quat_wxyz=q)
 
 
-def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig, t0: float | None = None) -> np.ndarray:
+def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfig,
+                     t0: float | None = None) -> np.ndarray:
     """Attitude of the LiDAR at t0 (default: the first sample): 9-axis IMU -> its orientation
     (yaw kept only with use_heading_init); 6-axis -> roll/pitch from the mean specific force
     from attitude_window_s before t0 to attitude_lookahead_s after it, yaw = 0. A 3x3 matrix."""
