@@ -330,6 +330,9 @@ class GpsConfig:
         "otherwise give them; never: IMU dead reckoning there (LIO-SAM)")
     track_accel_sigma: float = param(0.3, "GNSS track: the filter's white acceleration (a skid-steer at walking "
                                      "pace)", "m/s^2", gt=0.0, le=20.0)
+    track_max_gap_s: float = param(2.0, "GNSS track: without a fix taken for this long (an outage) the sweeps keep "
+                                   "the chain's own x, y, and the filter starts again at the next fix", "s", gt=0.0,
+                                   le=60.0)
     track_step_fixes: int = param(4, "GNSS track: this many rejected fixes in a row that agree are a multipath step "
                                   "(on or off), held as an offset", ge=2, le=100)
 

@@ -36,14 +36,21 @@ class TrackFilter:
     accel_sigma: float  # m/s^2, white acceleration
     step_fixes: int
     max_offset_m: float
+    max_gap_s: float = 2.0  # no fix taken for longer: the filter starts again at the next fix
+    offset_max_s: float = 10.0  # a held offset older than this is no multipath jump: the fixes are right
     x: np.ndarray | None = None
     p: np.ndarray = field(default_factory=lambda: np.eye(4))
     t: float = 0.0
     offset: np.ndarray = field(default_factory=lambda: np.zeros(2))  # held multipath offset, m
+    offset_since: float = 0.0  # when the held offset was taken, s
     pending: list[np.ndarray] = field(default_factory=list)  # innovations of the latest rejected run, m
     accepted: int = 0
     rejected: int = 0
     steps: int = 0
+
+    def fresh(self, t: float) -> bool:
+        """A fix was taken within max_gap_s before t (else the filter only extrapolates)."""
+        return self.x is not None and t - self.t <= self.max_gap_s
 
     def predict(self, t: float) -> tuple[np.ndarray, np.ndarray]:
         """State and covariance at t (not stored)."""
@@ -55,11 +62,15 @@ class TrackFilter:
         return f @ self.x, f @ self.p @ f.T + self.accel_sigma ** 2 * (g @ g.T)
 
     def update(self, t: float, z: np.ndarray, sigma: float) -> bool:
-        """One fix (ENU xy, m; its 1-sigma, m); returns whether it entered."""
-        if self.x is None:
-            self.x, self.t = np.r_[z, 0.0, 0.0], t
+        """One fix (ENU xy, m; its 1-sigma, m); returns whether it entered. After max_gap_s without a
+        fix taken (an outage, or the track lost) the filter starts again at this fix; a held offset
+        older than offset_max_s is dropped (the position keeps what it was)."""
+        if self.x is None or t - self.t > self.max_gap_s:
+            self.x, self.t, self.offset, self.pending = np.r_[z, 0.0, 0.0], t, np.zeros(2), []
             self.p = np.diag([sigma ** 2, sigma ** 2, 1.0, 1.0])
             return True
+        if np.any(self.offset) and t - self.offset_since > self.offset_max_s:
+            self.x[:2], self.offset = self.x[:2] + self.offset, np.zeros(2)
         x, p = self.predict(t)
         nu = z - self.offset - x[:2]
         s = p[:2, :2] + sigma ** 2 * np.eye(2)
@@ -89,7 +100,7 @@ class TrackFilter:
             assert self.x is not None
             self.x[:2] = self.x[:2] + new
             new = np.zeros(2)
-        self.offset = new
+        self.offset, self.offset_since = new, float(self.t)
         self.steps += 1
         self.pending = []
         return True
@@ -110,7 +121,7 @@ class GnssTrack:
         return cls(ins=GnssIns(gnss=gnss, cfg=cfg, forward_in_lidar=forward_in_lidar,
                                antenna_in_lidar=antenna_in_lidar),
                    filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
-                                      max_offset_m=cfg.ins_max_offset_m))
+                                      max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s))
 
     def antenna_xy(self, t: float, pose: np.ndarray) -> np.ndarray | None:
         """The antenna's map x, y at t by the fixes (None before the alignment); `pose` is the
@@ -126,8 +137,8 @@ class GnssTrack:
                 sigma = float(np.sqrt(np.max(np.diag(gnss.covariance[i])[:2])))
                 self.filter.update(float(gnss.stamps[i]), gnss.enu[i, :2], sigma)
         self.next_fix = max(self.next_fix, end)
-        if ins.alignment is None or self.filter.x is None:
-            return None
+        if ins.alignment is None or not self.filter.fresh(t):
+            return None  # before the alignment, or no fix for a while (an outage): the chain's own x, y
         x, _ = self.filter.predict(t)
         return ins.alignment.to_map(x[:2])
 
