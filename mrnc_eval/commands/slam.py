@@ -642,7 +642,12 @@ def _add_gnss_disagreement(result: RunResult, gnss: GnssSeries, out: SlamOutput,
         return
     degenerate = 0.0 if out.degenerate is None or out.degenerate.size == 0 else float(np.mean(out.degenerate))
     wheels = "wheel_odom" in result.extra.get("inputs", {})
-    if degenerate > 0.5:
+    track = next((e.t for e in out.events if e.data.get("gnss_track") == "engaged"), None)
+    if degenerate > 0.5 and track is not None:  # x, y followed the fixes: their alignment or the fixes
+        why = (f"the LiDAR saw too little structure (scan-to-map degenerate on {degenerate:.0%} of the sweeps) "
+               f"and x, y followed the GNSS track from {track - out.stamps[0]:.1f} s: check the fixes (multipath, "
+               "the antenna's base_link -> gnss transform) and the first seconds' dead reckoning")
+    elif degenerate > 0.5:
         why = (f"the LiDAR saw too little structure (scan-to-map degenerate on {degenerate:.0%} of the sweeps)"
                + ("" if wheels else " and no wheel odometry was used, so x, y and yaw are IMU dead reckoning")
                + ": the trajectory, not the GNSS, is the likely culprit")

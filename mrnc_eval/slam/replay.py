@@ -276,7 +276,7 @@ class _Replay:
             track.engaged = True
             self.events.append(SlamEvent(t=stamp, kind="gps", message="GNSS track: x, y along the directions "
                                          "scan-to-map leaves free follow the fixes from here (ENU -> map "
-                                         "alignment from the fixes' course)"))
+                                         "alignment from the fixes' course)", data={"gnss_track": "engaged"}))
             if self.odom is not None and self.odom.can_predict:
                 self.odom.restart()
                 self.odom.velocity = np.r_[track.velocity_map(stamp), self.odom.velocity[2]]

@@ -263,20 +263,21 @@ def test_offset_passes_rerun_while_the_offset_left_stands_out(monkeypatch: pytes
     assert one.imu_time_offset_s == pytest.approx(0.024)  # negative control: one pass under-reads
 
 
-@pytest.mark.parametrize(("rmse_m", "degenerate", "wheels", "says"), [
-    (13.7, 0.82, False, "IMU dead reckoning"),  # the open line without wheels, RTK fixes
-    (13.7, 0.82, True, "the trajectory, not the GNSS"),
-    (13.7, 0.05, False, "check the GNSS"),  # a LiDAR that held: the fixes or the lever arm are suspect
-    (2.0, 0.82, False, None),  # negative control: float fixes 2 m off (the sample logs) say nothing
+@pytest.mark.parametrize(("rmse_m", "degenerate", "wheels", "says", "track"), [
+    (13.7, 0.82, False, "IMU dead reckoning", False),  # the open line without wheels, RTK fixes
+    (13.7, 0.82, True, "the trajectory, not the GNSS", False),
+    (13.7, 0.05, False, "check the GNSS", False),  # a LiDAR that held: the fixes or the lever arm are suspect
+    (13.7, 0.82, False, "followed the GNSS track from 3.0 s", True),  # the fixes carried x, y: not dead reckoning
+    (2.0, 0.82, False, None, False),  # negative control: float fixes 2 m off (the sample logs) say nothing
 ])
 def test_a_trajectory_far_from_the_fixes_is_a_finding_that_names_the_likely_culprit(
-        rmse_m: float, degenerate: float, wheels: bool, says: str | None) -> None:
+        rmse_m: float, degenerate: float, wheels: bool, says: str | None, track: bool) -> None:
     import numpy as np
 
     from mrnc_eval.commands.slam import _add_gnss_disagreement
     from mrnc_eval.data import GnssSeries
     from mrnc_eval.results import RunResult
-    from mrnc_eval.slam.output import SlamOutput
+    from mrnc_eval.slam.output import SlamEvent, SlamOutput
 
     n = 50
     gnss = GnssSeries(np.arange(n) * 0.2, np.zeros((n, 3)), np.zeros((n, 3)), np.tile(np.diag([4e-4, 4e-4, 1e-3]),
@@ -284,7 +285,9 @@ def test_a_trajectory_far_from_the_fixes_is_a_finding_that_names_the_likely_culp
     result = RunResult(kind="slam", log_path="x.mcap", log_id="x",
                        extra={"inputs": {"lidar": "/points", **({"wheel_odom": "/odom"} if wheels else {})}})
     out = SlamOutput(stamps=np.arange(10.0), poses=np.zeros((10, 4, 4)), kf_stamps=np.zeros(0),
-                     kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)), timing_ms={}, events=[], warnings=[],
+                     kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)), timing_ms={},
+                     events=[SlamEvent(t=3.0, kind="gps", message="GNSS track: ...", data={"gnss_track": "engaged"})]
+                     if track else [], warnings=[],
                      n_sweeps=10, wall_s=0.0, degenerate=np.arange(10) < round(10 * degenerate))
     _add_gnss_disagreement(result, gnss, out, rmse_m)
     if says is None:
