@@ -83,6 +83,9 @@ class Config:
 # ---------------------------------------------------------------- building from data
 
 
+_YAML_BOOLS = {True: ("on", "yes", "true", "y"), False: ("off", "no", "false", "n")}
+
+
 def _coerce(value: Any, tp: Any, where: str) -> Any:
     """`value` as type `tp`, or a ConfigError naming `where` (the dotted key)."""
     origin = get_origin(tp)
@@ -93,6 +96,8 @@ def _coerce(value: Any, tp: Any, where: str) -> Any:
             raise ConfigError(f"{where}: expected a mapping, got {type(value).__name__}")
         return build(tp, value, where)
     if origin is Literal:
+        if isinstance(value, bool) and value not in get_args(tp):  # YAML 1.1: an unquoted off/on/no/yes
+            value = next((c for c in get_args(tp) if isinstance(c, str) and c.lower() in _YAML_BOOLS[value]), value)
         if value not in get_args(tp):
             raise ConfigError(f"{where}: {shorten(value)} is not one of {list(get_args(tp))}")
         return value

@@ -91,3 +91,13 @@ def test_errors_are_one_line_with_control_characters_escaped(tmp_path: Path,
     assert err.count("\n") == 1
     assert "\x1b" not in err
     assert "log\\nmrnc-eval: all good\\x1b[32m.mcap" in err
+
+
+def test_an_unquoted_off_or_on_in_an_override_names_the_choice_of_a_literal() -> None:
+    """YAML 1.1 reads `off` as false: `--set slam.gps.ins=off` must still pick the choice "off", while
+    a bool parameter keeps the bool and a word that is no choice is still an error."""
+    cfg = load_config(overrides=["slam.gps.ins=off", "slam.gps.enabled=off"])
+    assert cfg.slam.gps.ins == "off"
+    assert cfg.slam.gps.enabled is False
+    with pytest.raises(ConfigError, match="slam.gps.track"):
+        load_config(overrides=["slam.gps.track=off"])  # no choice spelled off/no/false there
