@@ -9,7 +9,10 @@ a degenerate match leaves free, exactly where wheels would otherwise carry them 
 - a causal constant-velocity Kalman filter on the fixes (ENU, m), its acceleration noise
   `track_accel_sigma`; each fix gated on its innovation (chi-square, 2 dof);
 - a multipath jump is a held offset (0.5-3 m for seconds): `track_step_fixes` rejected fixes in a row
-  that agree with each other are a step, taken off the later fixes until they step back;
+  that agree with each other are a step, taken off the later fixes until they step back (an offset
+  held for 10 s is dropped: multipath does not last that long, a filter error would);
+- an outage (no fix taken for `track_max_gap_s`) hands x, y back to the chain until the fixes return,
+  and the filter starts again at the first of them;
 - the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
   (slam/gnss_ins.py's), so a drifting chain cannot slide it;
 - the sweep's pose keeps its rotation, z and every direction scan-to-map measured; only its
@@ -141,7 +144,6 @@ class GnssTrack:
             return None  # before the alignment, or no fix for a while (an outage): the chain's own x, y
         x, _ = self.filter.predict(t)
         return ins.alignment.to_map(x[:2])
-
 
     def velocity_map(self, t: float) -> np.ndarray:
         """The filter's horizontal velocity (map, m/s) at t; zero before the alignment."""
