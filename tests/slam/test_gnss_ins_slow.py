@@ -5,8 +5,9 @@ claims matrix without wheel odometry (field profile, OS0-32 x 512, 40 s, float G
 
 Seed 2 is a tuning seed: on the report seeds 3-5 the GNSS/INS does not hold this cell yet
 (docs/simulation.md, "GNSS/INS in graph #2"); this test guards what it does where it works. Held at
-about 2x what was measured; the negative control is the same log without it (the default): it must
-fail the same limit.
+about 2x what was measured; the negative control is the same log without it and without the GNSS track
+(slam.gps.track=never: IMU dead reckoning along the degenerate directions): it must fail the same
+limit. (The default since the third session, the GNSS track, reads 0.84 m here, on par with it.)
 """
 
 from __future__ import annotations
@@ -25,7 +26,8 @@ DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
          "sim.gnss.mode": "float"}
 NO_WHEELS = {"slam.wheel_odom.enabled": False}
 # measured (/tmp/wheels_logs/line_calibrated_float_s2.mcap, benchmarks/wheel_gnss_matrix.py's log): online APE
-# 0.769 m, end drift 0.85 m with slam.gps.ins=without_wheels; 7.5 m (drift 44 m) without it
+# 0.769 m, end drift 0.85 m with slam.gps.ins=without_wheels (0.739 m / 1.27 m at main 8bad290); 7.5 m (drift
+# 44 m) without it and without the GNSS track
 APE_LIMIT_M = 1.5
 
 
@@ -51,6 +53,6 @@ def test_gnss_ins_holds_the_open_line_without_wheels(line_log: Path, tmp_path: P
     print(f"GNSS/INS: online APE {m['ape_online_rmse_m']:.3f} m, end drift {m['end_drift_online_m']:.2f} m")
     assert m["ape_online_rmse_m"] < APE_LIMIT_M
 
-    before = _run(line_log, tmp_path / "off", NO_WHEELS)
-    print(f"without (the default): {before['ape_online_rmse_m']:.3f} m, {before['end_drift_online_m']:.2f} m")
+    before = _run(line_log, tmp_path / "off", {**NO_WHEELS, "slam.gps.track": "never"})
+    print(f"without it or the GNSS track: {before['ape_online_rmse_m']:.3f} m, {before['end_drift_online_m']:.2f} m")
     assert not (before["ape_online_rmse_m"] < APE_LIMIT_M)
