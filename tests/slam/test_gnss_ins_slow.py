@@ -17,13 +17,10 @@ from pathlib import Path
 import pytest
 
 from mrnc_eval.config import Config, replace_paths
+from tests.slam.open_line import simulate_open_line
 
 pytestmark = pytest.mark.slow
 
-DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
-         "control.pure_pursuit.max_speed_mps": 1.0, "control.pure_pursuit.speed_cap": False,
-         "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8",
-         "sim.gnss.mode": "float"}
 NO_WHEELS = {"slam.wheel_odom.enabled": False}
 # measured (/tmp/wheels_logs/line_calibrated_float_s2.mcap, benchmarks/wheel_gnss_matrix.py's log): online APE
 # 0.769 m, end drift 0.85 m with slam.gps.ins=without_wheels (0.739 m / 1.27 m at main 8bad290); 7.5 m (drift
@@ -33,12 +30,7 @@ APE_LIMIT_M = 1.5
 
 @pytest.fixture(scope="module")
 def line_log(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.recording.recorder import SimRequest, simulate_log
-
-    folder = tmp_path_factory.mktemp("gnss_ins")
-    return simulate_log(folder / "line_calibrated_float_s2.mcap", replace_paths(Config(), DRIVE),
-                        SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
-                                   seed=2, profile="field"))
+    return simulate_open_line(tmp_path_factory.mktemp("gnss_ins") / "line_calibrated_float_s2.mcap", seed=2)
 
 
 def _run(log: Path, out: Path, rules: dict[str, object]) -> dict[str, float]:

@@ -16,14 +16,10 @@ from pathlib import Path
 import pytest
 
 from mrnc_eval.config import Config, replace_paths
+from tests.slam.open_line import COMBINED_WHEELS, simulate_open_line
 
 pytestmark = pytest.mark.slow
 
-DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
-         "control.pure_pursuit.max_speed_mps": 1.0, "control.pure_pursuit.speed_cap": False,
-         "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8",
-         "sim.gnss.mode": "float", "sim.wheels.scale_error": 0.02, "sim.wheels.lr_mismatch": 0.02,
-         "sim.wheels.track_factor": 1.6}
 BEFORE = {"slam.wheel_odom.calibration.enabled": False, "slam.gps.gate": "lio_sam"}
 # measured by benchmarks/wheel_gnss_matrix.py (46fc1c5), seed 3, combined + float: online APE 0.312 m, end drift
 # 1.45 m (this test: the same); limits ~2x. Before (calibration off, LIO-SAM's gate): 0.547 m, 5.84 m drift
@@ -32,12 +28,8 @@ APE_LIMIT_M, DRIFT_LIMIT_M = 0.6, 3.0
 
 @pytest.fixture(scope="module")
 def combined_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.recording.recorder import SimRequest, simulate_log
-
-    folder = tmp_path_factory.mktemp("wheels")
-    return simulate_log(folder / "line_combined_float_s3.mcap", replace_paths(Config(), DRIVE),
-                        SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
-                                   seed=3, profile="field"))
+    return simulate_open_line(tmp_path_factory.mktemp("wheels") / "line_combined_float_s3.mcap", seed=3,
+                              wheels=COMBINED_WHEELS)
 
 
 def _run(log: Path, out: Path, rules: dict[str, object]) -> tuple[dict[str, float], dict]:
@@ -78,13 +70,7 @@ TRACK_LIMIT_M = 3.5
 
 @pytest.fixture(scope="module")
 def calibrated_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from mrnc_eval.recording.recorder import SimRequest, simulate_log
-
-    drive = {k: v for k, v in DRIVE.items() if not k.startswith("sim.wheels.")}
-    return simulate_log(tmp_path_factory.mktemp("track") / "line_calibrated_float_s4.mcap",
-                        replace_paths(Config(), drive),
-                        SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
-                                   seed=4, profile="field"))
+    return simulate_open_line(tmp_path_factory.mktemp("track") / "line_calibrated_float_s4.mcap", seed=4)
 
 
 def test_without_wheels_the_gnss_track_holds_the_open_line(calibrated_line: Path, tmp_path: Path) -> None:

@@ -1,0 +1,25 @@
+"""The claims matrix's open line (benchmarks/wheel_gnss_matrix.py): field profile, OS0-32 x 512, 40 s,
+40 m at 1 m/s, low-bandwidth packets, float GNSS; the slow tests simulate it with their own wheels and
+seed."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+from mrnc_eval.config import Config, replace_paths
+
+DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
+         "control.pure_pursuit.max_speed_mps": 1.0, "control.pure_pursuit.speed_cap": False,
+         "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8",
+         "sim.gnss.mode": "float"}
+COMBINED_WHEELS = {"sim.wheels.scale_error": 0.02, "sim.wheels.lr_mismatch": 0.02, "sim.wheels.track_factor": 1.6}
+
+
+def simulate_open_line(path: Path, seed: int, wheels: dict[str, object] | None = None) -> Path:
+    """The open line at `path` (its .gt.tum and .errors.json beside it); `wheels`: sim.wheels.*
+    overrides (default: the field profile's calibrated wheels)."""
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
+
+    return simulate_log(path, replace_paths(Config(), {**DRIVE, **(wheels or {})}),
+                        SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
+                                   seed=seed, profile="field"))
