@@ -301,6 +301,12 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
     if gnss is None or not cfg.enabled or gnss.stamps.size == 0 or cfg.ins == "off" \
             or (cfg.ins == "without_wheels" and with_wheels):
         return None
+    return new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor)
+
+
+def new_ins(gnss: GnssSeries, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
+            base_to_sensor: np.ndarray | None) -> GnssIns:
+    """A GnssIns for the log's frames (no antenna: at the sensor; no base_link: the sensor's x forward)."""
     base = np.eye(4) if base_to_sensor is None else np.asarray(base_to_sensor, float)
     antenna = np.zeros(3) if antenna_in_sensor is None else np.asarray(antenna_in_sensor, float)
     return GnssIns(gnss=gnss, cfg=cfg, forward_in_lidar=base[:3, :3].T @ np.array([1.0, 0.0, 0.0]),

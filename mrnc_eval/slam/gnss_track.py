@@ -27,7 +27,7 @@ import numpy as np
 
 from mrnc_eval.data import GnssSeries
 from mrnc_eval.slam.config import GpsConfig
-from mrnc_eval.slam.gnss_ins import GnssIns
+from mrnc_eval.slam.gnss_ins import GnssIns, new_ins
 
 CHI2_2DOF = 13.8  # 0.1 % of consistent fixes rejected
 
@@ -118,14 +118,6 @@ class GnssTrack:
     next_fix: int = 0
     engaged: bool = False  # the replay has moved a sweep to the track
 
-    @classmethod
-    def build(cls, gnss: GnssSeries, cfg: GpsConfig, antenna_in_lidar: np.ndarray,
-              forward_in_lidar: np.ndarray) -> GnssTrack:
-        return cls(ins=GnssIns(gnss=gnss, cfg=cfg, forward_in_lidar=forward_in_lidar,
-                               antenna_in_lidar=antenna_in_lidar),
-                   filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
-                                      max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s))
-
     def antenna_xy(self, t: float, pose: np.ndarray) -> np.ndarray | None:
         """The antenna's map x, y at t by the fixes (None before the alignment); `pose` is the
         sweep's LiDAR pose as matched, for the alignment's heading."""
@@ -158,9 +150,9 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
     """The track when slam.gps.track asks for it: fixes in the log, GNSS on, no wheel odometry used."""
     if gnss is None or not gnss.stamps.size or not cfg.enabled or cfg.track != "without_wheels" or with_wheels:
         return None
-    base = np.eye(4) if base_to_sensor is None else np.asarray(base_to_sensor, float)
-    antenna = np.zeros(3) if antenna_in_sensor is None else np.asarray(antenna_in_sensor, float)
-    return GnssTrack.build(gnss, cfg, antenna, base[:3, :3].T @ np.array([1.0, 0.0, 0.0]))
+    return GnssTrack(ins=new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor),
+                     filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
+                                        max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s))
 
 
 def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,
