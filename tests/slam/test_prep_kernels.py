@@ -37,7 +37,7 @@ def pk(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     if shutil.which(cc) is None or not (Path(include) / "Python.h").exists():
         missing(f"cannot build {SOURCE.name}: no C compiler ({cc}) or no Python.h in {include}")
     out = tmp_path_factory.mktemp("prep") / ("_prep_kernels" + sysconfig.get_config_var("EXT_SUFFIX"))
-    subprocess.run([cc, "-O3", "-march=native", "-fwrapv", "-Wall", "-Werror", "-shared", "-fPIC", f"-I{include}",
+    subprocess.run([cc, "-O3", "-march=native", "-fwrapv", "-Wall", "-shared", "-fPIC", f"-I{include}",
                     str(SOURCE), "-o", str(out)], check=True)
     spec = importlib.util.spec_from_file_location("mrnc_eval.slam._prep_kernels", out)
     assert spec is not None
