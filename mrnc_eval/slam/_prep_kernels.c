@@ -708,9 +708,10 @@ static PyObject *voxel_centroids(PyObject *self, PyObject *args) {
     }
     for (int64_t j = 0; j < m; j++)
         for (int c = 0; c < 3; c++) sums[3 * j + c] = sums[3 * j + c] / (double)counts[j];
+    free(table), free(counts), free(keys);
     Py_END_ALLOW_THREADS
     PyObject *out = PyByteArray_FromStringAndSize((const char *)sums, (Py_ssize_t)(sizeof(double) * 3 * m));
-    free(table), free(counts), free(keys), free(sums);
+    free(sums);
     release_all(a, 1);
     return out;
 }
