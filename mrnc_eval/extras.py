@@ -4,6 +4,9 @@
 (gtsam, numba, pykdtree) is `mrnc-eval[slam]`, the control chain's compiled kernels
 `[control]`, the simulator `[sim]`, PDF reports `[pdf]` (scripts/setup.sh installs all). A verb
 whose extra is missing stops with MissingExtra naming it, instead of an ImportError deep inside.
+The SLAM's loops are also this package's own C extensions (setup.py): built at install when a C
+compiler and Python's headers are there, optional there so that the base install never fails, and
+checked here the same way, with a message that says how to build them.
 """
 
 from __future__ import annotations
@@ -21,12 +24,25 @@ EXTRAS: dict[str, tuple[str, ...]] = {
     "dask": ("dask", "distributed"),
     "kiss-icp": ("kiss_icp",),
 }
+# extra -> this package's compiled extensions its verbs need (setup.py's Extension lines)
+BUILT: dict[str, tuple[str, ...]] = {
+    "slam": ("mrnc_eval.slam._prep_kernels",),  # range image, deskew, features, gyro track (slam/_prep_kernels.c)
+}
 
 
 def missing_modules(extra: str) -> list[str]:
     """The modules of `extra` that cannot be imported here (found, not imported: cheap)."""
+    return _not_found(EXTRAS[extra])
+
+
+def missing_builds(extra: str) -> list[str]:
+    """The compiled extensions `extra`'s verbs need that were not built at install (found, not imported)."""
+    return _not_found(BUILT.get(extra, ()))
+
+
+def _not_found(names: tuple[str, ...]) -> list[str]:
     out = []
-    for name in EXTRAS[extra]:
+    for name in names:
         try:
             found = importlib.util.find_spec(name) is not None
         except (ImportError, ValueError):  # a blocked or half-installed package
@@ -42,3 +58,10 @@ def require_extra(extra: str, what: str) -> None:
     if missing:
         raise MissingExtra(f"{what} needs the {extra} extra (missing: {', '.join(missing)}): "
                            f"pip install 'mrnc-eval[{extra}]' (or 'mrnc-eval[all]'; scripts/setup.sh installs all)")
+    unbuilt = missing_builds(extra)
+    if unbuilt:
+        raise MissingExtra(f"{what} needs its compiled kernels ({', '.join(unbuilt)}), which were not built when "
+                           "mrnc-eval was installed (no C compiler or no Python headers then): install gcc and the "
+                           "Python headers (Debian: apt-get install gcc python3-dev; scripts/setup.sh does), then "
+                           "reinstall mrnc-eval (pip install --force-reinstall --no-deps --no-cache-dir -e . in a "
+                           "checkout, or bash scripts/setup.sh)")

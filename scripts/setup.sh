@@ -13,8 +13,9 @@ want_test=0
 [[ "${1:-}" == "--test" ]] && want_test=1
 
 # open3d: libusb (import), libGL/libgomp (rendering module, OpenMP); WeasyPrint: Pango;
-# python3-venv: Debian's Python ships venv separately; gcc, python3-dev: the C reader of TUM/KITTI
-# text (mrnc_eval/io/_numtext.c; optional: without them every file goes through the slower pandas path).
+# python3-venv: Debian's Python ships venv separately; gcc, python3-dev: the package's C extensions
+# (setup.py): the SLAM's kernels (mrnc_eval/slam/_prep_kernels.c; without them `slam` and `nightly`
+# stop and say so), the reader of TUM/KITTI text and APE's loops (without those, slower numpy/pandas paths).
 pkgs=(libusb-1.0-0 libgl1 libgomp1 libpango-1.0-0 libpangoft2-1.0-0 libharfbuzz-subset0 fonts-dejavu-core python3-venv
       gcc python3-dev)
 # Tests: headless Chromium opens the HTML report, pdftoppm renders the PDF.
@@ -52,4 +53,7 @@ fi
 extras="all"  # the base install (pip install mrnc-eval) has no SLAM stack; this script installs all
 (( want_test )) && extras="$extras,test"
 .venv/bin/python -m pip install -q -e ".[${extras}]"
+# setup.py's extensions are optional (the base install must not need a compiler): say so when the SLAM's were not built
+.venv/bin/python -c 'import mrnc_eval.slam._prep_kernels' 2>/dev/null \
+  || echo "setup: the SLAM's C kernels were not built (no gcc or python3-dev): install them and run this again" >&2
 echo "setup: ready (.venv, extras: ${extras})" >&2

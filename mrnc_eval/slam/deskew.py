@@ -4,22 +4,11 @@ from a constant-velocity motion estimate (optional; LIO-SAM leaves it out)."""
 from __future__ import annotations
 
 import numpy as np
-from numba import njit
 
+from mrnc_eval.slam import _prep_kernels
 from mrnc_eval.slam.imu import ImuTrack
 
 QUANTUM_S = 1e-3  # rotations tabulated per millisecond: < 0.001 deg error at 1 rad/s
-
-
-@njit(cache=True, nogil=True)
-def _apply(points: np.ndarray, t: np.ndarray, t0: float, table: np.ndarray, velocity: np.ndarray,
-           accel: np.ndarray, out: np.ndarray) -> None:
-    for i in range(points.shape[0]):
-        k = int(np.floor((t[i] - t0) / 1e-3 + 0.5))
-        k = min(max(k, 0), table.shape[0] - 1)
-        for a in range(3):
-            out[i, a] = (table[k, a, 0] * points[i, 0] + table[k, a, 1] * points[i, 1] + table[k, a, 2] * points[i, 2]
-                         + velocity[a] * t[i] + 0.5 * accel[a] * t[i] * t[i])
 
 
 def deskew(points: np.ndarray, point_time: np.ndarray, stamp: float, track: ImuTrack | None,
@@ -39,5 +28,7 @@ def deskew(points: np.ndarray, point_time: np.ndarray, stamp: float, track: ImuT
         table = np.broadcast_to(np.eye(3), (1, 3, 3)).copy()
     v = np.zeros(3) if velocity_sensor is None else np.asarray(velocity_sensor, float)
     acc = np.zeros(3) if accel_sensor is None else np.asarray(accel_sensor, float)
-    _apply(np.ascontiguousarray(points, dtype=np.float64), t, t0, table, v, acc, out)
+    # out_i = R_k p_i + v t_i + a t_i^2 / 2, R_k the table's rotation nearest t_i - t0 (one per QUANTUM_S = 1 ms)
+    _prep_kernels.deskew_apply(np.ascontiguousarray(points, dtype=np.float64), t, t0,
+                               np.ascontiguousarray(table, dtype=np.float64), tuple(v), tuple(acc), out)
     return out

@@ -6,8 +6,8 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
+from mrnc_eval.slam import _prep_kernels
 from mrnc_eval.slam.config import FeatureConfig
 from mrnc_eval.slam.range_image import RangeImage
 
@@ -18,156 +18,14 @@ class Features:
     surfs: np.ndarray  # (Ns, 3)
 
 
-@njit(cache=True, nogil=True)
-def _mark_neighbours(picked: np.ndarray, col: np.ndarray, i: int) -> None:
-    """A selected feature blocks its +/-5 neighbours on the ring, up to a column gap > 10."""
-    n = picked.size
-    picked[i] = True
-    for k in range(1, 6):
-        if i + k < n and abs(col[i + k] - col[i + k - 1]) <= 10:
-            picked[i + k] = True
-        else:
-            break
-    for k in range(1, 6):
-        if i - k >= 0 and abs(col[i - k] - col[i - k + 1]) <= 10:
-            picked[i - k] = True
-        else:
-            break
-
-
-@njit(cache=True, nogil=True)
 def _smoothness(rng: np.ndarray, xyz: np.ndarray, paper: bool) -> np.ndarray:
     """LIO-SAM's code: c = (sum of the 10 neighbour ranges - 10 r_i)^2 (m^2). The paper's formula
     (LOAM): c = |sum_u (p_i - p_u)| / (|S| |p_i|) over the same 10 neighbours (dimensionless; the
-    edge/surf thresholds must then be chosen on that scale)."""
-    n = rng.size
-    curv = np.zeros(n)
-    for i in range(5, n - 5):
-        if paper:
-            acc = 0.0
-            for a in range(3):
-                d = 10.0 * xyz[i, a]
-                for k in range(1, 6):
-                    d -= xyz[i - k, a] + xyz[i + k, a]
-                acc += d * d
-            norm = np.sqrt(xyz[i, 0] ** 2 + xyz[i, 1] ** 2 + xyz[i, 2] ** 2)
-            curv[i] = np.sqrt(acc) / (10.0 * norm) if norm > 0 else 0.0
-        else:
-            d = -10.0 * rng[i]
-            for k in range(1, 6):
-                d += rng[i - k] + rng[i + k]
-            curv[i] = d * d
+    edge/surf thresholds must then be chosen on that scale). 0 for the 5 points at either end."""
+    curv = np.empty(len(rng))
+    _prep_kernels.smoothness(np.ascontiguousarray(rng, dtype=np.float64), np.ascontiguousarray(xyz, dtype=np.float64),
+                             paper, curv)
     return curv
-
-
-@njit(cache=True, nogil=True)
-def _mark_occluded_and_parallel(rng: np.ndarray, col: np.ndarray, occ_jump: float, par_ratio: float) -> np.ndarray:
-    """LIO-SAM's unreliable points: the far side of an occlusion (a range jump > occ_jump between
-    neighbouring columns) and beams nearly parallel to the surface (both neighbours' ranges differ
-    by more than par_ratio r)."""
-    n = rng.size
-    picked = np.zeros(n, np.bool_)
-    for i in range(5, n - 6):  # occlusion
-        if abs(col[i + 1] - col[i]) < 10:
-            if rng[i] - rng[i + 1] > occ_jump:
-                for k in range(i - 5, i + 1):
-                    picked[k] = True
-            elif rng[i + 1] - rng[i] > occ_jump:
-                for k in range(i + 1, i + 7):
-                    picked[k] = True
-    for i in range(5, n - 6):  # parallel beams
-        if abs(rng[i - 1] - rng[i]) > par_ratio * rng[i] and abs(rng[i + 1] - rng[i]) > par_ratio * rng[i]:
-            picked[i] = True
-    return picked
-
-
-@njit(cache=True, nogil=True)
-def _label_sector(sp: int, ep: int, curv: np.ndarray, col: np.ndarray, picked: np.ndarray, label: np.ndarray,
-                  edge_thr: float, surf_thr: float, max_edges: int) -> None:
-    """One sector [sp, ep]: the sharpest unpicked points above edge_thr become edges (at most
-    max_edges), the flattest below surf_thr planes; each blocks its neighbours; every other
-    non-edge point of the sector joins the planar cloud (label -2), as in LIO-SAM."""
-    idx = np.argsort(curv[sp:ep + 1]) + sp
-    count = 0
-    for q in range(idx.size - 1, -1, -1):
-        i = idx[q]
-        if picked[i] or curv[i] <= edge_thr:
-            continue
-        count += 1
-        if count > max_edges:
-            break
-        label[i] = 1
-        _mark_neighbours(picked, col, i)
-    for q in range(idx.size):
-        i = idx[q]
-        if picked[i] or curv[i] >= surf_thr:
-            continue
-        label[i] = -1
-        _mark_neighbours(picked, col, i)
-    for i in range(sp, ep + 1):
-        if label[i] == 0:
-            label[i] = -2
-
-
-@njit(cache=True, nogil=True)
-def _extract(rng: np.ndarray, curv: np.ndarray, col: np.ndarray, ring_start: np.ndarray, ring_end: np.ndarray,
-             edge_thr: float, surf_thr: float, max_edges: int, sectors: int, occ_jump: float,
-             par_ratio: float) -> np.ndarray:
-    """Labels per point: 1 edge, -1 / -2 planar, 0 neither. Rings are split into `sectors` equal
-    sectors so features spread around the sweep."""
-    picked = _mark_occluded_and_parallel(rng, col, occ_jump, par_ratio)
-    label = np.zeros(rng.size, np.int8)
-    for r in range(ring_start.size):
-        s, e = ring_start[r], ring_end[r]
-        if e - s < 6 * sectors:
-            continue
-        for j in range(sectors):
-            sp = (s * (sectors - j) + e * j) // sectors
-            ep = (s * (sectors - 1 - j) + e * (j + 1)) // sectors - 1
-            if sp < ep:
-                _label_sector(sp, ep, curv, col, picked, label, edge_thr, surf_thr, max_edges)
-    return label
-
-
-@njit(cache=True, nogil=True)
-def _voxel_centroids(points: np.ndarray, leaf: float) -> np.ndarray:
-    """Open-addressing hash of packed voxel keys (21 bits per axis): O(N), first-seen order."""
-    n = points.shape[0]
-    cap, bits = 1, 0
-    while cap < 2 * n:
-        cap *= 2
-        bits += 1
-    table = np.full(cap, -1, np.int64)  # slot -> output index
-    keys = np.empty(n, np.int64)
-    sums = np.zeros((n, 3))
-    counts = np.zeros(n, np.int64)
-    m = 0
-    for i in range(n):
-        kx = np.int64(np.floor(points[i, 0] / leaf)) + (1 << 20)
-        ky = np.int64(np.floor(points[i, 1] / leaf)) + (1 << 20)
-        kz = np.int64(np.floor(points[i, 2] / leaf)) + (1 << 20)
-        key = (kx << 42) | (ky << 21) | kz
-        h = ((key * np.int64(-7046029254386353131)) >> (64 - bits)) & (cap - 1)  # Fibonacci hash: top bits
-        while True:
-            j = table[h]
-            if j < 0:
-                table[h] = m
-                keys[m] = key
-                j = m
-                m += 1
-                break
-            if keys[j] == key:
-                break
-            h = (h + 1) & (cap - 1)
-        sums[j, 0] += points[i, 0]
-        sums[j, 1] += points[i, 1]
-        sums[j, 2] += points[i, 2]
-        counts[j] += 1
-    out = np.empty((m, 3))
-    for j in range(m):
-        for a in range(3):
-            out[j, a] = sums[j, a] / counts[j]
-    return out
 
 
 def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
@@ -175,8 +33,9 @@ def voxel_downsample(points: np.ndarray, leaf: float) -> np.ndarray:
     within +/-1e6 per axis."""
     if points.shape[0] == 0 or leaf <= 0:
         return points
-    out: np.ndarray = _voxel_centroids(np.ascontiguousarray(points, dtype=np.float64), float(leaf))
-    return out
+    # an open-addressing hash of packed voxel keys: O(N), first-seen order (slam/_prep_kernels.c)
+    out = _prep_kernels.voxel_centroids(np.ascontiguousarray(points, dtype=np.float64), float(leaf))
+    return np.frombuffer(out, np.float64).reshape(-1, 3)
 
 
 def ground_mask(image: RangeImage, points: np.ndarray, max_angle_deg: float) -> np.ndarray:
@@ -209,10 +68,19 @@ def feature_labels(image: RangeImage, points: np.ndarray | None, cfg: FeatureCon
     counts = np.diff(np.r_[starts, ring.size])
     xyz = image.points if points is None else points
     curv = _smoothness(rng, xyz, cfg.smoothness == "paper")
-    out: np.ndarray = _extract(rng, curv, image.column, starts + 5, starts + counts - 6, cfg.edge_threshold,
-                               cfg.surf_threshold, cfg.max_edges_per_sector, cfg.sectors, cfg.occlusion_jump_m,
-                               cfg.parallel_ratio)
+    # LIO-SAM's unreliable points (occlusions, beams parallel to the surface) blocked, then each ring in
+    # cfg.sectors equal sectors: the sharpest points above edge_threshold edges (at most
+    # max_edges_per_sector), the flattest below surf_threshold planes, each blocking its +/-5 neighbours
+    out = np.empty(ring.size, np.int8)
+    _prep_kernels.extract(np.ascontiguousarray(rng, dtype=np.float64), curv, _int64(image.column),
+                          _int64(starts + 5), _int64(starts + counts - 6), float(cfg.edge_threshold),
+                          float(cfg.surf_threshold), int(cfg.max_edges_per_sector), int(cfg.sectors),
+                          float(cfg.occlusion_jump_m), float(cfg.parallel_ratio), out)
     return out
+
+
+def _int64(a: np.ndarray) -> np.ndarray:
+    return np.ascontiguousarray(a, dtype=np.int64)
 
 
 def vertical_neighbours(image: RangeImage) -> np.ndarray:
@@ -221,42 +89,18 @@ def vertical_neighbours(image: RangeImage) -> np.ndarray:
     n = len(image)
     if n == 0:
         return np.full((0, 2), -1, np.int64)
-    out: np.ndarray = _vertical_neighbours(image.ring, image.column, int(image.ring.max()) + 1,
-                                           int(image.column.max()) + 1)
+    ring, column = _int64(image.ring), _int64(image.column)
+    out = np.empty((n, 2), np.int64)
+    _prep_kernels.vertical_neighbours(ring, column, int(ring.max()) + 1, int(column.max()) + 1, out)
     return out
 
 
-@njit(cache=True, nogil=True)
-def _vertical_neighbours(ring: np.ndarray, col: np.ndarray, rows: int, width: int) -> np.ndarray:
-    grid = np.full((rows, width), -1, np.int64)
-    for i in range(ring.size):
-        grid[ring[i], col[i]] = i
-    out = np.full((ring.size, 2), -1, np.int64)
-    for i in range(ring.size):
-        if ring[i] > 0:
-            out[i, 0] = grid[ring[i] - 1, col[i]]
-        if ring[i] + 1 < rows:
-            out[i, 1] = grid[ring[i] + 1, col[i]]
-    return out
-
-
-@njit(cache=True, nogil=True)
-def _flat_pair(points: np.ndarray, a: int, b: int, tan_max: float) -> bool:
-    """`ground_mask`'s test of one pair, a on the upper ring and b below it, in the same arithmetic."""
-    d0, d1, d2 = points[b, 0] - points[a, 0], points[b, 1] - points[a, 1], points[b, 2] - points[a, 2]
-    return bool(abs(d2) < tan_max * np.hypot(d0, d1) and points[a, 2] < 0 and points[b, 2] < 0)
-
-
-@njit(cache=True, nogil=True)
 def _ground_of(points: np.ndarray, candidates: np.ndarray, vertical: np.ndarray, tan_max: float) -> np.ndarray:
-    """`ground_mask` at the `candidates` only: a point is ground when the pair with its upper or its
-    lower neighbour is flat."""
-    out = np.zeros(candidates.size, np.bool_)
-    for q in range(candidates.size):
-        i = candidates[q]
-        up, down = vertical[i, 0], vertical[i, 1]
-        out[q] = (up >= 0 and _flat_pair(points, up, i, tan_max)) or (down >= 0 and _flat_pair(points, i, down,
-                                                                                                 tan_max))
+    """`ground_mask` at the `candidates` only, in the same arithmetic: a point is ground when the pair
+    with its upper or its lower neighbour is flat."""
+    out = np.empty(len(candidates), bool)
+    _prep_kernels.ground_of(np.ascontiguousarray(points, dtype=np.float64), _int64(candidates), _int64(vertical),
+                            float(tan_max), out)
     return out
 
 

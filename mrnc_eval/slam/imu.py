@@ -11,10 +11,10 @@ from dataclasses import dataclass
 from typing import Any
 
 import numpy as np
-from numba import njit
 
 from mrnc_eval.data import ImuSeries
 from mrnc_eval.geometry import rotation
+from mrnc_eval.slam import _prep_kernels
 from mrnc_eval.slam.config import ImuConfig
 from mrnc_eval.slam.imu_noise import ImuNoiseEstimate
 
@@ -46,27 +46,12 @@ def lidar_to_imu(cfg: ImuConfig, from_tf: np.ndarray | None) -> np.ndarray:
     return T
 
 
-@njit(cache=True)
 def _integrate_gyro(gyro: np.ndarray, dt: np.ndarray) -> np.ndarray:
-    """Quaternions (w, x, y, z) of the raw gyro integration, one per sample (first = identity)."""
-    n = gyro.shape[0]
-    q = np.zeros((n, 4))
-    q[0, 0] = 1.0
-    for i in range(n - 1):
-        wx, wy, wz = gyro[i, 0] * dt[i], gyro[i, 1] * dt[i], gyro[i, 2] * dt[i]
-        ang = np.sqrt(wx * wx + wy * wy + wz * wz)
-        if ang > 1e-12:
-            s = np.sin(0.5 * ang) / ang
-            dw, dx, dy, dz = np.cos(0.5 * ang), wx * s, wy * s, wz * s
-        else:
-            dw, dx, dy, dz = 1.0, 0.5 * wx, 0.5 * wy, 0.5 * wz
-        aw, ax, ay, az = q[i, 0], q[i, 1], q[i, 2], q[i, 3]
-        w = aw * dw - ax * dx - ay * dy - az * dz
-        x = aw * dx + ax * dw + ay * dz - az * dy
-        y = aw * dy - ax * dz + ay * dw + az * dx
-        z = aw * dz + ax * dy - ay * dx + az * dw
-        nrm = np.sqrt(w * w + x * x + y * y + z * z)
-        q[i + 1, 0], q[i + 1, 1], q[i + 1, 2], q[i + 1, 3] = w / nrm, x / nrm, y / nrm, z / nrm
+    """Quaternions (w, x, y, z) of the raw gyro integration, one per sample (first = identity):
+    q_{i+1} = q_i exp(w_i dt_i / 2), renormalised (slam/_prep_kernels.c)."""
+    q = np.zeros((len(gyro), 4))
+    _prep_kernels.integrate_gyro(np.ascontiguousarray(gyro, dtype=np.float64),
+                                 np.ascontiguousarray(dt, dtype=np.float64), q)
     return q
 
 

@@ -7,9 +7,9 @@ from __future__ import annotations
 from dataclasses import dataclass
 
 import numpy as np
-from numba import njit
 
 from mrnc_eval.data import Sweep
+from mrnc_eval.slam import _prep_kernels
 from mrnc_eval.slam.config import FeatureConfig, SensorConfig
 
 
@@ -45,34 +45,26 @@ def outside_box(points: np.ndarray, box: tuple[float, ...] | None) -> np.ndarray
     z_max] (m, cloud frame); all True when box is None."""
     if box is None:
         return np.ones(len(points), bool)
-    keep, _ = _range_and_keep(np.ascontiguousarray(points), -np.inf, np.inf, np.asarray(box, np.float64), True)
+    keep, _ = _range_and_keep(points, -np.inf, np.inf, box)
     return keep
 
 
-@njit(cache=True, nogil=True)
-def _range_and_keep(points: np.ndarray, min_range: float, max_range: float, box: np.ndarray,
-                    use_box: bool) -> tuple[np.ndarray, np.ndarray]:
-    """One pass over the cloud: each point's range (m, float64) and whether it is kept (finite,
-    within [min_range, max_range], outside box [x_min, y_min, z_min, x_max, y_max, z_max] when
-    use_box). numpy needed a float64 copy of the cloud and eight temporaries for the same."""
-    n = points.shape[0]
-    keep = np.empty(n, np.bool_)
-    rng = np.empty(n)
-    for i in range(n):
-        x, y, z = np.float64(points[i, 0]), np.float64(points[i, 1]), np.float64(points[i, 2])
-        r = np.sqrt(x * x + y * y + z * z)
-        rng[i] = r
-        k = np.isfinite(r) and min_range <= r <= max_range
-        if k and use_box:
-            k = not (box[0] <= x <= box[3] and box[1] <= y <= box[4] and box[2] <= z <= box[5])
-        keep[i] = k
+def _range_and_keep(points: np.ndarray, min_range: float, max_range: float,
+                    box: tuple[float, ...] | None) -> tuple[np.ndarray, np.ndarray]:
+    """One pass over the cloud (float32 or float64, read as float64): each point's range (m,
+    float64) and whether it is kept (finite, within [min_range, max_range], outside box [x_min,
+    y_min, z_min, x_max, y_max, z_max] unless None). numpy needed a float64 copy of the cloud and
+    eight temporaries for the same."""
+    pts = _real(points)
+    keep, rng = np.empty(len(pts), bool), np.empty(len(pts))
+    _prep_kernels.range_and_keep(pts, keep, rng, float(min_range), float(max_range),
+                                 None if box is None else tuple(float(v) for v in box))
     return keep, rng
 
 
 def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> RangeImage:
     box = features.body_crop_box_m
-    keep, rng = _range_and_keep(np.ascontiguousarray(sweep.points), features.min_range_m, features.max_range_m,
-                                np.asarray(box if box is not None else np.zeros(6), np.float64), box is not None)
+    keep, rng = _range_and_keep(sweep.points, features.min_range_m, features.max_range_m, box)
     if sweep.ring is not None:
         ring = sweep.ring.astype(np.int64)
     else:
@@ -91,43 +83,30 @@ def project(sweep: Sweep, sensor: SensorConfig, features: FeatureConfig) -> Rang
         pixel, idx = pixel[order], idx[order]
         first = np.r_[True, pixel[1:] != pixel[:-1]]  # first point per pixel wins
         idx = idx[first]
-    has_time = sweep.point_time is not None
-    t_in = np.ascontiguousarray(sweep.point_time) if sweep.point_time is not None else np.zeros(0, np.float32)
-    points, ring_out, col_out, rng_out, t = _gather(np.ascontiguousarray(sweep.points), ring, column, rng, t_in,
-                                                    idx, rate)
-    return RangeImage(points=points, ring=ring_out, column=col_out, range_m=rng_out, point_time=t if has_time else None)
+    return _gather(sweep, ring, column, rng, idx, rate)
 
 
-@njit(cache=True, nogil=True)
 def _kept_in_pixel_order(keep: np.ndarray, ring: np.ndarray, column: np.ndarray, width: int,
                          rate: int) -> tuple[np.ndarray, bool]:
     """Indices of the kept points on every rate-th ring, and whether their pixels (ring * width +
     column) strictly ascend (then they are the image as they come: one point per pixel, in order)."""
     idx = np.empty(keep.size, np.int64)
-    m, last, ordered = 0, np.int64(-1), True
-    for i in range(keep.size):
-        if keep[i] and ring[i] % rate == 0:
-            pixel = ring[i] * width + column[i]
-            if m > 0 and pixel <= last:
-                ordered = False
-            last = pixel
-            idx[m] = i
-            m += 1
+    m, ordered = _prep_kernels.kept_in_pixel_order(keep, ring, column, int(width), int(rate), idx)
     return idx[:m], ordered
 
 
-@njit(cache=True, nogil=True)
-def _gather(points: np.ndarray, ring: np.ndarray, column: np.ndarray, rng: np.ndarray, point_time: np.ndarray,
-            idx: np.ndarray, rate: int) -> tuple[np.ndarray, np.ndarray, np.ndarray, np.ndarray, np.ndarray]:
+def _gather(sweep: Sweep, ring: np.ndarray, column: np.ndarray, rng: np.ndarray, idx: np.ndarray,
+            rate: int) -> RangeImage:
     """The image's arrays at idx in one pass: points and times as float64, ring // rate."""
+    points, t = _real(sweep.points), _real(sweep.point_time if sweep.point_time is not None else np.zeros(0))
     n = idx.size
-    out = np.empty((n, 3))
-    ring_out, col_out, rng_out = np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
-    t = np.empty(n if point_time.size else 0)
-    for j in range(n):
-        i = idx[j]
-        out[j, 0], out[j, 1], out[j, 2] = np.float64(points[i, 0]), np.float64(points[i, 1]), np.float64(points[i, 2])
-        ring_out[j], col_out[j], rng_out[j] = ring[i] // rate, column[i], rng[i]
-        if point_time.size:
-            t[j] = np.float64(point_time[i])
-    return out, ring_out, col_out, rng_out, t
+    out, ring_out, col_out, rng_out = np.empty((n, 3)), np.empty(n, np.int64), np.empty(n, np.int64), np.empty(n)
+    t_out = np.empty(n if t.size else 0)
+    _prep_kernels.gather(points, ring, column, rng, t, idx, rate, out, ring_out, col_out, rng_out, t_out)
+    return RangeImage(points=out, ring=ring_out, column=col_out, range_m=rng_out,
+                      point_time=t_out if sweep.point_time is not None else None)
+
+
+def _real(a: np.ndarray) -> np.ndarray:
+    """`a` as the kernels read it: C-contiguous float32 or float64 (other dtypes as float64)."""
+    return np.ascontiguousarray(a if a.dtype in (np.float32, np.float64) else a.astype(np.float64))

@@ -2,7 +2,7 @@
 feature labels (smoothness from ranges, LIO-SAM's code) and each pixel's vertical neighbours (the
 ground test's pairs). Nothing here depends on the replay's state, so it can run ahead of the
 mapping loop in another thread (the reader's: commands/slam.py) and give the same arrays as
-when it runs in line; the numba kernels it calls release the GIL (nogil), so it overlaps with the
+when it runs in line; the C kernels it calls (slam/_prep_kernels.c) release the GIL, so it overlaps with the
 matching of the sweep before on the other core."""
 
 from __future__ import annotations

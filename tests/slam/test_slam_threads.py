@@ -70,7 +70,7 @@ def test_a_stale_prediction_for_deskew_changes_the_poses(serial: bytes, tmp_path
 
 def test_prepared_sweeps_depend_on_the_sweep_alone_and_the_ground_kernel_matches() -> None:
     """The prepared arrays are the same in any thread, for any state; the ground test at the edge
-    candidates (numba, from the prepared pixel pairs) gives ground_mask's (numpy) answers there."""
+    candidates (C, from the prepared pixel pairs) gives ground_mask's (numpy) answers there."""
     cfg = Config().slam
     with open_log(SAMPLE) as lg:
         sweeps = [s for _, s in zip(range(3), lg.sweeps(), strict=False)]
