@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.containers import describe_error, detect_container, openable
 from mrnc_eval.io.library_errors import data_errors
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
@@ -91,7 +92,22 @@ class LogSource:
         for _topic, t_rec, raw in self.iterate([topic]):
             yield t_rec, raw
 
-    def decode(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
+    def stream(self, topic: str) -> Iterator[tuple[int, bytes | memoryview]]:
+        """`raw(topic)` for one large topic (the clouds): from a single MCAP file straight from its
+        chunks (io/mcap_stream.py: each chunk decompressed once, no copies), each message valid
+        until the next is asked for; through the library when that cannot be planned."""
+        ch = self.channel(topic)
+        if ch.problem:
+            raise InputError(self.path, ch.problem, topic=topic)
+        plan = None
+        if topic not in self.cache and self.container in ("mcap", "ros2-mcap") and len(self.paths) == 1:
+            from mrnc_eval.io.mcap_stream import TopicStream
+
+            with contextlib.suppress(IndexUnusable, *data_errors()):  # the library then reads it, or says why not
+                plan = TopicStream(self.path, topic)
+        yield from plan.messages() if plan is not None else self.raw(topic)
+
+    def decode(self, raw: bytes | memoryview, topic: str) -> Any:  # a rosbags message object
         try:
             return self.src.deserialize(raw, topic)
         except data_errors() as err:
