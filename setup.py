@@ -11,4 +11,7 @@ setup(ext_modules=[
     # APE's alignment sums and aligned distances in one pass; each operation must round on its own
     Extension("mrnc_eval.geometry._kernels", ["mrnc_eval/geometry/_kernels.c"], optional=True,
               extra_compile_args=["-ffp-contract=off"]),
+    # the sweep stream's point gather (io/pointcloud.py; without it numpy gives the same arrays)
+    Extension("mrnc_eval.io._cloud", ["mrnc_eval/io/_cloud.c"], optional=True,
+              extra_compile_args=["-ffp-contract=off"]),
 ])

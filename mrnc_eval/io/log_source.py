@@ -107,7 +107,7 @@ class LogSource:
                 plan = TopicStream(self.path, topic)
         yield from plan.messages() if plan is not None else self.raw(topic)
 
-    def decode(self, raw: bytes | memoryview, topic: str) -> Any:  # a rosbags message object
+    def decode(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         try:
             return self.src.deserialize(raw, topic)
         except data_errors() as err:
@@ -132,7 +132,7 @@ class LogSource:
         for _t, msg in self.timed_messages(topic, expect):
             yield msg
 
-    def header_stamp(self, raw: bytes, topic: str | None = None) -> float:
+    def header_stamp(self, raw: bytes | memoryview, topic: str | None = None) -> float:
         """Header stamp straight from the serialised bytes (no full decode).
         ROS 1: seq u32, then sec u32, nsec u32. CDR: 4-byte encapsulation header (byte 1 odd:
         little endian), then sec i32, nanosec u32."""
@@ -143,7 +143,7 @@ class LogSource:
             sec, nsec = struct.unpack_from("<iI" if raw[1] & 1 else ">iI", raw, 4)
         return float(sec + nsec * 1e-9)
 
-    def checked_header_stamp(self, raw: bytes, topic: str) -> float:
+    def checked_header_stamp(self, raw: bytes | memoryview, topic: str) -> float:
         """`header_stamp`, a message too short for one an InputError."""
         try:
             return self.header_stamp(raw, topic)

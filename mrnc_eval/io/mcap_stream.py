@@ -17,6 +17,7 @@ chunk whose records disagree with its message index.
 
 from __future__ import annotations
 
+import io
 import struct
 import zlib
 from collections.abc import Iterator
@@ -53,7 +54,7 @@ class TopicStream:
 
     def __init__(self, path: Path, topic: str) -> None:
         self.path, self.topic = path, topic
-        self._fh: BinaryIO = path.open("rb")
+        self._fh: io.BufferedReader = path.open("rb")
         try:
             self._chunks = _plan(self._fh, topic)
         except BaseException:
@@ -99,6 +100,15 @@ class _Buffer:
 
     def __init__(self) -> None:
         self._buf = bytearray()
+        self._zstd: Any = None
+
+    def zstd(self) -> Any:
+        """The zstd decompressor writing into this buffer (one context for every chunk)."""
+        if self._zstd is None:
+            import zstandard
+
+            self._zstd = zstandard.ZstdDecompressor()
+        return self._zstd
 
     def view(self, n: int) -> memoryview:
         if n > len(self._buf):
@@ -107,12 +117,12 @@ class _Buffer:
 
 
 def _decompress(source: memoryview, chunk: _Chunk, plain: _Buffer) -> memoryview:
-    """The chunk's records (zstd: into `plain`, in one pass; the frame's end and checksum are read)."""
+    """The chunk's records (zstd: into `plain`, in one pass, the GIL released; the frame's end and
+    checksum are read). rosbags' `backports.zstd.decompress` grows its output in blocks and joins
+    them: ~2x the time on a 6.3 MB chunk."""
     if chunk.compression == "zstd":
-        import zstandard
-
         out = plain.view(chunk.size)
-        reader = zstandard.ZstdDecompressor().stream_reader(source, read_size=len(source))
+        reader = plain.zstd().stream_reader(source, read_size=len(source))
         filled = 0
         while filled < chunk.size:
             n = reader.readinto(out[filled:])

@@ -11,19 +11,19 @@ from __future__ import annotations
 
 import functools
 import sys
-from collections.abc import Sequence
-from types import ModuleType
-from typing import Any, NamedTuple
+from collections.abc import Callable, Sequence
+from dataclasses import dataclass
+from typing import Any
 
 import numpy as np
 
 from mrnc_eval.data import Sweep
 
-_cloud: ModuleType | None
+_gather_c: Callable[..., int] | None
 try:  # io/_cloud.c, built by setup.py when a C compiler is there (optional: numpy gives the same arrays)
-    from mrnc_eval.io import _cloud
+    from mrnc_eval.io._cloud import gather as _gather_c
 except ImportError:
-    _cloud = None
+    _gather_c = None
 _FLOAT32, _UINT16, _NS_TO_S, _ROW, _COLUMN = range(5)  # io/_cloud.c's column kinds
 
 # sensor_msgs/PointField datatypes -> numpy
@@ -36,10 +36,12 @@ class CloudFormatError(ValueError):
 
 @functools.lru_cache(maxsize=16)
 def _cached_dtype(key: tuple[tuple[str, int, int, int], ...], point_step: int, big_endian: bool) -> np.dtype[np.void]:
-    return structured_dtype([_FieldKey(*k) for k in key], point_step, big_endian)
+    fields = [_FieldKey(name=n, offset=o, datatype=d, count=c) for n, o, d, c in key]
+    return structured_dtype(fields, point_step, big_endian)
 
 
-class _FieldKey(NamedTuple):
+@dataclass(frozen=True, kw_only=True)
+class _FieldKey:
     name: str
     offset: int
     datatype: int
@@ -104,17 +106,17 @@ def _numpy_arrays(msg: Any, records: np.ndarray, dtype: np.dtype[Any], names: se
 def _gathered(msg: Any, data: np.ndarray, names: set[str]) -> dict[str, Any] | None:
     """The Sweep's arrays in one pass of io/_cloud.c (equal to `_numpy_arrays`'), for little-endian
     clouds with float32 x/y/z and the usual fields; None otherwise, or without the C module."""
-    plan = _gather_plan(msg, names)
-    if plan is None:
+    plan, gather = _gather_plan(msg, names), _gather_c
+    if plan is None or gather is None:
         return None
     height, width = int(msg.height), int(msg.width)
     n = height * width
     by = {f.name: f for f in msg.fields}
     points = np.empty((n, 3), np.float32)
-    outs = {key: np.empty(n, out_type) for key, _kind, _field, out_type in plan}
+    outs: dict[str, np.ndarray] = {key: np.empty(n, out_type) for key, _kind, _field, out_type in plan}
     columns = tuple((kind, int(by[field].offset) if field else 0, int(by[field].datatype) if field else 0, outs[key])
                     for key, kind, field, _t in plan)
-    kept = _cloud.gather(data, (height, width, int(msg.point_step), int(msg.row_step) or width * int(msg.point_step)),
+    kept = gather(data, (height, width, int(msg.point_step), int(msg.row_step) or width * int(msg.point_step)),
                          tuple(int(by[c].offset) for c in "xyz"), points, columns)
     points.resize((kept, 3), refcheck=False)  # in place (the unused tail is given back)
     for arr in outs.values():
@@ -125,7 +127,7 @@ def _gathered(msg: Any, data: np.ndarray, names: set[str]) -> dict[str, Any] | N
 def _gather_plan(msg: Any, names: set[str]) -> list[tuple[str, int, str, type]] | None:
     """(output, kind, field, dtype) of each array besides the points, or None when the C path
     does not apply (kinds as io/_cloud.c numbers them)."""
-    if _cloud is None or bool(msg.is_bigendian) or sys.byteorder != "little":
+    if _gather_c is None or bool(msg.is_bigendian) or sys.byteorder != "little":
         return None
     by = {f.name: f for f in msg.fields}
     used = [n for n in ("x", "y", "z", "ring", "intensity", "reflectivity", "t", "time", "timestamp") if n in by]

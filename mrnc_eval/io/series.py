@@ -255,7 +255,7 @@ class SeriesReader:
                     continue
                 if keep is not None and not keep(stamp):
                     continue
-                m = parse_cloud(raw, ros1=ros1) or self.src.decode(raw, topic)
+                m = parse_cloud(raw, ros1=ros1) or self.src.decode(bytes(raw), topic)
                 try:
                     sweep = decode_cloud(m, stamp_of(m))
                 except CloudFormatError as err:
