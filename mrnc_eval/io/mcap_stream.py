@@ -50,7 +50,8 @@ class _Chunk:
 
 
 class TopicStream:
-    """`TopicStream(path, topic)` plans (IndexUnusable when it cannot); `messages()` reads."""
+    """`TopicStream(path, topic)` plans (IndexUnusable when it cannot); `messages()` reads, and
+    closes the file when it ends or is closed; `close()` closes it unread."""
 
     def __init__(self, path: Path, topic: str) -> None:
         self.path, self.topic = path, topic
@@ -60,6 +61,9 @@ class TopicStream:
         except BaseException:
             self._fh.close()
             raise
+
+    def close(self) -> None:
+        self._fh.close()
 
     def messages(self) -> Iterator[tuple[int, memoryview]]:
         """(log time ns, message data) in log order; the view is valid until the next one."""

@@ -185,7 +185,7 @@ def _streams(path: Path) -> tuple[list[tuple[int, bytes]], list[tuple[int, bytes
     from mrnc_eval.io.mcap_stream import TopicStream
 
     try:
-        TopicStream(path, "/ouster/points").messages().close()
+        TopicStream(path, "/ouster/points").close()
         planned = True
     except IndexUnusable:
         planned = False
