@@ -15,6 +15,7 @@ from pathlib import Path
 from typing import Any
 
 from mrnc_eval.errors import InputError
+from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.containers import describe_error, detect_container, openable
 from mrnc_eval.io.library_errors import data_errors
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
@@ -91,6 +92,21 @@ class LogSource:
         for _topic, t_rec, raw in self.iterate([topic]):
             yield t_rec, raw
 
+    def stream(self, topic: str) -> Iterator[tuple[int, bytes | memoryview]]:
+        """`raw(topic)` for one large topic (the clouds): from a single MCAP file straight from its
+        chunks (io/mcap_stream.py: each chunk decompressed once, no copies), each message valid
+        until the next is asked for; through the library when that cannot be planned."""
+        ch = self.channel(topic)
+        if ch.problem:
+            raise InputError(self.path, ch.problem, topic=topic)
+        plan = None
+        if topic not in self.cache and self.container in ("mcap", "ros2-mcap") and len(self.paths) == 1:
+            from mrnc_eval.io.mcap_stream import TopicStream
+
+            with contextlib.suppress(IndexUnusable, *data_errors()):  # the library then reads it, or says why not
+                plan = TopicStream(self.path, topic)
+        yield from plan.messages() if plan is not None else self.raw(topic)
+
     def decode(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
         try:
             return self.src.deserialize(raw, topic)
@@ -116,7 +132,7 @@ class LogSource:
         for _t, msg in self.timed_messages(topic, expect):
             yield msg
 
-    def header_stamp(self, raw: bytes, topic: str | None = None) -> float:
+    def header_stamp(self, raw: bytes | memoryview, topic: str | None = None) -> float:
         """Header stamp straight from the serialised bytes (no full decode).
         ROS 1: seq u32, then sec u32, nsec u32. CDR: 4-byte encapsulation header (byte 1 odd:
         little endian), then sec i32, nanosec u32."""
@@ -127,7 +143,7 @@ class LogSource:
             sec, nsec = struct.unpack_from("<iI" if raw[1] & 1 else ">iI", raw, 4)
         return float(sec + nsec * 1e-9)
 
-    def checked_header_stamp(self, raw: bytes, topic: str) -> float:
+    def checked_header_stamp(self, raw: bytes | memoryview, topic: str) -> float:
         """`header_stamp`, a message too short for one an InputError."""
         try:
             return self.header_stamp(raw, topic)

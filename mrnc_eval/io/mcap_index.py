@@ -40,14 +40,14 @@ def overview(path: Path, wants: dict[str, int]) -> Iterator[tuple[str, int, byte
     """(topic, log time ns, data) for every message, in log order; `data` is the whole message
     (wants[topic] == WHOLE) or its first wants[topic] bytes (fewer if the message is shorter)."""
     with path.open("rb") as fh:
-        chunks, topics = _chunk_indexes(fh)
+        chunks, topics = chunk_indexes(fh)
         sources = [_chunk_messages(fh, ci, topics, wants) for ci in chunks]
         for _t, _chunk, position, topic, log_time, data in heapq.merge(*sources):
             if position >= 0:  # not a chunk's opening marker
                 yield topic, log_time, data
 
 
-def _chunk_indexes(fh: BinaryIO) -> tuple[list[Any], dict[int, str]]:
+def chunk_indexes(fh: BinaryIO) -> tuple[list[Any], dict[int, str]]:
     """The chunk indexes (by file position) and channel id -> topic, from the summary section."""
     from mcap.reader import make_reader
 
@@ -75,7 +75,7 @@ def _chunk_messages(fh: BinaryIO, ci: Any, topics: dict[int, str],
     """Merge keys and messages of one chunk: first an opening marker at the chunk's start time
     (so nothing is read before the merge reaches the chunk), then its messages by log time."""
     yield ci.message_start_time, ci.chunk_start_offset, -1, "", 0, b""
-    entries = _read_message_index(fh, ci, topics)
+    entries = read_message_index(fh, ci, topics)
     prefix = _Prefix(fh, ci)
     out = []
     for channel, log_time, offset in entries:
@@ -87,7 +87,7 @@ def _chunk_messages(fh: BinaryIO, ci: Any, topics: dict[int, str],
     yield from out
 
 
-def _read_message_index(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tuple[int, int, int]]:
+def read_message_index(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tuple[int, int, int]]:
     """(channel, log time, offset in the uncompressed chunk) of every message of the chunk."""
     fh.seek(ci.chunk_start_offset + ci.chunk_length)
     block = fh.read(ci.message_index_length)

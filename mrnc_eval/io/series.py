@@ -18,6 +18,7 @@ import numpy as np
 from mrnc_eval import geodesy
 from mrnc_eval.data import GnssSeries, ImuSeries, SidePair, Sweep, Trajectory, Twists, Waypoints
 from mrnc_eval.errors import InputError, NoGnssFix
+from mrnc_eval.io.cloud_msg import parse_cloud
 from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.log_source import LogSource
@@ -245,15 +246,16 @@ class SeriesReader:
             raise InputError(self.src.path, f"expected sensor_msgs/msg/PointCloud2, got {msgtype}", topic=topic)
         last = -np.inf
         skipped = 0
+        ros1 = self.src.channel(topic).encoding == "ros1"
         try:
-            for _t, raw in self.src.raw(topic):
+            for _t, raw in self.src.stream(topic):
                 stamp = self.src.checked_header_stamp(raw, topic)
                 if stamp <= last:
                     skipped += 1
                     continue
                 if keep is not None and not keep(stamp):
                     continue
-                m = self.src.decode(raw, topic)
+                m = parse_cloud(raw, ros1=ros1) or self.src.decode(bytes(raw), topic)
                 try:
                     sweep = decode_cloud(m, stamp_of(m))
                 except CloudFormatError as err:

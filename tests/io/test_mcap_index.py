@@ -110,9 +110,11 @@ def _sweep_read(path: Path) -> None:
 
 def test_slam_read_decompresses_each_mcap_chunk_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
     """Every chunk holds a cloud, and each is decompressed in full once, by the sweep stream
-    (the overview used to decompress them all too)."""
+    (io/mcap_stream.py; the overview used to decompress them all too), never by the library."""
     from mcap.reader import make_reader
     from rosbags.rosbag2 import storage_mcap
+
+    from mrnc_eval.io import mcap_stream
 
     _multi_chunk_log(tmp_path / "a.mcap")
     with (tmp_path / "a.mcap").open("rb") as fh:
@@ -120,15 +122,23 @@ def test_slam_read_decompresses_each_mcap_chunk_once(tmp_path: Path, monkeypatch
     assert summary is not None
     assert len(summary.chunk_indexes) == len(CLOUD_STAMPS)  # the log is what the test means: one cloud a chunk
     decompressed: list[int] = []
-    real = storage_mcap.DECOMPRESSORS["zstd"]
+    by_library: list[int] = []
+    real, real_library = mcap_stream._decompress, storage_mcap.DECOMPRESSORS["zstd"]
 
-    def counting(data: bytes, size: int) -> bytes:
-        decompressed.append(size)
-        return real(data, size)
+    def counting(source: Any, chunk: Any, plain: Any) -> Any:
+        decompressed.append(chunk.size)
+        return real(source, chunk, plain)
 
-    monkeypatch.setitem(storage_mcap.DECOMPRESSORS, "zstd", counting)
+    def counting_library(data: bytes, size: int) -> bytes:
+        by_library.append(size)
+        return real_library(data, size)
+
+    monkeypatch.setattr(mcap_stream, "_decompress", counting)
+    monkeypatch.setitem(storage_mcap.DECOMPRESSORS, "zstd", counting_library)
     _sweep_read(tmp_path / "a.mcap")
     assert len(decompressed) == len(CLOUD_STAMPS)
+    assert sorted(decompressed) == sorted(ci.uncompressed_size for ci in summary.chunk_indexes)
+    assert not by_library
 
 
 @pytest.mark.parametrize("compression", ["lz4", "bz2"])
