@@ -11,4 +11,7 @@ setup(ext_modules=[
     # APE's alignment sums and aligned distances in one pass; each operation must round on its own
     Extension("mrnc_eval.geometry._kernels", ["mrnc_eval/geometry/_kernels.c"], optional=True,
               extra_compile_args=["-ffp-contract=off"]),
+    # scan-to-map matching's fits and rows (slam/scan_to_map.py), the numba kernels' arithmetic and bits
+    Extension("mrnc_eval.slam._match_kernels", ["mrnc_eval/slam/_match_kernels.c"],
+              extra_compile_args=["-ffp-contract=off"]),
 ])
