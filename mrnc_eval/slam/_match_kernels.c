@@ -7,7 +7,7 @@
    left to right, x ** 2 as x * x, sqrt/acos/cos from libm, no FMA contraction (-ffp-contract=off and
    the pragma below), so each IEEE operation rounds on its own and the poses keep their bits.
 
-   Arguments are C-contiguous numpy arrays, checked here: float64 ("d"), int64 ("l"/"q"), bool ("?");
+   Arguments are C-contiguous numpy arrays, checked here: float64 ("d") or int64 ("l"/"q");
    a wrong dtype raises TypeError, a wrong shape, a non-contiguous array or an index outside the map
    ValueError, so no loop can read or write outside its arrays. */
 
@@ -27,7 +27,6 @@
 
 #define F64 'd'
 #define I64 'q'
-#define BOOL '?'
 
 /* The buffer's item code without a native byte-order prefix; NULL for foreign byte order. */
 static const char *item_code(const char *format) {
@@ -48,13 +47,12 @@ static int is_kind(const Py_buffer *v, char kind) {
     switch (kind) {
     case F64: return code[0] == 'd' && v->itemsize == 8;
     case I64: return (code[0] == 'q' || code[0] == 'l') && v->itemsize == 8;
-    case BOOL: return code[0] == '?' && v->itemsize == 1;
     default: return 0;
     }
 }
 
 static const char *kind_name(char kind) {
-    return kind == F64 ? "float64" : kind == I64 ? "int64" : "bool";
+    return kind == F64 ? "float64" : "int64";
 }
 
 /* A C-contiguous array of `kind` with `ndim` dimensions; cols > 0 fixes the last dimension of a 2-d
@@ -187,60 +185,87 @@ static int fit_plane(const double *cloud, const int64_t *idx, double max_offset,
     return 1;
 }
 
-/* Every idx[i, :] of a row with ok[i] lies in [0, size): else -1 (checked before any fit reads). */
-static int check_neighbours(const int64_t *idx, const char *ok, Py_ssize_t n, Py_ssize_t size) {
-    for (Py_ssize_t i = 0; i < n; i++) {
-        if (!ok[i]) continue;
-        for (int k = 0; k < 5; k++)
-            if (idx[5 * i + k] < 0 || idx[5 * i + k] >= size) return -1;
+/* The arguments of fit_planes and fit_lines: the map cloud (m, 3), the 5 neighbours' indices and
+   distances of n features (n, 5), the search bound max_dist (a feature whose 5th neighbour is not
+   nearer has no fit), the fits (k, width) and `rows`, None (n == k: feature i's fit is row i) or
+   (n,) int64 (feature i's fit is row rows[i]). */
+typedef struct {
+    Held h;
+    const double *cloud, *dist;
+    const int64_t *idx, *rows; /* rows NULL: the identity */
+    double *fits, max_dist;
+    Py_ssize_t n, width;
+} FitArgs;
+
+/* Every index a fit will read lies in its array: rows[i] in [0, k); idx[i, :] in [0, m) where the
+   feature is matched. 0, or -1 (checked before any fit reads). */
+static int check_indices(const FitArgs *a, Py_ssize_t m, Py_ssize_t k) {
+    for (Py_ssize_t i = 0; i < a->n; i++) {
+        if (a->rows != NULL && (a->rows[i] < 0 || a->rows[i] >= k)) return -1;
+        if (!(a->dist[5 * i + 4] < a->max_dist)) continue;
+        for (int j = 0; j < 5; j++)
+            if (a->idx[5 * i + j] < 0 || a->idx[5 * i + j] >= m) return -1;
     }
     return 0;
 }
 
-/* Shared checks of fit_planes and fit_lines: cloud (m, 3), idx (n, 5), ok (n,), out (n, cols). */
-static int hold_fit_args(Held *h, PyObject *const *args, Py_ssize_t cols) {
-    if (hold(h, args[0], "cloud", F64, 2, 3, 0) || hold(h, args[1], "idx", I64, 2, 5, 0) ||
-        hold(h, args[2], "ok", BOOL, 1, 0, 0) || hold(h, args[3], "out", F64, 2, cols, 1))
+static int hold_fit_args(FitArgs *a, PyObject *const *o, Py_ssize_t width) {
+    Held *h = &a->h;
+    if (hold(h, o[0], "cloud", F64, 2, 3, 0) || hold(h, o[1], "idx", I64, 2, 5, 0) ||
+        hold(h, o[2], "dist", F64, 2, 5, 0) || hold(h, o[3], "fits", F64, 2, width, 1) ||
+        (o[4] != Py_None && hold(h, o[4], "rows", I64, 1, 0, 0)))
         return -1;
-    Py_ssize_t n = ROWS(*h, 1);
-    if (ROWS(*h, 2) != n || ROWS(*h, 3) != n) {
-        fail(h, PyExc_ValueError, "idx, ok and out differ in length");
+    a->n = ROWS(*h, 1);
+    a->width = width;
+    a->cloud = DATA(*h, 0, double);
+    a->idx = DATA(*h, 1, int64_t);
+    a->dist = DATA(*h, 2, double);
+    a->fits = DATA(*h, 3, double);
+    a->rows = o[4] != Py_None ? DATA(*h, 4, int64_t) : NULL;
+    Py_ssize_t k = ROWS(*h, 3);
+    if (ROWS(*h, 2) != a->n || (a->rows != NULL ? ROWS(*h, 4) : k) != a->n) {
+        fail(h, PyExc_ValueError, "idx, dist and rows (or fits when rows is None) differ in length");
         return -1;
     }
     int bad;
     Py_BEGIN_ALLOW_THREADS
-    bad = check_neighbours(DATA(*h, 1, int64_t), DATA(*h, 2, char), n, ROWS(*h, 0));
+    bad = check_indices(a, ROWS(*h, 0), k);
     Py_END_ALLOW_THREADS
     if (bad) {
-        fail(h, PyExc_ValueError, "idx: a matched neighbour outside the cloud");
+        fail(h, PyExc_ValueError, "idx or rows: an index outside the cloud or the fits");
         return -1;
     }
     return 0;
 }
 
+/* The row of the fits that feature i's fit goes to. */
+static double *fit_row(const FitArgs *a, Py_ssize_t i) {
+    return a->fits + a->width * (a->rows != NULL ? a->rows[i] : i);
+}
+
+static void no_fit(double *row, Py_ssize_t width) {
+    for (Py_ssize_t k = 0; k < width; k++) row[k] = NAN;
+}
+
 static PyObject *fit_planes(PyObject *self, PyObject *args) {
     (void)self;
-    PyObject *o[4];
+    PyObject *o[5];
+    FitArgs a = {.h = {.n = 0}};
     double max_offset, min_spread;
-    if (!PyArg_ParseTuple(args, "OOOddO", &o[0], &o[1], &o[2], &max_offset, &min_spread, &o[3])) return NULL;
-    Held h = {.n = 0};
-    if (hold_fit_args(&h, o, 4) != 0) {
-        release(&h);
+    if (!PyArg_ParseTuple(args, "OOOdddOO", &o[0], &o[1], &o[2], &a.max_dist, &max_offset, &min_spread, &o[3], &o[4]))
+        return NULL;
+    if (hold_fit_args(&a, o, 4) != 0) {
+        release(&a.h);
         return NULL;
     }
-    const double *cloud = DATA(h, 0, double);
-    const int64_t *idx = DATA(h, 1, int64_t);
-    const char *ok = DATA(h, 2, char);
-    double *planes = DATA(h, 3, double);
-    Py_ssize_t n = ROWS(h, 1);
     Py_BEGIN_ALLOW_THREADS
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double *row = planes + 4 * i;
-        if (!ok[i] || !fit_plane(cloud, idx + 5 * i, max_offset, min_spread, row))
-            row[0] = row[1] = row[2] = row[3] = NAN;
+    for (Py_ssize_t i = 0; i < a.n; i++) {
+        double *row = fit_row(&a, i);
+        if (!(a.dist[5 * i + 4] < a.max_dist) || !fit_plane(a.cloud, a.idx + 5 * i, max_offset, min_spread, row))
+            no_fit(row, 4);
     }
     Py_END_ALLOW_THREADS
-    release(&h);
+    release(&a.h);
     Py_RETURN_NONE;
 }
 
@@ -323,26 +348,20 @@ static int fit_line(const double *cloud, const int64_t *idx, double *out) {
 
 static PyObject *fit_lines(PyObject *self, PyObject *args) {
     (void)self;
-    PyObject *o[4];
-    if (!PyArg_ParseTuple(args, "OOOO", &o[0], &o[1], &o[2], &o[3])) return NULL;
-    Held h = {.n = 0};
-    if (hold_fit_args(&h, o, 6) != 0) {
-        release(&h);
+    PyObject *o[5];
+    FitArgs a = {.h = {.n = 0}};
+    if (!PyArg_ParseTuple(args, "OOOdOO", &o[0], &o[1], &o[2], &a.max_dist, &o[3], &o[4])) return NULL;
+    if (hold_fit_args(&a, o, 6) != 0) {
+        release(&a.h);
         return NULL;
     }
-    const double *cloud = DATA(h, 0, double);
-    const int64_t *idx = DATA(h, 1, int64_t);
-    const char *ok = DATA(h, 2, char);
-    double *lines = DATA(h, 3, double);
-    Py_ssize_t n = ROWS(h, 1);
     Py_BEGIN_ALLOW_THREADS
-    for (Py_ssize_t i = 0; i < n; i++) {
-        double *row = lines + 6 * i;
-        if (!ok[i] || !fit_line(cloud, idx + 5 * i, row))
-            for (int k = 0; k < 6; k++) row[k] = NAN;
+    for (Py_ssize_t i = 0; i < a.n; i++) {
+        double *row = fit_row(&a, i);
+        if (!(a.dist[5 * i + 4] < a.max_dist) || !fit_line(a.cloud, a.idx + 5 * i, row)) no_fit(row, 6);
     }
     Py_END_ALLOW_THREADS
-    release(&h);
+    release(&a.h);
     Py_RETURN_NONE;
 }
 
@@ -362,9 +381,12 @@ static void write_row(double *J, double *r, const double *q, const double *o, co
     *r = s * residual;
 }
 
-/* Point-to-plane rows (LIO-SAM): pd = n.q + d, weight s = 1 - 0.9 |pd| / sqrt(|q|), kept when s > 0.1. */
-static Py_ssize_t plane_rows_loop(const double *q, Py_ssize_t n, const double *o, const double *planes, double *J,
-                                  double *r) {
+/* Point-to-plane rows (LIO-SAM): pd = n.q + d, weight s = 1 - 0.9 |pd| / sqrt(|q|), kept when s > 0.1.
+   With min_normal_z > 0, a row whose normal is within acos(min_normal_z) of the z axis (ground:
+   |s n_z| > min_normal_z |s n|, the norm summed as numpy's) keeps only its z, roll and pitch columns
+   (LeGO-LOAM's split; scan_to_map.py's `_stacked_rows` says why). */
+static Py_ssize_t plane_rows_loop(const double *q, Py_ssize_t n, const double *o, const double *planes,
+                                  double min_normal_z, double *J, double *r) {
     Py_ssize_t m = 0;
     for (Py_ssize_t i = 0; i < n; i++) {
         const double *pl = planes + 4 * i, *qi = q + 3 * i;
@@ -372,7 +394,11 @@ static Py_ssize_t plane_rows_loop(const double *q, Py_ssize_t n, const double *o
         double pd = pl[0] * qi[0] + pl[1] * qi[1] + pl[2] * qi[2] + pl[3];
         double s = 1.0 - 0.9 * fabs(pd) / sqrt(sqrt(qi[0] * qi[0] + qi[1] * qi[1] + qi[2] * qi[2]) + 1e-9);
         if (s <= 0.1) continue;
-        write_row(J + 6 * m, r + m, qi, o, pl, s, pd);
+        double *row = J + 6 * m;
+        write_row(row, r + m, qi, o, pl, s, pd);
+        if (min_normal_z > 0 &&
+            fabs(row[5]) > min_normal_z * sqrt(row[3] * row[3] + row[4] * row[4] + row[5] * row[5]))
+            row[2] = row[3] = row[4] = 0.0;
         m++;
     }
     return m;
@@ -400,10 +426,14 @@ static Py_ssize_t edge_rows_loop(const double *q, Py_ssize_t n, const double *o,
     return m;
 }
 
-/* rows(q, origin, fits, J, r) for planes (fit width 4) or lines (6): the number of rows written. */
+/* rows(q, origin, fits, [min_normal_z,] J, r) for planes (fit width 4) or lines (6): the number of
+   rows written. */
 static PyObject *rows(PyObject *args, Py_ssize_t width) {
     PyObject *o[5];
-    if (!PyArg_ParseTuple(args, "OOOOO", &o[0], &o[1], &o[2], &o[3], &o[4])) return NULL;
+    double min_normal_z = 0.0;
+    int parsed = width == 4 ? PyArg_ParseTuple(args, "OOOdOO", &o[0], &o[1], &o[2], &min_normal_z, &o[3], &o[4])
+                            : PyArg_ParseTuple(args, "OOOOO", &o[0], &o[1], &o[2], &o[3], &o[4]);
+    if (!parsed) return NULL;
     Held h = {.n = 0};
     if (hold(&h, o[0], "q", F64, 2, 3, 0) || hold(&h, o[1], "origin", F64, 1, 0, 0) ||
         hold(&h, o[2], "fits", F64, 2, width, 0) || hold(&h, o[3], "J", F64, 2, 6, 1) ||
@@ -415,10 +445,11 @@ static PyObject *rows(PyObject *args, Py_ssize_t width) {
     if (ROWS(h, 1) != 3) return fail(&h, PyExc_ValueError, "origin: expected shape (3,)");
     if (ROWS(h, 2) != n || ROWS(h, 3) < n || ROWS(h, 4) < n)
         return fail(&h, PyExc_ValueError, "fits must have q's rows, J and r at least as many");
+    const double *q = DATA(h, 0, double), *origin = DATA(h, 1, double), *fits = DATA(h, 2, double);
+    double *J = DATA(h, 3, double), *r = DATA(h, 4, double);
     Py_ssize_t m;
     Py_BEGIN_ALLOW_THREADS
-    m = (width == 4 ? plane_rows_loop : edge_rows_loop)(DATA(h, 0, double), n, DATA(h, 1, double),
-                                                        DATA(h, 2, double), DATA(h, 3, double), DATA(h, 4, double));
+    m = width == 4 ? plane_rows_loop(q, n, origin, fits, min_normal_z, J, r) : edge_rows_loop(q, n, origin, fits, J, r);
     Py_END_ALLOW_THREADS
     release(&h);
     return PyLong_FromSsize_t(m);
@@ -434,7 +465,7 @@ static PyObject *edge_rows(PyObject *self, PyObject *args) {
     return rows(args, 6);
 }
 
-/* ---- the re-query test and the ground rows ---- */
+/* ---- the re-query test ---- */
 
 static PyObject *moved(PyObject *self, PyObject *args) {
     (void)self;
@@ -463,43 +494,20 @@ static PyObject *moved(PyObject *self, PyObject *args) {
     return PyLong_FromSsize_t(count);
 }
 
-static PyObject *zero_ground_xy_yaw(PyObject *self, PyObject *args) {
-    (void)self;
-    PyObject *o;
-    double min_normal_z;
-    if (!PyArg_ParseTuple(args, "Od", &o, &min_normal_z)) return NULL;
-    Held h = {.n = 0};
-    if (hold(&h, o, "J", F64, 2, 6, 1)) {
-        release(&h);
-        return NULL;
-    }
-    Py_ssize_t n = ROWS(h, 0);
-    double *J = DATA(h, 0, double);
-    Py_BEGIN_ALLOW_THREADS
-    for (Py_ssize_t m = 0; m < n; m++) {
-        double *row = J + 6 * m, n0 = row[3], n1 = row[4], n2 = row[5];
-        if (fabs(n2) > min_normal_z * sqrt(n0 * n0 + n1 * n1 + n2 * n2)) row[2] = row[3] = row[4] = 0.0;
-    }
-    Py_END_ALLOW_THREADS
-    release(&h);
-    Py_RETURN_NONE;
-}
-
 static PyMethodDef methods[] = {
     {"fit_planes", fit_planes, METH_VARARGS,
-     "fit_planes(cloud, idx, ok, max_offset, min_spread, planes): the plane [n, d] of each row's 5 neighbours "
-     "cloud[idx[i]] into planes (n, 4), NaN where none."},
+     "fit_planes(cloud, idx, dist, max_dist, max_offset, min_spread, planes, rows): the plane [n, d] of each "
+     "feature's 5 neighbours cloud[idx[i]] into planes[rows[i]] (rows None: planes[i]), NaN where none."},
     {"fit_lines", fit_lines, METH_VARARGS,
-     "fit_lines(cloud, idx, ok, lines): the line [centroid, unit direction] of each row's 5 neighbours into "
-     "lines (n, 6), NaN where none."},
+     "fit_lines(cloud, idx, dist, max_dist, lines, rows): the line [centroid, unit direction] of each "
+     "feature's 5 neighbours into lines[rows[i]] (rows None: lines[i]), NaN where none."},
     {"plane_rows", plane_rows, METH_VARARGS,
-     "plane_rows(q, origin, planes, J, r) -> m: point-to-plane Jacobian rows and residuals, the first m written."},
+     "plane_rows(q, origin, planes, min_normal_z, J, r) -> m: point-to-plane Jacobian rows and residuals, the "
+     "first m written; ground rows vertical-only when min_normal_z > 0."},
     {"edge_rows", edge_rows, METH_VARARGS,
      "edge_rows(q, origin, lines, J, r) -> m: point-to-line Jacobian rows and residuals, the first m written."},
     {"moved", moved, METH_VARARGS,
      "moved(q, queried_at, requery_m, out) -> k: out[:k] = the rows farther than requery_m from queried_at."},
-    {"zero_ground_xy_yaw", zero_ground_xy_yaw, METH_VARARGS,
-     "zero_ground_xy_yaw(J, min_normal_z): zero columns 2-4 of the rows whose |n_z| > min_normal_z |n|."},
     {NULL, NULL, 0, NULL},
 };
 

@@ -69,45 +69,52 @@ class _Correspondences:
     that far has no correspondence anyway."""
 
     def __init__(self, tree: KdTree, cloud: np.ndarray, kind: Correspondence, max_sq: float, max_offset: float,
-                 requery_m: float, min_spread: float = 0.0) -> None:
+                 requery_m: float, min_spread: float = 0.0, ground_min_z: float = 0.0) -> None:
         self.tree, self.kind = tree, kind
         self.cloud = np.ascontiguousarray(cloud, np.float64)  # the C fits read float64 rows
         self.max_dist, self.max_offset, self.requery_m = max_sq ** 0.5, max_offset, requery_m
-        self.min_spread = min_spread
+        self.min_spread, self.ground_min_z = min_spread, ground_min_z
         self.queried_at: np.ndarray | None = None  # (n, 3) map position of each feature at its last query
-        self.fits = np.zeros((0, 6))
+        self.fits = np.zeros((0, 6))  # (n, 4) planes [n, d] or (n, 6) lines [centroid, direction]; NaN: none
+        self.moved = np.zeros(0, np.int64)  # the re-query test's buffer: indices of the features that moved
 
-    def rows(self, features: np.ndarray, T: np.ndarray,
-             pivot: np.ndarray | None = None) -> tuple[np.ndarray, np.ndarray]:
-        """Residual rows of the features (sensor frame) at pose T: Jacobian (m, 6) w.r.t. the
-        perturbation T <- [exp(dtheta) R, t + dt] (rotation about the sensor, map axes; about the
-        point `pivot` of the sensor frame when given) and residual (m,)."""
+    def rows(self, features: np.ndarray, T: np.ndarray, pivot: np.ndarray | None, J: np.ndarray,
+             r: np.ndarray) -> int:
+        """Residual rows of the features (sensor frame) at pose T, written into J[:m] (Jacobian
+        w.r.t. the perturbation T <- [exp(dtheta) R, t + dt]: rotation about the sensor, map axes;
+        about the point `pivot` of the sensor frame when given) and r[:m]; returns m. Planes whose
+        normal is within acos(ground_min_z) of the map's z axis (ground; 0 = off) keep only their
+        z, roll and pitch columns (LeGO-LOAM's split: the ground fixes z, roll and pitch, the rest
+        of the scene x, y and yaw): the small tilts of rough-ground normals otherwise pose as x, y
+        and yaw information that the degeneracy test trusts (eigenvalues of J^T J in the hundreds
+        on bare ground), and the yaw walks by degrees per sweep."""
         q = se3.apply(T, features)
         if self.queried_at is None:
-            self.fits, self.queried_at = self._fit(q), q
+            self.fits = np.empty((len(q), 4 if self.kind is Correspondence.PLANE else 6))
+            self.moved = np.empty(len(q), np.int64)
+            self._fit(q, None)
+            self.queried_at = q
         else:
-            moved = np.empty(len(q), np.int64)
-            moved = moved[:_match_kernels.moved(q, self.queried_at, self.requery_m, moved)]
+            moved = self.moved[:_match_kernels.moved(q, self.queried_at, self.requery_m, self.moved)]
             if moved.size:
-                self.fits[moved] = self._fit(q[moved])
-                self.queried_at[moved] = q[moved]
-        J, r = np.empty((len(q), 6)), np.empty(len(q))
+                q_moved = q[moved]
+                self._fit(q_moved, moved)
+                self.queried_at[moved] = q_moved
         origin = np.ascontiguousarray(T[:3, 3] if pivot is None else T[:3, :3] @ pivot + T[:3, 3], np.float64)
-        m = (_match_kernels.plane_rows(q, origin, self.fits, J, r) if self.kind is Correspondence.PLANE
-             else _match_kernels.edge_rows(q, origin, self.fits, J, r))
-        return J[:m], r[:m]
-
-    def _fit(self, q: np.ndarray) -> np.ndarray:
-        """The plane (n, 4) or line (n, 6) rows of the map points q (`_match_kernels.c`: fit_planes, fit_lines)."""
-        d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
-        ok = d[:, 4] < self.max_dist  # unmatched rows' indices point past the cloud's end: not read
         if self.kind is Correspondence.PLANE:
-            fits = np.empty((len(q), 4))
-            _match_kernels.fit_planes(self.cloud, idx, ok, self.max_offset, self.min_spread, fits)
+            return _match_kernels.plane_rows(q, origin, self.fits, self.ground_min_z, J, r)
+        return _match_kernels.edge_rows(q, origin, self.fits, J, r)
+
+    def _fit(self, q: np.ndarray, rows: np.ndarray | None) -> None:
+        """Query the map points q's neighbours and fit their planes or lines into self.fits[rows]
+        (rows None: all). A feature whose 5th neighbour is not within max_dist gets none (its
+        indices point past the cloud's end and are not read)."""
+        d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
+        if self.kind is Correspondence.PLANE:
+            _match_kernels.fit_planes(self.cloud, idx, d, self.max_dist, self.max_offset, self.min_spread,
+                                      self.fits, rows)
         else:
-            fits = np.empty((len(q), 6))
-            _match_kernels.fit_lines(self.cloud, idx, ok, fits)
-        return fits
+            _match_kernels.fit_lines(self.cloud, idx, d, self.max_dist, self.fits, rows)
 
 
 def _tangent_from(guess: np.ndarray, T: np.ndarray) -> np.ndarray:
@@ -132,15 +139,6 @@ def _about_sensor(directions: np.ndarray, pivot_offset: np.ndarray) -> np.ndarra
     return np.asarray(moved / np.linalg.norm(moved, axis=1, keepdims=True), np.float64)
 
 
-def _ground_rows_vertical_only(J: np.ndarray, min_normal_z: float) -> None:
-    """Plane rows whose normal is within acos(min_normal_z) of the map's z axis (ground) keep only
-    their z, roll and pitch columns, in place (LeGO-LOAM's split: the ground fixes z, roll and
-    pitch, the rest of the scene x, y and yaw). The small tilts of rough-ground normals otherwise
-    pose as x, y and yaw information that the degeneracy test trusts (eigenvalues of J^T J in the
-    hundreds on bare ground), and the yaw walks by degrees per sweep."""
-    _match_kernels.zero_ground_xy_yaw(J, min_normal_z)
-
-
 def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.ndarray,
           cfg: MatchingConfig, prior: np.ndarray | None = None, pivot: np.ndarray | None = None) -> MatchResult:
     """Refine `guess` (4x4) so the sweep's features lie on the map's lines and planes. `prior` (6,),
@@ -159,10 +157,12 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
     edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, Correspondence.LINE, cfg.max_nn_sq_dist_m2,
                                   0.0, cfg.requery_motion_m) if use_edges and local_map.edge_tree is not None else None)
     surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, Correspondence.PLANE, cfg.max_nn_sq_dist_m2,
-                                 cfg.plane_max_offset_m, cfg.requery_motion_m, cfg.plane_min_spread_m)
+                                 cfg.plane_max_offset_m, cfg.requery_motion_m, cfg.plane_min_spread_m,
+                                 cfg.ground_normal_min_z)
     T, deg, converged, it = guess.copy(), _Degeneracy(), False, 0
+    rows = np.empty((len(edges) + len(surfs), 6)), np.empty(len(edges) + len(surfs))  # every iteration's J, r
     for it in range(1, cfg.max_iterations + 1):
-        J, r = _stacked_rows(edge_corr, surf_corr, edges, surfs, T, pivot, cfg.ground_normal_min_z)
+        J, r = _stacked_rows(edge_corr, surf_corr, edges, surfs, T, pivot, rows)
         if r.size < cfg.min_correspondences:
             break
         H, g = J.T @ J, -J.T @ r
@@ -237,10 +237,10 @@ def _small(dx: np.ndarray, cfg: MatchingConfig) -> bool:
 
 def _stacked_rows(edge_corr: _Correspondences | None, surf_corr: _Correspondences, edges: np.ndarray,
                   surfs: np.ndarray, T: np.ndarray, pivot: np.ndarray | None,
-                  ground_normal_min_z: float) -> tuple[np.ndarray, np.ndarray]:
-    """The edge rows, then the plane rows (ground planes vertical-only when ground_normal_min_z > 0)."""
-    Je, re = edge_corr.rows(edges, T, pivot) if edge_corr is not None else (np.zeros((0, 6)), np.zeros(0))
-    Js, rs = surf_corr.rows(surfs, T, pivot)
-    if ground_normal_min_z > 0:
-        _ground_rows_vertical_only(Js, ground_normal_min_z)
-    return np.r_[Je, Js], np.r_[re, rs]
+                  rows: tuple[np.ndarray, np.ndarray]) -> tuple[np.ndarray, np.ndarray]:
+    """The edge rows, then the plane rows: J (m, 6) and r (m,), the leading rows of the buffers `rows`
+    (n_edges + n_surfs rows; one allocation per match, not two per iteration and a concatenation)."""
+    J, r = rows
+    m = edge_corr.rows(edges, T, pivot, J, r) if edge_corr is not None else 0
+    m += surf_corr.rows(surfs, T, pivot, J[m:], r[m:])
+    return J[:m], r[:m]
