@@ -12,6 +12,9 @@ import shutil
 import subprocess
 import sys
 import sysconfig
+import threading
+import time
+from collections.abc import Callable
 from pathlib import Path
 from types import ModuleType
 
@@ -310,3 +313,43 @@ def test_scan_to_map_imports_no_numba() -> None:
                              cwd=REPO, env={**os.environ, "PYTHONPATH": str(REPO)}, check=False)
         assert run.returncode == 0, run.stderr[-2000:]
         assert run.stdout.strip() == expected
+
+
+def _longest_pause(work: Callable[[], object]) -> tuple[float, float]:
+    """Run `work` in a thread while this thread spins: the longest gap (s) between two of this
+    thread's iterations, and the work's duration (s). A call that holds the GIL stalls the spin
+    for its whole duration; one that releases it, for about a switch interval."""
+    done = threading.Event()
+
+    def run() -> None:
+        work()
+        done.set()
+
+    worker = threading.Thread(target=run)
+    start = last = time.perf_counter()
+    gap = 0.0
+    worker.start()
+    while not done.is_set():
+        now = time.perf_counter()
+        gap, last = max(gap, now - last), now
+    worker.join()
+    return gap, time.perf_counter() - start
+
+
+def test_the_kernels_release_the_gil(kernels: ModuleType) -> None:
+    """The reader thread decodes beside the matching: a fit over 400,000 features (~50 ms) leaves
+    this thread running. Negative control: sorting a list (C, holding the GIL) stalls it."""
+    rng = np.random.default_rng(10)
+    cloud = rng.normal(size=(50_000, 3)) * 20.0
+    idx = rng.integers(0, len(cloud), size=(400_000, 5))
+    dist, lines = np.zeros((400_000, 5)), np.empty((400_000, 6))
+    floats = rng.random(1_500_000).tolist()
+    old = sys.getswitchinterval()
+    sys.setswitchinterval(0.001)
+    try:  # best of three: a loaded machine can deschedule this thread now and then
+        fit = min(_longest_pause(lambda: kernels.fit_lines(cloud, idx, dist, 1.0, lines, None)) for _ in range(3))
+        held = min(_longest_pause(lambda: sorted(floats)) for _ in range(3))
+    finally:
+        sys.setswitchinterval(old)
+    assert fit[0] < 0.3 * fit[1], fit
+    assert held[0] > 0.5 * held[1], held
