@@ -11,20 +11,23 @@ import numpy as np
 from mrnc_eval.geometry import rotation, se3
 from mrnc_eval.slam import _match_kernels
 from mrnc_eval.slam.config import MatchingConfig
-from mrnc_eval.slam.nearest import KdTree
 
 
 @dataclass(kw_only=True)
 class LocalMap:
     edges: np.ndarray
     surfs: np.ndarray
-    edge_tree: KdTree | None
-    surf_tree: KdTree | None
+    edge_tree: object | None  # `_match_kernels.build_tree`'s k-d tree of edges; None below 5 points
+    surf_tree: object | None
 
     @classmethod
     def build(cls, edges: np.ndarray, surfs: np.ndarray) -> LocalMap:
-        return cls(edges=edges, surfs=surfs, edge_tree=KdTree(edges) if len(edges) >= 5 else None,
-                   surf_tree=KdTree(surfs) if len(surfs) >= 5 else None)
+        return cls(edges=edges, surfs=surfs, edge_tree=_tree(edges) if len(edges) >= 5 else None,
+                   surf_tree=_tree(surfs) if len(surfs) >= 5 else None)
+
+
+def _tree(points: np.ndarray) -> object:
+    return _match_kernels.build_tree(np.ascontiguousarray(points, np.float64))
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -68,10 +71,9 @@ class _Correspondences:
     Neighbours farther than sqrt(max_sq) are not searched for: a feature whose 5th neighbour is
     that far has no correspondence anyway."""
 
-    def __init__(self, tree: KdTree, cloud: np.ndarray, kind: Correspondence, max_sq: float, max_offset: float,
+    def __init__(self, tree: object, kind: Correspondence, max_sq: float, max_offset: float,
                  requery_m: float, min_spread: float = 0.0, ground_min_z: float = 0.0) -> None:
         self.tree, self.kind = tree, kind
-        self.cloud = np.ascontiguousarray(cloud, np.float64)  # the C fits read float64 rows
         self.max_dist, self.max_offset, self.requery_m = max_sq ** 0.5, max_offset, requery_m
         self.min_spread, self.ground_min_z = min_spread, ground_min_z
         self.queried_at: np.ndarray | None = None  # (n, 3) map position of each feature at its last query
@@ -106,15 +108,13 @@ class _Correspondences:
         return _match_kernels.edge_rows(q, origin, self.fits, J, r)
 
     def _fit(self, q: np.ndarray, rows: np.ndarray | None) -> None:
-        """Query the map points q's neighbours and fit their planes or lines into self.fits[rows]
-        (rows None: all). A feature whose 5th neighbour is not within max_dist gets none (its
-        indices point past the cloud's end and are not read)."""
-        d, idx = self.tree.query(q, k=5, max_dist=self.max_dist)
+        """Search the 5 nearest map points of the map points q and fit their planes or lines into
+        self.fits[rows] (rows None: all), in one C pass; a feature whose 5th neighbour is not
+        within max_dist gets none (NaN)."""
         if self.kind is Correspondence.PLANE:
-            _match_kernels.fit_planes(self.cloud, idx, d, self.max_dist, self.max_offset, self.min_spread,
-                                      self.fits, rows)
+            _match_kernels.fit_planes(self.tree, q, self.max_dist, self.max_offset, self.min_spread, self.fits, rows)
         else:
-            _match_kernels.fit_lines(self.cloud, idx, d, self.max_dist, self.fits, rows)
+            _match_kernels.fit_lines(self.tree, q, self.max_dist, self.fits, rows)
 
 
 def _tangent_from(guess: np.ndarray, T: np.ndarray) -> np.ndarray:
@@ -154,9 +154,9 @@ def match(edges: np.ndarray, surfs: np.ndarray, local_map: LocalMap, guess: np.n
             or (not use_edges and not cfg.match_without_edges)):
         return MatchResult(pose=guess, iterations=0, converged=False, degenerate=False, min_eigenvalue=float("nan"),
                            n_edges=len(edges), n_surfs=len(surfs), optimised=False)
-    edge_corr = (_Correspondences(local_map.edge_tree, local_map.edges, Correspondence.LINE, cfg.max_nn_sq_dist_m2,
-                                  0.0, cfg.requery_motion_m) if use_edges and local_map.edge_tree is not None else None)
-    surf_corr = _Correspondences(local_map.surf_tree, local_map.surfs, Correspondence.PLANE, cfg.max_nn_sq_dist_m2,
+    edge_corr = (_Correspondences(local_map.edge_tree, Correspondence.LINE, cfg.max_nn_sq_dist_m2, 0.0,
+                                  cfg.requery_motion_m) if use_edges and local_map.edge_tree is not None else None)
+    surf_corr = _Correspondences(local_map.surf_tree, Correspondence.PLANE, cfg.max_nn_sq_dist_m2,
                                  cfg.plane_max_offset_m, cfg.requery_motion_m, cfg.plane_min_spread_m,
                                  cfg.ground_normal_min_z)
     T, deg, converged, it = guess.copy(), _Degeneracy(), False, 0
