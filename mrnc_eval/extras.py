@@ -26,7 +26,8 @@ EXTRAS: dict[str, tuple[str, ...]] = {
 }
 # extra -> this package's compiled extensions its verbs need (setup.py's Extension lines)
 BUILT: dict[str, tuple[str, ...]] = {
-    "slam": ("mrnc_eval.slam._prep_kernels",),  # range image, deskew, features, gyro track (slam/_prep_kernels.c)
+    "slam": ("mrnc_eval.slam._prep_kernels",  # range image, deskew, features, gyro track (slam/_prep_kernels.c)
+             "mrnc_eval.slam._match_kernels"),  # scan-to-map's map search, fits and rows (slam/_match_kernels.c)
 }
 
 

@@ -1,6 +1,7 @@
 """A SLAM run imports only what it uses: with open3d refused by the import system it still closes
 loops (slam/icp.py) and writes map.ply and map.pcd (io/ply.py, io/pcd.py), and it imports neither
-open3d nor the report stack (matplotlib, pandas, weasyprint, dask), nor scipy.spatial. The same block makes `simulate`,
+open3d nor the report stack (matplotlib, pandas, weasyprint, dask), nor scipy, numba or llvmlite (the
+SLAM's kernels are C: slam/_prep_kernels.c, slam/_match_kernels.c). The same block makes `simulate`,
 which does need open3d (ray casting), fail: the negative control that the block works."""
 
 from __future__ import annotations
@@ -20,8 +21,8 @@ from mrnc_eval.results import read_result
 REPO = Path(__file__).resolve().parents[2]
 LOG = REPO / "sample_logs" / "loop_forest.bag"
 BLOCKED = ("open3d",)
-# scipy.spatial: the SLAM's rotations are geometry/rotation.py's (numba itself still imports scipy's core)
-NOT_IN_A_SLAM_RUN = ("open3d", "matplotlib", "pandas", "weasyprint", "dask", "scipy.spatial")
+# scipy: the SLAM's rotations are geometry/rotation.py's; numba and llvmlite: its kernels are C
+NOT_IN_A_SLAM_RUN = ("open3d", "matplotlib", "pandas", "weasyprint", "dask", "scipy", "numba", "llvmlite")
 
 SCRIPT = textwrap.dedent("""
     import importlib.abc, json, sys
