@@ -307,7 +307,7 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
             with Prefetched(stream, depth=4) as sweeps:
                 return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
         threads = run_threads(cfg.slam.threads)
-        warmup_ms = warm_up(cfg.slam)  # before the reader starts: numba's compiler is not shared with it
+        warmup_ms = warm_up(cfg.slam)  # first-use costs, before the reader starts and the clock runs
         # the reader takes one core and prepares what needs no pose there; the KD-tree queries' OpenMP
         # team the rest (two cores: one each, no team to wake per query batch while the reader holds
         # the other core). One thread: the raw sweeps, prepared in line by run_slam after its read timer.
@@ -532,7 +532,7 @@ def _add_run_metrics(result: RunResult, out: SlamOutput, inputs: LogInputs, meth
 
 def _stage_timing(out: SlamOutput) -> dict[str, dict[str, float]]:
     """Mean, p95 and max ms per stage. One-off costs are not in them: the warm-up before the loop
-    pays numba's compilation (slam/warmup.py, reported as warmup_ms) and the first sweep, which
+    pays first-use costs (slam/warmup.py, reported as warmup_ms) and the first sweep, which
     also starts the graphs, is left out (reported as first_sweep_ms)."""
     timing = {}
     for stage in STAGES:

@@ -153,13 +153,13 @@ def _key_table(title: str, rows: list[tuple[str, Any]]) -> Table:
 
 
 def _warmup_text(r: RunResult) -> str:
-    """The one-off cost paid before the timed loop (lio: numba's compilation), said apart from
+    """The one-off cost paid before the timed loop (lio: matching's and the ICP's first calls), said apart from
     the per-sweep statistics; nothing when the method had none."""
     total = r.extra.get(S.WARMUP_TOTAL_MS)
     if not total:
         return ""
-    return (f", after a warm-up of {total:.0f} ms before the timed loop (numba's one-off compilation, or loading it "
-            "from its cache, and the loop-closure ICP's first call; in neither the per-stage statistics nor the "
+    return (f", after a warm-up of {total:.0f} ms before the timed loop (the first calls of matching and "
+            "of the loop-closure ICP; in neither the per-stage statistics nor the "
             "processing time)")
 
 

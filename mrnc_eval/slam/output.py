@@ -41,7 +41,7 @@ class SlamOutput:
     imu_time_offset_s: float | None = None  # estimated IMU clock lag after slam.imu.time_offset_s, s
     map_quality: MapQuality | None = None
     deskew: bool = True  # False when the method ran without deskew (kiss-icp on throttled logs)
-    # one-off cost per stage before the timed loop (numba compilation or cache load, imports), ms
+    # one-off cost per stage before the timed loop (first calls), ms
     warmup_ms: dict[str, float] = field(default_factory=dict)
     empty_sweeps: int = 0  # sweeps with no valid point (empty, all zero or non-finite): not mapped, counted
     imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)
