@@ -84,7 +84,7 @@ def _slam_run(method: str, config_hash: str) -> RunResult:
                      extra=extra)
 
 
-LIO_ONLY_TEXT = ("re-anchored", "numba", "IMU time offset", ">keyframes<", ">loop closures<", ", online (m)<")
+LIO_ONLY_TEXT = ("re-anchored", "warm-up", "IMU time offset", ">keyframes<", ">loop closures<", ", online (m)<")
 
 
 def test_two_slam_runs_show_no_control_cards_own_definitions_and_both_config_hashes() -> None:
