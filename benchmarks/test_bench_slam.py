@@ -8,7 +8,7 @@ MRNC_BENCH_SLAM_LOG=<log> uses an existing log (a 30 s one is simulated otherwis
 ~600 MB); MRNC_BENCH_SLAM_SECONDS sets the simulated duration.
 
 Each run is its own process, so memory is its own: "imports" is the resident size after importing
-what that method's run imports (RUN_IMPORTS; lio: numpy, scipy, numba, gtsam, pykdtree, no open3d)
+what that method's run imports (RUN_IMPORTS; lio: numpy, gtsam, pykdtree; no numba, scipy or open3d)
 and before reading the log, "run holds" is the peak resident size minus that, "peak" the whole peak.
 kiss-icp runs twice: inside mrnc-eval (`--method kiss-icp`: the same reader and imports as lio) and
 as its own `kiss_icp_pipeline` command on the log's clouds written as .bin scans (its peer peak).
@@ -276,7 +276,9 @@ def test_slam_memory_growth_per_100_keyframes(growth_log: Path, tmp_path: Path) 
 
 
 def test_nearest_neighbour_backends_on_a_local_map() -> None:
-    """Why the SLAM uses pykdtree (slam/nearest.py): build + 5-NN query on a local map of the size
+    """Why the SLAM used pykdtree (slam/nearest.py; loop closure's ICP still does, scan-to-map searches its
+    own tree since issue 30, slam/_match_kernels.c, 0.40 against pykdtree's 0.58 us a 5-NN query on forest30
+    sweeps, the same neighbours): build + 5-NN query on a local map of the size
     LIO-SAM keeps (the voxelised clouds of 40 sweeps of the circle sample log, ~1e5 points;
     queries = one sweep's features), against scipy's cKDTree (2 workers) and open3d's KDTreeFlann."""
     import time

@@ -540,6 +540,7 @@ def nightly(
     from mrnc_eval.extras import require_extra
 
     require_extra("slam", "mrnc-eval nightly (slam and control on every log)")
+    require_extra("control", "mrnc-eval nightly (slam and control on every log)")
     if pdf:
         from mrnc_eval.reports.render import pdf_engine
 

@@ -1,7 +1,7 @@
 """Optional parts of the installation: which verb needs which extra, checked before any work.
 
 `pip install mrnc-eval` gives info, ape, rpe, table, report, compare and export; the SLAM stack
-(gtsam, numba, pykdtree) is `mrnc-eval[slam]`, the control chain's compiled kernels
+(gtsam, pykdtree; its per-sweep kernels are C, below) is `mrnc-eval[slam]`, the control chain's compiled kernels
 `[control]`, the simulator `[sim]`, PDF reports `[pdf]` (scripts/setup.sh installs all). A verb
 whose extra is missing stops with MissingExtra naming it, instead of an ImportError deep inside.
 The SLAM's loops are also this package's own C extensions (setup.py): built at install when a C
@@ -17,7 +17,7 @@ from mrnc_eval.errors import MissingExtra
 
 # extra -> the modules it provides (import names)
 EXTRAS: dict[str, tuple[str, ...]] = {
-    "slam": ("gtsam", "numba", "pykdtree"),  # no open3d: slam/icp.py, io/ply.py, io/pcd.py
+    "slam": ("gtsam", "pykdtree"),  # no open3d: slam/icp.py, io/ply.py, io/pcd.py
     "control": ("numba",),
     "sim": ("open3d", "numba"),
     "pdf": ("weasyprint",),

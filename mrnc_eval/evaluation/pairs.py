@@ -22,7 +22,7 @@ def pairs_by_frames(n: int, delta: int, all_pairs: bool) -> IndexPairs:
 
 def _pairs_by_distance_incremental(positions: NDArray[np.float64], delta: float) -> IndexPairs:
     # Sequential by nature (the accumulator resets at each pair, overshoot discarded);
-    # compiled with numba when installed (the slam extra), else the same loop in Python: both add
+    # compiled with numba when installed (the control and sim extras), else the same loop in Python: both add
     # step by step in float64, so the pairs are the same bits as evo's (a 1e6-pose walk: ~0.3 s in Python).
     steps = np.linalg.norm(np.diff(positions, axis=0), axis=1)
     try:

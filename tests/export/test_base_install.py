@@ -19,7 +19,7 @@ from mrnc_eval.evaluation.pairs import _walk_python
 BLOCKED = ("open3d", "gtsam", "numba", "pykdtree", "weasyprint", "kiss_icp", "llvmlite")
 REPO = Path(__file__).resolve().parents[2]
 
-SCRIPT = textwrap.dedent("""
+TEMPLATE = textwrap.dedent("""
     import importlib.abc, json, sys
     BLOCKED = {blocked!r}
 
@@ -36,12 +36,14 @@ SCRIPT = textwrap.dedent("""
         codes[key] = main(argv)
     leaked = sorted(m for m in sys.modules if m.split(".")[0] in BLOCKED)
     print(json.dumps({{"codes": codes, "leaked": leaked}}))
-""").format(blocked=BLOCKED)
+""")
 
 
-def run_blocked(commands: dict[str, list[str]], cwd: Path) -> tuple[dict[str, int], list[str], str]:
+def run_blocked(commands: dict[str, list[str]], cwd: Path, *,
+                blocked: tuple[str, ...] = BLOCKED) -> tuple[dict[str, int], list[str], str]:
     env = {"PYTHONPATH": str(REPO), "HOME": str(cwd), "PATH": "/usr/bin:/bin", "MPLBACKEND": "Agg"}
-    proc = subprocess.run([sys.executable, "-c", SCRIPT, json.dumps(commands)], cwd=cwd, capture_output=True,
+    script = TEMPLATE.format(blocked=blocked)
+    proc = subprocess.run([sys.executable, "-c", script, json.dumps(commands)], cwd=cwd, capture_output=True,
                           text=True, timeout=600, env=env, check=False)
     assert proc.returncode == 0, proc.stderr[-3000:]
     out = json.loads(proc.stdout.strip().splitlines()[-1])
@@ -94,8 +96,21 @@ def test_the_block_catches_a_module_level_import(tmp_path: Path) -> None:
     assert "mrnc-eval[control]" in err
 
 
+def test_nightly_without_numba_names_the_control_extra(tmp_path: Path) -> None:
+    """The SLAM needs no numba (its kernels are C), the control chain does: nightly, which runs both,
+    checks both extras before any work; without numba it names [control], not [slam]."""
+    out = tmp_path / "night"
+    codes, leaked, err = run_blocked({"nightly": ["nightly", str(REPO / "sample_logs"), "--out", str(out)]}, tmp_path,
+                                     blocked=("numba", "llvmlite"))
+    assert codes["nightly"] == 2
+    assert "mrnc-eval[control]" in err
+    assert "mrnc-eval[slam]" not in err
+    assert leaked == []
+    assert not out.exists()
+
+
 def test_rpe_metre_pairs_without_numba_are_the_same_bits() -> None:
-    """The Python walk of the base install against the compiled one (the slam extra)."""
+    """The Python walk of the base install against the compiled one (numba: the control and sim extras)."""
     from mrnc_eval.evaluation.pairs import _pairs_by_distance_incremental
 
     rng = np.random.default_rng(4)
