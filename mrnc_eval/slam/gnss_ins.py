@@ -135,6 +135,23 @@ def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarra
     return np.asarray(coef[0], np.float64)
 
 
+REVERSE_MAX_ANGLE_DEG = 30.0  # the chain's displacement this close to its backward axis means reversing
+REVERSE_MIN_FRACTION = 0.5  # ... and at least this fraction of the fixes' travel (dead reckoning is metres off)
+
+
+def drove_backwards(moved: np.ndarray, heading: float, travel: float) -> bool:
+    """Whether the chain's own displacement (2,) m over the alignment's stretch says the vehicle reversed
+    along its forward axis (heading, rad). Before the alignment the chain is IMU dead reckoning without
+    wheels, its direction 60-120 deg off the truth on some logs (open line seeds 3 / 4): only a
+    displacement near the backward axis and comparable to the fixes' travel (m) counts; a ground
+    vehicle otherwise drives forward (a sideways-drifting chain flipped seed 3's alignment by 180 deg)."""
+    length = float(np.linalg.norm(moved))
+    if length < max(1.0, REVERSE_MIN_FRACTION * travel):
+        return False
+    fwd = np.array([np.cos(heading), np.sin(heading)])
+    return bool(moved @ fwd < -np.cos(np.radians(REVERSE_MAX_ANGLE_DEG)) * length)
+
+
 def gate_fix(innovation: np.ndarray, chain_cov: np.ndarray, fix_var: np.ndarray, chi2: float) -> tuple[bool, float]:
     """Whether a fix's horizontal innovation (2,) is consistent with the chain's position covariance
     (2, 2) plus the fix's variances (2,): Mahalanobis distance^2 against chi2. Returns (ok, d2)."""
@@ -199,10 +216,8 @@ class GnssIns:
         if np.ptp(heading) > np.radians(c.ins_align_max_turn_deg):
             return None  # turning: the course is no mean heading; wait for a straighter stretch
         mean_heading = float(np.median(heading))  # a median: one false scan-to-map yaw is a spike
-        moved = ant[-1, :2] - ant[0, :2]
-        fwd = np.array([np.cos(mean_heading), np.sin(mean_heading)])
-        if np.linalg.norm(moved) > 1.0 and moved @ fwd < -0.5 * np.linalg.norm(moved):
-            mean_heading += np.pi  # the chain reversed over the stretch
+        if drove_backwards(ant[-1, :2] - ant[0, :2], mean_heading, travel):
+            mean_heading += np.pi
         yaw = float(np.arctan2(np.sin(mean_heading - course), np.cos(mean_heading - course)))
         rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
         early = sel & (self.gnss.stamps <= self.chain_t[0] + c.ins_origin_s)
