@@ -335,6 +335,10 @@ class GpsConfig:
                                    le=60.0)
     track_step_fixes: int = param(4, "GNSS track: this many rejected fixes in a row that agree are a multipath step "
                                   "(on or off), held as an offset", ge=2, le=100)
+    track_provisional_travel_m: float = param(
+        3.0, "GNSS track: until the alignment (ins_align_travel_m of travel) is fixed, a provisional one from "
+        "this much travel of the fixes carries x, y (the chain dead-reckons on the IMU before it); replaced "
+        "once, graph #2 restarting at the switch; 0: none", "m", ge=0.0, le=100.0)
 
 
 @dataclass(frozen=True)

@@ -104,8 +104,8 @@ def test_course_from_fixes_survives_a_held_multipath_jump() -> None:
     xy = np.c_[t * 1.0, np.zeros_like(t)] + rng.normal(0.0, 0.3, (t.size, 2))
     xy[(t >= 2.0) & (t < 7.0), 1] -= 2.4
     seg = jump_segments(xy, np.c_[t * 1.0, np.zeros_like(t)], 0.8)
-    course, travel, _ = robust_course(t, xy, 0.3, seg)
-    plain, _, _ = robust_course(t, xy, 0.3)
+    course, travel, _, _ = robust_course(t, xy, 0.3, seg)
+    plain, _, _, _ = robust_course(t, xy, 0.3)
     print(f"course {np.degrees(course):.1f} deg with segments, {np.degrees(plain):.1f} deg without")
     assert abs(np.degrees(course)) < 6.0
     assert travel > 6.0
