@@ -48,6 +48,7 @@ class TrackFilter:
     max_offset_m: float
     max_gap_s: float = 2.0  # no fix taken for longer: the filter starts again at the next fix
     offset_max_s: float = 10.0  # a held offset older than this is no multipath jump: the fixes are right
+    sigma_floor_m: float = 0.0  # a fix's sigma is taken as at least this (m): what the model cannot follow
     x: np.ndarray | None = None
     p: np.ndarray = field(default_factory=lambda: np.eye(4))
     t: float = 0.0
@@ -75,6 +76,7 @@ class TrackFilter:
         """One fix (ENU xy, m; its 1-sigma, m); returns whether it entered. After max_gap_s without a
         fix taken (an outage, or the track lost) the filter starts again at this fix; a held offset
         older than offset_max_s is dropped (the position keeps what it was)."""
+        sigma = max(sigma, self.sigma_floor_m)
         if self.x is None or t - self.t > self.max_gap_s:
             self.x, self.t, self.offset, self.pending = np.r_[z, 0.0, 0.0], t, np.zeros(2), []
             self.p = np.diag([sigma ** 2, sigma ** 2, 1.0, 1.0])
@@ -172,7 +174,8 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
     return GnssTrack(ins=new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor),
                      provisional_travel_m=cfg.track_provisional_travel_m,
                      filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
-                                        max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s))
+                                        max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
+                                        sigma_floor_m=cfg.track_sigma_floor_m))
 
 
 def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,
