@@ -94,13 +94,14 @@ def _pairs_within(t: np.ndarray, max_dt_s: float) -> tuple[np.ndarray, np.ndarra
 
 
 def robust_course(t: np.ndarray, xy: np.ndarray, sigma_m: float, segment: np.ndarray | None = None,
-                  max_dt_s: float = 3.0) -> tuple[float, float, np.ndarray]:
+                  max_dt_s: float = 3.0, min_pairs: int = 5) -> tuple[float, float, np.ndarray, float]:
     """Course (rad, ENU) and travel (m) of a stretch of fixes (stamps t, s; positions xy, m),
     robust to multipath jumps: the median direction of the pairs of fixes in the same `segment`
     (jump_segments), at most max_dt_s apart and at least 5 sigma (1.5 m at least) apart in space. A
     jump that holds for seconds shifts the fixes during it by one offset, which cancels in a pair
     inside it. Travel: between the medians of the first and last fifth. The inlier mask: the fixes
-    in at least one pair within 30 deg of the course."""
+    in at least one pair within 30 deg of the course. Spread: the pairs' median absolute deviation
+    from the course (rad); fewer than min_pairs pairs: no course (pi)."""
     n = max(3, len(xy) // 5)
     travel = float(np.linalg.norm(np.median(xy[-n:], axis=0) - np.median(xy[:n], axis=0)))
     i, j = _pairs_within(t, max_dt_s)
@@ -108,15 +109,15 @@ def robust_course(t: np.ndarray, xy: np.ndarray, sigma_m: float, segment: np.nda
     use = np.linalg.norm(d, axis=1) >= max(5.0 * sigma_m, 1.5)
     if segment is not None:
         use &= segment[i] == segment[j]
-    if use.sum() < 5:
-        return 0.0, 0.0, np.ones(len(xy), bool)
+    if use.sum() < max(min_pairs, 5):
+        return 0.0, 0.0, np.ones(len(xy), bool), float(np.pi)
     ang = np.arctan2(d[use, 1], d[use, 0])
     ref = np.arctan2(np.sin(ang).mean(), np.cos(ang).mean())
     course = float(ref + np.median(np.angle(np.exp(1j * (ang - ref)))))  # median about the circular mean
     near = np.abs(np.angle(np.exp(1j * (ang - course)))) <= np.radians(30.0)
     inl = np.zeros(len(xy), bool)
     inl[i[use][near]] = inl[j[use][near]] = True
-    return course, travel, inl
+    return course, travel, inl, float(np.median(np.abs(np.angle(np.exp(1j * (ang - course))))))
 
 
 def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarray:
@@ -133,6 +134,23 @@ def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarra
             break
         keep = new
     return np.asarray(coef[0], np.float64)
+
+
+REVERSE_MAX_ANGLE_DEG = 30.0  # the chain's displacement this close to its backward axis means reversing
+REVERSE_MIN_FRACTION = 0.5  # ... and at least this fraction of the fixes' travel (dead reckoning is metres off)
+
+
+def drove_backwards(moved: np.ndarray, heading: float, travel: float) -> bool:
+    """Whether the chain's own displacement (2,) m over the alignment's stretch says the vehicle reversed
+    along its forward axis (heading, rad). Before the alignment the chain is IMU dead reckoning without
+    wheels, its direction 60-120 deg off the truth on some logs (open line seeds 3 / 4): only a
+    displacement near the backward axis and comparable to the fixes' travel (m) counts; a ground
+    vehicle otherwise drives forward (a sideways-drifting chain flipped seed 3's alignment by 180 deg)."""
+    length = float(np.linalg.norm(moved))
+    if length < max(1.0, REVERSE_MIN_FRACTION * travel):
+        return False
+    fwd = np.array([np.cos(heading), np.sin(heading)])
+    return bool(moved @ fwd < -np.cos(np.radians(REVERSE_MAX_ANGLE_DEG)) * length)
 
 
 def gate_fix(innovation: np.ndarray, chain_cov: np.ndarray, fix_var: np.ndarray, chi2: float) -> tuple[bool, float]:
@@ -182,7 +200,19 @@ class GnssIns:
     def try_align(self, t: float) -> EnuAlignment | None:
         """Fix the alignment once the fixes since the first sweep have travelled far enough on a
         near-straight stretch; returns it when it was fixed now."""
-        if self.alignment is not None or len(self.chain_t) < 2:
+        if self.alignment is not None:
+            return None
+        self.alignment = self.fit_alignment(t, self.cfg.ins_align_travel_m)
+        if self.alignment is not None:
+            self.next_fix = int(np.searchsorted(self.gnss.stamps, t, side="right"))  # from now on
+        return self.alignment
+
+    def fit_alignment(self, t: float, travel_m: float, max_spread_deg: float = 180.0,
+                      min_pairs: int = 5) -> EnuAlignment | None:
+        """The ENU -> map alignment from the fixes up to t once they have travelled travel_m (m) on a
+        near-straight stretch and the course has at least min_pairs pairs spread by at most
+        max_spread_deg (median absolute deviation), else None; nothing is stored."""
+        if len(self.chain_t) < 2:
             return None
         c = self.cfg
         sel = self.usable & (self.gnss.stamps >= self.chain_t[0]) & (self.gnss.stamps <= t)
@@ -192,17 +222,16 @@ class GnssIns:
         sigma = float(np.sqrt(np.median(np.diagonal(self.gnss.covariance[sel], axis1=1, axis2=2)[:, :2])))
         ant = np.asarray(self.chain_antenna)
         moved = np.column_stack([np.interp(stamps, self.chain_t, ant[:, i]) for i in range(2)])
-        course, travel, inl = robust_course(stamps, enu, sigma, jump_segments(enu, moved, c.ins_jump_m))
-        if travel < c.ins_align_travel_m or not inl.any():
+        course, travel, inl, spread = robust_course(stamps, enu, sigma, jump_segments(enu, moved, c.ins_jump_m),
+                                                min_pairs=min_pairs)
+        if travel < travel_m or not inl.any() or spread > np.radians(max_spread_deg):
             return None
         heading = np.unwrap(np.interp(stamps[inl], self.chain_t, np.unwrap(self.chain_heading)))
         if np.ptp(heading) > np.radians(c.ins_align_max_turn_deg):
             return None  # turning: the course is no mean heading; wait for a straighter stretch
         mean_heading = float(np.median(heading))  # a median: one false scan-to-map yaw is a spike
-        moved = ant[-1, :2] - ant[0, :2]
-        fwd = np.array([np.cos(mean_heading), np.sin(mean_heading)])
-        if np.linalg.norm(moved) > 1.0 and moved @ fwd < -0.5 * np.linalg.norm(moved):
-            mean_heading += np.pi  # the chain reversed over the stretch
+        if drove_backwards(ant[-1, :2] - ant[0, :2], mean_heading, travel):
+            mean_heading += np.pi
         yaw = float(np.arctan2(np.sin(mean_heading - course), np.cos(mean_heading - course)))
         rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
         early = sel & (self.gnss.stamps <= self.chain_t[0] + c.ins_origin_s)
@@ -210,9 +239,7 @@ class GnssIns:
             early = sel & (self.gnss.stamps <= stamps[min(4, stamps.size - 1)])
         chain_xy = np.column_stack([np.interp(self.gnss.stamps[early], self.chain_t, ant[:, i]) for i in range(2)])
         offset = np.median(chain_xy - self.gnss.enu[early, :2] @ rot.T, axis=0)
-        self.alignment = EnuAlignment(rot=rot, t=offset, yaw_rad=yaw)
-        self.next_fix = int(np.searchsorted(self.gnss.stamps, t, side="right"))  # from now on
-        return self.alignment
+        return EnuAlignment(rot=rot, t=offset, yaw_rad=yaw)
 
     def fixes_until(self, t: float, velocity: np.ndarray, chain_z: float) -> list[FixUpdate]:
         """The usable fixes since the last call up to t (at most ins_max_fix_age_s old), as antenna

@@ -14,7 +14,9 @@ a degenerate match leaves free, exactly where wheels would otherwise carry them 
 - an outage (no fix taken for `track_max_gap_s`) hands x, y back to the chain until the fixes return,
   and the filter starts again at the first of them;
 - the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
-  (slam/gnss_ins.py's), so a drifting chain cannot slide it;
+  (slam/gnss_ins.py's), so a drifting chain cannot slide it; until it is fixed (5 m of travel), a
+  provisional one from `track_provisional_travel_m` (3 m) carries x, y instead of IMU dead reckoning
+  (replaced once: one step in the online trajectory);
 - the sweep's pose keeps its rotation, z and every direction scan-to-map measured; only its
   translation along the match's degenerate directions moves to the track (the antenna lever arm
   taken off)."""
@@ -27,9 +29,14 @@ import numpy as np
 
 from mrnc_eval.data import GnssSeries
 from mrnc_eval.slam.config import GpsConfig
-from mrnc_eval.slam.gnss_ins import GnssIns, new_ins
+from mrnc_eval.slam.gnss_ins import EnuAlignment, GnssIns, new_ins
 
 CHI2_2DOF = 13.8  # 0.1 % of consistent fixes rejected
+# A provisional alignment from a short stretch needs a course many pairs agree on: on open line seed 2
+# (float) a 2.4 m multipath jump 2.2 s in gave 5 pairs at 2.1 m of travel (3.1 s) at -106 deg and 22
+# pairs spread 44 deg at 4.7 s (the truth ~0 deg); from 20 pairs spread <= 15 deg, within 2 deg.
+PROVISIONAL_PAIRS = 20
+PROVISIONAL_SPREAD_DEG = 15.0
 
 
 @dataclass(kw_only=True)
@@ -41,6 +48,7 @@ class TrackFilter:
     max_offset_m: float
     max_gap_s: float = 2.0  # no fix taken for longer: the filter starts again at the next fix
     offset_max_s: float = 10.0  # a held offset older than this is no multipath jump: the fixes are right
+    sigma_floor_m: float = 0.0  # a fix's sigma is taken as at least this (m): what the model cannot follow
     x: np.ndarray | None = None
     p: np.ndarray = field(default_factory=lambda: np.eye(4))
     t: float = 0.0
@@ -68,6 +76,7 @@ class TrackFilter:
         """One fix (ENU xy, m; its 1-sigma, m); returns whether it entered. After max_gap_s without a
         fix taken (an outage, or the track lost) the filter starts again at this fix; a held offset
         older than offset_max_s is dropped (the position keeps what it was)."""
+        sigma = max(sigma, self.sigma_floor_m)
         if self.x is None or t - self.t > self.max_gap_s:
             self.x, self.t, self.offset, self.pending = np.r_[z, 0.0, 0.0], t, np.zeros(2), []
             self.p = np.diag([sigma ** 2, sigma ** 2, 1.0, 1.0])
@@ -115,16 +124,26 @@ class GnssTrack:
 
     ins: GnssIns
     filter: TrackFilter
+    provisional_travel_m: float = 0.0  # a provisional alignment after this much travel (0: none)
+    provisional: EnuAlignment | None = None  # used until the final alignment (ins.alignment) is fixed
     next_fix: int = 0
     engaged: bool = False  # the replay has moved a sweep to the track
+    engaged_final: bool = False  # ... on the final alignment (not the provisional one)
+
+    def alignment(self) -> EnuAlignment | None:
+        """The final alignment once fixed, else the provisional one (or None)."""
+        return self.ins.alignment if self.ins.alignment is not None else self.provisional
 
     def antenna_xy(self, t: float, pose: np.ndarray) -> np.ndarray | None:
-        """The antenna's map x, y at t by the fixes (None before the alignment); `pose` is the
+        """The antenna's map x, y at t by the fixes (None before any alignment); `pose` is the
         sweep's LiDAR pose as matched, for the alignment's heading."""
         ins = self.ins
         ins.observe(t, pose)
         if ins.alignment is None:
             ins.try_align(t)
+        if ins.alignment is None and self.provisional is None and self.provisional_travel_m > 0:
+            self.provisional = ins.fit_alignment(t, self.provisional_travel_m, PROVISIONAL_SPREAD_DEG,
+                                                 PROVISIONAL_PAIRS)
         gnss = ins.gnss
         end = int(np.searchsorted(gnss.stamps, t, side="right"))
         for i in range(self.next_fix, end):
@@ -132,17 +151,19 @@ class GnssTrack:
                 sigma = float(np.sqrt(np.max(np.diag(gnss.covariance[i])[:2])))
                 self.filter.update(float(gnss.stamps[i]), gnss.enu[i, :2], sigma)
         self.next_fix = max(self.next_fix, end)
-        if ins.alignment is None or not self.filter.fresh(t):
+        align = self.alignment()
+        if align is None or not self.filter.fresh(t):
             return None  # before the alignment, or no fix for a while (an outage): the chain's own x, y
         x, _ = self.filter.predict(t)
-        return ins.alignment.to_map(x[:2])
+        return align.to_map(x[:2])
 
     def velocity_map(self, t: float) -> np.ndarray:
         """The filter's horizontal velocity (map, m/s) at t; zero before the alignment."""
-        if self.ins.alignment is None or self.filter.x is None:
+        align = self.alignment()
+        if align is None or self.filter.x is None:
             return np.zeros(2)
         x, _ = self.filter.predict(t)
-        return np.asarray(self.ins.alignment.rot @ x[2:], np.float64)
+        return np.asarray(align.rot @ x[2:], np.float64)
 
 
 def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
@@ -151,8 +172,10 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
     if gnss is None or not gnss.stamps.size or not cfg.enabled or cfg.track != "without_wheels" or with_wheels:
         return None
     return GnssTrack(ins=new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor),
+                     provisional_travel_m=cfg.track_provisional_travel_m,
                      filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
-                                        max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s))
+                                        max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
+                                        sigma_floor_m=cfg.track_sigma_floor_m))
 
 
 def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,

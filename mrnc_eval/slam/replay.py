@@ -272,15 +272,26 @@ class _Replay:
         antenna_xy = track.antenna_xy(stamp, pose)
         if antenna_xy is None or self.st.loose is None:
             return pose
-        if not track.engaged:
-            track.engaged = True
-            self.events.append(SlamEvent(t=stamp, kind="gps", message="GNSS track: x, y along the directions "
-                                         "scan-to-map leaves free follow the fixes from here (ENU -> map "
-                                         "alignment from the fixes' course)", data={"gnss_track": "engaged"}))
-            if self.odom is not None and self.odom.can_predict:
-                self.odom.restart()
-                self.odom.velocity = np.r_[track.velocity_map(stamp), self.odom.velocity[2]]
+        if not track.engaged or (track.ins.alignment is not None and not track.engaged_final):
+            self.engage_track(track, stamp)
         return move_along_free(pose, track.ins.antenna_in_lidar, antenna_xy, self.st.loose)
+
+    def engage_track(self, track: GnssTrack, stamp: float) -> None:
+        """The track takes over x, y (on the provisional alignment, or the final one), or moves from the
+        provisional to the final alignment: an event, and graph #2 restarts with the track's velocity
+        (it dead-reckoned until then, or moved on the provisional alignment's yaw)."""
+        final = track.ins.alignment is not None
+        what = "engaged" if not track.engaged else "realigned"
+        track.engaged, track.engaged_final = True, final
+        align = track.alignment()
+        self.events.append(SlamEvent(t=stamp, kind="gps", message=f"GNSS track {what}: x, y along the directions "
+                                     "scan-to-map leaves free follow the fixes from here (ENU -> map alignment from "
+                                     f"the fixes' course, {'final' if final else 'provisional'})",
+                                     data={"gnss_track": what, "enu_to_map_yaw_deg":
+                                           float(np.degrees(align.yaw_rad)) if align is not None else None}))
+        if self.odom is not None and self.odom.can_predict:
+            self.odom.restart()
+            self.odom.velocity = np.r_[track.velocity_map(stamp), self.odom.velocity[2]]
 
     def guess_prior(self) -> np.ndarray | None:
         """Information (J^T J's units) holding the matched yaw towards a wheel guess: over one sweep the

@@ -104,8 +104,8 @@ def test_course_from_fixes_survives_a_held_multipath_jump() -> None:
     xy = np.c_[t * 1.0, np.zeros_like(t)] + rng.normal(0.0, 0.3, (t.size, 2))
     xy[(t >= 2.0) & (t < 7.0), 1] -= 2.4
     seg = jump_segments(xy, np.c_[t * 1.0, np.zeros_like(t)], 0.8)
-    course, travel, _ = robust_course(t, xy, 0.3, seg)
-    plain, _, _ = robust_course(t, xy, 0.3)
+    course, travel, _, _ = robust_course(t, xy, 0.3, seg)
+    plain, _, _, _ = robust_course(t, xy, 0.3)
     print(f"course {np.degrees(course):.1f} deg with segments, {np.degrees(plain):.1f} deg without")
     assert abs(np.degrees(course)) < 6.0
     assert travel > 6.0
@@ -165,3 +165,17 @@ def test_course_pairs_are_the_band_of_all_pairs_within_max_dt() -> None:
     assert i.size < ai.size / 5  # a band, not every pair
     for n in (0, 1):
         assert gnss_ins._pairs_within(np.zeros(n), 3.0)[0].size == 0
+
+
+def test_a_dead_reckoned_chain_drifting_sideways_is_no_reversal(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Open line seed 3 without wheels: over the alignment's stretch the IMU chain moved (-2.53, 4.16) m
+    at a heading of -4.7 deg while the fixes travelled 5.73 m forward; the old rule (any displacement
+    more than 60 deg off the forward axis is a reversal) flipped the alignment by 180 deg (online end
+    drift 79 m). A real reversal is still one."""
+    heading = np.radians(-4.7)
+    assert not gnss_ins.drove_backwards(np.array([-2.53, 4.16]), heading, 5.73)
+    assert gnss_ins.drove_backwards(np.array([-4.6, 0.9]), heading, 5.0)  # backwards, 4.7 m of 5 m
+    assert not gnss_ins.drove_backwards(np.array([-0.8, 0.1]), heading, 5.0)  # too short to tell
+    assert not gnss_ins.drove_backwards(np.array([4.6, -0.4]), heading, 5.0)
+    monkeypatch.setattr(gnss_ins, "REVERSE_MAX_ANGLE_DEG", 60.0)  # negative control: the old rule's angle
+    assert gnss_ins.drove_backwards(np.array([-2.53, 4.16]), heading, 5.73)

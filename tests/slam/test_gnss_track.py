@@ -3,6 +3,8 @@ alignment from the fixes' course, and moving a pose only along the directions a 
 
 from __future__ import annotations
 
+from dataclasses import replace
+
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
@@ -140,3 +142,69 @@ def test_an_outage_hands_x_y_back_to_the_chain_and_the_track_restarts_at_the_fix
         g.update(float(ti), z, SIGMA)
     straight, _ = g.predict(21.8)
     assert np.linalg.norm(straight[:2] - truth[t == 21.8][0]) > 3.0  # measured 7.5 m
+
+
+def _provisional_run(travel_m: float) -> tuple[list[tuple[float, float]], float]:
+    """The drive of test_track_aligns_from_the_course... with a chain that dead-reckons 0.06 t^2 m off
+    (the report seeds' IMU chains were 2-6 m off 5-8 s in); returns (stamp, error of the sweep's x, y
+    against the truth: the track's where it gives one, else the chain's) and the final alignment's stamp."""
+    t, truth, fixes = _drive(5, jumps=False)
+    yaw_map = np.radians(-50.0)
+    rot = np.array([[np.cos(yaw_map), -np.sin(yaw_map)], [np.sin(yaw_map), np.cos(yaw_map)]])
+    truth_map = truth @ rot.T
+    heading = np.radians(30.0) + yaw_map
+    cfg = replace(GpsConfig(), track_provisional_travel_m=travel_m)
+    track = build(_series(t, fixes), cfg, np.zeros(3), np.eye(4), with_wheels=False)
+    assert track is not None
+    out, final = [], np.inf
+    for ti, p in zip(t, truth_map, strict=True):
+        drifted = p + np.array([0.06, -0.03]) * ti ** 2
+        xy = track.antenna_xy(float(ti), se3.make(_rot_z(heading), np.r_[drifted, 0.0]))
+        if track.ins.alignment is not None:
+            final = min(final, float(ti))
+        out.append((float(ti), float(np.linalg.norm((drifted if xy is None else xy) - p))))
+    return out, final
+
+
+def test_a_provisional_alignment_carries_x_y_until_the_final_one() -> None:
+    """From 3 m of travel (track_provisional_travel_m) the fixes carry x, y on a provisional alignment
+    until the final one (5 m) is fixed (here from 5.4 s to 8.0 s): in the 2 s before the final one the
+    sweeps are within 1.5 m of the truth, and the chain they would otherwise keep fails that same test
+    (the negative control: the parameter at 0)."""
+    with_prov, final = _provisional_run(3.0)
+    without, final_off = _provisional_run(0.0)
+    assert final == final_off  # the final alignment is the same either way
+    window = [i for i, (ti, _) in enumerate(with_prov) if final - 2.0 <= ti < final]
+    assert window
+    assert max(with_prov[i][1] for i in window) < 1.5  # measured 0.76 m
+    assert min(without[i][1] for i in window) > 1.5  # measured 2.4-4.1 m: dead reckoning
+    after = [e for ti, e in with_prov if ti >= final]
+    assert after == [e for ti, e in without if ti >= final]  # the final alignment's track is untouched
+
+
+def _swaying_rtk(seed: int, floor: float) -> float:
+    """RMS error (m, after 8 s) of the filter on 5 Hz RTK fixes (2 cm) of an antenna that sways +-0.2 m
+    across the course with a 3.4 s period (as open line RTK seed 0's fixes do against the base: the mast
+    rolls with the base on rough ground), 3 % of the fixes dropped."""
+    t = np.arange(0.0, 40.0, 0.2)
+    s = np.where(t < 4.0, t ** 2 / 8.0, 2.0 + (t - 4.0))
+    truth = np.c_[s, 0.2 * np.sin(2 * np.pi * t / 3.4)]
+    fixes = truth + np.random.default_rng(seed).normal(0.0, 0.02, truth.shape)
+    kept = np.random.default_rng(seed + 10).random(t.size) > 0.03
+    f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=3.5, sigma_floor_m=floor)
+    est = []
+    for ti, z, k in zip(t, fixes, kept, strict=True):
+        if k:
+            f.update(float(ti), z, 0.02)
+        est.append(f.predict(float(ti))[0][:2])
+    return _rms(np.array(est)[t >= 8.0], truth[t >= 8.0])
+
+
+def test_rtk_fixes_on_a_swaying_antenna_are_followed_with_the_sigma_floor() -> None:
+    """With their own 2 cm the constant-velocity filter gates a swaying antenna's fixes out (14-29 of
+    200 rejected; 2 s without one restarts it at rest); with track_sigma_floor_m (5 cm) it follows
+    them. Negative control: the floor at 0 fails the same test."""
+    with_floor = [_swaying_rtk(seed, 0.05) for seed in range(3)]
+    without = [_swaying_rtk(seed, 0.0) for seed in range(3)]
+    assert max(with_floor) < 0.12, with_floor  # measured 0.054-0.056 m
+    assert max(without) > 0.12, without  # measured 0.077 / 0.452 / 0.141 m
