@@ -44,12 +44,11 @@ SAMPLE = Path(__file__).resolve().parents[1] / "sample_logs" / "loop_forest.bag"
 RUNS = {"lio @ 0.15 s (LIO-SAM rate)": ("lio", 0.15, 0), "lio @ every sweep": ("lio", 0.0, 0),
         "lio @ every sweep, --threads 1": ("lio", 0.0, 1), "kiss-icp @ every sweep": ("kiss-icp", 0.0, 0)}
 REPEATS = 3  # alternating rounds; each row is the median run (by wall time) of its three
-# lio mapping every sweep against kiss-icp at equal work, wall time, same session. Issue 30 asks >= 3x on a
-# quiet 2-core machine; not shown yet: measured 2.27x at load 1.9-3.3 (medians of 3; CPU 2.66x), 3.22x at
-# load 2.2-4.5 (kiss-icp, on both cores, loses more to the load), 1.97x at load 4.5-11; the CPU ratio bounds
-# a quiet machine's wall ratio near 2.5x (docs/performance.md, "SLAM, where the time goes"). The assertion
-# holds what was reached.
-MIN_WALL_RATIO = 2.0
+# lio mapping every sweep against kiss-icp at equal work, wall time, same session: issue 30 asks >= 3x on a
+# quiet 2-core machine. Measured (load 0.8-1.5, main 87d110f, the SLAM's kernels in C and the one-pass
+# reader): 4.03x against kiss-icp in mrnc-eval, 3.53x against kiss_icp_pipeline (4.30x in CPU time);
+# under load the ratio moves (docs/performance.md), so run it on a quiet machine.
+MIN_WALL_RATIO = 3.0
 
 # One run in a fresh interpreter: imports first (measured), then the log; RSS sampled per keyframe.
 # "Imports" are what that method's run imports (RUN_IMPORTS), no more (until issue 30 every run
@@ -223,15 +222,15 @@ def test_slam_equal_work_speed_and_memory_vs_kiss_icp(bench_log: Path, tmp_path:
     assert kiss["wall_s"] / full["wall_s"] >= MIN_WALL_RATIO
     assert full["metrics"]["ape_online_rmse_m"] < kiss["metrics"]["ape_online_rmse_m"]
     # memory, as ratios (the same reader and imports on both sides of the first pair)
-    assert full["peak_mb"] <= 2.0 * kiss["peak_mb"]  # measured 1.17x (363 / 311 MB)
-    assert holds < kiss["peak_mb"]  # measured 190 < 311 MB
+    assert full["peak_mb"] <= 2.0 * kiss["peak_mb"]  # measured 1.52x (222 / 146 MB)
+    assert holds < kiss["peak_mb"]  # measured 141 < 146 MB
 
 
-@pytest.mark.xfail(strict=True, reason="issue 30's target against kiss-icp's own command is not met yet: "
-                                       "lio's peak 360-365 MB vs 2 x 138-154 MB, run 188-193 MB (docs/performance.md)")
 def test_slam_memory_within_issue_30_targets_vs_kiss_icp_pipeline(bench_log: Path, tmp_path: Path) -> None:
     """Issue 30: peak (imports included) <= 2x kiss-icp's peak, and what the run holds beyond its
-    imports below kiss-icp's peak; kiss-icp = its own kiss_icp_pipeline command, every sweep."""
+    imports below kiss-icp's peak; kiss-icp = its own kiss_icp_pipeline command, every sweep. Met since
+    the SLAM's kernels are C (no numba, LLVM or scipy): lio 220-222 MB peak, run 139-141 MB, against the
+    pipeline's 144-163 MB (main 87d110f, quiet machine)."""
     pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
     _run(SAMPLE, tmp_path / "warm", "lio", 0.15)
     full = _run(bench_log, tmp_path / "lio", "lio", 0.0)
