@@ -4,10 +4,6 @@ tree's source (an installed build may be older)."""
 
 from __future__ import annotations
 
-import importlib.util
-import shutil
-import subprocess
-import sysconfig
 from pathlib import Path
 from types import ModuleType
 
@@ -17,27 +13,16 @@ import pytest
 from mrnc_eval.data import Trajectory
 from mrnc_eval.evaluation import ape
 from mrnc_eval.geometry import point_fit as align
-from tests.needs import missing
+from tests.c_build import build_extension
 
 SOURCE = Path(align.__file__).with_name("_kernels.c")
 
 
 @pytest.fixture(scope="module")
 def kernels(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
-    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
-    include = sysconfig.get_paths()["include"]
-    if shutil.which(cc) is None or not (Path(include) / "Python.h").exists():
-        missing(f"cannot build {SOURCE.name}: no C compiler ({cc}) or no Python.h in {include}")
-    out = tmp_path_factory.mktemp("kernels") / ("_kernels" + sysconfig.get_config_var("EXT_SUFFIX"))
     # -O3 -march=native: FMA is available to the compiler, so the no-contraction pragma is tested too
-    subprocess.run([cc, "-O3", "-march=native", "-shared", "-fPIC", f"-I{include}", str(SOURCE), "-o", str(out)],
-                   check=True)
-    spec = importlib.util.spec_from_file_location("mrnc_eval.geometry._kernels", out)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return build_extension(SOURCE, "mrnc_eval.geometry._kernels", tmp_path_factory.mktemp("kernels"),
+                           ("-O3", "-march=native"))
 
 
 def _layouts(rng: np.random.Generator, n: int) -> list[np.ndarray]:

@@ -3,12 +3,8 @@ plain files exactly as the strict path (pandas) does and hands everything else t
 
 from __future__ import annotations
 
-import importlib.util
 import os
-import shutil
-import subprocess
 import sys
-import sysconfig
 import threading
 from collections.abc import Callable
 from pathlib import Path
@@ -23,7 +19,7 @@ import mrnc_eval.io
 from mrnc_eval.errors import InputError
 from mrnc_eval.io import number_table
 from mrnc_eval.io.trajectory_files import read_tum
-from tests.needs import missing
+from tests.c_build import build_extension
 
 SOURCE = Path(number_table.__file__).with_name("_numtext.c")
 
@@ -32,18 +28,8 @@ SOURCE = Path(number_table.__file__).with_name("_numtext.c")
 def numtext(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     """The C reader built from this tree's source (an installed build may be older, and a
     worktree run from PYTHONPATH has none); with CI=true a missing compiler fails."""
-    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
-    include = sysconfig.get_paths()["include"]
-    if shutil.which(cc) is None or not (Path(include) / "Python.h").exists():
-        missing(f"cannot build {SOURCE.name}: no C compiler ({cc}) or no Python.h in {include}")
-    out = tmp_path_factory.mktemp("numtext") / ("_numtext" + sysconfig.get_config_var("EXT_SUFFIX"))
-    subprocess.run([cc, "-O2", "-shared", "-fPIC", f"-I{include}", str(SOURCE), "-o", str(out)], check=True)
-    spec = importlib.util.spec_from_file_location("mrnc_eval.io._numtext", out)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return build_extension(SOURCE, "mrnc_eval.io._numtext", tmp_path_factory.mktemp("numtext"),
+                           ("-O2",))
 
 
 @pytest.fixture

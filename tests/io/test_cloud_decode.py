@@ -4,11 +4,7 @@ messages of the library's read (and its errors on a damaged chunk)."""
 
 from __future__ import annotations
 
-import importlib.util
-import shutil
 import struct
-import subprocess
-import sysconfig
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -21,8 +17,8 @@ from mrnc_eval.io import messages as M
 from mrnc_eval.io import open_log, pointcloud
 from mrnc_eval.io.cloud_msg import CloudMessage, Field, Header, Stamp, parse_cloud
 from mrnc_eval.io.typestore import typestore_for
+from tests.c_build import build_extension
 from tests.io.test_mcap_index import CLOUD_STAMPS, _multi_chunk_log
-from tests.needs import missing
 
 SOURCE = Path(pointcloud.__file__).with_name("_cloud.c")
 ARRAYS = ("points", "point_time", "ring", "column", "intensity", "reflectivity")
@@ -31,19 +27,8 @@ ARRAYS = ("points", "point_time", "ring", "column", "intensity", "reflectivity")
 @pytest.fixture(scope="module")
 def cloud_c(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
     """io/_cloud.c built from the source under test (as setup.py builds it)."""
-    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
-    include = sysconfig.get_paths()["include"]
-    if shutil.which(cc) is None or not (Path(include) / "Python.h").exists():
-        missing(f"cannot build {SOURCE.name}: no C compiler ({cc}) or no Python.h in {include}")
-    out = tmp_path_factory.mktemp("cloud") / ("_cloud" + sysconfig.get_config_var("EXT_SUFFIX"))
-    subprocess.run([cc, "-O3", "-march=native", "-ffp-contract=off", "-shared", "-fPIC", f"-I{include}",
-                    str(SOURCE), "-o", str(out)], check=True)
-    spec = importlib.util.spec_from_file_location("mrnc_eval.io._cloud", out)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return build_extension(SOURCE, "mrnc_eval.io._cloud", tmp_path_factory.mktemp("cloud"),
+                           ("-O3", "-march=native", "-ffp-contract=off"))
 
 
 # (name, datatype) of each layout's fields after x, y, z (float32 at 0, 4, 8)

@@ -7,12 +7,9 @@ no-contraction pragma is tested too)."""
 
 from __future__ import annotations
 
-import importlib.util
 import os
-import shutil
 import subprocess
 import sys
-import sysconfig
 import threading
 import time
 from collections.abc import Callable
@@ -23,7 +20,7 @@ import numpy as np
 import pytest
 
 import mrnc_eval.slam
-from tests.needs import missing
+from tests.c_build import build_extension
 
 SOURCE = Path(mrnc_eval.slam.__file__).with_name("_match_kernels.c")
 REPO = Path(__file__).resolve().parents[2]
@@ -33,19 +30,8 @@ REFUSED = "expected|differ|outside|must|contiguous|read-only|many"
 
 @pytest.fixture(scope="module")
 def kernels(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
-    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
-    include = sysconfig.get_paths()["include"]
-    if shutil.which(cc) is None or not (Path(include) / "Python.h").exists():
-        missing(f"cannot build {SOURCE.name}: no C compiler ({cc}) or no Python.h in {include}")
-    out = tmp_path_factory.mktemp("match_kernels") / ("_match_kernels" + sysconfig.get_config_var("EXT_SUFFIX"))
-    subprocess.run([cc, "-O3", "-march=native", "-shared", "-fPIC", f"-I{include}", str(SOURCE), "-o", str(out)],
-                   check=True)
-    spec = importlib.util.spec_from_file_location("mrnc_eval.slam._match_kernels", out)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return build_extension(SOURCE, "mrnc_eval.slam._match_kernels", tmp_path_factory.mktemp("match_kernels"),
+                           ("-O3", "-march=native"))
 
 
 def _neighbourhoods(rng: np.random.Generator, n: int, shape: str) -> np.ndarray:

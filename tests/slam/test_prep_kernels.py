@@ -7,12 +7,9 @@ layouts and indices raise instead of reading or writing outside an array."""
 
 from __future__ import annotations
 
-import importlib.util
 import math
-import shutil
 import subprocess
 import sys
-import sysconfig
 import textwrap
 from collections.abc import Callable
 from pathlib import Path
@@ -24,7 +21,7 @@ import pytest
 from mrnc_eval.data import Sweep
 from mrnc_eval.slam import features, range_image
 from mrnc_eval.slam.config import SlamConfig
-from tests.needs import missing
+from tests.c_build import build_extension
 
 REPO = Path(__file__).resolve().parents[2]
 SOURCE = REPO / "mrnc_eval" / "slam" / "_prep_kernels.c"
@@ -32,19 +29,8 @@ SOURCE = REPO / "mrnc_eval" / "slam" / "_prep_kernels.c"
 
 @pytest.fixture(scope="module")
 def pk(tmp_path_factory: pytest.TempPathFactory) -> ModuleType:
-    cc = (sysconfig.get_config_var("CC") or "cc").split()[0]
-    include = sysconfig.get_paths()["include"]
-    if shutil.which(cc) is None or not (Path(include) / "Python.h").exists():
-        missing(f"cannot build {SOURCE.name}: no C compiler ({cc}) or no Python.h in {include}")
-    out = tmp_path_factory.mktemp("prep") / ("_prep_kernels" + sysconfig.get_config_var("EXT_SUFFIX"))
-    subprocess.run([cc, "-O3", "-march=native", "-fwrapv", "-Wall", "-shared", "-fPIC", f"-I{include}",
-                    str(SOURCE), "-o", str(out)], check=True)
-    spec = importlib.util.spec_from_file_location("mrnc_eval.slam._prep_kernels", out)
-    assert spec is not None
-    assert spec.loader is not None
-    module = importlib.util.module_from_spec(spec)
-    spec.loader.exec_module(module)
-    return module
+    return build_extension(SOURCE, "mrnc_eval.slam._prep_kernels", tmp_path_factory.mktemp("prep"),
+                           ("-O3", "-march=native", "-fwrapv", "-Wall"))
 
 
 def _clouds(rng: np.random.Generator) -> list[np.ndarray]:
