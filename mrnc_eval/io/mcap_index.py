@@ -22,6 +22,7 @@ from __future__ import annotations
 import heapq
 import struct
 from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -109,23 +110,41 @@ def read_message_index(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tu
     return out
 
 
+@dataclass(frozen=True, kw_only=True)
+class ChunkHead:
+    """A chunk record's head: where its records start and how they are stored."""
+
+    data_at: int  # file offset of the (compressed) records
+    compressed_size: int  # bytes
+    size: int  # bytes once decompressed
+    crc: int  # CRC-32 of the decompressed records (0: none written)
+    compression: str  # "", "zstd" or "lz4"
+
+
+def read_chunk_head(fh: BinaryIO, ci: Any) -> ChunkHead:
+    """The chunk record at `ci`'s (a ChunkIndex's) offset, checked against that index;
+    IndexUnusable when it is not a chunk, is cut short or disagrees with the index."""
+    fh.seek(ci.chunk_start_offset)
+    head = fh.read(9 + 28 + 4)
+    if len(head) != 41 or head[0] != 0x06:
+        raise IndexUnusable("no chunk record at an indexed position")
+    _start, _end, size, crc, name_len = struct.unpack_from("<QQQII", head, 9)
+    compression = fh.read(name_len).decode("utf-8", "replace")
+    size_field = fh.read(8)
+    if len(size_field) != 8:
+        raise IndexUnusable("truncated chunk")
+    (compressed_size,) = struct.unpack("<Q", size_field)
+    if compression != ci.compression or size != ci.uncompressed_size or compressed_size != ci.compressed_size:
+        raise IndexUnusable("chunk record disagrees with its index")
+    return ChunkHead(data_at=fh.tell(), compressed_size=compressed_size, size=size, crc=crc, compression=compression)
+
+
 class _Prefix:
     """A chunk's records, decompressed only as far as they are read."""
 
     def __init__(self, fh: BinaryIO, ci: Any) -> None:
-        fh.seek(ci.chunk_start_offset)
-        head = fh.read(9 + 28 + 4)
-        if len(head) != 41:
-            raise IndexUnusable("truncated chunk")
-        (size,), (name_len,) = struct.unpack_from("<Q", head, 9 + 16), struct.unpack_from("<I", head, 37)
-        compression = fh.read(name_len).decode("utf-8", "replace")
-        size_field = fh.read(8)
-        if len(size_field) != 8:
-            raise IndexUnusable("truncated chunk")
-        (compressed_size,) = struct.unpack("<Q", size_field)
-        if compression != ci.compression or size != ci.uncompressed_size or compressed_size != ci.compressed_size:
-            raise IndexUnusable("chunk record disagrees with its index")
-        self._chunk = ChunkPrefix(fh, fh.tell(), compressed_size, size, compression)
+        h = read_chunk_head(fh, ci)
+        self._chunk = ChunkPrefix(fh, h.data_at, h.compressed_size, h.size, h.compression)
 
     def message(self, offset: int, channel: int, log_time: int, want: int) -> bytes:
         """The message data at `offset` (all of it, or its first `want` bytes)."""

@@ -28,7 +28,7 @@ from typing import Any, BinaryIO
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.library_errors import data_errors
-from mrnc_eval.io.mcap_index import chunk_indexes, read_message_index
+from mrnc_eval.io.mcap_index import chunk_indexes, read_chunk_head, read_message_index
 
 _MESSAGE = 0x05
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
@@ -161,23 +161,12 @@ def _plan(fh: BinaryIO, topic: str) -> list[_Chunk]:
 
 def _chunk(fh: BinaryIO, ci: Any, entries: list[tuple[int, int]], channels: frozenset[int]) -> _Chunk:
     """The chunk record's head, checked against its index."""
-    fh.seek(ci.chunk_start_offset)
-    head = fh.read(9 + 28 + 4)
-    if len(head) != 41 or head[0] != 0x06:
-        raise IndexUnusable("no chunk record at an indexed position")
-    _start, _end, size, crc, name_len = struct.unpack_from("<QQQII", head, 9)
-    compression = fh.read(name_len).decode("utf-8", "replace")
-    size_field = fh.read(8)
-    if len(size_field) != 8:
-        raise IndexUnusable("truncated chunk")
-    (compressed_size,) = struct.unpack("<Q", size_field)
-    if compression != ci.compression or size != ci.uncompressed_size or compressed_size != ci.compressed_size:
-        raise IndexUnusable("chunk record disagrees with its index")
-    if compression not in ("", "zstd", "lz4"):
-        raise IndexUnusable(f"compression {compression!r}")
-    return _Chunk(start_s=ci.message_start_time / 1e9, end_s=ci.message_end_time / 1e9, data_at=fh.tell(),
-                  compressed_size=compressed_size, size=size, crc=crc, compression=compression, entries=entries,
-                  channels=channels)
+    h = read_chunk_head(fh, ci)
+    if h.compression not in ("", "zstd", "lz4"):
+        raise IndexUnusable(f"compression {h.compression!r}")
+    return _Chunk(start_s=ci.message_start_time / 1e9, end_s=ci.message_end_time / 1e9, data_at=h.data_at,
+                  compressed_size=h.compressed_size, size=h.size, crc=h.crc, compression=h.compression,
+                  entries=entries, channels=channels)
 
 
 def _topic_records(data: memoryview, chunk: _Chunk) -> list[tuple[int, int]]:
