@@ -19,9 +19,8 @@ those of the chunks it reads.
 
 from __future__ import annotations
 
-import heapq
 import struct
-from collections.abc import Iterator
+from dataclasses import dataclass
 from pathlib import Path
 from typing import Any, BinaryIO
 
@@ -33,18 +32,87 @@ from mrnc_eval.io.library_errors import data_errors
 _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
-_INDEX_ENTRY = np.dtype([("log_time", "<u8"), ("offset", "<u8")])
+HEAD = 12  # bytes of a message kept as its head (ROS 1 and CDR: up to the end of a header stamp)
 
 
-def overview(path: Path, wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
-    """(topic, log time ns, data) for every message, in log order; `data` is the whole message
-    (wants[topic] == WHOLE) or its first wants[topic] bytes (fewer if the message is shorter)."""
+@dataclass(frozen=True, kw_only=True)
+class IndexedMessages:
+    """Every message of one file, in log order (numpy arrays of one row a message)."""
+
+    topics: list[str]  # the file's topics; `topic` indexes this list
+    topic: np.ndarray  # (N,) int
+    log_time: np.ndarray  # (N,) uint64, ns
+    head: np.ndarray  # (N, HEAD) uint8: the message's first bytes, where any were wanted (else zeros)
+    head_len: np.ndarray  # (N,) int: how many of `head` the message has (0 where none were wanted)
+    data: list[bytes | None]  # the whole message where wants[topic] == WHOLE, else None
+
+
+def overview(path: Path, wants: dict[str, int]) -> IndexedMessages:
+    """The file's messages in log order: each one's log time, its first HEAD bytes where
+    wants[topic] != 0 (HEAD or WHOLE) and the whole of it where wants[topic] == WHOLE. One pass
+    over the chunks reads their indexes and decompresses each as far as wanted; the checks and
+    the reads of every message are then numpy over all of them at once."""
     with path.open("rb") as fh:
         chunks, topics = chunk_indexes(fh)
-        sources = [_chunk_messages(fh, ci, topics, wants) for ci in chunks]
-        for _t, _chunk, position, topic, log_time, data in heapq.merge(*sources):
-            if position >= 0:  # not a chunk's opening marker
-                yield topic, log_time, data
+        want_of = {cid: wants.get(topic, 0) for cid, topic in topics.items()}
+        read = [_chunk_read(fh, ci, topics, want_of) for ci in chunks]
+    names = list(dict.fromkeys(topics.values()))
+    lut_size = max(topics, default=0) + 1
+    topic_lut, want_lut = np.zeros(lut_size, np.int64), np.zeros(lut_size, np.int64)
+    topic_lut[list(topics)] = [names.index(t) for t in topics.values()]
+    want_lut[list(want_of)] = list(want_of.values())
+    records = [(k, channel, table) for k, (recs, _prefix) in enumerate(read) for channel, table in recs]
+    table = np.concatenate([r[2] for r in records]) if records else np.zeros((0, 2), np.uint64)
+    counts = [len(r[2]) for r in records]
+    channel = np.repeat(np.array([r[1] for r in records], np.int64), counts)
+    chunk = np.repeat(np.array([r[0] for r in records], np.int64), counts)
+    log_time, offset = table[:, 0], table[:, 1].astype(np.int64)
+    start = np.array([ci.message_start_time for ci in chunks], np.uint64)
+    end = np.array([ci.message_end_time for ci in chunks], np.uint64)
+    if np.any(log_time < start[chunk]) or np.any(log_time > end[chunk]):
+        raise IndexUnusable("message outside its chunk's time range")  # rosbags would drop it
+    head, head_len, data = _messages(read, chunk=chunk, channel=channel, log_time=log_time, offset=offset,
+                                     want=want_lut[channel])
+    at = np.array([ci.chunk_start_offset for ci in chunks], np.uint64)
+    order = np.lexsort((offset, at[chunk], log_time))  # log time, then chunk position in the file, then in the chunk
+    return IndexedMessages(topics=names, topic=topic_lut[channel[order]], log_time=log_time[order], head=head[order],
+                           head_len=head_len[order], data=[data[i] for i in order.tolist()])
+
+
+def _messages(read: list[tuple[Any, bytes]], *, chunk: np.ndarray, channel: np.ndarray, log_time: np.ndarray,
+              offset: np.ndarray, want: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[bytes | None]]:
+    """Heads (first HEAD bytes), their lengths and whole messages (want == WHOLE) of the wanted
+    messages (want != 0), each record head checked against its index entry, out of the chunks'
+    decompressed prefixes laid end to end."""
+    n = offset.size
+    head, head_len = np.zeros((n, HEAD), np.uint8), np.zeros(n, np.int64)
+    data: list[bytes | None] = [None] * n
+    wanted = np.flatnonzero(want != 0)
+    if not wanted.size:
+        return head, head_len, data
+    sizes = [len(prefix) for _recs, prefix in read]
+    base = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
+    joined = b"".join(prefix for _recs, prefix in read)
+    buf = np.frombuffer(joined, np.uint8)
+    k = chunk[wanted]
+    at = base[k] + offset[wanted]
+    rec = buf[at[:, None] + np.arange(_RECORD_HEAD)]  # each chunk's prefix reaches past its last wanted head
+    length = rec[:, 1:9].copy().view("<u8").ravel()
+    if np.any(rec[:, 0] != _MESSAGE) or np.any(rec[:, 9:11].copy().view("<u2").ravel() != channel[wanted]) or \
+            np.any(rec[:, 15:23].copy().view("<u8").ravel() != log_time[wanted]) or np.any(length < 22):
+        raise IndexUnusable("message index points at another record")
+    size = (length - 22).astype(np.int64)
+    begin = at + _RECORD_HEAD
+    stop = begin + np.where(want[wanted] == WHOLE, size, np.minimum(size, HEAD))
+    if np.any(stop > base[k] + np.asarray(sizes)[k]):
+        raise IndexUnusable("messages overlap in their chunk")  # the last wanted one ends each prefix
+    head_len[wanted] = np.minimum(size, HEAD)
+    inside = np.arange(HEAD) < head_len[wanted][:, None]  # a message shorter than HEAD: zeros after it
+    head[wanted] = buf[np.minimum(begin[:, None] + np.arange(HEAD), buf.size - 1)] * inside
+    whole = want[wanted] == WHOLE
+    for i, a, b in zip(wanted[whole].tolist(), begin[whole].tolist(), stop[whole].tolist(), strict=True):
+        data[i] = joined[a:b]
+    return head, head_len, data
 
 
 def chunk_indexes(fh: BinaryIO) -> tuple[list[Any], dict[int, str]]:
@@ -70,30 +138,34 @@ def _index_bytes(ci: Any) -> int:
     return int(ci.message_index_length) - 15 * len(ci.message_index_offsets)
 
 
-def _chunk_messages(fh: BinaryIO, ci: Any, topics: dict[int, str],
-                    wants: dict[str, int]) -> Iterator[tuple[int, int, int, str, int, bytes]]:
-    """Merge keys and messages of one chunk: first an opening marker at the chunk's start time
-    (so nothing is read before the merge reaches the chunk), then its messages by log time."""
-    yield ci.message_start_time, ci.chunk_start_offset, -1, "", 0, b""
-    entries = read_message_index(fh, ci, topics)
+def _chunk_read(fh: BinaryIO, ci: Any, topics: dict[int, str],
+                want_of: dict[int, int]) -> tuple[list[tuple[int, np.ndarray]], bytes]:
+    """A chunk's message index records ((channel, entries) each) and its data decompressed up to
+    the end of the last wanted bytes: those of the wanted message (want != 0) that starts last."""
+    records = _index_records(fh, ci, topics)
     prefix = _Prefix(fh, ci)
-    out = []
-    for channel, log_time, offset in entries:
-        topic = topics[channel]
-        want = wants.get(topic, 0)
-        data = prefix.message(offset, channel, log_time, want) if want else b""
-        out.append((log_time, ci.chunk_start_offset, offset, topic, log_time, data))
-    out.sort()  # by log time, then position in the chunk (a stable sort of the records by time)
-    yield from out
+    last = max(((int(table[:, 1].max()), want_of[channel]) for channel, table in records
+                if want_of[channel] and table.size), default=None)
+    return records, b"" if last is None else prefix.through(*last)
 
 
 def read_message_index(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tuple[int, int, int]]:
     """(channel, log time, offset in the uncompressed chunk) of every message of the chunk."""
+    out: list[tuple[int, int, int]] = []
+    for channel, table in _index_records(fh, ci, topics):
+        out += [(channel, int(t), int(o)) for t, o in table.tolist()]
+    if any(not ci.message_start_time <= t <= ci.message_end_time for _c, t, _o in out):
+        raise IndexUnusable("message outside its chunk's time range")  # rosbags would drop it
+    return out
+
+
+def _index_records(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tuple[int, np.ndarray]]:
+    """(channel, its entries: (n, 2) log time, offset) of each message index record of the chunk."""
     fh.seek(ci.chunk_start_offset + ci.chunk_length)
     block = fh.read(ci.message_index_length)
     if len(block) != ci.message_index_length:
         raise IndexUnusable("truncated message index")
-    out: list[tuple[int, int, int]] = []
+    out: list[tuple[int, np.ndarray]] = []
     pos = 0
     while pos < len(block):
         opcode, length = struct.unpack_from("<BQ", block, pos)
@@ -101,11 +173,8 @@ def read_message_index(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tu
             channel, size = struct.unpack_from("<HI", block, pos + 9)
             if channel not in topics or size % 16 or 6 + size > length:
                 raise IndexUnusable("malformed message index")
-            table = np.frombuffer(block, _INDEX_ENTRY, size // 16, pos + 15)
-            out += [(channel, int(t), int(o)) for t, o in table.tolist()]
+            out.append((channel, np.frombuffer(block, "<u8", size // 8, pos + 15).reshape(-1, 2)))
         pos += 9 + length
-    if any(not ci.message_start_time <= t <= ci.message_end_time for _c, t, _o in out):
-        raise IndexUnusable("message outside its chunk's time range")  # rosbags would drop it
     return out
 
 
@@ -127,12 +196,11 @@ class _Prefix:
             raise IndexUnusable("chunk record disagrees with its index")
         self._chunk = ChunkPrefix(fh, fh.tell(), compressed_size, size, compression)
 
-    def message(self, offset: int, channel: int, log_time: int, want: int) -> bytes:
-        """The message data at `offset` (all of it, or its first `want` bytes)."""
+    def through(self, offset: int, want: int) -> bytes:
+        """The chunk's bytes up to the end of the wanted bytes of the message at `offset`."""
         buf = self._chunk.ensure(offset + _RECORD_HEAD)
-        opcode, length, rec_channel, _seq, rec_time = struct.unpack_from("<BQHIQ", buf, offset)
-        if opcode != _MESSAGE or rec_channel != channel or rec_time != log_time or length < 22:
+        (length,) = struct.unpack_from("<Q", buf, offset + 1)
+        if length < 22:
             raise IndexUnusable("message index points at another record")
-        n = length - 22 if want == WHOLE else min(want, length - 22)
-        buf = self._chunk.ensure(offset + _RECORD_HEAD + n)
-        return bytes(buf[offset + _RECORD_HEAD:offset + _RECORD_HEAD + n])
+        end = offset + _RECORD_HEAD + (length - 22 if want == WHOLE else min(HEAD, length - 22))
+        return bytes(memoryview(self._chunk.ensure(end))[:end])
