@@ -94,6 +94,18 @@ class LogSource:
         for _topic, t_rec, raw in self.iterate([topic]):
             yield t_rec, raw
 
+    def first_raw(self, topic: str) -> bytes | None:
+        """`raw(topic)`'s first message (None without one): from the overview's cache, else from
+        a single MCAP file's indexes (io/mcap_index.py: only its chunk's beginning decompressed),
+        else through the library."""
+        self.check_type(topic, None)
+        if topic not in self.cache and self.container in ("mcap", "ros2-mcap") and len(self.paths) == 1:
+            from mrnc_eval.io.mcap_index import first_message
+
+            with contextlib.suppress(IndexUnusable, *data_errors()):  # the library then reads it, or says why not
+                return first_message(self.path, topic)
+        return next((bytes(raw) for _t, raw in self.raw(topic)), None)
+
     def stream(self, topic: str) -> Iterator[tuple[int, bytes | memoryview]]:
         """`raw(topic)` for one large topic (the clouds): from a single MCAP file straight from its
         chunks (io/mcap_stream.py: each chunk decompressed once, no copies), each message valid

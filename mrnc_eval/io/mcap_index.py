@@ -115,6 +115,34 @@ def _messages(read: list[tuple[Any, bytes]], *, chunk: np.ndarray, channel: np.n
     return head, head_len, data
 
 
+def first_message(path: Path, topic: str) -> bytes | None:
+    """The topic's first message in log order (the one the full read yields first), its chunk
+    decompressed only up to it; None when the topic has none. IndexUnusable as `overview`."""
+    with path.open("rb") as fh:
+        chunks, topics = chunk_indexes(fh)
+        ids = {cid for cid, name in topics.items() if name == topic}
+        best: tuple[int, int, int, int, Any] | None = None  # log time, chunk position, offset, channel, chunk index
+        for ci in sorted(chunks, key=lambda c: (c.message_start_time, c.chunk_start_offset)):
+            if best is not None and ci.message_start_time > best[0]:
+                break  # no earlier message further on
+            for channel, table in _index_records(fh, ci, topics) if ids & ci.message_index_offsets.keys() else []:
+                if channel not in ids or not table.size:
+                    continue
+                if table[:, 0].min() < ci.message_start_time or table[:, 0].max() > ci.message_end_time:
+                    raise IndexUnusable("message outside its chunk's time range")
+                k = int(np.lexsort((table[:, 1], table[:, 0]))[0])
+                found = (int(table[k, 0]), ci.chunk_start_offset, int(table[k, 1]), channel, ci)
+                best = found if best is None or found[:3] < best[:3] else best
+        if best is None:
+            return None
+        log_time, _at, offset, channel, ci = best
+        data = _Prefix(fh, ci).through(offset, WHOLE)
+    opcode, _length, rec_channel, _seq, rec_time = struct.unpack_from("<BQHIQ", data, offset)
+    if opcode != _MESSAGE or rec_channel != channel or rec_time != log_time:
+        raise IndexUnusable("message index points at another record")
+    return data[offset + _RECORD_HEAD:]
+
+
 def chunk_indexes(fh: BinaryIO) -> tuple[list[Any], dict[int, str]]:
     """The chunk indexes (by file position) and channel id -> topic, from the summary section."""
     from mcap.reader import make_reader

@@ -233,3 +233,17 @@ def test_mcap_header_too_short_names_file_and_topic(tmp_path: Path) -> None:
         _ = lg.topics
     assert "/imu" in str(err.value)
     assert "short.mcap" in str(err.value)
+
+
+def test_first_message_is_the_full_reads_first(tmp_path: Path) -> None:
+    """io/mcap_index.first_message gives each topic's first message as the library's read does
+    (record times tied across topics and chunks, a late IMU message), None for an empty topic."""
+    _multi_chunk_log(tmp_path / "a.mcap")
+    write_sample(tmp_path / "b.mcap", "mcap", duplicate_imu=True)
+    for path in (tmp_path / "a.mcap", tmp_path / "b.mcap"):
+        with open_log(path) as lg:
+            for topic in lg.topic_types():
+                want = next((bytes(raw) for _topic, _t, raw in lg.source.iterate([topic])), None)
+                assert mcap_index.first_message(path, topic) == want, topic
+                assert lg.source.first_raw(topic) == want, topic
+            assert mcap_index.first_message(path, "/not/there") is None
