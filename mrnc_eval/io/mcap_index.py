@@ -33,6 +33,7 @@ _MESSAGE = 0x05
 _MESSAGE_INDEX = 0x07
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
 HEAD = 12  # bytes of a message kept as its head (ROS 1 and CDR: up to the end of a header stamp)
+_BATCH_BYTES = 32 << 20  # decompressed chunk bytes read at a time (what the pass holds at most, with the kept messages)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -44,57 +45,110 @@ class IndexedMessages:
     log_time: np.ndarray  # (N,) uint64, ns
     head: np.ndarray  # (N, HEAD) uint8: the message's first bytes, where any were wanted (else zeros)
     head_len: np.ndarray  # (N,) int: how many of `head` the message has (0 where none were wanted)
-    data: list[bytes | None]  # the whole message where wants[topic] == WHOLE, else None
+    data: list[bytes | None]  # the whole message where wants[topic] == WHOLE (all None when dropped)
+    kept: int  # bytes of the whole messages wanted
+    dropped: bool  # `kept` is over the budget: `data` holds none of them
 
 
-def overview(path: Path, wants: dict[str, int]) -> IndexedMessages:
+@dataclass(frozen=True, kw_only=True)
+class _Batch:
+    """The messages of a run of chunks, by chunk and position in it (IndexedMessages' columns)."""
+
+    chunk: np.ndarray  # (n,) the chunk's number in the file's chunk list
+    channel: np.ndarray
+    log_time: np.ndarray
+    offset: np.ndarray  # in the uncompressed chunk
+    head: np.ndarray
+    head_len: np.ndarray
+    data: list[bytes | None]
+    kept: int
+
+
+def overview(path: Path, wants: dict[str, int], budget: int) -> IndexedMessages:
     """The file's messages in log order: each one's log time, its first HEAD bytes where
-    wants[topic] != 0 (HEAD or WHOLE) and the whole of it where wants[topic] == WHOLE. One pass
-    over the chunks reads their indexes and decompresses each as far as wanted; the checks and
-    the reads of every message are then numpy over all of them at once."""
+    wants[topic] != 0 (HEAD or WHOLE) and the whole of it where wants[topic] == WHOLE, unless the
+    whole ones come to more than `budget` bytes (then none is kept). One pass over the chunks
+    reads their indexes and decompresses each as far as wanted; the checks and reads of the
+    messages are numpy over _BATCH_BYTES of decompressed chunks at a time."""
     with path.open("rb") as fh:
         chunks, topics = chunk_indexes(fh)
         want_of = {cid: wants.get(topic, 0) for cid, topic in topics.items()}
-        read = [_chunk_read(fh, ci, topics, want_of) for ci in chunks]
-    names = list(dict.fromkeys(topics.values()))
-    lut_size = max(topics, default=0) + 1
-    topic_lut, want_lut = np.zeros(lut_size, np.int64), np.zeros(lut_size, np.int64)
-    topic_lut[list(topics)] = [names.index(t) for t in topics.values()]
-    want_lut[list(want_of)] = list(want_of.values())
-    records = [(k, channel, table) for k, (recs, _prefix) in enumerate(read) for channel, table in recs]
+        want_lut = np.zeros(max(topics, default=0) + 1, np.int64)
+        want_lut[list(want_of)] = list(want_of.values())
+        batches: list[_Batch] = []
+        pending: list[tuple[int, list[tuple[int, np.ndarray]], bytes]] = []
+        size = 0
+        for k, ci in enumerate(chunks):
+            pending.append((k, *_chunk_read(fh, ci, topics, want_of)))
+            size += len(pending[-1][2])
+            if size >= _BATCH_BYTES or k == len(chunks) - 1:  # the prefixes let go once read
+                batches.append(_batch(pending, chunks=chunks, want_lut=want_lut, keep=budget >= 0))
+                budget -= batches[-1].kept
+                pending, size = [], 0
+    return _in_log_order(batches, chunks, topics, dropped=budget < 0)
+
+
+def _batch(pending: list[tuple[int, list[tuple[int, np.ndarray]], bytes]], *, chunks: list[Any],
+           want_lut: np.ndarray, keep: bool) -> _Batch:
+    """The messages of the chunks in `pending` ((number, index records, decompressed prefix) each),
+    their index entries checked against the chunks' time ranges; whole messages only with `keep`."""
+    records = [(j, channel, table) for j, (_k, recs, _prefix) in enumerate(pending) for channel, table in recs]
     table = np.concatenate([r[2] for r in records]) if records else np.zeros((0, 2), np.uint64)
     counts = [len(r[2]) for r in records]
     channel = np.repeat(np.array([r[1] for r in records], np.int64), counts)
-    chunk = np.repeat(np.array([r[0] for r in records], np.int64), counts)
+    local = np.repeat(np.array([r[0] for r in records], np.int64), counts)
     log_time, offset = table[:, 0], table[:, 1].astype(np.int64)
-    start = np.array([ci.message_start_time for ci in chunks], np.uint64)
-    end = np.array([ci.message_end_time for ci in chunks], np.uint64)
-    if np.any(log_time < start[chunk]) or np.any(log_time > end[chunk]):
+    start = np.array([chunks[k].message_start_time for k, _r, _p in pending], np.uint64)
+    end = np.array([chunks[k].message_end_time for k, _r, _p in pending], np.uint64)
+    if np.any(log_time < start[local]) or np.any(log_time > end[local]):
         raise IndexUnusable("message outside its chunk's time range")  # rosbags would drop it
-    head, head_len, data = _messages(read, chunk=chunk, channel=channel, log_time=log_time, offset=offset,
-                                     want=want_lut[channel])
+    want = want_lut[channel]
+    if not keep:
+        want[want == WHOLE] = HEAD
+    head, head_len, data = _messages([p for _k, _r, p in pending], local=local, channel=channel,
+                                     log_time=log_time, offset=offset, want=want)
+    return _Batch(chunk=np.array([k for k, _r, _p in pending], np.int64)[local], channel=channel,
+                  log_time=log_time, offset=offset, head=head, head_len=head_len, data=data,
+                  kept=sum(len(d) for d in data if d is not None))
+
+
+def _in_log_order(batches: list[_Batch], chunks: list[Any], topics: dict[int, str], *,
+                  dropped: bool) -> IndexedMessages:
+    """The batches' messages by log time, then chunk position in the file, then in the chunk."""
+    names = list(dict.fromkeys(topics.values()))
+    topic_lut = np.zeros(max(topics, default=0) + 1, np.int64)
+    topic_lut[list(topics)] = [names.index(t) for t in topics.values()]
+    if not batches:
+        return IndexedMessages(topics=names, topic=np.zeros(0, np.int64), log_time=np.zeros(0, np.uint64),
+                               head=np.zeros((0, HEAD), np.uint8), head_len=np.zeros(0, np.int64), data=[],
+                               kept=0, dropped=dropped)
+    chunk, channel, log_time, offset, head, head_len = (
+        np.concatenate([getattr(b, f) for b in batches])
+        for f in ("chunk", "channel", "log_time", "offset", "head", "head_len"))
     at = np.array([ci.chunk_start_offset for ci in chunks], np.uint64)
-    order = np.lexsort((offset, at[chunk], log_time))  # log time, then chunk position in the file, then in the chunk
+    order = np.lexsort((offset, at[chunk], log_time))
+    data = [d for b in batches for d in b.data]
     return IndexedMessages(topics=names, topic=topic_lut[channel[order]], log_time=log_time[order], head=head[order],
-                           head_len=head_len[order], data=[data[i] for i in order.tolist()])
+                           head_len=head_len[order], kept=sum(b.kept for b in batches), dropped=dropped,
+                           data=[None] * len(data) if dropped else [data[i] for i in order.tolist()])
 
 
-def _messages(read: list[tuple[Any, bytes]], *, chunk: np.ndarray, channel: np.ndarray, log_time: np.ndarray,
+def _messages(prefixes: list[bytes], *, local: np.ndarray, channel: np.ndarray, log_time: np.ndarray,
               offset: np.ndarray, want: np.ndarray) -> tuple[np.ndarray, np.ndarray, list[bytes | None]]:
     """Heads (first HEAD bytes), their lengths and whole messages (want == WHOLE) of the wanted
     messages (want != 0), each record head checked against its index entry, out of the chunks'
-    decompressed prefixes laid end to end."""
+    decompressed prefixes laid end to end (`local`: each message's chunk in `prefixes`)."""
     n = offset.size
     head, head_len = np.zeros((n, HEAD), np.uint8), np.zeros(n, np.int64)
     data: list[bytes | None] = [None] * n
     wanted = np.flatnonzero(want != 0)
     if not wanted.size:
         return head, head_len, data
-    sizes = [len(prefix) for _recs, prefix in read]
+    sizes = np.array([len(prefix) for prefix in prefixes], np.int64)
     base = np.concatenate(([0], np.cumsum(sizes)[:-1])).astype(np.int64)
-    joined = b"".join(prefix for _recs, prefix in read)
+    joined = b"".join(prefixes)
     buf = np.frombuffer(joined, np.uint8)
-    k = chunk[wanted]
+    k = local[wanted]
     at = base[k] + offset[wanted]
     rec = buf[at[:, None] + np.arange(_RECORD_HEAD)]  # each chunk's prefix reaches past its last wanted head
     length = rec[:, 1:9].copy().view("<u8").ravel()
@@ -104,7 +158,7 @@ def _messages(read: list[tuple[Any, bytes]], *, chunk: np.ndarray, channel: np.n
     size = (length - 22).astype(np.int64)
     begin = at + _RECORD_HEAD
     stop = begin + np.where(want[wanted] == WHOLE, size, np.minimum(size, HEAD))
-    if np.any(stop > base[k] + np.asarray(sizes)[k]):
+    if np.any(stop > base[k] + sizes[k]):
         raise IndexUnusable("messages overlap in their chunk")  # the last wanted one ends each prefix
     head_len[wanted] = np.minimum(size, HEAD)
     inside = np.arange(HEAD) < head_len[wanted][:, None]  # a message shorter than HEAD: zeros after it

@@ -64,7 +64,8 @@ def scan(src: LogSource, health: HealthLedger, cache_mb: float) -> tuple[dict[st
             records = src.src.indexed_overview(list(src.channels), wants)
             arrays, cache = _collect(src, records, header_topics, keep, cache_mb)
         else:
-            arrays, cache = _collect_indexed(src, _mcap_overviews(src, wants), header_topics, keep, cache_mb)
+            parts = _mcap_overviews(src, wants, int(cache_mb * 1e6))
+            arrays, cache = _collect_indexed(src, parts, header_topics, keep)
     except no_index:  # the full read, and its own error
         arrays, cache = _collect(src, src.iterate(list(src.channels)), header_topics, keep, cache_mb)
     src.cache = cache
@@ -83,21 +84,27 @@ def scan(src: LogSource, health: HealthLedger, cache_mb: float) -> tuple[dict[st
     return stats, arrays
 
 
-def _mcap_overviews(src: LogSource, wants: dict[str, int]) -> list[IndexedMessages]:
+def _mcap_overviews(src: LogSource, wants: dict[str, int], budget: int) -> list[IndexedMessages]:
     """The overview's messages of each file of an MCAP log (a split log: file after file) from
-    the indexes; IndexUnusable when the log has none that can be trusted."""
+    the indexes, the whole messages kept while they come to `budget` bytes at most (else none);
+    IndexUnusable when the log has none that can be trusted."""
     if src.container not in ("mcap", "ros2-mcap") or not all(p.is_file() for p in src.paths):
         raise IndexUnusable(src.container)
-    return [mcap_overview(path, wants) for path in src.paths]
+    parts: list[IndexedMessages] = []
+    for path in src.paths:
+        parts.append(mcap_overview(path, wants, budget))
+        budget -= parts[-1].kept
+    return parts
 
 
-def _collect_indexed(src: LogSource, parts: list[IndexedMessages], header_topics: set[str], keep: set[str],
-                     cache_mb: float) -> tuple[dict[str, np.ndarray], dict[str, RawMessages]]:
+def _collect_indexed(src: LogSource, parts: list[IndexedMessages], header_topics: set[str],
+                     keep: set[str]) -> tuple[dict[str, np.ndarray], dict[str, RawMessages]]:
     """`_collect` of the index's arrays: each topic's stamps (header stamps or record times) and
     the small topics' messages (none when over the cache budget); a header too short for its stamp
     raises IndexUnusable (the full read then names it)."""
     stamps: dict[str, np.ndarray] = {}
-    cache: dict[str, RawMessages] = {t: [] for t in keep}
+    dropped = any(part.dropped for part in parts)  # over budget: each series reads the file again
+    cache: dict[str, RawMessages] = {} if dropped else {t: [] for t in keep}
     for topic in src.channels:
         pieces = [np.zeros(0)]
         for part in parts:
@@ -110,12 +117,11 @@ def _collect_indexed(src: LogSource, parts: list[IndexedMessages], header_topics
                 pieces.append(header_stamps(part.head[sel], ros1=src.channels[topic].encoding == "ros1"))
             else:
                 pieces.append(part.log_time[sel] * 1e-9)
-            if topic in keep:
+            if topic in keep and not dropped:
                 data, times = part.data, part.log_time[sel].tolist()
                 cache[topic] += [(t, data[i] or b"") for t, i in zip(times, sel.tolist(), strict=True)]
         stamps[topic] = np.concatenate(pieces)
-    kept = sum(len(raw) for msgs in cache.values() for _t, raw in msgs)
-    return stamps, cache if kept <= int(cache_mb * 1e6) else {}  # over budget: each series reads the file again
+    return stamps, cache
 
 
 def _collect(src: LogSource, records: Iterable[tuple[str, int, bytes]], header_topics: set[str], keep: set[str],

@@ -208,9 +208,9 @@ def test_mcap_index_that_disagrees_is_not_used(tmp_path: Path, field: int, probl
     bad.write_bytes(good.read_bytes())
     _corrupt_first_index_entry(bad, field, 5 if field else 2**62)
     wants = {"/ouster/imu": -1, "/ouster/points": 12}
-    assert mcap_index.overview(good, wants).topic.size == len(CLOUD_STAMPS) * 11
+    assert mcap_index.overview(good, wants, 10**9).topic.size == len(CLOUD_STAMPS) * 11
     with pytest.raises(IndexUnusable, match=problem):
-        mcap_index.overview(bad, wants)
+        mcap_index.overview(bad, wants, 10**9)
     with open_log(good) as a, open_log(bad) as b:
         assert a.topics == b.topics
         for topic in a.topic_types():
@@ -247,3 +247,21 @@ def test_first_message_is_the_full_reads_first(tmp_path: Path) -> None:
                 assert mcap_index.first_message(path, topic) == want, topic
                 assert lg.source.first_raw(topic) == want, topic
             assert mcap_index.first_message(path, "/not/there") is None
+
+
+def test_overview_in_batches_and_over_budget(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Chunks read one batch each (bounded memory) give what one batch gives; whole messages over
+    the budget are all dropped (counted, none held), their heads still read."""
+    _multi_chunk_log(tmp_path / "a.mcap")
+    whole = _overview(tmp_path / "a.mcap", monkeypatch, indexed=True)
+    monkeypatch.setattr(mcap_index, "_BATCH_BYTES", 1)
+    _same(whole, _overview(tmp_path / "a.mcap", monkeypatch, indexed=True))
+    wants = {"/ouster/imu": -1, "/ouster/points": 12}
+    full = mcap_index.overview(tmp_path / "a.mcap", wants, 10**9)
+    tight = mcap_index.overview(tmp_path / "a.mcap", wants, full.kept - 1)
+    assert not full.dropped
+    assert all(d is not None for d, t in zip(full.data, full.topic, strict=True) if full.topics[t] == "/ouster/imu")
+    assert tight.dropped
+    assert all(d is None for d in tight.data)
+    np.testing.assert_array_equal(tight.head, full.head)
+    np.testing.assert_array_equal(tight.log_time, full.log_time)
