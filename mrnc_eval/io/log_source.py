@@ -14,6 +14,8 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+import numpy as np
+
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.containers import describe_error, detect_container, openable
@@ -92,6 +94,18 @@ class LogSource:
         for _topic, t_rec, raw in self.iterate([topic]):
             yield t_rec, raw
 
+    def first_raw(self, topic: str) -> bytes | None:
+        """`raw(topic)`'s first message (None without one): from the overview's cache, else from
+        a single MCAP file's indexes (io/mcap_index.py: only its chunk's beginning decompressed),
+        else through the library."""
+        self.check_type(topic, None)
+        if topic not in self.cache and self.container in ("mcap", "ros2-mcap") and len(self.paths) == 1:
+            from mrnc_eval.io.mcap_index import first_message
+
+            with contextlib.suppress(IndexUnusable, *data_errors()):  # the library then reads it, or says why not
+                return first_message(self.path, topic)
+        return next((bytes(raw) for _t, raw in self.raw(topic)), None)
+
     def stream(self, topic: str) -> Iterator[tuple[int, bytes | memoryview]]:
         """`raw(topic)` for one large topic (the clouds): from a single MCAP file straight from its
         chunks (io/mcap_stream.py: each chunk decompressed once, no copies), each message valid
@@ -149,6 +163,18 @@ class LogSource:
             return self.header_stamp(raw, topic)
         except (struct.error, IndexError) as err:
             raise InputError(self.path, f"message too short for a header: {err}", topic=topic) from err
+
+
+def header_stamps(heads: np.ndarray, *, ros1: bool) -> np.ndarray:
+    """`LogSource.header_stamp` of many messages at once, from their first 12 bytes ((N, 12) uint8;
+    CDR: each message's own byte order); the same floats to the bit."""
+    sec, nsec = np.ascontiguousarray(heads[:, 4:8]), np.ascontiguousarray(heads[:, 8:12])
+    if ros1:
+        return sec.view("<u4").ravel().astype(np.float64) + nsec.view("<u4").ravel().astype(np.float64) * 1e-9
+    little = (heads[:, 1] & 1).astype(bool)
+    s = np.where(little, sec.view("<i4").ravel(), sec.view(">i4").ravel()).astype(np.float64)
+    ns = np.where(little, nsec.view("<u4").ravel(), nsec.view(">u4").ravel()).astype(np.float64)
+    return s + ns * 1e-9
 
 
 def expand_paths(path: str | Path) -> list[Path]:

@@ -9,7 +9,7 @@ clouds left compressed (io/chunk_prefix.py); without a usable index, the full re
 from __future__ import annotations
 
 from array import array
-from collections.abc import Iterable, Iterator
+from collections.abc import Iterable
 from dataclasses import dataclass
 
 import numpy as np
@@ -17,7 +17,8 @@ import numpy as np
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import WHOLE, IndexUnusable
 from mrnc_eval.io.library_errors import data_errors
-from mrnc_eval.io.log_source import LogSource, RawMessages
+from mrnc_eval.io.log_source import LogSource, RawMessages, header_stamps
+from mrnc_eval.io.mcap_index import HEAD, IndexedMessages
 from mrnc_eval.io.mcap_index import overview as mcap_overview
 from mrnc_eval.io.sources import RosbagsSource
 from mrnc_eval.io.stream_health import HealthLedger, sort_dedup
@@ -32,7 +33,7 @@ _STAMPED_FIRST_FIELD = {  # message types whose first field is std_msgs/Header
     "geometry_msgs/msg/PoseWithCovarianceStamped", "geometry_msgs/msg/TwistStamped",
     "geometry_msgs/msg/TransformStamped",
 }
-_HEADER_BYTES = 12  # serialised bytes up to the end of a header stamp (ROS 1 and CDR)
+_HEADER_BYTES = HEAD  # serialised bytes up to the end of a header stamp (ROS 1 and CDR): 12
 
 
 @dataclass(frozen=True)
@@ -59,11 +60,15 @@ def scan(src: LogSource, health: HealthLedger, cache_mb: float) -> tuple[dict[st
     wants = {t: WHOLE if t in keep else _HEADER_BYTES if t in header_topics else 0 for t in src.channels}
     no_index: tuple[type[Exception], ...] = (IndexUnusable, InputError, *data_errors())  # or a broken log
     try:  # MCAP, ROS 1: from the indexes, the clouds left compressed (io/chunk_prefix.py)
-        stamps, cache = _collect(src, _indexed_overview(src, wants), header_topics, keep, cache_mb)
+        if src.container == "ros1" and isinstance(src.src, RosbagsSource):
+            records = src.src.indexed_overview(list(src.channels), wants)
+            arrays, cache = _collect(src, records, header_topics, keep, cache_mb)
+        else:
+            parts = _mcap_overviews(src, wants, int(cache_mb * 1e6))
+            arrays, cache = _collect_indexed(src, parts, header_topics, keep)
     except no_index:  # the full read, and its own error
-        stamps, cache = _collect(src, src.iterate(list(src.channels)), header_topics, keep, cache_mb)
+        arrays, cache = _collect(src, src.iterate(list(src.channels)), header_topics, keep, cache_mb)
     src.cache = cache
-    arrays = {t: np.frombuffer(v, dtype=np.float64) if len(v) else np.zeros(0) for t, v in stamps.items()}
     stats: dict[str, TopicInfo] = {}
     for topic, ch in src.channels.items():
         arr = arrays[topic]
@@ -79,22 +84,48 @@ def scan(src: LogSource, health: HealthLedger, cache_mb: float) -> tuple[dict[st
     return stats, arrays
 
 
-def _indexed_overview(src: LogSource, wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
-    """The overview's messages from the container's indexes (MCAP files, file after file as a
-    split log is read; ROS 1 bags); IndexUnusable when the log has none that can be trusted."""
-    if src.container == "ros1" and isinstance(src.src, RosbagsSource):
-        yield from src.src.indexed_overview(list(src.channels), wants)
-        return
+def _mcap_overviews(src: LogSource, wants: dict[str, int], budget: int) -> list[IndexedMessages]:
+    """The overview's messages of each file of an MCAP log (a split log: file after file) from
+    the indexes, the whole messages kept while they come to `budget` bytes at most (else none);
+    IndexUnusable when the log has none that can be trusted."""
     if src.container not in ("mcap", "ros2-mcap") or not all(p.is_file() for p in src.paths):
         raise IndexUnusable(src.container)
+    parts: list[IndexedMessages] = []
     for path in src.paths:
-        for topic, t_rec, data in mcap_overview(path, wants):
-            if topic in src.channels:
-                yield topic, t_rec, data
+        parts.append(mcap_overview(path, wants, budget))
+        budget -= parts[-1].kept
+    return parts
+
+
+def _collect_indexed(src: LogSource, parts: list[IndexedMessages], header_topics: set[str],
+                     keep: set[str]) -> tuple[dict[str, np.ndarray], dict[str, RawMessages]]:
+    """`_collect` of the index's arrays: each topic's stamps (header stamps or record times) and
+    the small topics' messages (none when over the cache budget); a header too short for its stamp
+    raises IndexUnusable (the full read then names it)."""
+    stamps: dict[str, np.ndarray] = {}
+    dropped = any(part.dropped for part in parts)  # over budget: each series reads the file again
+    cache: dict[str, RawMessages] = {} if dropped else {t: [] for t in keep}
+    for topic in src.channels:
+        pieces = [np.zeros(0)]
+        for part in parts:
+            if topic not in part.topics:
+                continue
+            sel = np.flatnonzero(part.topic == part.topics.index(topic))
+            if topic in header_topics:
+                if np.any(part.head_len[sel] < _HEADER_BYTES):
+                    raise IndexUnusable("message too short for a header")
+                pieces.append(header_stamps(part.head[sel], ros1=src.channels[topic].encoding == "ros1"))
+            else:
+                pieces.append(part.log_time[sel] * 1e-9)
+            if topic in keep and not dropped:
+                data, times = part.data, part.log_time[sel].tolist()
+                cache[topic] += [(t, data[i] or b"") for t, i in zip(times, sel.tolist(), strict=True)]
+        stamps[topic] = np.concatenate(pieces)
+    return stamps, cache
 
 
 def _collect(src: LogSource, records: Iterable[tuple[str, int, bytes]], header_topics: set[str], keep: set[str],
-             cache_mb: float) -> tuple[dict[str, array[float]], dict[str, RawMessages]]:
+             cache_mb: float) -> tuple[dict[str, np.ndarray], dict[str, RawMessages]]:
     """Stamps of every topic and the small topics' messages (none when over the cache budget)."""
     stamps = {t: array("d") for t in src.channels}  # 8 bytes a stamp (a list costs 32)
     budget = int(cache_mb * 1e6)
@@ -108,4 +139,5 @@ def _collect(src: LogSource, records: Iterable[tuple[str, int, bytes]], header_t
             stamps[topic].append(src.checked_header_stamp(raw, topic))
         else:
             stamps[topic].append(t_rec * 1e-9)
-    return stamps, cache if budget >= 0 else {}  # over budget: each series reads the file again
+    arrays = {t: np.frombuffer(v, dtype=np.float64) if len(v) else np.zeros(0) for t, v in stamps.items()}
+    return arrays, cache if budget >= 0 else {}  # over budget: each series reads the file again

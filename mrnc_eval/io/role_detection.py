@@ -23,9 +23,9 @@ def detect_roles(src: LogSource, overrides: dict[str, str]
     joint_names: dict[str, list[str]] = {}
     for topic, ch in src.channels.items():
         if ch.msgtype == "sensor_msgs/msg/JointState" and not ch.problem and ch.count != 0:
-            for _t, raw in src.raw(topic):
+            raw = src.first_raw(topic)  # a single MCAP: only its chunk's beginning decompressed
+            if raw is not None:
                 joint_names[topic] = [str(n) for n in src.decode(raw, topic).name]
-                break
     found = candidates_by_role([Candidate(t, ch.msgtype, ch.count) for t, ch in src.channels.items()],
                                joint_names)
     for role in ("lidar", "wheel_odom"):  # several candidates: their first message's fields and frames count
@@ -43,7 +43,8 @@ def detect_roles(src: LogSource, overrides: dict[str, str]
 def _with_evidence(src: LogSource, c: Candidate) -> Candidate:
     """`c` with the field names and frames of its first message (unchanged if it cannot be read)."""
     try:
-        msg = next((src.decode(raw, c.topic) for _t, raw in src.raw(c.topic)), None)
+        raw = src.first_raw(c.topic)
+        msg = src.decode(raw, c.topic) if raw is not None else None
     except InputError:
         return c
     if msg is None:

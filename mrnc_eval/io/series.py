@@ -23,6 +23,7 @@ from mrnc_eval.io.config import IoConfig
 from mrnc_eval.io.fast_imu import ImuBatch, decode_imu_batch
 from mrnc_eval.io.log_source import LogSource
 from mrnc_eval.io.pointcloud import CloudFormatError, decode_cloud
+from mrnc_eval.io.pose_msg import PoseBatch, decode_pose_batch
 from mrnc_eval.io.stream_health import HealthLedger
 from mrnc_eval.io.validate import bad_lat_lon, bad_quaternions, beyond, non_finite, normalised
 
@@ -79,19 +80,9 @@ class SeriesReader:
         self.src.check_type(topic, ("sensor_msgs/msg/Imu",))
         ros1 = self.src.channel(topic).encoding == "ros1"
         batches: list[ImuBatch] = []
-        pending: list[bytes] = []
-
-        def flush() -> None:
-            batch = decode_imu_batch(pending, ros1) if fast else None
-            batches.append(batch if batch is not None else self._imu_batch_slow(pending, topic))
-            pending.clear()
-
-        for _t, raw in self.src.raw(topic):
-            pending.append(bytes(raw))
-            if len(pending) >= _IMU_BATCH:
-                flush()
-        if pending:
-            flush()
+        for raws in _batched(self.src.raw(topic)):
+            batch = decode_imu_batch(raws, ros1) if fast else None
+            batches.append(batch if batch is not None else self._imu_batch_slow(raws, topic))
         if not batches:
             raise InputError(self.src.path, "IMU topic has no messages", topic=topic)
         return batches
@@ -176,16 +167,16 @@ class SeriesReader:
     def odometry_twist(self, topic: str) -> Twists:
         """The body twist of an Odometry topic: forward speed m/s and yaw rate rad/s, in its
         child frame (nav_msgs/Odometry's convention)."""
-        t, v, w = [], [], []
-        for m in self.src.messages(topic, ("nav_msgs/msg/Odometry",)):
-            t.append(stamp_of(m))
-            v.append(m.twist.twist.linear.x)
-            w.append(m.twist.twist.angular.z)
-        return self._twists(topic, t, v, w)
+        self.src.check_type(topic, ("nav_msgs/msg/Odometry",))
+        batches = self._pose_batches(topic)
+        t = np.concatenate([np.zeros(0)] + [b.stamps for b in batches])
+        twist = np.concatenate([np.zeros((0, 6))] + [b.twist for b in batches if b.twist is not None])
+        return self._twists(topic, t, twist[:, 0], twist[:, 5])
 
-    def _twists(self, topic: str, t: list[float], v: list[float], w: list[float]) -> Twists:
+    def _twists(self, topic: str, t: Sequence[float] | np.ndarray, v: Sequence[float] | np.ndarray,
+                w: Sequence[float] | np.ndarray) -> Twists:
         """Screened, sorted twists (non-finite or implausible speeds dropped and reported)."""
-        if not t:
+        if len(t) == 0:
             raise InputError(self.src.path, "topic has no messages", topic=topic)
         vw = np.c_[np.asarray(v, float), np.asarray(w, float)]
         valid = self.health.screen(topic, {"non-finite": non_finite(vw), "speed out of range":
@@ -206,22 +197,47 @@ class SeriesReader:
 
     def poses(self, topic: str) -> Trajectory:
         """Poses of a PoseStamped / PoseWithCovarianceStamped / Odometry / TransformStamped topic."""
-        msgtype = self.src.msgtype(topic)
-        t, p, q, frame, child = [], [], [], "", ""
-        for m in self.src.messages(topic):
+        batches = self._pose_batches(topic)
+        if not batches:
+            raise InputError(self.src.path, "pose topic has no messages", topic=topic)
+        t = np.concatenate([b.stamps for b in batches])
+        p = np.concatenate([b.position for b in batches])
+        q = np.concatenate([b.orientation for b in batches])
+        t_a, p_a, q_a = self.valid_poses(topic, t, p, q)
+        keep = self.health.sorted_unique(t_a, topic)
+        return Trajectory(t_a[keep], p_a[keep], q_a[keep], name=topic, frame_id=batches[-1].frame_id,
+                          child_frame_id=batches[-1].child_frame_id)
+
+    def _pose_batches(self, topic: str, *, fast: bool = True) -> list[PoseBatch]:
+        """The topic's pose messages decoded in batches of _IMU_BATCH, straight from their bytes
+        when they allow (io/pose_msg.py), else through the library (none without messages)."""
+        self.src.check_type(topic, None)
+        msgtype, ros1 = self.src.msgtype(topic), self.src.channel(topic).encoding == "ros1"
+        batches: list[PoseBatch] = []
+        for raws in _batched(self.src.raw(topic)):
             if msgtype not in POSE_MSGTYPES:
                 raise InputError(self.src.path, f"{msgtype} is not a pose type (PoseStamped, Odometry, ...)",
                                  topic=topic)
+            batch = decode_pose_batch(raws, msgtype, ros1=ros1) if fast else None
+            batches.append(batch if batch is not None else self._pose_batch_slow(raws, topic, msgtype))
+        return batches
+
+    def _pose_batch_slow(self, raws: list[bytes], topic: str, msgtype: str) -> PoseBatch:
+        t, p, q, twist, frame, child = [], [], [], [], "", ""
+        for raw in raws:
+            m = self.src.decode(raw, topic)
             position, o, child = _pose_fields(msgtype, m, child)
             t.append(stamp_of(m))
             p.append((position.x, position.y, position.z))
             q.append((o.x, o.y, o.z, o.w))
+            if msgtype == "nav_msgs/msg/Odometry":
+                lin, ang = m.twist.twist.linear, m.twist.twist.angular
+                twist.append((lin.x, lin.y, lin.z, ang.x, ang.y, ang.z))
             frame = m.header.frame_id
-        if not t:
-            raise InputError(self.src.path, "pose topic has no messages", topic=topic)
-        t_a, p_a, q_a = self.valid_poses(topic, t, p, q)
-        keep = self.health.sorted_unique(t_a, topic)
-        return Trajectory(t_a[keep], p_a[keep], q_a[keep], name=topic, frame_id=frame, child_frame_id=child)
+        return PoseBatch(stamps=np.asarray(t, float), position=np.asarray(p, float).reshape(-1, 3),
+                         orientation=np.asarray(q, float).reshape(-1, 4),
+                         twist=np.asarray(twist, float).reshape(-1, 6) if twist else None,
+                         frame_id=str(frame), child_frame_id=str(child))
 
     def valid_poses(self, topic: str, t: Sequence[float] | np.ndarray,
                     p: Sequence[tuple[float, float, float]] | np.ndarray,
@@ -268,6 +284,18 @@ class SeriesReader:
 
     def strings(self, topic: str) -> list[str]:
         return [str(m.data) for m in self.src.messages(topic, ("std_msgs/msg/String",))]
+
+
+def _batched(records: Iterator[tuple[int, bytes]]) -> Iterator[list[bytes]]:
+    """The messages' bytes in lists of _IMU_BATCH (bounds the raw bytes held at once)."""
+    pending: list[bytes] = []
+    for _t, raw in records:
+        pending.append(bytes(raw))
+        if len(pending) >= _IMU_BATCH:
+            yield pending
+            pending = []
+    if pending:
+        yield pending
 
 
 def _pose_fields(msgtype: str, m: Any, child: str) -> tuple[Any, Any, str]:

@@ -53,9 +53,9 @@ class RosbagsSource:
     def __init__(self, paths: list[Path], ros1: bool) -> None:
         from rosbags.highlevel import AnyReader
 
-        from mrnc_eval.io.typestore import typestore_for
+        from mrnc_eval.io.typestore import LazyTypestore
 
-        default = typestore_for(ros1=ros1)
+        default: Any = LazyTypestore(ros1=ros1)  # AnyReader reads its fielddefs only for a log lacking definitions
         self.ros1 = ros1
         self.paths = paths
         self._reader = AnyReader(paths, default_typestore=default)

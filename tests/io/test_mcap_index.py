@@ -183,3 +183,85 @@ def test_unchunked_mcap_is_read_in_full(tmp_path: Path) -> None:
     assert infos[True][0] == infos[False][0]
     np.testing.assert_array_equal(infos[True][1], infos[False][1])
     np.testing.assert_array_equal(infos[True][1], np.array([1, 2, 2, 3]) * 1e-9)
+
+
+def _corrupt_first_index_entry(path: Path, field: int, value: int) -> None:
+    """Set the first message index entry of the first chunk: field 0 its log time, 1 its offset."""
+    from mcap.reader import make_reader
+
+    with path.open("rb") as fh:
+        summary = make_reader(fh).get_summary()
+    assert summary is not None
+    ci = min(summary.chunk_indexes, key=lambda c: c.chunk_start_offset)
+    at = min(ci.message_index_offsets.values()) + 9 + 2 + 4 + 8 * field  # opcode, length, channel, array length
+    data = bytearray(path.read_bytes())
+    data[at:at + 8] = value.to_bytes(8, "little")
+    path.write_bytes(bytes(data))
+
+
+@pytest.mark.parametrize(("field", "problem"), [(1, "points at another record"), (0, "outside its chunk")])
+def test_mcap_index_that_disagrees_is_not_used(tmp_path: Path, field: int, problem: str) -> None:
+    """A message index entry pointing between records, or at a time outside its chunk: the
+    index pass refuses the file (IndexUnusable) and the overview is the full read's."""
+    good, bad = tmp_path / "good.mcap", tmp_path / "bad.mcap"
+    _multi_chunk_log(good)
+    bad.write_bytes(good.read_bytes())
+    _corrupt_first_index_entry(bad, field, 5 if field else 2**62)
+    wants = {"/ouster/imu": -1, "/ouster/points": 12}
+    assert mcap_index.overview(good, wants, 10**9).topic.size == len(CLOUD_STAMPS) * 11
+    with pytest.raises(IndexUnusable, match=problem):
+        mcap_index.overview(bad, wants, 10**9)
+    with open_log(good) as a, open_log(bad) as b:
+        assert a.topics == b.topics
+        for topic in a.topic_types():
+            np.testing.assert_array_equal(a.stamps(topic), b.stamps(topic))
+
+
+def test_mcap_header_too_short_names_file_and_topic(tmp_path: Path) -> None:
+    """An IMU message too short for its header stamp: the index pass leaves it to the full read,
+    which names the file, the topic and the problem."""
+    from mrnc_eval.errors import InputError
+
+    path = tmp_path / "short.mcap"
+    w_ = LogWriter(path, "mcap")
+    imu = w_._conn("/imu", "sensor_msgs/msg/Imu")
+    raw = w_._serialize(M.imu(w_.ts, 1.0, "imu", (0.0, 0.0, 9.81), (0.0, 0.0, 0.0), None, False), "sensor_msgs/msg/Imu")
+    w_._writer.write(imu, 1_000_000_000, raw)
+    w_._writer.write(imu, 1_010_000_000, bytes(raw)[:10])
+    w_.close()
+    with pytest.raises(InputError, match="too short for a header") as err, open_log(path) as lg:
+        _ = lg.topics
+    assert "/imu" in str(err.value)
+    assert "short.mcap" in str(err.value)
+
+
+def test_first_message_is_the_full_reads_first(tmp_path: Path) -> None:
+    """io/mcap_index.first_message gives each topic's first message as the library's read does
+    (record times tied across topics and chunks, a late IMU message), None for an empty topic."""
+    _multi_chunk_log(tmp_path / "a.mcap")
+    write_sample(tmp_path / "b.mcap", "mcap", duplicate_imu=True)
+    for path in (tmp_path / "a.mcap", tmp_path / "b.mcap"):
+        with open_log(path) as lg:
+            for topic in lg.topic_types():
+                want = next((bytes(raw) for _topic, _t, raw in lg.source.iterate([topic])), None)
+                assert mcap_index.first_message(path, topic) == want, topic
+                assert lg.source.first_raw(topic) == want, topic
+            assert mcap_index.first_message(path, "/not/there") is None
+
+
+def test_overview_in_batches_and_over_budget(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Chunks read one batch each (bounded memory) give what one batch gives; whole messages over
+    the budget are all dropped (counted, none held), their heads still read."""
+    _multi_chunk_log(tmp_path / "a.mcap")
+    whole = _overview(tmp_path / "a.mcap", monkeypatch, indexed=True)
+    monkeypatch.setattr(mcap_index, "_BATCH_BYTES", 1)
+    _same(whole, _overview(tmp_path / "a.mcap", monkeypatch, indexed=True))
+    wants = {"/ouster/imu": -1, "/ouster/points": 12}
+    full = mcap_index.overview(tmp_path / "a.mcap", wants, 10**9)
+    tight = mcap_index.overview(tmp_path / "a.mcap", wants, full.kept - 1)
+    assert not full.dropped
+    assert all(d is not None for d, t in zip(full.data, full.topic, strict=True) if full.topics[t] == "/ouster/imu")
+    assert tight.dropped
+    assert all(d is None for d in tight.data)
+    np.testing.assert_array_equal(tight.head, full.head)
+    np.testing.assert_array_equal(tight.log_time, full.log_time)
