@@ -344,6 +344,10 @@ class GpsConfig:
         3.0, "GNSS track: until the alignment (ins_align_travel_m of travel) is fixed, a provisional one from "
         "this much travel of the fixes carries x, y (the chain dead-reckons on the IMU before it); replaced "
         "once, graph #2 restarting at the switch; 0: none", "m", ge=0.0, le=100.0)
+    track_lag_check_s: float = param(
+        2.0, "GNSS track: after a multipath step, the velocity of this long of fixes (a straight line through "
+        "them) is compared with the filter's just before the step; when they disagree (chi-square, 2 dof) the "
+        "filter was lagging, not the fixes jumping, and the held offset is dropped; 0: off", "s", ge=0.0, le=10.0)
 
 
 @dataclass(frozen=True)
