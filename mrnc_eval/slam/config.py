@@ -145,6 +145,13 @@ class MatchingConfig:
     max_rotation_correction_deg: float = param(2.0, "with an IMU: reject a match that turns the IMU-predicted "
                                                "attitude by more than this (a false match, not a gyro error) and keep "
                                                "the guess; 0 = off (LIO-SAM)", "deg")
+    gate_keeps_ground: bool = param(
+        False, "with the GNSS track engaged (no wheels, slam.gps.track): when the rotation gate rejects a match "
+        "only for its yaw (the tilt part within the gate), keep the match's z, roll and pitch (the ground) and the "
+        "guess's yaw, x and y (the fixes then move x, y); else the whole IMU guess, whose z nothing holds on bare "
+        "ground. Elsewhere (wheels, no track) the whole guess as before. Off: on the open line without wheels it "
+        "fixes float seed 4's z walk (1.12 -> 1.06 m) but moves float seed 3 1.06 -> 1.16 m and RTK seed 4 "
+        "0.297 -> 0.312 m (docs/simulation.md)")
     degeneracy_eigen_threshold: float = param(100.0, "eigenvalues of J^T J below this are degenerate directions")
     converge_rot_deg: float = param(0.05, "convergence: rotation update", "deg")
     converge_trans_cm: float = param(0.05, "convergence: translation update", "cm")
@@ -344,6 +351,10 @@ class GpsConfig:
         3.0, "GNSS track: until the alignment (ins_align_travel_m of travel) is fixed, a provisional one from "
         "this much travel of the fixes carries x, y (the chain dead-reckons on the IMU before it); replaced "
         "once, graph #2 restarting at the switch; 0: none", "m", ge=0.0, le=100.0)
+    track_lag_check_s: float = param(
+        2.0, "GNSS track: after a multipath step, the velocity of this long of fixes (a straight line through "
+        "them) is compared with the filter's just before the step; when they disagree (chi-square, 2 dof) the "
+        "filter was lagging, not the fixes jumping, and the held offset is dropped; 0: off", "s", ge=0.0, le=10.0)
 
 
 @dataclass(frozen=True)

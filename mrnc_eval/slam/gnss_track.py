@@ -10,7 +10,10 @@ a degenerate match leaves free, exactly where wheels would otherwise carry them 
   `track_accel_sigma`; each fix gated on its innovation (chi-square, 2 dof);
 - a multipath jump is a held offset (0.5-3 m for seconds): `track_step_fixes` rejected fixes in a row
   that agree with each other are a step, taken off the later fixes until they step back (an offset
-  held for 10 s is dropped: multipath does not last that long, a filter error would);
+  held for 10 s is dropped: multipath does not last that long, a filter error would); and dropped
+  earlier when the fixes' velocity over `track_lag_check_s` after the step disagrees with the
+  filter's before it: the filter was lagging (overlapping jumps had dragged its velocity), not the
+  fixes jumping;
 - an outage (no fix taken for `track_max_gap_s`) hands x, y back to the chain until the fixes return,
   and the filter starts again at the first of them;
 - the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
@@ -40,6 +43,18 @@ PROVISIONAL_SPREAD_DEG = 15.0
 
 
 @dataclass(kw_only=True)
+class LagCheck:
+    """A step under test: the filter's velocity (m/s) and its covariance just before it, and the fixes
+    taken after it."""
+
+    since: float
+    v: np.ndarray
+    p_vv: np.ndarray
+    stamps: list[float] = field(default_factory=list)
+    fixes: list[np.ndarray] = field(default_factory=list)  # accepted since, the held offset taken off (ENU, m)
+
+
+@dataclass(kw_only=True)
 class TrackFilter:
     """Constant-velocity Kalman filter in ENU: state [x, y, vx, vy] (m, m/s)."""
 
@@ -48,6 +63,7 @@ class TrackFilter:
     max_offset_m: float
     max_gap_s: float = 2.0  # no fix taken for longer: the filter starts again at the next fix
     offset_max_s: float = 10.0  # a held offset older than this is no multipath jump: the fixes are right
+    lag_check_s: float = 0.0  # after a step, re-check it against a velocity from this long of fixes (0: off)
     sigma_floor_m: float = 0.0  # a fix's sigma is taken as at least this (m): what the model cannot follow
     x: np.ndarray | None = None
     p: np.ndarray = field(default_factory=lambda: np.eye(4))
@@ -58,6 +74,8 @@ class TrackFilter:
     accepted: int = 0
     rejected: int = 0
     steps: int = 0
+    lag_drops: int = 0  # held offsets dropped because the filter's velocity before them was wrong
+    check: LagCheck | None = None  # the latest step, under test
 
     def fresh(self, t: float) -> bool:
         """A fix was taken within max_gap_s before t (else the filter only extrapolates)."""
@@ -78,7 +96,7 @@ class TrackFilter:
         older than offset_max_s is dropped (the position keeps what it was)."""
         sigma = max(sigma, self.sigma_floor_m)
         if self.x is None or t - self.t > self.max_gap_s:
-            self.x, self.t, self.offset, self.pending = np.r_[z, 0.0, 0.0], t, np.zeros(2), []
+            self.x, self.t, self.offset, self.pending, self.check = np.r_[z, 0.0, 0.0], t, np.zeros(2), [], None
             self.p = np.diag([sigma ** 2, sigma ** 2, 1.0, 1.0])
             return True
         if np.any(self.offset) and t - self.offset_since > self.offset_max_s:
@@ -94,7 +112,35 @@ class TrackFilter:
         self.x, self.p, self.t = x + gain @ nu, (np.eye(4) - gain @ np.eye(4)[:2]) @ p, t
         self.accepted += 1
         self.pending = []
+        self._check_lag(t, z - self.offset, sigma)
         return True
+
+    def _check_lag(self, t: float, z: np.ndarray, sigma: float) -> None:
+        """A step is the fixes moving against a filter that was right. If the velocity of the fixes
+        after it (a straight line through them) disagrees with the filter's velocity before it, the
+        filter was lagging (its own error taken for a jump): the held offset is dropped, the fixes kept.
+        A line the fixes do not fit (another jump inside) decides nothing."""
+        c = self.check
+        if c is None:
+            return
+        c.stamps.append(t)
+        c.fixes.append(z)
+        if t - c.since < self.lag_check_s:
+            return
+        self.check = None
+        dt = np.array(c.stamps) - np.mean(c.stamps)
+        fixes = np.array(c.fixes)
+        v = dt @ (fixes - fixes.mean(axis=0)) / float(dt @ dt)
+        resid = fixes - fixes.mean(axis=0) - np.outer(dt, v)
+        if np.any(np.linalg.norm(resid, axis=1) > 3.0 * sigma + 0.1):
+            return
+        var_v = sigma ** 2 / float(dt @ dt)
+        d = v - c.v
+        if float(d @ np.linalg.solve(c.p_vv + var_v * np.eye(2), d)) > CHI2_2DOF:
+            assert self.x is not None
+            self.x[:2], self.x[2:], self.offset = self.x[:2] + self.offset, v, np.zeros(2)
+            self.p[2:, 2:] = np.maximum(self.p[2:, 2:], var_v * np.eye(2))
+            self.lag_drops += 1
 
     def _step(self, nu: np.ndarray, sigma: float) -> bool:
         """A rejected fix joins the run; a run of step_fixes that agree is a multipath step (on or
@@ -114,6 +160,10 @@ class TrackFilter:
             new = np.zeros(2)
         self.offset, self.offset_since = new, float(self.t)
         self.steps += 1
+        self.check = None
+        if self.lag_check_s > 0 and np.any(new):
+            x, p = self.predict(self.t)
+            self.check = LagCheck(since=float(self.t), v=x[2:], p_vv=p[2:, 2:])
         self.pending = []
         return True
 
@@ -175,7 +225,8 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
                      provisional_travel_m=cfg.track_provisional_travel_m,
                      filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
                                         max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
-                                        sigma_floor_m=cfg.track_sigma_floor_m))
+                                        sigma_floor_m=cfg.track_sigma_floor_m,
+                                        lag_check_s=cfg.track_lag_check_s))
 
 
 def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,
