@@ -145,11 +145,6 @@ class MatchingConfig:
     max_rotation_correction_deg: float = param(2.0, "with an IMU: reject a match that turns the IMU-predicted "
                                                "attitude by more than this (a false match, not a gyro error) and keep "
                                                "the guess; 0 = off (LIO-SAM)", "deg")
-    gate_keeps_ground: bool = param(True, "with the GNSS track engaged (no wheels, slam.gps.track): when the "
-                                    "rotation gate rejects a match only for its yaw (the tilt part within the "
-                                    "gate), keep the match's z, roll and pitch (the ground) and the guess's yaw, "
-                                    "x and y (the fixes then move x, y); else the whole IMU guess, whose z nothing "
-                                    "holds on bare ground. Elsewhere (wheels, no track) the whole guess as before")
     degeneracy_eigen_threshold: float = param(100.0, "eigenvalues of J^T J below this are degenerate directions")
     converge_rot_deg: float = param(0.05, "convergence: rotation update", "deg")
     converge_trans_cm: float = param(0.05, "convergence: translation update", "cm")

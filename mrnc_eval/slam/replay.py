@@ -340,14 +340,6 @@ class _Replay:
         turn = np.degrees(se3.delta_angle(se3.inv(guess) @ res.pose))
         if not res.optimised or limit <= 0 or turn <= limit:
             return res
-        engaged = self.gnss_track is not None and self.gnss_track.engaged  # x, y by the fixes, no wheels
-        ground = _ground_of(res, guess, limit) if engaged and self.cfg.matching.gate_keeps_ground else None
-        if ground is not None:
-            self.events.append(SlamEvent(t=stamp, kind="warning",
-                                         message=f"scan-to-map turned the IMU yaw by {turn:.1f} deg (limit {limit:g}): "
-                                                 "rejected, kept the match's z, roll and pitch",
-                                         data={"correction_deg": turn, "kept": "ground"}))
-            return ground
         self.events.append(SlamEvent(t=stamp, kind="warning",
                                      message=f"scan-to-map turned the IMU attitude by {turn:.1f} deg "
                                              f"(limit {limit:g}): rejected, kept the IMU guess",
@@ -610,25 +602,6 @@ def _imu_attitude_blend(pose: np.ndarray, imu: ImuSeries | None, extr: np.ndarra
     w = cfg.imu.rpy_weight
     br, bp, _ = rotation.rpy(rotation.slerp(rotation.from_rpy([r, p, 0.0]), rotation.from_rpy([ir, ip, 0.0]), w))
     return se3.make(rotation.from_rpy([br, bp, y]), pose[:3, 3])
-
-
-def _ground_of(res: MatchResult, guess: np.ndarray, limit_deg: float) -> MatchResult | None:
-    """The match's z, roll and pitch with the guess's yaw, x and y, as a match degenerate along yaw, x
-    and y (map axes); None when the tilt part of the correction is itself beyond the gate."""
-    corr = res.pose[:3, :3] @ guess[:3, :3].T  # map-frame rotation from the guess to the match
-    axis_z = corr[:, 2]  # where the correction takes the vertical: the tilt is the rotation taking z there
-    tilt_angle = float(np.arccos(np.clip(axis_z[2], -1.0, 1.0)))
-    if np.degrees(tilt_angle) > limit_deg:
-        return None
-    cross = np.cross([0.0, 0.0, 1.0], axis_z)
-    tilt = rotation.exp(cross / np.linalg.norm(cross) * tilt_angle) if np.linalg.norm(cross) > 1e-12 else np.eye(3)
-    pose = guess.copy()
-    pose[:3, :3] = tilt @ guess[:3, :3]
-    pose[2, 3] = res.pose[2, 3]
-    free = np.zeros((3, 6))
-    free[0, 2] = free[1, 3] = free[2, 4] = 1.0  # yaw, x, y
-    dirs = free if res.degenerate_directions is None else np.vstack([res.degenerate_directions, free])
-    return replace(res, pose=pose, degenerate=True, degenerate_directions=dirs)
 
 
 def _match_events(res: MatchResult, t: float, cfg: SlamConfig) -> list[SlamEvent]:

@@ -8,12 +8,10 @@ from dataclasses import replace
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
-from mrnc_eval.geometry import rotation, se3
+from mrnc_eval.geometry import se3
 from mrnc_eval.geometry.point_fit import yaw_align
 from mrnc_eval.slam.config import GpsConfig
 from mrnc_eval.slam.gnss_track import TrackFilter, build, move_along_free
-from mrnc_eval.slam.replay import _ground_of
-from mrnc_eval.slam.scan_to_map import MatchResult
 
 SIGMA = 0.3  # m, a float receiver's honest 1-sigma
 
@@ -258,34 +256,3 @@ def test_a_step_that_was_the_filters_own_lag_is_dropped() -> None:
     assert drops == 0
     back_old, _ = _back_on_the_fixes(0.0)  # negative control: the step rule alone
     assert back_old < 6
-
-
-def _gated(yaw_deg: float, tilt_deg: float) -> MatchResult | None:
-    guess = np.eye(4)
-    guess[:3, :3] = _rot_z(0.4)
-    guess[:3, 3] = [5.0, 2.0, 0.1]
-    corr = _rot_z(np.radians(yaw_deg)) @ rotation.exp([np.radians(tilt_deg), 0.0, 0.0])
-    pose = np.eye(4)
-    pose[:3, :3] = corr @ guess[:3, :3]
-    pose[:3, 3] = [5.3, 1.8, 0.35]  # the match moved x, y too, and z up by 0.25 m
-    res = MatchResult(pose=pose, iterations=5, converged=True, degenerate=False, min_eigenvalue=500.0, n_edges=10,
-                      n_surfs=300, optimised=True)
-    return _ground_of(res, guess, 2.0)
-
-
-def test_a_match_rejected_for_its_yaw_keeps_its_ground() -> None:
-    """The rotation gate rejects a match turning the yaw by 3 deg; z and the 1 deg tilt (roll, the
-    ground plane's) are the match's, yaw, x and y the guess's, and those three are left free (the
-    GNSS track moves x, y). A tilt beyond the gate itself is no ground: the whole guess (None)."""
-    kept = _gated(3.0, 1.0)
-    assert kept is not None
-    assert kept.degenerate
-    assert abs(kept.pose[2, 3] - 0.35) < 1e-12
-    np.testing.assert_allclose(kept.pose[:2, 3], [5.0, 2.0])
-    yaw = np.arctan2(kept.pose[1, 0], kept.pose[0, 0])
-    assert abs(yaw - 0.4) < np.radians(0.05)  # the guess's heading (measured: exact up to the tilt's coupling)
-    assert abs(np.degrees(np.arccos(kept.pose[2, 2])) - 1.0) < 1e-6  # the match's tilt
-    assert kept.degenerate_directions is not None
-    free = kept.degenerate_directions[:, [2, 3, 4]]
-    assert np.linalg.matrix_rank(free) == 3  # yaw, x, y
-    assert _gated(3.0, 2.5) is None  # negative control: the tilt beyond the gate
