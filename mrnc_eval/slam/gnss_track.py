@@ -129,6 +129,8 @@ class TrackFilter:
             return
         self.check = None
         dt = np.array(c.stamps) - np.mean(c.stamps)
+        if len(dt) < 3 or float(dt @ dt) <= 0.0:  # too few fixes in the window for a line (sparse fixes)
+            return
         fixes = np.array(c.fixes)
         v = dt @ (fixes - fixes.mean(axis=0)) / float(dt @ dt)
         resid = fixes - fixes.mean(axis=0) - np.outer(dt, v)

@@ -256,3 +256,16 @@ def test_a_step_that_was_the_filters_own_lag_is_dropped() -> None:
     assert drops == 0
     back_old, _ = _back_on_the_fixes(0.0)  # negative control: the step rule alone
     assert back_old < 6
+
+
+def test_a_step_completed_at_the_lag_windows_end_with_sparse_fixes_decides_nothing() -> None:
+    """2 Hz fixes and a 4 m jump: the fix that completes the step also ends the lag check's 2 s
+    window, which then holds one fix (no line to fit); it once divided by zero there and stopped the
+    run. Now the check decides nothing: the step is held as before."""
+    f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=5.0, max_gap_s=2.0, lag_check_s=2.0,
+                    sigma_floor_m=0.05)
+    for k in range(40):
+        f.update(k / 2.0, np.array([0.0 if k < 20 else 4.0, 0.0]), 0.02)
+    assert f.steps == 1
+    assert f.lag_drops == 0
+    np.testing.assert_allclose(f.offset, [4.0, 0.0], atol=0.1)
