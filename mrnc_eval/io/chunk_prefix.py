@@ -8,7 +8,6 @@ closing it stops decompressing there: for MCAP (io/mcap_index.py) and ROS 1 bags
 from __future__ import annotations
 
 import bz2
-import functools
 from typing import Any, BinaryIO
 
 from mrnc_eval.io.library_errors import data_errors
@@ -49,22 +48,17 @@ class ChunkPrefix:
         return self._buf
 
 
-@functools.cache
-def _zstd() -> Any:
-    """One zstd decompression context for every chunk (making one costs ~50 us; a decompressobj
-    of it is independent of the others)."""
-    import zstandard
-
-    return zstandard.ZstdDecompressor()
-
-
 def _decompressor(compression: str) -> Any:
     """A function feeding one piece of compressed data and returning what it decompressed
     (MCAP: "", zstd, lz4; ROS 1: none, bz2, lz4 - both lz4 kinds are LZ4 frames)."""
     if compression in ("", "none"):
         return bytes
     if compression == "zstd":
-        return _zstd().decompressobj().decompress
+        import zstandard
+
+        # a context of its own (~50 us): decompressobjs of one shared context share its state, so two
+        # prefixes read in turn, or from two threads, corrupt each other
+        return zstandard.ZstdDecompressor().decompressobj().decompress
     if compression == "lz4":
         import lz4.frame
 

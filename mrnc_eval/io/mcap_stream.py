@@ -18,6 +18,7 @@ chunk whose records disagree with its message index.
 from __future__ import annotations
 
 import io
+import os
 import struct
 import zlib
 from collections.abc import Iterator
@@ -32,6 +33,9 @@ from mrnc_eval.io.mcap_index import chunk_indexes, read_chunk_head, read_message
 
 _MESSAGE = 0x05
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
+# a zstd frame that does not declare its content size may expand at most this much (float clouds
+# compress 2-4x; the bound only keeps a hostile size from allocating gigabytes)
+_MAX_UNSIZED_RATIO = 1000
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -125,6 +129,13 @@ def _decompress(source: memoryview, chunk: _Chunk, plain: _Buffer) -> memoryview
     checksum are read). rosbags' `backports.zstd.decompress` grows its output in blocks and joins
     them: ~2x the time on a 6.3 MB chunk."""
     if chunk.compression == "zstd":
+        import zstandard
+
+        declared = zstandard.frame_content_size(source)  # from the frame's header, before any allocation
+        if declared not in (zstandard.CONTENTSIZE_UNKNOWN, chunk.size):
+            return source[:0]  # not the size the chunk record says: the caller reports it, nothing allocated
+        if declared == zstandard.CONTENTSIZE_UNKNOWN and chunk.size > _MAX_UNSIZED_RATIO * max(len(source), 1):
+            return source[:0]
         out = plain.view(chunk.size)
         reader = plain.zstd().stream_reader(source, read_size=len(source))
         filled = 0
@@ -160,8 +171,13 @@ def _plan(fh: BinaryIO, topic: str) -> list[_Chunk]:
 
 
 def _chunk(fh: BinaryIO, ci: Any, entries: list[tuple[int, int]], channels: frozenset[int]) -> _Chunk:
-    """The chunk record's head, checked against its index."""
+    """The chunk record's head, checked against its index and the file's length (a size read from the
+    file is trusted for an allocation only once the bytes it claims are there)."""
     h = read_chunk_head(fh, ci)
+    if h.data_at + h.compressed_size > os.fstat(fh.fileno()).st_size:
+        raise IndexUnusable("a chunk runs past the end of the file")
+    if not h.compression and h.size != h.compressed_size:
+        raise IndexUnusable("an uncompressed chunk whose two sizes differ")
     if h.compression not in ("", "zstd", "lz4"):
         raise IndexUnusable(f"compression {h.compression!r}")
     return _Chunk(start_s=ci.message_start_time / 1e9, end_s=ci.message_end_time / 1e9, data_at=h.data_at,

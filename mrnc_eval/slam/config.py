@@ -113,7 +113,7 @@ class FeatureConfig:
     edge_threshold: float = param(1.0, "smoothness above this is an edge candidate (edgeThreshold)")
     surf_threshold: float = param(0.1, "smoothness below this is a planar candidate (surfThreshold)")
     max_edges_per_sector: int = param(20, "edges kept per sector")
-    sectors: int = param(6, "sectors per ring")
+    sectors: int = param(6, "sectors per ring (LIO-SAM: 6)", ge=1, le=4096)
     occlusion_jump_m: float = param(0.3, "range jump marking an occlusion", "m")
     parallel_ratio: float = param(0.02, "neighbour range differences above this fraction mark a parallel beam")
     surf_leaf_m: float = param(0.4, "voxel size of the planar cloud (odometrySurfLeafSize)", "m")

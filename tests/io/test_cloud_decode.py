@@ -5,6 +5,7 @@ messages of the library's read (and its errors on a damaged chunk)."""
 from __future__ import annotations
 
 import struct
+import tracemalloc
 from pathlib import Path
 from types import ModuleType
 from typing import Any
@@ -235,7 +236,17 @@ def _cloud_index_entry(path: Path, ci: Any) -> int:
     return int(ci.message_index_offsets[cloud]) + 15  # opcode, length, channel u16, entries' length u32
 
 
-@pytest.mark.parametrize("damage", ["crc", "compressed", "message_index"])
+def _declare_chunk_size(data: bytearray, ci: Any, size: int) -> None:
+    """Write `size` as the chunk's uncompressed size in its record and its index (CRC zeroed)."""
+    struct.pack_into("<Q", data, ci.chunk_start_offset + 25, size)
+    struct.pack_into("<I", data, ci.chunk_start_offset + 33, 0)
+    at = data.find(struct.pack("<QQQ", ci.message_start_time, ci.message_end_time, ci.chunk_start_offset)) + 32
+    at += 4 + struct.unpack_from("<I", data, at)[0] + 8  # the message index offsets, their length
+    at += 4 + struct.unpack_from("<I", data, at)[0]  # the compression's name
+    struct.pack_into("<Q", data, at + 8, size)  # after the compressed size
+
+
+@pytest.mark.parametrize("damage", ["crc", "compressed", "message_index", "size"])
 def test_damaged_chunk_is_an_input_error(tmp_path: Path, damage: str) -> None:
     path = tmp_path / "a.mcap"
     _multi_chunk_log(path)
@@ -245,12 +256,20 @@ def test_damaged_chunk_is_an_input_error(tmp_path: Path, damage: str) -> None:
         data[ci.chunk_start_offset + 9 + 24] ^= 0xFF
     elif damage == "compressed":  # a byte in the middle of the compressed records
         data[ci.chunk_start_offset + ci.chunk_length // 2] ^= 0x10
+    elif damage == "size":  # a chunk that claims 1 GiB: refused before anything that size is allocated
+        _declare_chunk_size(data, ci, 1 << 30)
     else:  # the cloud's entry in the message index after the chunk: its offset moved by 16 bytes
         at = _cloud_index_entry(path, ci)
         struct.pack_into("<Q", data, at + 8, struct.unpack_from("<Q", data, at + 8)[0] + 16)
     path.write_bytes(bytes(data))
-    with open_log(path) as lg, pytest.raises(InputError) as err:
-        for _ in lg.sweeps():
-            pass
+    tracemalloc.start()
+    try:
+        with open_log(path) as lg, pytest.raises(InputError) as err:
+            for _ in lg.sweeps():
+                pass
+        peak = tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+    assert peak < 200e6  # no buffer of the declared size
     assert str(path) in str(err.value)
     assert ("disagrees with its message index" if damage == "message_index" else "damaged") in str(err.value)

@@ -265,3 +265,25 @@ def test_overview_in_batches_and_over_budget(tmp_path: Path, monkeypatch: pytest
     assert all(d is None for d in tight.data)
     np.testing.assert_array_equal(tight.head, full.head)
     np.testing.assert_array_equal(tight.log_time, full.log_time)
+
+
+def test_two_zstd_chunk_prefixes_read_in_turn_give_their_own_bytes(tmp_path: Path) -> None:
+    """Each prefix has a zstd context of its own: decompressobjs of one shared context share its
+    state, and two chunks read in turn (or from two threads) then corrupt each other."""
+    import os
+
+    import zstandard
+
+    from mrnc_eval.io.chunk_prefix import ChunkPrefix
+
+    plain = [os.urandom(200_000) + bytes([65 + k]) * 300_000 for k in range(2)]
+    packed = [zstandard.ZstdCompressor(level=3).compress(p) for p in plain]
+    path = tmp_path / "chunks.bin"
+    path.write_bytes(packed[0] + packed[1])
+    with path.open("rb") as fh:
+        prefixes = [ChunkPrefix(fh, 0, len(packed[0]), len(plain[0]), "zstd"),
+                    ChunkPrefix(fh, len(packed[0]), len(packed[1]), len(plain[1]), "zstd")]
+        for n in range(20_000, 500_001, 20_000):  # each a little further, in turn
+            for prefix in prefixes:
+                prefix.ensure(n)
+        assert [bytes(p.ensure(500_000)[:500_000]) for p in prefixes] == plain
