@@ -86,7 +86,7 @@ static const Py_ssize_t ITEM[N_KINDS] = {4, 2, 4, 2, 4}; /* output item size of 
 static int parse_column(PyObject *item, Column *c, Py_ssize_t n, Py_ssize_t step) {
     if (!PyArg_ParseTuple(item, "iniw*", &c->kind, &c->offset, &c->datatype, &c->out)) return -1;
     int sized = c->kind == ROW || c->kind == COLUMN ||
-                (c->datatype >= 1 && c->datatype <= 8 && c->offset >= 0 && c->offset + SIZES[c->datatype] <= step);
+                (c->datatype >= 1 && c->datatype <= 8 && c->offset >= 0 && c->offset <= step - SIZES[c->datatype]);
     if (c->kind < 0 || c->kind >= N_KINDS || !sized || c->out.len < n * ITEM[c->kind] ||
         (c->kind == UINT16 && c->datatype != 2 && c->datatype != 4)) {
         PyBuffer_Release(&c->out);
@@ -106,9 +106,14 @@ static PyObject *gather(PyObject *self, PyObject *args) {
         return NULL;
     Column cols[MAX_COLUMNS];
     int ncols = 0, ok = 1;
-    Py_ssize_t n = shape[0] * shape[1];
-    if (shape[0] < 0 || shape[1] < 0 || shape[2] <= 0 || shape[3] < shape[1] * shape[2] ||
-        (n > 0 && data.len < (shape[0] - 1) * shape[3] + shape[1] * shape[2]) || points.len < 12 * n ||
+    /* every product in Py_ssize_t without overflow (the sizes are a caller's, not to be trusted) */
+    Py_ssize_t n = 0, row_bytes = 0, span = 0, point_bytes = 0;
+    int overflow = shape[0] < 0 || shape[1] < 0 || shape[2] <= 0 ||
+                   __builtin_mul_overflow(shape[0], shape[1], &n) ||
+                   __builtin_mul_overflow(shape[1], shape[2], &row_bytes) ||
+                   __builtin_mul_overflow(shape[0] > 0 ? shape[0] - 1 : 0, shape[3], &span) ||
+                   __builtin_add_overflow(span, row_bytes, &span) || __builtin_mul_overflow(n, 12, &point_bytes);
+    if (overflow || shape[3] < row_bytes || (n > 0 && data.len < span) || points.len < point_bytes ||
         PyTuple_GET_SIZE(columns) > MAX_COLUMNS) {
         PyErr_SetString(PyExc_ValueError, "gather: the cloud's sizes do not add up");
         ok = 0;

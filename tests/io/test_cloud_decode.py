@@ -117,6 +117,12 @@ def test_c_gather_refuses_outputs_that_do_not_fit(cloud_c: ModuleType) -> None:
         cloud_c.gather(data[:-1], (1, 10, 16, 160), (0, 4, 8), points, ())
     with pytest.raises(ValueError, match="does not fit"):
         cloud_c.gather(data, (1, 10, 16, 160), (0, 4, 8), points, ((0, 12, 7, np.empty(9, np.float32)),))
+    # sizes whose products overflow 64 bits (they once wrapped to pass the checks: a crash)
+    big = 1 << 32
+    with pytest.raises(ValueError, match="do not add up"):
+        cloud_c.gather(data, (big, big, 4, 1 << 34), (0, 0, 0), points, ())
+    with pytest.raises(ValueError, match="does not fit"):  # an offset near the largest size
+        cloud_c.gather(data, (1, 10, 16, 160), (0, 4, 8), points, ((0, (1 << 63) - 2, 7, np.empty(10, np.float32)),))
 
 
 @pytest.mark.parametrize("ros1", [False, True])
