@@ -402,7 +402,7 @@ typedef struct {
     const double *q;
     const int64_t *rows; /* NULL: the identity */
     double *fits, max_dist;
-    Py_ssize_t n, width;
+    Py_ssize_t n, width, k; /* k: rows of fits */
 } FitArgs;
 
 static int rows_outside(const int64_t *rows, Py_ssize_t n, Py_ssize_t k) {
@@ -422,7 +422,7 @@ static int hold_fit_args(FitArgs *a, PyObject *const *o, Py_ssize_t width) {
     a->q = DATA(*h, 0, double);
     a->fits = DATA(*h, 1, double);
     a->rows = o[3] != Py_None ? DATA(*h, 2, int64_t) : NULL;
-    Py_ssize_t k = ROWS(*h, 1);
+    Py_ssize_t k = a->k = ROWS(*h, 1);
     if ((a->rows != NULL ? ROWS(*h, 2) : k) != a->n) {
         fail(h, PyExc_ValueError, "rows (or fits when rows is None) must have q's length");
         return -1;
@@ -441,7 +441,11 @@ static void no_fit(double *row, Py_ssize_t width) {
 }
 
 static double *search_feature(const FitArgs *a, Py_ssize_t i, Search *s, const double **nb) {
-    double *row = a->fits + a->width * (a->rows != NULL ? a->rows[i] : i);
+    /* rows was checked with the GIL held; read once and checked again here, without it, so an array
+       changed by another thread in between cannot send a write outside the fits (the feature is skipped) */
+    int64_t r = a->rows != NULL ? a->rows[i] : (int64_t)i;
+    if (r < 0 || r >= a->k) return NULL;
+    double *row = a->fits + a->width * r;
     if (!nearest5(s, a->q + 3 * i, a->max_dist)) {
         no_fit(row, a->width);
         return NULL;
