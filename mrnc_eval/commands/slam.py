@@ -308,9 +308,10 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
                 return _kiss_icp(sweeps, cfg, inputs.max_sweep_gap_s)
         threads = run_threads(cfg.slam.threads)
         warmup_ms = warm_up(cfg.slam)  # first-use costs, before the reader starts and the clock runs
-        # the reader takes one core and prepares what needs no pose there; the KD-tree queries' OpenMP
-        # team the rest (two cores: one each, no team to wake per query batch while the reader holds
-        # the other core). One thread: the raw sweeps, prepared in line by run_slam after its read timer.
+        # the reader takes one core and prepares what needs no pose there; pykdtree's OpenMP team (loop
+        # closure, map quality: matching searches its own tree, slam/_match_kernels.c, on this thread)
+        # the rest (two cores: one each, no team to wake per query batch while the reader holds the
+        # other core). One thread: the raw sweeps, prepared in line by run_slam after its read timer.
         items = _run_items(stream, cfg.slam, prepare=threads > 1)
         with openmp_threads(max(1, threads - 1)), \
                 (Prefetched(items, depth=4) if threads > 1 else closing(items)) as sweeps:

@@ -455,9 +455,9 @@ class SlamConfig:
                                       "(mappingProcessInterval)", "s")
     threads: int = param(0, "threads of the lio run: 1 decodes, prepares (range image, feature labels) and maps "
                          "each sweep in turn on one thread, the KD-tree searches too; N >= 2 decode and prepare "
-                         "the next sweeps in a reader thread while this one is mapped, the KD-tree searches on N - 1 "
-                         "OpenMP threads; 0 = every core the process may use. The poses are the same to the bit "
-                         "whatever the number (--threads sets it)",
+                         "the next sweeps in a reader thread while this one is mapped, loop closure's KD-tree "
+                         "searches on N - 1 OpenMP threads (matching's on the mapping thread); 0 = every core the "
+                         "process may use. The poses are the same to the bit whatever the number (--threads sets it)",
                          ge=0, le=1024)
     deskew_translation: bool = param(True, "also remove the translation during the sweep (constant velocity); "
                                      "LIO-SAM deskews rotation only")
