@@ -31,7 +31,8 @@ PLAIN = [
      "--pairs-from-reference", "--drift", "--align", "se3", "--json", "--offset", "auto"],
     ["slam", "a.mcap", "--end", "0.25", "--out", "res"],
     ["slam", "a.mcap", "b.bag", "--method", "lio", "--no-loop", "--no-gps", "-t", "/points", "--start", "1",
-     "--n-scans", "20", "--threads", "0", "--json", "--set", "slam.mapping_interval_s=0", "--set", "slam.loop.enabled=false"],
+     "--n-scans", "20", "--threads", "0", "--json", "--set", "slam.mapping_interval_s=0",
+     "--set", "slam.loop.enabled=false"],
     ["slam", "a.mcap", "--threads", "2"],
 ]
 
