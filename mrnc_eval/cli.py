@@ -190,13 +190,15 @@ def slam(
     Ground truth: a pose topic (Odometry, PoseStamped, ...) named like ground_truth or gt, or the one
     --set io.roles.ground_truth=TOPIC names (io.roles.ROLE=TOPIC picks the topic of any role), else
     <log>.gt.tum beside the log (TUM)."""
+    from mrnc_eval.extras import read_ahead, require_extra
+
+    if logs and _plain(method) != "kiss-icp":
+        read_ahead("slam")  # gtsam's libraries from disk while the config and the log are read (a cold start)
     if threads is not None:  # as --set slam.threads=N, so --dump-config shows it
         set_ = [*(set_ or []), f"slam.threads={threads}"]
     cfg = _config(config, set_, dump_config)  # --dump-config needs no LOG
     if not logs:
         raise UsageError("slam needs LOG... (one or more logs; a folder of logs: mrnc-eval nightly FOLDER --out ROOT)")
-    from mrnc_eval.extras import require_extra
-
     require_extra("slam", "mrnc-eval slam")
     if (_plain(method) or cfg.slam.method) == "kiss-icp":
         require_extra("kiss-icp", "mrnc-eval slam --method kiss-icp")
