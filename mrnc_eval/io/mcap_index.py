@@ -19,7 +19,6 @@ those of the chunks it reads.
 
 from __future__ import annotations
 
-import os
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -27,7 +26,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from mrnc_eval.io.chunk_prefix import WHOLE, ChunkPrefix, IndexUnusable
+from mrnc_eval.io.chunk_prefix import PREFETCH_BYTES, WHOLE, ChunkPrefix, IndexUnusable, will_read
 from mrnc_eval.io.library_errors import data_errors
 
 _MESSAGE = 0x05
@@ -35,9 +34,6 @@ _MESSAGE_INDEX = 0x07
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
 HEAD = 12  # bytes of a message kept as its head (ROS 1 and CDR: up to the end of a header stamp)
 _BATCH_BYTES = 32 << 20  # decompressed chunk bytes read at a time (what the pass holds at most, with the kept messages)
-# Bytes from each chunk's start the overview asks the kernel for ahead (chunk head and the first pieces
-# of compressed data: 32 kB on an OS0-128 x 1024 log, whose small messages sit at the chunk's start).
-_PREFETCH_BYTES = 64 << 10
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -76,7 +72,7 @@ def overview(path: Path, wants: dict[str, int], budget: int) -> IndexedMessages:
     messages are numpy over _BATCH_BYTES of decompressed chunks at a time."""
     with path.open("rb") as fh:
         chunks, topics = chunk_indexes(fh)
-        will_read(fh, [(ci.chunk_start_offset, _PREFETCH_BYTES) for ci in chunks] +
+        will_read(fh, [(ci.chunk_start_offset, PREFETCH_BYTES) for ci in chunks] +
                   [(ci.chunk_start_offset + ci.chunk_length, ci.message_index_length) for ci in chunks])
         want_of = {cid: wants.get(topic, 0) for cid, topic in topics.items()}
         want_lut = np.zeros(max(topics, default=0) + 1, np.int64)
@@ -92,20 +88,6 @@ def overview(path: Path, wants: dict[str, int], budget: int) -> IndexedMessages:
                 budget -= batches[-1].kept
                 pending, size = [], 0
     return _in_log_order(batches, chunks, topics, dropped=budget < 0)
-
-
-def will_read(fh: BinaryIO, ranges: list[tuple[int, int]]) -> None:
-    """Tell the kernel which (offset, length) ranges of `fh` are read next, so that from a cold page
-    cache their reads are queued together instead of one after the other (forest30's overview: 600
-    ranges; ~0.2 s of waiting). Only advice: nothing happens where it is not supported."""
-    if not hasattr(os, "posix_fadvise"):
-        return
-    try:
-        fd = fh.fileno()
-        for offset, length in ranges:
-            os.posix_fadvise(fd, offset, length, os.POSIX_FADV_WILLNEED)
-    except (OSError, ValueError, AttributeError):  # not a real file (a pipe, an in-memory buffer)
-        return
 
 
 def _batch(pending: list[tuple[int, list[tuple[int, np.ndarray]], bytes]], *, chunks: list[Any],

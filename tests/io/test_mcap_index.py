@@ -13,7 +13,7 @@ import pytest
 
 from mrnc_eval.io import bag_index, mcap_index, open_log
 from mrnc_eval.io import messages as M
-from mrnc_eval.io.chunk_prefix import IndexUnusable
+from mrnc_eval.io.chunk_prefix import PREFETCH_BYTES, IndexUnusable, will_read
 from mrnc_eval.io.writers import LogWriter
 from tests.io.test_io_roundtrip import write_sample
 
@@ -321,10 +321,10 @@ def test_overview_tells_the_kernel_every_range_it_reads_first(tmp_path: Path, mo
     advised = {e[1:] for e in events[:first_read]}
     assert len(reads) == len(chunks) > 3
     assert set(reads) <= advised
-    assert {(ci.chunk_start_offset, mcap_index._PREFETCH_BYTES) for ci in chunks} <= advised
+    assert {(ci.chunk_start_offset, PREFETCH_BYTES) for ci in chunks} <= advised
 
 
 def test_advice_on_something_that_is_not_a_file_is_ignored() -> None:
     import io
 
-    mcap_index.will_read(io.BytesIO(b"x" * 100), [(0, 10)])  # no fileno: nothing happens, nothing raised
+    will_read(io.BytesIO(b"x" * 100), [(0, 10)])  # no fileno: nothing happens, nothing raised
