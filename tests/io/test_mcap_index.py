@@ -50,11 +50,11 @@ def _overview(path: Path | str, monkeypatch: pytest.MonkeyPatch, *, indexed: boo
     used: list[int] = []
     ros1 = str(path).endswith(".bag")
 
-    def counted(*args: Any, real: Any = bag_index.overview if ros1 else mcap_index.overview) -> Any:
+    def counted(*args: Any, real: Any = bag_index.overview if ros1 else mcap_index.overview, **kwargs: Any) -> Any:
         if not indexed:
             raise IndexUnusable("disabled by the test")
         used.append(1)
-        return real(*args)
+        return real(*args, **kwargs)
 
     monkeypatch.setattr("mrnc_eval.io.bag_index.overview" if ros1 else "mrnc_eval.io.overview.mcap_overview", counted)
     with open_log(path) as lg:
@@ -328,3 +328,25 @@ def test_advice_on_something_that_is_not_a_file_is_ignored() -> None:
     import io
 
     will_read(io.BytesIO(b"x" * 100), [(0, 10)])  # no fileno: nothing happens, nothing raised
+
+
+def test_an_open_mcap_log_reads_its_summary_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The roles, the overview and the sweep stream share one read of the file's chunk indexes."""
+    from mrnc_eval.io import mcap_stream
+
+    path = tmp_path / "multi.mcap"
+    _multi_chunk_log(path)
+    calls: list[int] = []
+    real = mcap_index.chunk_indexes
+
+    def counted(fh: Any) -> Any:
+        calls.append(1)
+        return real(fh)
+
+    monkeypatch.setattr(mcap_index, "chunk_indexes", counted)
+    monkeypatch.setattr(mcap_stream, "chunk_indexes", counted)
+    with open_log(path) as lg:
+        assert lg.source.first_raw("/ouster/imu") is not None
+        assert lg.duration_s > 0
+        assert len(list(lg.sweeps())) == len(CLOUD_STAMPS) - 2  # the duplicate and the late cloud skipped
+    assert len(calls) == 1
