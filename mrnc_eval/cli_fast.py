@@ -30,7 +30,7 @@ _TRUTH_WORDS = {"true", "false", "yes", "no", "on", "off", "1", "0"}  # cli_help
 # Non-default settings this parser does not implement: a parameter with any of them sends the
 # whole command to typer (a callback or envvar would act even when the option is not given).
 _UNSUPPORTED = {"callback": None, "is_eager": False, "envvar": None, "default_factory": None, "parser": None,
-                "expose_value": True, "min": None, "max": None, "formats": None, "exists": False,
+                "expose_value": True, "formats": None, "clamp": False, "exists": False,
                 "resolve_path": False, "allow_dash": False, "writable": False, "dir_okay": True, "file_okay": True,
                 "count": False, "prompt": False, "is_flag": None, "flag_value": None, "case_sensitive": True}
 
@@ -40,6 +40,8 @@ class _Param:
     name: str
     kind: type  # bool, int, float, str, Path or an Enum
     is_list: bool
+    low: float | None = None  # typer's min= / max= of a number: a value outside goes to typer (its error)
+    high: float | None = None
 
 
 def _plain_type(hint: Any) -> tuple[type, bool] | None:
@@ -92,7 +94,9 @@ def _signature(func: Callable[..., Any]) -> tuple[list[_Param], dict[str, tuple[
         plain = None if info is None else _plain_type(typing.get_args(hints[name])[0])
         if info is None or plain is None:
             return None
-        param = _Param(name, *plain)
+        param = _Param(name, *plain, low=getattr(info, "min", None), high=getattr(info, "max", None))
+        if (param.low, param.high) != (None, None) and param.kind not in (int, float):
+            return None
         if isinstance(info, ArgumentInfo):
             if info.param_decls or (arguments and arguments[-1].is_list):
                 return None  # a list argument only last: it takes the rest
@@ -109,14 +113,13 @@ def _convert(param: _Param, text: str) -> Any:
     """The value typer would pass, or raises ValueError when this parser is not sure."""
     if text.startswith("-") or not text:
         raise ValueError(text)
-    if param.kind is float:
-        if not _NUMBER.fullmatch(text):
+    if param.kind in (float, int):
+        if not (_NUMBER if param.kind is float else _INTEGER).fullmatch(text):
             raise ValueError(text)
-        return float(text)
-    if param.kind is int:
-        if not _INTEGER.fullmatch(text):
-            raise ValueError(text)
-        return int(text)
+        number = param.kind(text)
+        if (param.low is not None and number < param.low) or (param.high is not None and number > param.high):
+            raise ValueError(text)  # out of range: typer's message
+        return number
     if isinstance(param.kind, type) and issubclass(param.kind, Enum):
         return param.kind(text)  # exact spelling only (ValueError otherwise)
     if param.kind is Path:

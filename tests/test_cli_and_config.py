@@ -101,3 +101,23 @@ def test_an_unquoted_off_or_on_in_an_override_names_the_choice_of_a_literal() ->
     assert cfg.slam.gps.enabled is False
     with pytest.raises(ConfigError, match=r"slam\.gps\.track"):
         load_config(overrides=["slam.gps.track=off"])  # no choice spelled off/no/false there
+
+
+@pytest.mark.parametrize("value", [None, True, False, 0, -7, 10**20, 0.0, -0.0, 0.1, -2.5, 1e17, 1e-06, 1.5e-300,
+                                   5e-324, 1.7976931348623157e308, 123456789.123, float("nan"), float("inf"),
+                                   float("-inf"), 3.0])
+def test_config_dump_writes_numbers_as_yaml_does(value: object) -> None:
+    """dump_config writes bools, None, ints and floats itself (config.yaml of every run): the
+    same text yaml.safe_dump gives; anything else is left to yaml."""
+    from mrnc_eval.config import plain_yaml_scalar
+
+    by_yaml = yaml.safe_dump(value, default_flow_style=True, width=1 << 16).strip().removesuffix("...").strip()
+    assert plain_yaml_scalar(value) == by_yaml
+    assert yaml.safe_load(by_yaml) == value or value != value  # (nan)
+
+
+def test_config_dump_leaves_strings_and_lists_to_yaml() -> None:
+    from mrnc_eval.config import plain_yaml_scalar
+
+    for value in ("yes", "1.0", "", [1, 2], (0.5,), {"a": 1}):
+        assert plain_yaml_scalar(value) is None

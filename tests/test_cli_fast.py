@@ -1,4 +1,4 @@
-"""cli_fast: plain `ape`/`rpe` command lines skip typer and must call the command exactly as typer
+"""cli_fast: plain `ape`/`rpe`/`slam` command lines skip typer and must call the command exactly as typer
 would (same keyword arguments, defaults included); anything else must go to typer."""
 
 from __future__ import annotations
@@ -6,15 +6,17 @@ from __future__ import annotations
 import subprocess
 import sys
 from pathlib import Path
-from typing import Any
+from typing import Annotated, Any
 
 import pytest
+import typer
 
 from mrnc_eval import cli
 from mrnc_eval.cli_fast import fast_command
+from mrnc_eval.commands import slam as slam_command
 from mrnc_eval.commands import trajectory_eval
 
-COMMANDS = {"ape": cli.ape, "rpe": cli.rpe}
+COMMANDS = {"ape": cli.ape, "rpe": cli.rpe, "slam": cli.slam}
 
 PLAIN = [
     ["ape", "ref.tum", "est.tum"],
@@ -27,6 +29,11 @@ PLAIN = [
     ["ape", "ref.tum", "a.tum", "b.tum", "--label", "first", "--label", "second"],  # a repeatable option
     ["rpe", "ref.tum", "est.tum", "--delta", "10", "--delta-unit", "m", "--all-pairs", "--relation", "rot",
      "--pairs-from-reference", "--drift", "--align", "se3", "--json", "--offset", "auto"],
+    ["slam", "a.mcap", "--end", "0.25", "--out", "res"],
+    ["slam", "a.mcap", "b.bag", "--method", "lio", "--no-loop", "--no-gps", "-t", "/points", "--start", "1",
+     "--n-scans", "20", "--threads", "0", "--json", "--set", "slam.mapping_interval_s=0",
+     "--set", "slam.loop.enabled=false"],
+    ["slam", "a.mcap", "--threads", "2"],
 ]
 
 TYPER_ONLY = [
@@ -46,6 +53,10 @@ TYPER_ONLY = [
     ["rpe", "ref.tum", "est.tum", "--delta"],  # value missing
     ["ape", "ref.tum", "est.tum", "--json-out"],  # the parameter name is not the flag
     ["ape", "ref.tum", "est.tum", "--align=", "se3"],
+    ["slam"],  # LOG missing: typer passes None, the command says why
+    ["slam", "--dump-config"],
+    ["slam", "a.mcap", "--threads", "-1"],  # below its min=0: typer's range error
+    ["slam", "a.mcap", "--threads", "1.5"],
 ]
 
 
@@ -59,6 +70,7 @@ def _calls(monkeypatch: pytest.MonkeyPatch, argv: list[str], *, fast: bool) -> l
 
     monkeypatch.setattr(trajectory_eval, "ape_main", record("ape"))
     monkeypatch.setattr(trajectory_eval, "rpe_main", record("rpe"))
+    monkeypatch.setattr(slam_command, "main", record("slam"))
     if not fast:
         monkeypatch.setattr(cli, "fast_command", lambda *a, **k: None)
     assert cli.main(argv) == 0
@@ -80,6 +92,17 @@ def test_plain_lines_call_the_command_as_typer_does(monkeypatch: pytest.MonkeyPa
 @pytest.mark.parametrize("argv", TYPER_ONLY, ids=lambda a: " ".join(a) or "(empty)")
 def test_other_lines_go_to_typer(argv: list[str]) -> None:
     assert fast_command(argv, COMMANDS) is None
+
+
+def test_a_number_outside_its_declared_range_goes_to_typer() -> None:
+    """typer's min=/max= are checked: a value outside them is left to typer, which refuses it."""
+    def command(n: Annotated[int, typer.Option(min=1, max=5)] = 3,
+                x: Annotated[float, typer.Option(min=0.5)] = 1.0) -> None:
+        del n, x
+
+    assert fast_command(["c", "--n", "5", "--x", "0.5"], {"c": command}) == (command, {"n": 5, "x": 0.5})
+    for argv in (["c", "--n", "0"], ["c", "--n", "6"], ["c", "--x", "0.25"]):
+        assert fast_command(argv, {"c": command}) is None
 
 
 def test_fast_path_skips_typers_validators(tmp_path: Path) -> None:

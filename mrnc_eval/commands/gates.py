@@ -9,7 +9,7 @@ from mrnc_eval.results import RunResult
 
 def raise_on_failed_gates(results: list[RunResult], gates: GatesConfig) -> None:
     """GateFailed naming each failed gate with its worst value and limit; nothing when all pass."""
-    from mrnc_eval.reports.render import evaluate_gates
+    from mrnc_eval.reports.gates import evaluate_gates
 
     failed = [g for g in evaluate_gates(results, gates) if g.status == "fail"]
     if failed:

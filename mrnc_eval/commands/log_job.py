@@ -76,7 +76,8 @@ def analyse_log(log_path: Path, cfg: Config, work_dir: Path, log_id: str, pdf: b
     speeds, the HTML/PDF report; each as a result directory under work_dir."""
     from mrnc_eval.commands import control, info, slam
     from mrnc_eval.config import config_hash, dump_config
-    from mrnc_eval.reports.render import evaluate_gates, write_report
+    from mrnc_eval.reports.gates import evaluate_gates
+    from mrnc_eval.reports.render import write_report
     from mrnc_eval.results import RunResult, absolute_log_path, write_result
     from mrnc_eval.schema.info import INFO
 

@@ -8,12 +8,16 @@ closing it stops decompressing there: for MCAP (io/mcap_index.py) and ROS 1 bags
 from __future__ import annotations
 
 import bz2
+import os
 from typing import Any, BinaryIO
 
 from mrnc_eval.io.library_errors import data_errors
 
 WHOLE = -1  # a `wants` value: the whole message (otherwise: its first so many bytes)
 _PIECE = 16384  # compressed bytes fed to the decompressor at a time
+# Bytes from each chunk's start an overview asks the kernel for ahead (chunk head and the first pieces
+# of compressed data: 32 kB on an OS0-128 x 1024 log, whose small messages sit at the chunk's start).
+PREFETCH_BYTES = 64 << 10
 
 
 class IndexUnusable(Exception):
@@ -46,6 +50,20 @@ class ChunkPrefix:
             except data_errors() as err:  # corrupt data: the full read names it
                 raise IndexUnusable(str(err)) from err
         return self._buf
+
+
+def will_read(fh: BinaryIO, ranges: list[tuple[int, int]]) -> None:
+    """Tell the kernel which (offset, length) ranges of `fh` are read next, so that from a cold page
+    cache their reads are queued together instead of one after the other (forest30's MCAP overview:
+    600 ranges, ~0.15 s less waiting). Only advice: nothing happens where it is not supported."""
+    if not hasattr(os, "posix_fadvise"):
+        return
+    try:
+        fd = fh.fileno()
+        for offset, length in ranges:
+            os.posix_fadvise(fd, offset, length, os.POSIX_FADV_WILLNEED)
+    except (OSError, ValueError, AttributeError):  # not a real file (a pipe, an in-memory buffer)
+        return
 
 
 def _decompressor(compression: str) -> Any:

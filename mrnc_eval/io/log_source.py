@@ -47,6 +47,17 @@ class LogSource:
             self.close()
             raise InputError(self.path, "log has no topics (empty bag)")
         self.cache: dict[str, RawMessages] = {}  # small topics' raw messages from the overview pass
+        self._index: Any = None  # a single MCAP file's chunk indexes (mcap_index.Index), read once
+
+    def mcap_index(self) -> Any:
+        """A single MCAP file's `mcap_index.chunk_indexes` (its summary), read once for the roles,
+        the overview and the sweep stream; IndexUnusable as there (not kept: asked again, it is read again)."""
+        if self._index is None:
+            from mrnc_eval.io.mcap_index import chunk_indexes
+
+            with self.path.open("rb") as fh:
+                self._index = chunk_indexes(fh)
+        return self._index
 
     def _open_source(self, named: list[Path]) -> McapSource | RosbagsSource | SplitSource:
         """The reading library for the container; `named`: the paths as rosbags can open them."""
@@ -103,7 +114,7 @@ class LogSource:
             from mrnc_eval.io.mcap_index import first_message
 
             with contextlib.suppress(IndexUnusable, *data_errors()):  # the library then reads it, or says why not
-                return first_message(self.path, topic)
+                return first_message(self.path, topic, index=self.mcap_index())
         return next((bytes(raw) for _t, raw in self.raw(topic)), None)
 
     def stream(self, topic: str) -> Iterator[tuple[int, bytes | memoryview]]:
@@ -118,7 +129,7 @@ class LogSource:
             from mrnc_eval.io.mcap_stream import TopicStream
 
             with contextlib.suppress(IndexUnusable, *data_errors()):  # the library then reads it, or says why not
-                plan = TopicStream(self.path, topic)
+                plan = TopicStream(self.path, topic, index=self.mcap_index())
         yield from plan.messages() if plan is not None else self.raw(topic)
 
     def decode(self, raw: bytes, topic: str) -> Any:  # a rosbags message object

@@ -26,7 +26,7 @@ from typing import Any, BinaryIO
 
 import numpy as np
 
-from mrnc_eval.io.chunk_prefix import WHOLE, ChunkPrefix, IndexUnusable
+from mrnc_eval.io.chunk_prefix import PREFETCH_BYTES, WHOLE, ChunkPrefix, IndexUnusable, will_read
 from mrnc_eval.io.library_errors import data_errors
 
 _MESSAGE = 0x05
@@ -34,6 +34,9 @@ _MESSAGE_INDEX = 0x07
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
 HEAD = 12  # bytes of a message kept as its head (ROS 1 and CDR: up to the end of a header stamp)
 _BATCH_BYTES = 32 << 20  # decompressed chunk bytes read at a time (what the pass holds at most, with the kept messages)
+
+
+Index = tuple[list[Any], dict[int, str]]  # chunk_indexes(): the chunk indexes by file position, channel id -> topic
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -64,14 +67,17 @@ class _Batch:
     kept: int
 
 
-def overview(path: Path, wants: dict[str, int], budget: int) -> IndexedMessages:
+def overview(path: Path, wants: dict[str, int], budget: int, *, index: Index | None = None) -> IndexedMessages:
     """The file's messages in log order: each one's log time, its first HEAD bytes where
     wants[topic] != 0 (HEAD or WHOLE) and the whole of it where wants[topic] == WHOLE, unless the
     whole ones come to more than `budget` bytes (then none is kept). One pass over the chunks
     reads their indexes and decompresses each as far as wanted; the checks and reads of the
-    messages are numpy over _BATCH_BYTES of decompressed chunks at a time."""
+    messages are numpy over _BATCH_BYTES of decompressed chunks at a time. `index`: the file's
+    `chunk_indexes`, when the caller has them."""
     with path.open("rb") as fh:
-        chunks, topics = chunk_indexes(fh)
+        chunks, topics = index if index is not None else chunk_indexes(fh)
+        will_read(fh, [(ci.chunk_start_offset, PREFETCH_BYTES) for ci in chunks] +
+                  [(ci.chunk_start_offset + ci.chunk_length, ci.message_index_length) for ci in chunks])
         want_of = {cid: wants.get(topic, 0) for cid, topic in topics.items()}
         want_lut = np.zeros(max(topics, default=0) + 1, np.int64)
         want_lut[list(want_of)] = list(want_of.values())
@@ -169,11 +175,11 @@ def _messages(prefixes: list[bytes], *, local: np.ndarray, channel: np.ndarray, 
     return head, head_len, data
 
 
-def first_message(path: Path, topic: str) -> bytes | None:
+def first_message(path: Path, topic: str, *, index: Index | None = None) -> bytes | None:
     """The topic's first message in log order (the one the full read yields first), its chunk
     decompressed only up to it; None when the topic has none. IndexUnusable as `overview`."""
     with path.open("rb") as fh:
-        chunks, topics = chunk_indexes(fh)
+        chunks, topics = index if index is not None else chunk_indexes(fh)
         ids = {cid for cid, name in topics.items() if name == topic}
         best: tuple[int, int, int, int, Any] | None = None  # log time, chunk position, offset, channel, chunk index
         for ci in sorted(chunks, key=lambda c: (c.message_start_time, c.chunk_start_offset)):
@@ -197,7 +203,7 @@ def first_message(path: Path, topic: str) -> bytes | None:
     return data[offset + _RECORD_HEAD:]
 
 
-def chunk_indexes(fh: BinaryIO) -> tuple[list[Any], dict[int, str]]:
+def chunk_indexes(fh: BinaryIO) -> Index:
     """The chunk indexes (by file position) and channel id -> topic, from the summary section."""
     from mcap.reader import make_reader
 

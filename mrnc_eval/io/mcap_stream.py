@@ -29,7 +29,7 @@ from typing import Any, BinaryIO
 from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.library_errors import data_errors
-from mrnc_eval.io.mcap_index import chunk_indexes, read_chunk_head, read_message_index
+from mrnc_eval.io.mcap_index import Index, chunk_indexes, read_chunk_head, read_message_index
 
 _MESSAGE = 0x05
 _RECORD_HEAD = 9 + 22  # opcode u8, length u64; channel u16, sequence u32, log time u64, publish time u64
@@ -57,11 +57,11 @@ class TopicStream:
     """`TopicStream(path, topic)` plans (IndexUnusable when it cannot); `messages()` reads, and
     closes the file when it ends or is closed; `close()` closes it unread."""
 
-    def __init__(self, path: Path, topic: str) -> None:
+    def __init__(self, path: Path, topic: str, *, index: Index | None = None) -> None:
         self.path, self.topic = path, topic
         self._fh: io.BufferedReader = path.open("rb")
         try:
-            self._chunks = _plan(self._fh, topic)
+            self._chunks = _plan(self._fh, topic, index)
         except BaseException:
             self._fh.close()
             raise
@@ -153,9 +153,10 @@ def _decompress(source: memoryview, chunk: _Chunk, plain: _Buffer) -> memoryview
     return source
 
 
-def _plan(fh: BinaryIO, topic: str) -> list[_Chunk]:
-    """The chunks holding `topic`, in file order, each with the topic's messages in log order."""
-    chunks, topics = chunk_indexes(fh)
+def _plan(fh: BinaryIO, topic: str, index: Index | None) -> list[_Chunk]:
+    """The chunks holding `topic`, in file order, each with the topic's messages in log order
+    (`index`: the file's chunk_indexes, read here when not given)."""
+    chunks, topics = index if index is not None else chunk_indexes(fh)
     ids = {cid for cid, name in topics.items() if name == topic}
     out: list[_Chunk] = []
     for ci in chunks:

@@ -92,7 +92,7 @@ def _mcap_overviews(src: LogSource, wants: dict[str, int], budget: int) -> list[
         raise IndexUnusable(src.container)
     parts: list[IndexedMessages] = []
     for path in src.paths:
-        parts.append(mcap_overview(path, wants, budget))
+        parts.append(mcap_overview(path, wants, budget, index=src.mcap_index() if len(src.paths) == 1 else None))
         budget -= parts[-1].kept
     return parts
 

@@ -20,7 +20,7 @@ from typing import Literal
 
 from mrnc_eval.evaluation.config import GatesConfig
 from mrnc_eval.outputs import write_output
-from mrnc_eval.reports.render import Gate, evaluate_gates
+from mrnc_eval.reports.gates import Gate, evaluate_gates
 from mrnc_eval.results import RunResult
 
 Status = Literal["pass", "fail", "skipped", "error"]

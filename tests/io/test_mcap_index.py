@@ -13,7 +13,7 @@ import pytest
 
 from mrnc_eval.io import bag_index, mcap_index, open_log
 from mrnc_eval.io import messages as M
-from mrnc_eval.io.chunk_prefix import IndexUnusable
+from mrnc_eval.io.chunk_prefix import PREFETCH_BYTES, IndexUnusable, will_read
 from mrnc_eval.io.writers import LogWriter
 from tests.io.test_io_roundtrip import write_sample
 
@@ -50,11 +50,11 @@ def _overview(path: Path | str, monkeypatch: pytest.MonkeyPatch, *, indexed: boo
     used: list[int] = []
     ros1 = str(path).endswith(".bag")
 
-    def counted(*args: Any, real: Any = bag_index.overview if ros1 else mcap_index.overview) -> Any:
+    def counted(*args: Any, real: Any = bag_index.overview if ros1 else mcap_index.overview, **kwargs: Any) -> Any:
         if not indexed:
             raise IndexUnusable("disabled by the test")
         used.append(1)
-        return real(*args)
+        return real(*args, **kwargs)
 
     monkeypatch.setattr("mrnc_eval.io.bag_index.overview" if ros1 else "mrnc_eval.io.overview.mcap_overview", counted)
     with open_log(path) as lg:
@@ -287,3 +287,66 @@ def test_two_zstd_chunk_prefixes_read_in_turn_give_their_own_bytes(tmp_path: Pat
             for prefix in prefixes:
                 prefix.ensure(n)
         assert [bytes(p.ensure(500_000)[:500_000]) for p in prefixes] == plain
+
+
+def test_overview_tells_the_kernel_every_range_it_reads_first(tmp_path: Path, monkeypatch: pytest.MonkeyPatch
+                                                              ) -> None:
+    """From a cold page cache the overview's reads (each chunk's head and message index) are queued
+    together: each range it reads is advised (POSIX_FADV_WILLNEED) before the first is read."""
+    import os
+
+    if not hasattr(os, "posix_fadvise"):
+        pytest.skip("no posix_fadvise on this platform")
+    path = tmp_path / "multi.mcap"
+    _multi_chunk_log(path)
+    events: list[tuple[str, int, int]] = []
+    real_advise, real_index = os.posix_fadvise, mcap_index._index_records
+
+    def advise(fd: int, offset: int, length: int, advice: int) -> None:
+        assert advice == os.POSIX_FADV_WILLNEED
+        events.append(("advise", offset, length))
+        real_advise(fd, offset, length, advice)
+
+    def index_records(fh: Any, ci: Any, topics: Any) -> Any:
+        events.append(("read", ci.chunk_start_offset + ci.chunk_length, ci.message_index_length))
+        return real_index(fh, ci, topics)
+
+    monkeypatch.setattr(os, "posix_fadvise", advise)
+    monkeypatch.setattr(mcap_index, "_index_records", index_records)
+    with path.open("rb") as fh:
+        chunks, topics = mcap_index.chunk_indexes(fh)
+    mcap_index.overview(path, {t: mcap_index.HEAD for t in topics.values()}, 1 << 30)
+    reads = [e[1:] for e in events if e[0] == "read"]
+    first_read = next(k for k, e in enumerate(events) if e[0] == "read")
+    advised = {e[1:] for e in events[:first_read]}
+    assert len(reads) == len(chunks) > 3
+    assert set(reads) <= advised
+    assert {(ci.chunk_start_offset, PREFETCH_BYTES) for ci in chunks} <= advised
+
+
+def test_advice_on_something_that_is_not_a_file_is_ignored() -> None:
+    import io
+
+    will_read(io.BytesIO(b"x" * 100), [(0, 10)])  # no fileno: nothing happens, nothing raised
+
+
+def test_an_open_mcap_log_reads_its_summary_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
+    """The roles, the overview and the sweep stream share one read of the file's chunk indexes."""
+    from mrnc_eval.io import mcap_stream
+
+    path = tmp_path / "multi.mcap"
+    _multi_chunk_log(path)
+    calls: list[int] = []
+    real = mcap_index.chunk_indexes
+
+    def counted(fh: Any) -> Any:
+        calls.append(1)
+        return real(fh)
+
+    monkeypatch.setattr(mcap_index, "chunk_indexes", counted)
+    monkeypatch.setattr(mcap_stream, "chunk_indexes", counted)
+    with open_log(path) as lg:
+        assert lg.source.first_raw("/ouster/imu") is not None
+        assert lg.duration_s > 0
+        assert len(list(lg.sweeps())) == len(CLOUD_STAMPS) - 2  # the duplicate and the late cloud skipped
+    assert len(calls) == 1
