@@ -81,8 +81,14 @@ def imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
     if pair.sum() < 10:
         return None
     lidar = lidar_angular_rates(stamps, rotations)[pair]
-    t0, t1 = stamps[:-1][pair], stamps[1:][pair]
-    if float(np.std(lidar, axis=0).max()) < 1e-3:  # rad/s: nothing to correlate
+    return offset_from_rates(stamps[:-1][pair], stamps[1:][pair], lidar, track, axis_weights=axis_weights)
+
+
+def offset_from_rates(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack, *,
+                      axis_weights: bool = True) -> OffsetEstimate | None:
+    """The offset fit of `imu_time_offset` on given intervals [t0, t1] (s) and the LiDAR's mean angular
+    velocity over each (rad/s, LiDAR axes). None without rotation to correlate or under 10 intervals."""
+    if t0.size < 10 or float(np.std(lidar, axis=0).max()) < 1e-3:  # rad/s: nothing to correlate
         return None
     t_imu, integral = _gyro_integral(track)
     grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
@@ -94,7 +100,7 @@ def imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
     weighted = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor))
     cost = weighted if axis_weights else per_axis.sum(axis=1)
     k = int(np.argmin(cost))
-    n = int(pair.sum())
+    n = int(t0.size)
     if k == 0 or k == grid.size - 1:
         return OffsetEstimate(offset_s=float(grid[k]), sigma_s=float("inf"), intervals=n)
     # chi^2(o) = n * weighted(o) with each axis's noise its best mean square: sigma^2 = 2 / chi^2''
