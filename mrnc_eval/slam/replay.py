@@ -168,7 +168,6 @@ class _Replay:
     imu_noise: ImuNoiseEstimate | None = None  # from the log's stationary stretches, IMU axes
     offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
     offset_cpu_ms: float = 0.0  # CPU time of the offset's re-match after the run, ms
-    offset_wall_ms: float = 0.0
     wheel_cal: WheelCalibrator | None = None  # online calibration; `wheel` is then its calibrated track
     wheel_flagged: bool = False  # the wheel_health event was raised
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
@@ -511,13 +510,12 @@ class _Replay:
         (slam/offset_rematch.py), against the IMU as now stamped; timed as the "offset" stage."""
         if self.track is None:
             return None
-        t0, c0 = time.perf_counter(), time.thread_time()
+        c0 = time.thread_time()
         run = RunForOffset(stamps=stamps, poses=poses, feats=self.trace.feats,
                            is_keyframe=np.isin(stamps, np.asarray(self.graph.stamps)),
                            kf_poses=np.array(self.graph.poses), kf_feats=self.kf_features)
         found = rematch_time_offset(run, self.track, self.cfg.matching, np.asarray(self.trace.measured, bool))
         self.offset_cpu_ms = (time.thread_time() - c0) * 1e3
-        self.offset_wall_ms = (time.perf_counter() - t0) * 1e3
         return found
 
     def warn_once(self, t: float, key: str, text: str) -> None:
@@ -557,7 +555,7 @@ class _Replay:
                           imu_bias=self.odom.bias_vector if self.odom is not None else None,
                           degenerate=np.asarray(tr.degenerate, bool), online_poses=online,
                           imu_time_offset_s=offset, map_quality=quality, imu_noise=self.imu_report(),
-                          imu_time_offset_sigma_s=sigma)
+                          imu_time_offset_sigma_s=sigma, imu_time_offset_cpu_ms=self.offset_cpu_ms)
 
     def imu_report(self) -> dict[str, Any] | None:
         """The IMU's measured noise and biases (IMU axes), what the preintegration used, and how
