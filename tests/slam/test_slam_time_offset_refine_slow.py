@@ -63,7 +63,7 @@ def test_two_rematched_or_two_online_passes_read_a_30_ms_lag_within_2_ms_and_one
         yard_log: Path, tmp_path: Path) -> None:
     """Through the command (the IMU 25 ms later than the field's 5 ms, by a negative
     slam.imu.time_offset_s; calibrated wheels, field GNSS). Measured: re-match
-    (slam.imu.time_offset_from=rematch, the default) one pass 27.91 ms, two passes RM2 ms; online poses
+    (slam.imu.time_offset_from=rematch, the default) one pass 27.91 ms, two passes 29.83 ms; online poses
     one pass 23.87 ms, two passes 29.21 ms (main 8bad290: the same; the sensors benchmark's yard seed 3
     log, exact wheels: re-match 29.11 / 30.73 ms, online 22.13 ms in one pass). The re-match's one pass
     misses the issue's 2 ms here (2.09 ms short; jackknife error ~1 ms), though it reads 4 ms more of the
