@@ -91,7 +91,7 @@ class ImuConfig:
         "run, every mapped sweep that is not a keyframe matched again without any prior from its final pose "
         "against all keyframes in their final poses (neither the IMU nor the wheels move them; slam/"
         "offset_rematch.py); online = the poses as the run estimated them (they keep part of the IMU-driven "
-        "guess and the wheels' yaw: a lag reads 0.8-0.9 of itself)")
+        "guess and the wheels' yaw: a lag reads 0.65-1.0 of itself on the field logs)")
     refine_time_offset_s: float = param(0.0, "with estimate_time_offset: every this much log time, estimate the "
                                         "offset left in every sweep so far and, when it exceeds twice its standard "
                                         "error, apply it to the IMU stamps from then on. The LiDAR poses keep part "

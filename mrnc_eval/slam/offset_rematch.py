@@ -1,4 +1,4 @@
-"""The IMU-LiDAR time offset from rotations the IMU and wheels did not touch (issue 28).
+"""The IMU-LiDAR time offset from rotations neither the IMU nor the wheels pulled (issue 28).
 
 The online poses are not the LiDAR's alone: the IMU-driven guess, the wheels' yaw hold and graph
 #1's wheel and GNSS factors pull them towards the (mis-timed) IMU and wheels, so an offset read from
@@ -6,7 +6,9 @@ them reads 0.65-0.95 of a lag and carries the wheels' timing. After the run ever
 is not a keyframe's is matched again, without any prior, from its final pose against one map of all
 keyframes in their final poses. Their rotation increments are compared with the gyro over 0.35-0.85 s,
 not between consecutive sweeps: over 0.2 s the re-matched poses still carry part of a lag (forest seed
-2: 30 ms read as 22.8 ms; over 0.35-0.85 s 29.2 ms), their short-term errors move with the motion."""
+2: 30 ms read as 22.8 ms; over 0.35-0.85 s 28.7 ms): their short-term errors move with the motion.
+Still IMU-timed: the features' rotation deskew and the keyframe poses the map is built from (a lag
+reads ~3 % short; docs/simulation.md)."""
 
 from __future__ import annotations
 
