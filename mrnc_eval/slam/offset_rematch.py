@@ -12,7 +12,7 @@ reads ~3 % short; docs/simulation.md)."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass
+from dataclasses import dataclass, field
 
 import numpy as np
 
@@ -25,17 +25,48 @@ from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, offset_from_ove
 
 BASELINE_S = (0.35, 0.85)  # rotation increments between re-matched sweeps this far apart (s) are compared
 JACKKNIFE_BLOCKS = 10  # contiguous stretches of the log left out in turn for the standard error
+STRETCH_S = 2.0  # the sweeps kept for the re-match come in stretches of this much log time (s)
+
+
+@dataclass(kw_only=True)
+class SweepStore:
+    """The mapped sweeps' compact features kept for the re-match, at most `max_sweeps` of them: the
+    log cut into STRETCH_S stretches, every `step`-th stretch kept; over the budget the step doubles
+    and every other kept stretch goes (bounded memory, 42 kB per OS0-32 x 512 sweep, and CPU, with
+    stretches long enough for the 0.35-0.85 s pairs and spread over the whole log)."""
+
+    max_sweeps: int
+    step: int = 1
+    t0: float | None = None
+    feats: dict[int, Features] = field(default_factory=dict)  # by mapped-sweep index
+    stamps: dict[int, float] = field(default_factory=dict)
+
+    def kept(self, stamp: float) -> bool:
+        return int((stamp - (self.t0 if self.t0 is not None else stamp)) // STRETCH_S) % self.step == 0
+
+    def add(self, index: int, stamp: float, feats: Features) -> None:
+        """Keep sweep `index` (its features already compact) when its stretch is kept; thin to the budget."""
+        if self.t0 is None:
+            self.t0 = stamp
+        if not self.kept(stamp):
+            return
+        self.feats[index], self.stamps[index] = feats, stamp
+        while len(self.feats) > self.max_sweeps:
+            self.step *= 2
+            gone = [i for i, t in self.stamps.items() if not self.kept(t)]
+            for i in gone:
+                del self.feats[i], self.stamps[i]
 
 
 @dataclass(frozen=True, kw_only=True)
 class RunForOffset:
-    """What the run leaves for the re-match: every mapped sweep's stamp (s), final pose (4x4), compact
-    features (sensor frame, deskewed as in the run) and whether it is a keyframe's own sweep; every
-    keyframe's final pose and features."""
+    """What the run leaves for the re-match: every mapped sweep's stamp (s) and final pose (4x4), the
+    kept sweeps' compact features by index (sensor frame, deskewed as in the run; SweepStore), whether
+    each sweep is a keyframe's own; every keyframe's final pose and features."""
 
     stamps: np.ndarray
     poses: np.ndarray
-    feats: list[Features]
+    feats: dict[int, Features]
     is_keyframe: np.ndarray
     kf_poses: np.ndarray
     kf_feats: list[Features]
@@ -50,16 +81,18 @@ def global_map(run: RunForOffset, cfg: MatchingConfig) -> LocalMap:
 
 
 def rematched_rotations(run: RunForOffset, cfg: MatchingConfig, keep: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
-    """(indices, (M, 3, 3) rotations) of the sweeps in `keep` (bool per sweep) that are not keyframes
-    and match the whole map again without a degenerate direction (a keyframe's sweep would meet
-    its own cloud and keep its pose)."""
+    """(indices, (M, 3, 3) rotations) of the kept sweeps in `keep` (bool per sweep) that are not
+    keyframes and match the whole map again without a degenerate direction (a keyframe's sweep would
+    meet its own cloud and keep its pose)."""
     whole = global_map(run, cfg)
     idx, rots = [], []
-    for j in np.flatnonzero(keep & ~run.is_keyframe):
+    for j in (int(k) for k in np.flatnonzero(keep & ~run.is_keyframe)):
+        if j not in run.feats:
+            continue
         res = match(np.asarray(run.feats[j].edges, np.float64), np.asarray(run.feats[j].surfs, np.float64),
                     whole, run.poses[j], cfg)
         if res.optimised and not res.degenerate:
-            idx.append(int(j))
+            idx.append(j)
             rots.append(res.pose[:3, :3])
     return np.asarray(idx, np.int64), np.asarray(rots, np.float64).reshape(-1, 3, 3)
 

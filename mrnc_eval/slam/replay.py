@@ -27,7 +27,7 @@ from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
-from mrnc_eval.slam.offset_rematch import RunForOffset, rematch_time_offset
+from mrnc_eval.slam.offset_rematch import RunForOffset, SweepStore, rematch_time_offset
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
@@ -127,7 +127,6 @@ class _Trace:
     degenerate: list[bool] = field(default_factory=list)
     online: list[np.ndarray] = field(default_factory=list)  # the pose as estimated when the sweep was processed
     measured: list[bool] = field(default_factory=list)  # scan-to-map ran and was not degenerate
-    feats: list[Features] = field(default_factory=list)  # compact, for the offset's re-match (else empty)
 
 
 @dataclass(kw_only=True)
@@ -168,6 +167,7 @@ class _Replay:
     imu_noise: ImuNoiseEstimate | None = None  # from the log's stationary stretches, IMU axes
     offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
     offset_cpu_ms: float = 0.0  # CPU time of the offset's re-match after the run, ms
+    offset_sweeps: SweepStore = field(default_factory=lambda: SweepStore(max_sweeps=0))  # set in start()
     wheel_cal: WheelCalibrator | None = None  # online calibration; `wheel` is then its calibrated track
     wheel_flagged: bool = False  # the wheel_health event was raised
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
@@ -191,7 +191,8 @@ class _Replay:
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
         graph = KeyframeGraph(cfg=cfg.graph, anchored=anchored)
         return cls(cfg=cfg, extr=extr, imu=imu, track=track, odom=odom, graph=graph, aligner=aligner,
-                   timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise)
+                   timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise,
+                   offset_sweeps=SweepStore(max_sweeps=cfg.imu.time_offset_rematch_max_sweeps))
 
     # ---- one mapped sweep
     def map_sweep(self, prep: PreparedSweep) -> None:
@@ -215,7 +216,7 @@ class _Replay:
         self.cpu["loop"].append(self.loop_cpu_ms)
         self.record(stamp, pose, degenerate)
         if self.cfg.imu.estimate_time_offset and self.cfg.imu.time_offset_from == "rematch" and self.track is not None:
-            self.trace.feats.append(_compact(feats))
+            self.offset_sweeps.add(len(self.trace.stamps) - 1, stamp, _compact(feats))
         self.refine_offset(stamp)
 
     def deskew(self, image: RangeImage, stamp: float) -> np.ndarray:
@@ -511,7 +512,7 @@ class _Replay:
         if self.track is None:
             return None
         c0 = time.thread_time()
-        run = RunForOffset(stamps=stamps, poses=poses, feats=self.trace.feats,
+        run = RunForOffset(stamps=stamps, poses=poses, feats=self.offset_sweeps.feats,
                            is_keyframe=np.isin(stamps, np.asarray(self.graph.stamps)),
                            kf_poses=np.array(self.graph.poses), kf_feats=self.kf_features)
         found = rematch_time_offset(run, self.track, self.cfg.matching, np.asarray(self.trace.measured, bool))
@@ -544,7 +545,7 @@ class _Replay:
         offset = sigma = None
         if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
             # what the applied estimates left (all of it when none was applied)
-            left = self.rematch_offset(stamps, poses) if tr.feats else self.segment_offset()
+            left = self.rematch_offset(stamps, poses) if self.offset_sweeps.feats else self.segment_offset()
             if left is not None:
                 offset, sigma = self.offset.applied + left.offset_s, left.sigma_s
             elif self.offset.history:

@@ -63,3 +63,25 @@ def test_baseline_pairs_need_sweeps_closer_than_the_baseline() -> None:
     t0, t1, rates = baseline_rates(t[::5], rots[::5])
     assert t0.size == 0
     assert offset_from_overlapping(t0, t1, rates, track) is None
+
+
+def test_sweeps_kept_for_the_rematch_stay_within_the_budget_in_stretches_over_the_whole_log() -> None:
+    """1000 mapped sweeps 0.2 s apart (200 s) with a budget of 100: at most 100 kept, in whole 2 s
+    stretches (10 sweeps each, so the 0.35-0.85 s pairs exist), from the first and the last quarter of
+    the log alike; a budget above the sweeps keeps every one (the 40 s logs' case)."""
+    from mrnc_eval.slam.features import Features
+    from mrnc_eval.slam.offset_rematch import SweepStore
+
+    feats = Features(edges=np.zeros((1, 3), np.float32), surfs=np.zeros((1, 3), np.float32))
+    small, large = SweepStore(max_sweeps=100), SweepStore(max_sweeps=2000)
+    stamps = 100.0 + 0.2 * np.arange(1000)
+    for i, t in enumerate(stamps):
+        small.add(i, float(t), feats)
+        large.add(i, float(t), feats)
+    kept = np.array(sorted(small.feats))
+    assert 50 <= kept.size <= 100
+    assert len(large.feats) == 1000
+    runs = np.split(kept, np.flatnonzero(np.diff(kept) > 1) + 1)
+    assert all(r.size == 10 for r in runs)
+    assert kept.min() < 250
+    assert kept.max() >= 750
