@@ -86,6 +86,17 @@ class ImuConfig:
                                  "else (positive when the IMU stamps are late)", "s")
     estimate_time_offset: bool = param(True, "estimate the remaining IMU-LiDAR offset after the run "
                                        "(imu_time_offset_s in metrics.json)")
+    time_offset_from: Literal["rematch", "online"] = param(
+        "rematch", "with estimate_time_offset: the LiDAR rotations the offset is read from. rematch = after the "
+        "run, every mapped sweep that is not a keyframe matched again without any prior from its final pose "
+        "against all keyframes in their final poses (neither the IMU nor the wheels move them; slam/"
+        "offset_rematch.py); online = the poses as the run estimated them (they keep part of the IMU-driven "
+        "guess and the wheels' yaw: a lag reads 0.65-1.0 of itself on the field logs)")
+    time_offset_rematch_max_sweeps: int = param(
+        600, "with time_offset_from=rematch: at most this many mapped sweeps kept for the re-match (their "
+        "features, 42 kB each on the field logs' OS0-32 x 512): over it the log's 2 s stretches "
+        "are thinned, every other one dropped (a 40 s log mapped at 5 Hz keeps all 200, a 100 s one all 500)",
+        ge=20, le=100_000)
     refine_time_offset_s: float = param(0.0, "with estimate_time_offset: every this much log time, estimate the "
                                         "offset left in every sweep so far and, when it exceeds twice its standard "
                                         "error, apply it to the IMU stamps from then on. The LiDAR poses keep part "

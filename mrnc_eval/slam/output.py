@@ -45,7 +45,8 @@ class SlamOutput:
     warmup_ms: dict[str, float] = field(default_factory=dict)
     empty_sweeps: int = 0  # sweeps with no valid point (empty, all zero or non-finite): not mapped, counted
     imu_noise: dict[str, Any] | None = None  # the IMU's noise and biases from stationary stretches (imu_noise.py)
-    imu_time_offset_sigma_s: float | None = None  # its formal standard error, s
+    imu_time_offset_sigma_s: float | None = None  # its standard error (jackknife with the re-match), s
+    imu_time_offset_cpu_ms: float = 0.0  # CPU time of the offset's re-match after the run (0: not run), ms
     # per stage and sweep, CPU time of the thread that ran it (projection: the preparing thread), ms;
     # the KD-tree's OpenMP helpers are not in it (slam.threads = 1 holds them to the calling thread)
     cpu_ms: dict[str, list[float]] = field(default_factory=dict)

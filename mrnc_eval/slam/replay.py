@@ -27,6 +27,7 @@ from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
+from mrnc_eval.slam.offset_rematch import RunForOffset, SweepStore, rematch_time_offset
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage
 from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
@@ -165,6 +166,8 @@ class _Replay:
     gyro_bias: np.ndarray | None = None  # subtracted from the gyro in the track (slam.gyro_bias_init_s), rad/s
     imu_noise: ImuNoiseEstimate | None = None  # from the log's stationary stretches, IMU axes
     offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
+    offset_cpu_ms: float = 0.0  # CPU time of the offset's re-match after the run, ms
+    offset_sweeps: SweepStore = field(default_factory=lambda: SweepStore(max_sweeps=0))  # set in start()
     wheel_cal: WheelCalibrator | None = None  # online calibration; `wheel` is then its calibrated track
     wheel_flagged: bool = False  # the wheel_health event was raised
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
@@ -188,7 +191,8 @@ class _Replay:
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
         graph = KeyframeGraph(cfg=cfg.graph, anchored=anchored)
         return cls(cfg=cfg, extr=extr, imu=imu, track=track, odom=odom, graph=graph, aligner=aligner,
-                   timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise)
+                   timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise,
+                   offset_sweeps=SweepStore(max_sweeps=cfg.imu.time_offset_rematch_max_sweeps))
 
     # ---- one mapped sweep
     def map_sweep(self, prep: PreparedSweep) -> None:
@@ -211,6 +215,8 @@ class _Replay:
         self.timing["loop"].append(loop_ms)
         self.cpu["loop"].append(self.loop_cpu_ms)
         self.record(stamp, pose, degenerate)
+        if self.cfg.imu.estimate_time_offset and self.cfg.imu.time_offset_from == "rematch" and self.track is not None:
+            self.offset_sweeps.add(len(self.trace.stamps) - 1, stamp, _compact(feats))
         self.refine_offset(stamp)
 
     def deskew(self, image: RangeImage, stamp: float) -> np.ndarray:
@@ -500,6 +506,19 @@ class _Replay:
         return imu_time_offset(np.asarray(tr.stamps[k:]), online[:, :3, :3], self.track,
                                np.asarray(tr.measured[k:], bool))
 
+    def rematch_offset(self, stamps: np.ndarray, poses: np.ndarray) -> OffsetEstimate | None:
+        """slam.imu.time_offset_from=rematch: the offset from the sweeps matched again after the run
+        (slam/offset_rematch.py), against the IMU as now stamped; timed as the "offset" stage."""
+        if self.track is None:
+            return None
+        c0 = time.thread_time()
+        run = RunForOffset(stamps=stamps, poses=poses, feats=self.offset_sweeps.feats,
+                           is_keyframe=np.isin(stamps, np.asarray(self.graph.stamps)),
+                           kf_poses=np.array(self.graph.poses), kf_feats=self.kf_features)
+        found = rematch_time_offset(run, self.track, self.cfg.matching, np.asarray(self.trace.measured, bool))
+        self.offset_cpu_ms = (time.thread_time() - c0) * 1e3
+        return found
+
     def warn_once(self, t: float, key: str, text: str) -> None:
         """A condition that holds for the whole log: one warning (and one event at its first sweep)."""
         if key not in self.st.warned:
@@ -525,7 +544,8 @@ class _Replay:
         online = np.array(tr.online) if tr.online else np.zeros((0, 4, 4))
         offset = sigma = None
         if self.track is not None and self.cfg.imu.estimate_time_offset and stamps.size > 1:
-            left = self.segment_offset()  # what the applied estimates left (all of it when none was applied)
+            # what the applied estimates left (all of it when none was applied)
+            left = self.rematch_offset(stamps, poses) if self.offset_sweeps.feats else self.segment_offset()
             if left is not None:
                 offset, sigma = self.offset.applied + left.offset_s, left.sigma_s
             elif self.offset.history:
@@ -536,7 +556,7 @@ class _Replay:
                           imu_bias=self.odom.bias_vector if self.odom is not None else None,
                           degenerate=np.asarray(tr.degenerate, bool), online_poses=online,
                           imu_time_offset_s=offset, map_quality=quality, imu_noise=self.imu_report(),
-                          imu_time_offset_sigma_s=sigma)
+                          imu_time_offset_sigma_s=sigma, imu_time_offset_cpu_ms=self.offset_cpu_ms)
 
     def imu_report(self) -> dict[str, Any] | None:
         """The IMU's measured noise and biases (IMU axes), what the preintegration used, and how

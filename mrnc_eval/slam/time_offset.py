@@ -81,8 +81,14 @@ def imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
     if pair.sum() < 10:
         return None
     lidar = lidar_angular_rates(stamps, rotations)[pair]
-    t0, t1 = stamps[:-1][pair], stamps[1:][pair]
-    if float(np.std(lidar, axis=0).max()) < 1e-3:  # rad/s: nothing to correlate
+    return offset_from_rates(stamps[:-1][pair], stamps[1:][pair], lidar, track, axis_weights=axis_weights)
+
+
+def offset_from_rates(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack, *,
+                      axis_weights: bool = True) -> OffsetEstimate | None:
+    """The offset fit of `imu_time_offset` on given intervals [t0, t1] (s) and the LiDAR's mean angular
+    velocity over each (rad/s, LiDAR axes). None without rotation to correlate or under 10 intervals."""
+    if t0.size < 10 or float(np.std(lidar, axis=0).max()) < 1e-3:  # rad/s: nothing to correlate
         return None
     t_imu, integral = _gyro_integral(track)
     grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
@@ -94,7 +100,7 @@ def imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
     weighted = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor))
     cost = weighted if axis_weights else per_axis.sum(axis=1)
     k = int(np.argmin(cost))
-    n = int(pair.sum())
+    n = int(t0.size)
     if k == 0 or k == grid.size - 1:
         return OffsetEstimate(offset_s=float(grid[k]), sigma_s=float("inf"), intervals=n)
     # chi^2(o) = n * weighted(o) with each axis's noise its best mean square: sigma^2 = 2 / chi^2''
@@ -103,3 +109,54 @@ def imu_time_offset(stamps: np.ndarray, rotations: np.ndarray, track: ImuTrack,
     sigma = float(np.sqrt(2.0 / (n * curv))) if curv > 0 else float("inf")
     return OffsetEstimate(offset_s=float(grid[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S),
                           sigma_s=sigma, intervals=n)
+
+
+def _block_sums(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack,
+                blocks: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """Per grid offset, per time block of the intervals (by t0) and per axis: the sum and the sum of
+    squares of the rate difference (gyro - LiDAR, rad/s), and the intervals per block; (G, B, 3) x2, (B,)."""
+    t_imu, integral = _gyro_integral(track)
+    span = max(float(np.ptp(t0)), 1e-9)
+    block = np.minimum(((t0 - t0.min()) / span * blocks).astype(np.int64), blocks - 1)
+    grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
+    s1, s2 = np.zeros((grid.size, blocks, 3)), np.zeros((grid.size, blocks, 3))
+    for g, o in enumerate(grid):
+        diff = _imu_rates(t_imu, integral, t0 + o, t1 + o) - lidar
+        for a in range(3):
+            s1[g, :, a] = np.bincount(block, diff[:, a], minlength=blocks)
+            s2[g, :, a] = np.bincount(block, diff[:, a] ** 2, minlength=blocks)
+    return s1, s2, np.bincount(block, minlength=blocks).astype(np.float64)
+
+
+def _offset_from_sums(s1: np.ndarray, s2: np.ndarray, n: np.ndarray) -> float:
+    """The grid fit of `imu_time_offset` (each axis's mean square after removing its mean difference,
+    divided by its own smallest; parabolic vertex) from block sums; s."""
+    total = float(n.sum())
+    a, b = s1.sum(axis=1), s2.sum(axis=1)  # (G, 3)
+    per_axis = (b - a * a / total) / total
+    floor = max(float(per_axis.min(axis=0).max()) * 1e-3, 1e-12)
+    cost = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor))
+    k = int(np.argmin(cost))
+    if k == 0 or k == cost.size - 1:
+        return float(-SEARCH_S + k * STEP_S)
+    return float(-SEARCH_S + (k + parabola_vertex(cost[k - 1], cost[k], cost[k + 1])) * STEP_S)
+
+
+def offset_from_overlapping(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack, *,
+                            blocks: int = 10) -> OffsetEstimate | None:
+    """The fit of `offset_from_rates` on intervals that may share their ends (each pose in several
+    intervals: their residuals are correlated, the formal error would be too small), with a
+    delete-one-block jackknife standard error over `blocks` contiguous stretches of the log. None
+    under 10 intervals or without rotation; sigma inf when the estimate lies on the search bound."""
+    if t0.size < max(10, blocks) or float(np.std(lidar, axis=0).max()) < 1e-3:
+        return None
+    s1, s2, n = _block_sums(t0, t1, lidar, track, blocks)
+    found = _offset_from_sums(s1, s2, n)
+    if abs(found) >= SEARCH_S - STEP_S / 2:
+        return OffsetEstimate(offset_s=found, sigma_s=float("inf"), intervals=int(t0.size))
+    keep = n > 0
+    reps = np.array([_offset_from_sums(np.delete(s1, b, axis=1), np.delete(s2, b, axis=1), np.delete(n, b))
+                     for b in np.flatnonzero(keep)])
+    m = reps.size
+    sigma = float(np.sqrt((m - 1) / m * np.sum((reps - reps.mean()) ** 2))) if m > 1 else float("inf")
+    return OffsetEstimate(offset_s=found, sigma_s=sigma, intervals=int(t0.size))
