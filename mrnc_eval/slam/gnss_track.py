@@ -44,6 +44,7 @@ PROVISIONAL_SPREAD_DEG = 15.0
 # what tells a jump the filter absorbed from the step (with 1 s, a genuine 3.4 m step on open line seed 2
 # was taken for the end of a box).
 PRE_BOX_S = 3.0
+KEEP_PRE_S = 6.0  # ... and keeps up to this long of them (s): a quadratic through 3 s bends into an 8 s box
 
 
 @dataclass(kw_only=True)
@@ -141,7 +142,7 @@ class TrackFilter:
 
     def _remember(self, t: float, fix: np.ndarray) -> None:
         self.history.append((t, fix, self.offset.copy()))
-        keep = self.box_window_s + self.box_after_s + PRE_BOX_S
+        keep = self.box_window_s + self.box_after_s + KEEP_PRE_S
         while self.history and self.history[0][0] < t - keep:
             self.history.pop(0)
 
