@@ -147,26 +147,30 @@ class TrackFilter:
             self.history.pop(0)
 
     def _check_box(self, t: float, sigma: float) -> None:
-        """A step is a jump starting now only if the fixes before it were clean. If they were not (the
-        filter absorbed a jump that started earlier, and the step is its end), the fixes fit a smooth
-        track with a box offset that ends at the step better than one with the step held: the
-        offset-free hypothesis wins, the step is undone and the filter goes to the smooth track."""
+        """The offset-free hypothesis against a step held (box_after_s after it): the step is not a jump
+        starting but the end of one the filter absorbed (it followed jumped fixes below the gate, or a
+        change of a held jump), and the fixes after it are clean. Then the fixes since the offset held
+        before the step was taken (less it) fit a smooth track with a box offset ending at the step and
+        the later fixes as they are, better than with the new offset held: the offset goes to zero and
+        the filter to that track."""
         c = self.box
         if c is None or t - c.since < self.box_after_s:
             return
         self.box = None
-        # the fixes as they came, back to the latest one that came with an offset held (its correction
-        # may itself have been wrong): the filter followed these fixes as they are
-        start = max((i + 1 for i, (ts_i, _, off) in enumerate(self.history) if ts_i <= c.since and np.any(off)),
-                    default=0)
+        # back to the latest fix that came with another offset held (its correction may itself be wrong)
+        start = max((i + 1 for i, (ts_i, _, off) in enumerate(self.history)
+                     if ts_i <= c.since and np.any(off != c.before)), default=0)
         ts = np.array([h[0] for h in self.history[start:]])
-        fixes = np.array([h[1] for h in self.history[start:]])
         after = ts > c.since
-        fit = _box_fit(ts - t, fixes, after, c.step, step_at=c.since - t, window_s=self.box_window_s)
+        fixes = np.array([z - (0.0 if a else off) for (_, z, off), a in zip(self.history[start:], after, strict=True)])
+        # with no offset held before, the absorbed jump was -step (the step is its end): a box of that offset
+        box = None if np.any(c.before) else -c.step
+        fit = _box_fit(ts - t, fixes, after, c.before + c.step, box=box, step_at=c.since - t,
+                       window_s=self.box_window_s)
         if fit is None or fit[0] < self.box_chi2 * sigma ** 2:
             return
         assert self.x is not None
-        self.offset = c.before.copy()
+        self.offset = np.zeros(2)
         self.x[:2], self.x[2:] = fit[1], fit[2]
         self.check = None
         self.box_drops += 1
@@ -220,7 +224,7 @@ class TrackFilter:
         self.steps += 1
         self.check = None
         self.box = None
-        if self.box_window_s > 0 and np.any(new) and not np.any(old):
+        if self.box_window_s > 0 and np.any(new):
             self.box = BoxCheck(since=float(self.t), before=old, step=step)
         if self.lag_check_s > 0 and np.any(new):
             x, p = self.predict(self.t)
@@ -277,26 +281,26 @@ class GnssTrack:
         return np.asarray(align.rot @ x[2:], np.float64)
 
 
-def _box_fit(dt: np.ndarray, fixes: np.ndarray, after: np.ndarray, step: np.ndarray, *, step_at: float,
-             window_s: float) -> tuple[float, np.ndarray, np.ndarray] | None:
-    """Fixes (n, 2; m) at dt (s, 0 = now) as a quadratic track, either with the step (m) held after
-    step_at (`after`) or with the fixes before it offset by -step over a box [tau, step_at] (a jump
-    the filter absorbed, ending at the step) for the best tau up to window_s before. Returns how much
-    smaller the box's residual sum of squares is (m^2), and the box fit's position and velocity now
-    (m, m/s); None when the window has too few fixes."""
+def _box_fit(dt: np.ndarray, fixes: np.ndarray, after: np.ndarray, held: np.ndarray, *, box: np.ndarray | None,
+             step_at: float, window_s: float) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """Fixes (n, 2; m) at dt (s, 0 = now) as a quadratic track: with the offset `held` (m) taken off the
+    fixes after step_at (`after`), against the fixes as they are with a box offset (`box`, m, or
+    fitted when None) over [tau, step_at] for the best tau up to window_s before it, PRE_BOX_S of
+    fixes before any box.
+    Returns how much smaller the box's residual sum of squares is (m^2), and its fit's position and
+    velocity now (m, m/s); None when the window has too few fixes."""
     if (~after).sum() < 10 or after.sum() < 5:
         return None
     base = np.c_[np.ones_like(dt), dt, dt * dt]
-    held = _rss(base, fixes - np.outer(after, step))[0]
-    best: tuple[float, np.ndarray] | None = None
-    first = dt[0] + PRE_BOX_S  # clean fixes before any box: what tells a box from the step
+    rss_held = _rss(base, fixes - np.outer(after, held))[0]
+    best = _rss(base, fixes)  # no box: the fixes were clean all along
+    first = dt[0] + PRE_BOX_S
     for tau in dt[(dt >= max(first, step_at - window_s)) & (dt <= step_at - 1.0)]:
-        rss, coef = _rss(base, fixes + np.outer((dt >= tau) & (dt <= step_at), step))
-        if best is None or rss < best[0]:
-            best = (rss, coef)
-    if best is None:
-        return None
-    return held - best[0], best[1][0], best[1][1]
+        inside = (dt >= tau) & (dt <= step_at)
+        fit = _rss(np.c_[base, inside], fixes) if box is None else _rss(base, fixes - np.outer(inside, box))
+        if fit[0] < best[0]:
+            best = fit
+    return rss_held - best[0], best[1][0], best[1][1]
 
 
 def _rss(a: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
