@@ -13,7 +13,9 @@ a degenerate match leaves free, exactly where wheels would otherwise carry them 
   held for 10 s is dropped: multipath does not last that long, a filter error would); and dropped
   earlier when the fixes' velocity over `track_lag_check_s` after the step disagrees with the
   filter's before it: the filter was lagging (overlapping jumps had dragged its velocity), not the
-  fixes jumping;
+  fixes jumping; or, `track_box_check_s`, when the fixes say the step ended a jump the filter had
+  followed below the gate (a box offset before the step fits them better than the step held): the
+  offset-free hypothesis, the offset goes to zero;
 - an outage (no fix taken for `track_max_gap_s`) hands x, y back to the chain until the fixes return,
   and the filter starts again at the first of them;
 - the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
