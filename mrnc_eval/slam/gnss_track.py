@@ -121,6 +121,7 @@ class TrackFilter:
         if self.x is None or t - self.t > self.max_gap_s:
             self.x, self.t, self.offset, self.pending = np.r_[z, 0.0, 0.0], t, np.zeros(2), []
             self.check = self.box = None
+            self.history = []  # fixes before a restart are no smooth track with the ones after it
             self.p = np.diag([sigma ** 2, sigma ** 2, 1.0, 1.0])
             return True
         if np.any(self.offset) and t - self.offset_since > self.offset_max_s:

@@ -339,3 +339,15 @@ def test_a_step_that_leaves_a_changed_jump_goes_to_the_clean_fixes() -> None:
             off, _ = _box_run(t, fixes, 0.0)
             assert _rms(off[late], truth[late]) > 0.4, seed
     assert fired >= 3
+
+
+def test_the_offset_free_check_never_fits_across_a_restart() -> None:
+    """After an outage the filter starts again; the fixes before it are no smooth track with the ones
+    after it, so the check's history holds only the fixes since the restart."""
+    f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=3.5, max_gap_s=2.0, box_window_s=8.0)
+    for k in range(50):
+        f.update(k / 5.0, np.array([k / 5.0, 0.0]), SIGMA)
+    assert len(f.history) == 49  # every fix but the first (the filter's start)
+    for k in range(80, 90):  # 6 s without fixes: a restart at 16 s
+        f.update(k / 5.0, np.array([k / 5.0, 5.0]), SIGMA)
+    assert [h[0] for h in f.history] == [k / 5.0 for k in range(81, 90)]
