@@ -359,6 +359,12 @@ class GpsConfig:
         2.0, "GNSS track: after a multipath step, the velocity of this long of fixes (a straight line through "
         "them) is compared with the filter's just before the step; when they disagree (chi-square, 2 dof) the "
         "filter was lagging, not the fixes jumping, and the held offset is dropped; 0: off", "s", ge=0.0, le=10.0)
+    track_box_check_s: float = param(
+        8.0, "GNSS track: a multipath step that leaves an offset held is tested, 2 s after it, against the "
+        "offset-free hypothesis: the filter followed a jump (or a held jump's change) that began up to this "
+        "long before, the step is its end and the fixes are clean now (they fit a smooth track with a box "
+        "offset ending at the step better than with the offset held); then the offset goes to zero and the "
+        "filter to the fixes' track; 0: off", "s", ge=0.0, le=30.0)
 
 
 @dataclass(frozen=True)

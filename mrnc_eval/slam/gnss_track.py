@@ -13,7 +13,9 @@ a degenerate match leaves free, exactly where wheels would otherwise carry them 
   held for 10 s is dropped: multipath does not last that long, a filter error would); and dropped
   earlier when the fixes' velocity over `track_lag_check_s` after the step disagrees with the
   filter's before it: the filter was lagging (overlapping jumps had dragged its velocity), not the
-  fixes jumping;
+  fixes jumping; or, `track_box_check_s`, when the fixes say the step ended a jump the filter had
+  followed below the gate (a box offset before the step fits them better than the step held): the
+  offset-free hypothesis, the offset goes to zero;
 - an outage (no fix taken for `track_max_gap_s`) hands x, y back to the chain until the fixes return,
   and the filter starts again at the first of them;
 - the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
@@ -40,6 +42,11 @@ CHI2_2DOF = 13.8  # 0.1 % of consistent fixes rejected
 # pairs spread 44 deg at 4.7 s (the truth ~0 deg); from 20 pairs spread <= 15 deg, within 2 deg.
 PROVISIONAL_PAIRS = 20
 PROVISIONAL_SPREAD_DEG = 15.0
+# The offset-free check (TrackFilter._check_box) needs this long of fixes before a box (s): they are
+# what tells a jump the filter absorbed from the step (with 1 s, a genuine 3.4 m step on open line seed 2
+# was taken for the end of a box).
+PRE_BOX_S = 3.0
+KEEP_PRE_S = 6.0  # ... and keeps up to this long of them (s): a quadratic through 3 s bends into an 8 s box
 
 
 @dataclass(kw_only=True)
@@ -52,6 +59,16 @@ class LagCheck:
     p_vv: np.ndarray
     stamps: list[float] = field(default_factory=list)
     fixes: list[np.ndarray] = field(default_factory=list)  # accepted since, the held offset taken off (ENU, m)
+
+
+@dataclass(kw_only=True)
+class BoxCheck:
+    """A step under test against the offset-free hypothesis: when it was taken (s), the held offset
+    before it and the step (ENU, m)."""
+
+    since: float
+    before: np.ndarray
+    step: np.ndarray
 
 
 @dataclass(kw_only=True)
@@ -76,6 +93,12 @@ class TrackFilter:
     steps: int = 0
     lag_drops: int = 0  # held offsets dropped because the filter's velocity before them was wrong
     check: LagCheck | None = None  # the latest step, under test
+    box_window_s: float = 0.0  # a step is tested against an absorbed jump ending at it, this far back (0: off)
+    box_after_s: float = 2.0  # ... once this long of fixes after the step is in
+    box_chi2: float = 20.0  # ... the offset-free fit better by this much (in sigma^2) drops the step
+    history: list[tuple[float, np.ndarray, np.ndarray]] = field(default_factory=list)  # (s, fix, held offset), m
+    box: BoxCheck | None = None
+    box_drops: int = 0
 
     def fresh(self, t: float) -> bool:
         """A fix was taken within max_gap_s before t (else the filter only extrapolates)."""
@@ -96,11 +119,15 @@ class TrackFilter:
         older than offset_max_s is dropped (the position keeps what it was)."""
         sigma = max(sigma, self.sigma_floor_m)
         if self.x is None or t - self.t > self.max_gap_s:
-            self.x, self.t, self.offset, self.pending, self.check = np.r_[z, 0.0, 0.0], t, np.zeros(2), [], None
+            self.x, self.t, self.offset, self.pending = np.r_[z, 0.0, 0.0], t, np.zeros(2), []
+            self.check = self.box = None
+            self.history = []  # fixes before a restart are no smooth track with the ones after it
             self.p = np.diag([sigma ** 2, sigma ** 2, 1.0, 1.0])
             return True
         if np.any(self.offset) and t - self.offset_since > self.offset_max_s:
             self.x[:2], self.offset = self.x[:2] + self.offset, np.zeros(2)
+        if self.box_window_s > 0:
+            self._remember(t, z)
         x, p = self.predict(t)
         nu = z - self.offset - x[:2]
         s = p[:2, :2] + sigma ** 2 * np.eye(2)
@@ -113,7 +140,43 @@ class TrackFilter:
         self.accepted += 1
         self.pending = []
         self._check_lag(t, z - self.offset, sigma)
+        self._check_box(t, sigma)
         return True
+
+    def _remember(self, t: float, fix: np.ndarray) -> None:
+        self.history.append((t, fix, self.offset.copy()))
+        keep = self.box_window_s + self.box_after_s + KEEP_PRE_S
+        while self.history and self.history[0][0] < t - keep:
+            self.history.pop(0)
+
+    def _check_box(self, t: float, sigma: float) -> None:
+        """The offset-free hypothesis against a step held (box_after_s after it): the step is not a jump
+        starting but the end of one the filter absorbed (it followed jumped fixes below the gate, or a
+        change of a held jump), and the fixes after it are clean. Then the fixes since the offset held
+        before the step was taken (less it) fit a smooth track with a box offset ending at the step and
+        the later fixes as they are, better than with the new offset held: the offset goes to zero and
+        the filter to that track."""
+        c = self.box
+        if c is None or t - c.since < self.box_after_s:
+            return
+        self.box = None
+        # back to the latest fix that came with another offset held (its correction may itself be wrong)
+        start = max((i + 1 for i, (ts_i, _, off) in enumerate(self.history)
+                     if ts_i <= c.since and np.any(off != c.before)), default=0)
+        ts = np.array([h[0] for h in self.history[start:]])
+        after = ts > c.since
+        fixes = np.array([z - (0.0 if a else off) for (_, z, off), a in zip(self.history[start:], after, strict=True)])
+        # with no offset held before, the absorbed jump was -step (the step is its end): a box of that offset
+        box = None if np.any(c.before) else -c.step
+        fit = _box_fit(ts - t, fixes, after, c.before + c.step, box=box, step_at=c.since - t,
+                       window_s=self.box_window_s)
+        if fit is None or fit[0] < self.box_chi2 * sigma ** 2:
+            return
+        assert self.x is not None
+        self.offset = np.zeros(2)
+        self.x[:2], self.x[2:] = fit[1], fit[2]
+        self.check = None
+        self.box_drops += 1
 
     def _check_lag(self, t: float, z: np.ndarray, sigma: float) -> None:
         """A step is the fixes moving against a filter that was right. If the velocity of the fixes
@@ -155,7 +218,7 @@ class TrackFilter:
         step = np.median(run, axis=0)
         if np.any(np.linalg.norm(run - step, axis=1) > 3.0 * sigma + 0.1):
             return False
-        new = self.offset + step
+        old, new = self.offset.copy(), self.offset + step
         if np.linalg.norm(new) > self.max_offset_m:
             assert self.x is not None
             self.x[:2] = self.x[:2] + new
@@ -163,6 +226,9 @@ class TrackFilter:
         self.offset, self.offset_since = new, float(self.t)
         self.steps += 1
         self.check = None
+        self.box = None
+        if self.box_window_s > 0 and np.any(new):
+            self.box = BoxCheck(since=float(self.t), before=old, step=step)
         if self.lag_check_s > 0 and np.any(new):
             x, p = self.predict(self.t)
             self.check = LagCheck(since=float(self.t), v=x[2:], p_vv=p[2:, 2:])
@@ -218,6 +284,34 @@ class GnssTrack:
         return np.asarray(align.rot @ x[2:], np.float64)
 
 
+def _box_fit(dt: np.ndarray, fixes: np.ndarray, after: np.ndarray, held: np.ndarray, *, box: np.ndarray | None,
+             step_at: float, window_s: float) -> tuple[float, np.ndarray, np.ndarray] | None:
+    """Fixes (n, 2; m) at dt (s, 0 = now) as a quadratic track: with the offset `held` (m) taken off the
+    fixes after step_at (`after`), against the fixes as they are with a box offset (`box`, m, or
+    fitted when None) over [tau, step_at] for the best tau up to window_s before it, PRE_BOX_S of
+    fixes before any box.
+    Returns how much smaller the box's residual sum of squares is (m^2), and its fit's position and
+    velocity now (m, m/s); None when the window has too few fixes."""
+    if (~after).sum() < 10 or after.sum() < 5:
+        return None
+    base = np.c_[np.ones_like(dt), dt, dt * dt]
+    rss_held = _rss(base, fixes - np.outer(after, held))[0]
+    best = _rss(base, fixes)  # no box: the fixes were clean all along
+    first = dt[0] + PRE_BOX_S
+    for tau in dt[(dt >= max(first, step_at - window_s)) & (dt <= step_at - 1.0)]:
+        inside = (dt >= tau) & (dt <= step_at)
+        fit = _rss(np.c_[base, inside], fixes) if box is None else _rss(base, fixes - np.outer(inside, box))
+        if fit[0] < best[0]:
+            best = fit
+    return rss_held - best[0], best[1][0], best[1][1]
+
+
+def _rss(a: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
+    """Least squares of y (n, 2) on columns a (n, k): residual sum of squares and coefficients (k, 2)."""
+    coef, *_ = np.linalg.lstsq(a.astype(float), y, rcond=None)
+    return float(np.sum((y - a.astype(float) @ coef) ** 2)), coef
+
+
 def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
           base_to_sensor: np.ndarray | None, with_wheels: bool) -> GnssTrack | None:
     """The track when slam.gps.track asks for it: fixes in the log, GNSS on, no wheel odometry used."""
@@ -228,7 +322,7 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
                      filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
                                         max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
                                         sigma_floor_m=cfg.track_sigma_floor_m,
-                                        lag_check_s=cfg.track_lag_check_s))
+                                        lag_check_s=cfg.track_lag_check_s, box_window_s=cfg.track_box_check_s))
 
 
 def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,
