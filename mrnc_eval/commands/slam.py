@@ -317,7 +317,8 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
                 (Prefetched(items, depth=4) if threads > 1 else closing(items)) as sweeps:
             return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
                             antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
-                            base_to_sensor=inputs.base_to_sensor, progress=tick, warmup_ms=warmup_ms)
+                            base_to_sensor=inputs.base_to_sensor, progress=tick, warmup_ms=warmup_ms,
+                            workers=threads)
 
 
 def _run_items(stream: Iterator[Sweep], cfg: SlamConfig, *, prepare: bool

@@ -97,6 +97,11 @@ class ImuConfig:
         "features, 42 kB each on the field logs' OS0-32 x 512): over it the log's 2 s stretches "
         "are thinned, every other one dropped (a 40 s log mapped at 5 Hz keeps all 200, a 100 s one all 500)",
         ge=20, le=100_000)
+    time_offset_rematch_max_points: int = param(
+        2000, "with time_offset_from=rematch: at most this many edge and this many surface points of each kept "
+        "sweep, every k-th (the field logs' OS0-32 x 512 sweeps: 80-200 edge, 2,300-3,300 surface points; an "
+        "OS0-128 x 1024 sweep's 11,600 surface points cost 3x the CPU and memory for the same estimate)",
+        ge=100, le=10_000_000)
     refine_time_offset_s: float = param(0.0, "with estimate_time_offset: every this much log time, estimate the "
                                         "offset left in every sweep so far and, when it exceeds twice its standard "
                                         "error, apply it to the IMU stamps from then on. The LiDAR poses keep part "

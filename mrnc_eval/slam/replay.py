@@ -53,21 +53,21 @@ def start_anchored(cfg: SlamConfig, with_wheels: bool) -> bool:
 def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg: SlamConfig, *,
              sensor_to_imu: np.ndarray | None = None, gnss: GnssSeries | None = None,
              antenna_in_sensor: np.ndarray | None = None, wheel: WheelTrack | None = None,
-             base_to_sensor: np.ndarray | None = None,
-             progress: Callable[[int], None] | None = None,
-             warmup_ms: dict[str, float] | None = None) -> SlamOutput:
+             base_to_sensor: np.ndarray | None = None, progress: Callable[[int], None] | None = None,
+             warmup_ms: dict[str, float] | None = None, workers: int = 1) -> SlamOutput:
     """Replay the SLAM over `sweeps` (LiDAR frame; each prepared ahead, slam/sweep_prep.py, or prepared
     here in line: the same arrays either way). `sensor_to_imu` is the IMU pose in the LiDAR
     frame from /tf_static (the config's extrinsics override it); `gnss` in ENU enables GNSS factors;
     `wheel` (odom -> base_link, with `base_to_sensor` the LiDAR pose in base_link) enables wheel
     factors when slam.wheel_odom.enabled. The stages are warmed first (slam/warmup.py; `warmup_ms`
     given: the caller did it, before its reader thread started): their one-off cost is reported as
-    `warmup_ms`, outside the per-sweep timing and `wall_s`."""
+    `warmup_ms`, outside the per-sweep timing and `wall_s`. `workers`: threads of the offset re-match."""
     warmup_ms = warm_up(cfg) if warmup_ms is None else warmup_ms
     wall0 = time.perf_counter()
     with_wheels = wheel is not None and cfg.wheel_odom.enabled
     anchored = start_anchored(cfg, with_wheels)
     replay = _Replay.start(imu, cfg, sensor_to_imu, gnss, antenna_in_sensor, anchored)
+    replay.workers = workers
     if replay.odom is not None:  # GNSS/INS: the fixes into graph #2
         replay.ins = gnss_ins.build(gnss, cfg.gps, antenna_in_sensor, base_to_sensor, with_wheels)
     if replay.ins is None:
@@ -168,6 +168,7 @@ class _Replay:
     offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
     offset_cpu_ms: float = 0.0  # CPU time of the offset's re-match after the run, ms
     offset_sweeps: SweepStore = field(default_factory=lambda: SweepStore(max_sweeps=0))  # set in start()
+    workers: int = 1  # threads for the offset re-match after the run (run_slam)
     wheel_cal: WheelCalibrator | None = None  # online calibration; `wheel` is then its calibrated track
     wheel_flagged: bool = False  # the wheel_health event was raised
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
@@ -192,7 +193,8 @@ class _Replay:
         graph = KeyframeGraph(cfg=cfg.graph, anchored=anchored)
         return cls(cfg=cfg, extr=extr, imu=imu, track=track, odom=odom, graph=graph, aligner=aligner,
                    timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise,
-                   offset_sweeps=SweepStore(max_sweeps=cfg.imu.time_offset_rematch_max_sweeps))
+                   offset_sweeps=SweepStore(max_sweeps=cfg.imu.time_offset_rematch_max_sweeps,
+                                             max_points=cfg.imu.time_offset_rematch_max_points))
 
     # ---- one mapped sweep
     def map_sweep(self, prep: PreparedSweep) -> None:
@@ -511,12 +513,13 @@ class _Replay:
         (slam/offset_rematch.py), against the IMU as now stamped; timed as the "offset" stage."""
         if self.track is None:
             return None
-        c0 = time.thread_time()
+        c0 = time.process_time()  # the re-match's worker threads included (the reader is done by now)
         run = RunForOffset(stamps=stamps, poses=poses, feats=self.offset_sweeps.feats,
                            is_keyframe=np.isin(stamps, np.asarray(self.graph.stamps)),
                            kf_poses=np.array(self.graph.poses), kf_feats=self.kf_features)
-        found = rematch_time_offset(run, self.track, self.cfg.matching, np.asarray(self.trace.measured, bool))
-        self.offset_cpu_ms = (time.thread_time() - c0) * 1e3
+        found = rematch_time_offset(run, self.track, self.cfg.matching, np.asarray(self.trace.measured, bool),
+                                    self.workers)
+        self.offset_cpu_ms = (time.process_time() - c0) * 1e3
         return found
 
     def warn_once(self, t: float, key: str, text: str) -> None:

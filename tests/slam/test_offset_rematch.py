@@ -85,3 +85,41 @@ def test_sweeps_kept_for_the_rematch_stay_within_the_budget_in_stretches_over_th
     assert all(r.size == 10 for r in runs)
     assert kept.min() < 250
     assert kept.max() >= 750
+
+
+def test_sweeps_kept_for_the_rematch_hold_at_most_max_points_spread_over_the_sweep() -> None:
+    """An OS0-128-sized sweep (11,600 surface points) is kept as every 3rd point (3,867 <= 4,000), from
+    its first to its last row, in its own array (not a view holding the whole sweep); a sweep under the
+    cap (an OS0-32 x 512 one) is kept whole, the same array."""
+    from mrnc_eval.slam.features import Features
+    from mrnc_eval.slam.offset_rematch import SweepStore
+
+    big = Features(edges=np.arange(1400 * 3, dtype=np.float32).reshape(-1, 3),
+                   surfs=np.arange(11_600 * 3, dtype=np.float32).reshape(-1, 3))
+    small = Features(edges=np.zeros((80, 3), np.float32), surfs=np.zeros((2300, 3), np.float32))
+    store = SweepStore(max_sweeps=10, max_points=4000)
+    store.add(0, 0.0, big)
+    store.add(1, 0.2, small)
+    kept = store.feats[0]
+    assert kept.surfs.shape == (3867, 3)
+    np.testing.assert_array_equal(kept.surfs, big.surfs[::3])
+    assert kept.surfs.base is None or kept.surfs.base is not big.surfs
+    assert kept.edges is big.edges  # 1,400 edges: under the cap
+    assert store.feats[1].surfs is small.surfs
+
+
+def test_sweeps_kept_for_the_rematch_are_at_least_min_spacing_apart() -> None:
+    """Mapped every sweep at 10 Hz: every other sweep kept (0.2 s apart); at LIO-SAM's 5 Hz mapping
+    rate every sweep is kept."""
+    from mrnc_eval.slam.features import Features
+    from mrnc_eval.slam.offset_rematch import MIN_SPACING_S, SweepStore
+
+    feats = Features(edges=np.zeros((1, 3), np.float32), surfs=np.zeros((1, 3), np.float32))
+    every, fifth = SweepStore(max_sweeps=1000), SweepStore(max_sweeps=1000)
+    for i in range(100):
+        every.add(i, 0.1 * i, feats)
+        if i % 2 == 0:
+            fifth.add(i, 0.1 * i, feats)
+    assert sorted(every.feats) == list(range(0, 100, 2))
+    assert sorted(fifth.feats) == list(range(0, 100, 2))
+    assert 0.1 < MIN_SPACING_S < 0.2

@@ -4,7 +4,8 @@ everything that reads the replay's state (deskew by graph #2's prediction, match
 in the loop's order. So `--threads 1` (all in turn on one thread, OpenMP held to it) and the
 default give the same trajectory to the byte; and a pipeline that ran the state-dependent part
 ahead too (deskew of a sweep with the prediction from before the previous sweep's match) does
-not: the comparison sees an ordering mistake."""
+not: the comparison sees an ordering mistake. The IMU-LiDAR offset re-matched after the run on
+two threads is the serial one too."""
 
 from __future__ import annotations
 
@@ -28,20 +29,34 @@ SAMPLE = Path(__file__).resolve().parents[2] / "sample_logs" / "loop_forest.bag"
 WINDOW = SweepWindow(start_s=33.0, n_scans=30)  # 4 s of the 10 Hz part: keyframes, graph #2 predicting
 
 
-def _trajectory(tmp_path: Path, name: str, threads: int) -> bytes:
+def _run(tmp_path: Path, name: str, threads: int) -> tuple[bytes, float | None]:
+    """(trajectory.tum's bytes, the IMU-LiDAR offset found, s)."""
     cfg = replace_path(replace_path(Config(), "slam.mapping_interval_s", 0.0), "slam.threads", threads)
-    run_log(SAMPLE, cfg, tmp_path / name, method="lio", window=WINDOW)
-    return (tmp_path / name / "trajectory.tum").read_bytes()
+    result = run_log(SAMPLE, cfg, tmp_path / name, method="lio", window=WINDOW)
+    offset = next((m.value for m in result.metrics if m.name == "imu_time_offset_s"), None)
+    return (tmp_path / name / "trajectory.tum").read_bytes(), offset
+
+
+def _trajectory(tmp_path: Path, name: str, threads: int) -> bytes:
+    return _run(tmp_path, name, threads)[0]
 
 
 @pytest.fixture(scope="module")
-def serial(tmp_path_factory: pytest.TempPathFactory) -> bytes:
-    return _trajectory(tmp_path_factory.mktemp("serial"), "t1", 1)
+def serial_run(tmp_path_factory: pytest.TempPathFactory) -> tuple[bytes, float | None]:
+    return _run(tmp_path_factory.mktemp("serial"), "t1", 1)
 
 
-def test_two_threads_give_the_serial_poses_to_the_byte(serial: bytes, tmp_path: Path) -> None:
+@pytest.fixture(scope="module")
+def serial(serial_run: tuple[bytes, float | None]) -> bytes:
+    return serial_run[0]
+
+
+def test_two_threads_give_the_serial_poses_and_offset_to_the_byte(serial_run: tuple[bytes, float | None],
+                                                                  tmp_path: Path) -> None:
+    serial, offset = serial_run
     assert serial.count(b"\n") >= 25
-    assert _trajectory(tmp_path, "t2", 2) == serial
+    assert offset is not None  # the re-match ran (two workers after the run)
+    assert _run(tmp_path, "t2", 2) == (serial, offset)
 
 
 def test_a_stale_prediction_for_deskew_changes_the_poses(serial: bytes, tmp_path: Path,
