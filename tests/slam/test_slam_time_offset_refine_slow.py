@@ -67,7 +67,7 @@ def test_two_rematched_or_two_online_passes_read_a_30_ms_lag_within_2_ms_and_one
     the kept sweeps: 27.91 / 29.83 ms; now at most 2,000 edge and 2,000 surface each); online poses
     one pass 23.87 ms, two passes 29.21 ms (main 8bad290: the same; the sensors benchmark's yard seed 3
     log, exact wheels: re-match 29.11 / 30.73 ms, online 22.13 ms in one pass). The re-match's one pass
-    misses the issue's 2 ms here (2.09 ms short; jackknife error ~1 ms), though it reads 4 ms more of the
+    with every point missed the issue's 2 ms here (2.09 ms short; jackknife error ~1 ms), yet read 4 ms more of the
     lag than the online poses' one pass (with the point cap it is within: 1.20 ms short); over yard and
     forest seeds 0-5 at 8 and 30 ms it reads 23 of 24
     within 2 ms in one pass and 24 of 24 in two (docs/simulation.md)."""
