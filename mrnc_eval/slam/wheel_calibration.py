@@ -220,7 +220,8 @@ class WheelCalibrator:
         inverse-variance mean of the calibrated wheels' yaw and the gyro's (its bias measured over the
         standing start; without one the wheels' alone), with the measured residual variance for the
         wheels and gyro_yaw_rate_sigma_rad_s for the gyro: noisy speed pickups random-walk the wheel
-        heading, exact ones keep it. (The fitted offset c is not added to the gyro: on a straight
+        heading, exact ones keep it. The increments after the last consumed bin take the same blend.
+        (The fitted offset c is not added to the gyro: on a straight
         drive it trades off against the L/R term.) Rejected bins take the gyro's yaw."""
         f, a, c = self.theta
         f = f if abs(f) > 0.2 else 1.0
@@ -228,14 +229,15 @@ class WheelCalibrator:
         fwd = self.inc.forward_m / self.scale
         yaw = (self.inc.yaw_rad - a * self.inc.forward_m - c * dt) / f
         w_gyro = 0.0
-        if self.n_bins >= self.cfg.warmup_bins and self.cfg.gyro_yaw_rate_sigma_rad_s > 0 and self.standing_start:
+        if self.cfg.gyro_yaw_rate_sigma_rad_s > 0 and self.standing_start:  # from the first bin: the gyro's
+            # bias is measured, and the wheels' variance is the configured one until the fit has its own
             var_w = max(self.sigma2, 1e-12) / f ** 2
             w_gyro = var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2)
         n = self.next_bin
         # the increments after the last consumed bin (the current sweep's): the same blend, increment by
         # increment, ungated (their bin is not complete); without it a sweep's wheel guess took the
         # wheels' yaw alone there: 0.05 m/s pickup noise is +-0.5 deg per 0.2 s, the gyro's 0.02 deg
-        tail = int(self.bins[1][n - 1]) if n else yaw.size
+        tail = int(self.bins[1][n - 1]) if n else 0
         yaw[tail:] = (1.0 - w_gyro) * yaw[tail:] + w_gyro * self.inc_yaw_gyro[tail:]
         if n:  # the consumed bins cover dt[bins[0][0]:bins[1][n - 1]] contiguously (_bins)
             idx = np.arange(self.bins[0][0], self.bins[1][n - 1])
