@@ -392,9 +392,9 @@ def test_a_sweeps_wheel_yaw_is_blended_with_the_gyro_up_to_the_sweep() -> None:
 
 def test_the_warm_up_takes_the_gyro_when_its_bias_was_measured() -> None:
     """The first 25 bins (5 s) before the wheel fit has its own statistics: with a standing start the
-    track's heading follows the gyro (0.05 deg on calibrated-class wheels with an L/R
-    mismatch of 0.5 %, at 4.9 s); negative control: the wheels' yaw alone there (gyro_yaw_rate_sigma 0, the
-    rule before for the warm-up), more than 0.2 deg off."""
+    track's heading follows the gyro (worst 0.05 deg over the first 4.9 s on calibrated-class wheels
+    with an L/R mismatch of 0.5 %); negative control: the wheels' yaw alone there
+    (gyro_yaw_rate_sigma 0, the rule before for the warm-up): 0.61 deg."""
     err = CASES["calibrated"][0]
     t, v, w = _drive()
     true_yaw = np.r_[0.0, np.cumsum(w[:-1] * np.diff(t))]
@@ -406,5 +406,6 @@ def test_the_warm_up_takes_the_gyro_when_its_bias_was_measured() -> None:
         assert cal.n_bins < cal.cfg.warmup_bins
         track = cal.track()
         yaw = np.unwrap(Rotation.from_quat(track.quat_xyzw).as_euler("ZYX")[:, 0])
-        errors.append(float(np.degrees(abs(np.interp(4.9, track.stamps, yaw) - np.interp(4.9, t, true_yaw)))))
-    assert errors[0] < 0.11 < 0.2 < errors[1]  # measured 0.05 and 0.30 deg
+        early = track.stamps <= 4.9
+        errors.append(float(np.degrees(np.max(np.abs(yaw[early] - np.interp(track.stamps[early], t, true_yaw))))))
+    assert errors[0] < 0.1 < 0.3 < errors[1]  # measured 0.05 and 0.61 deg
