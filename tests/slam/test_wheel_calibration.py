@@ -389,3 +389,26 @@ def test_a_sweeps_wheel_yaw_is_blended_with_the_gyro_up_to_the_sweep() -> None:
     unblended = _sweep_yaw_errors(off, t, w, stamps)
     assert blended.max() < 0.12 < 0.25 < unblended.max()
 
+
+
+def test_the_gyro_blend_follows_an_applied_imu_offset() -> None:
+    """restamp_gyro(shift): the tail's gyro increments are those of the IMU re-stamped by -shift (the
+    replay's in-run offset estimate), to 1e-12 rad against a calibrator built on the shifted IMU;
+    negative control: without it they are the lagging IMU's."""
+    t, v, w = _drive()
+    track = _wheel_track(t, v, w, CASES["calibrated"][0], 0)
+    imu = _imu(t, w, 0)
+    lagged = ImuSeries(imu.stamps + 0.03, imu.acc, imu.gyro, None, "imu")
+    moved = WheelCalibrator.build(track, lagged, np.eye(4), WheelCalibrationConfig())
+    kept = WheelCalibrator.build(track, lagged, np.eye(4), WheelCalibrationConfig())
+    aligned = WheelCalibrator.build(track, imu, np.eye(4), WheelCalibrationConfig())
+    assert moved is not None
+    assert kept is not None
+    assert aligned is not None
+    moved.gyro_bias = kept.gyro_bias = aligned.gyro_bias  # the same bias: only the timing differs
+    moved.inc_yaw_gyro = kept.inc_yaw_gyro = np.zeros(0)
+    moved.restamp_gyro(0.03)
+    aligned.restamp_gyro(0.0)
+    np.testing.assert_allclose(moved.inc_yaw_gyro, aligned.inc_yaw_gyro, atol=1e-12)
+    kept.restamp_gyro(0.0)
+    assert np.max(np.abs(kept.inc_yaw_gyro - aligned.inc_yaw_gyro)) > 1e-4
