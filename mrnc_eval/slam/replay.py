@@ -490,6 +490,8 @@ class _Replay:
         off.history.append((stamp, est))
         off.applied += est
         self.imu = replace(self.imu, stamps=self.imu.stamps - est)
+        if self.wheel_cal is not None:
+            self.wheel_cal.restamp_gyro(est)
         self.track = imu_track(self.imu, self.extr[:3, :3], self.gyro_bias, self.cfg.imu.sample_hold)
         if self.odom is not None:
             self.odom.track = self.track
