@@ -370,12 +370,12 @@ def _sweep_yaw_errors(cal: WheelCalibrator, t: np.ndarray, w: np.ndarray, stamps
 def test_a_sweeps_wheel_yaw_is_blended_with_the_gyro_up_to_the_sweep() -> None:
     """Calibrated-class wheels (0.05 m/s pickup noise) on the synthetic drive, sweeps at 5 Hz offset
     from the 0.2 s bins: the yaw increment over each sweep's last 0.2 s is within 0.1 deg of the
-    truth once the fit is warm (the gyro's bias measured over the standing start; worst measured
+    truth, from the first sweep on (the gyro's bias measured over the standing start; worst measured
     0.06 deg). Negative control: the increments no bin has consumed take the calibrated wheels' yaw
     (the rule before): the pickup noise, 0.45 deg on the worst sweep."""
     err = CASES["calibrated"][0]
     t, v, w = _drive()
-    stamps = np.arange(5.13, 39.0, 0.2)  # after the 25 warm-up bins
+    stamps = np.arange(1.13, 39.0, 0.2)
 
     def calibrator() -> WheelCalibrator:
         cal = WheelCalibrator.build(_wheel_track(t, v, w, err, 0), _imu(t, w, 0), np.eye(4), WheelCalibrationConfig())
@@ -388,6 +388,27 @@ def test_a_sweeps_wheel_yaw_is_blended_with_the_gyro_up_to_the_sweep() -> None:
     off.inc_yaw_gyro = off.inc.yaw_rad.copy()  # the tail's "gyro" is the wheels' own yaw: no blend there
     unblended = _sweep_yaw_errors(off, t, w, stamps)
     assert blended.max() < 0.12 < 0.25 < unblended.max()
+
+
+def test_the_warm_up_takes_the_gyro_when_its_bias_was_measured() -> None:
+    """The first 25 bins (5 s) before the wheel fit has its own statistics: with a standing start the
+    track's heading follows the gyro (worst 0.05 deg over the first 4.9 s on calibrated-class wheels
+    with an L/R mismatch of 0.5 %); negative control: the wheels' yaw alone there
+    (gyro_yaw_rate_sigma 0, the rule before for the warm-up): 0.61 deg."""
+    err = CASES["calibrated"][0]
+    t, v, w = _drive()
+    true_yaw = np.r_[0.0, np.cumsum(w[:-1] * np.diff(t))]
+    errors = []
+    for cfg in (WheelCalibrationConfig(), WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0)):
+        cal = WheelCalibrator.build(_wheel_track(t, v, w, err, 0), _imu(t, w, 0), np.eye(4), cfg)
+        assert cal is not None
+        cal.update(4.9)
+        assert cal.n_bins < cal.cfg.warmup_bins
+        track = cal.track()
+        yaw = np.unwrap(Rotation.from_quat(track.quat_xyzw).as_euler("ZYX")[:, 0])
+        early = track.stamps <= 4.9
+        errors.append(float(np.degrees(np.max(np.abs(yaw[early] - np.interp(track.stamps[early], t, true_yaw))))))
+    assert errors[0] < 0.1 < 0.3 < errors[1]  # measured 0.05 and 0.61 deg
 
 
 
