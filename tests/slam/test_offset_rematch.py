@@ -123,3 +123,25 @@ def test_sweeps_kept_for_the_rematch_are_at_least_min_spacing_apart() -> None:
     assert sorted(every.feats) == list(range(0, 100, 2))
     assert sorted(fifth.feats) == list(range(0, 100, 2))
     assert 0.1 < MIN_SPACING_S < 0.2
+
+
+def test_baseline_pairs_are_every_pair_035_to_085_s_apart_in_order() -> None:
+    """The pairs found by search are the brute-force ones (all i < j with 0.35 <= dt <= 0.85 s, in
+    (i, j) order), boundaries included, on uneven stamps; negative control: a brute force over
+    0.3-0.9 s finds more."""
+    from mrnc_eval.slam.offset_rematch import baseline_rates
+
+    rng = np.random.default_rng(3)
+    t = np.sort(np.r_[0.0, 0.35, 0.85, rng.uniform(1.0, 30.0, 250)])
+    rots = np.repeat(np.eye(3)[None], t.size, axis=0)
+    i, j = np.triu_indices(t.size, 1)
+    dt = t[j] - t[i]
+    ok = (dt >= 0.35) & (dt <= 0.85)
+    t0, t1, rates = baseline_rates(t, rots)
+    np.testing.assert_array_equal(t0, t[i[ok]])
+    np.testing.assert_array_equal(t1, t[j[ok]])
+    assert rates.shape == (ok.sum(), 3)
+    pairs = set(zip(t0, t1, strict=True))
+    assert (0.0, 0.35) in pairs
+    assert (0.0, 0.85) in pairs
+    assert ((dt >= 0.3) & (dt <= 0.9)).sum() > ok.sum()
