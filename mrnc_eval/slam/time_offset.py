@@ -16,6 +16,7 @@ from mrnc_eval.slam.imu import ImuTrack
 SEARCH_S = 0.1  # offsets searched in [-SEARCH_S, SEARCH_S], s
 MAX_INTERVAL_S = 0.3  # median spacing of the mapped sweeps above which rates are too smoothed to time
 STEP_S = 5e-4  # grid step before the parabolic refinement, s
+GRID_S = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)  # the candidate offsets, s
 
 
 def lidar_angular_rates(stamps: np.ndarray, rotations: np.ndarray) -> np.ndarray:
@@ -91,24 +92,35 @@ def offset_from_rates(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: 
     if t0.size < 10 or float(np.std(lidar, axis=0).max()) < 1e-3:  # rad/s: nothing to correlate
         return None
     t_imu, integral = _gyro_integral(track)
-    grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
-    per_axis = np.array([_axis_costs(o, t0, t1, lidar, t_imu, integral) for o in grid])  # (G, 3)
-    # each axis weighted by the inverse of its own best residual: the LiDAR times its axes unequally
-    # (a roll held by the ground alone scatters more), and an axis that scatters should not set the
-    # offset for the others (a maximum-likelihood fit with a noise level per axis)
-    floor = max(float(per_axis.min(axis=0).max()) * 1e-3, 1e-12)
-    weighted = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor))
-    cost = weighted if axis_weights else per_axis.sum(axis=1)
-    k = int(np.argmin(cost))
+    per_axis = np.array([_axis_costs(o, t0, t1, lidar, t_imu, integral) for o in GRID_S])  # (G, 3)
+    weighted = _axis_weighted(per_axis)
+    offset, on_bound = _grid_minimum(weighted if axis_weights else per_axis.sum(axis=1))
     n = int(t0.size)
-    if k == 0 or k == grid.size - 1:
-        return OffsetEstimate(offset_s=float(grid[k]), sigma_s=float("inf"), intervals=n)
+    if on_bound:
+        return OffsetEstimate(offset_s=offset, sigma_s=float("inf"), intervals=n)
     # chi^2(o) = n * weighted(o) with each axis's noise its best mean square: sigma^2 = 2 / chi^2''
-    kw = min(max(int(np.argmin(weighted)), 1), grid.size - 2)
+    kw = min(max(int(np.argmin(weighted)), 1), GRID_S.size - 2)
     curv = (weighted[kw - 1] - 2 * weighted[kw] + weighted[kw + 1]) / STEP_S ** 2
     sigma = float(np.sqrt(2.0 / (n * curv))) if curv > 0 else float("inf")
-    return OffsetEstimate(offset_s=float(grid[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S),
-                          sigma_s=sigma, intervals=n)
+    return OffsetEstimate(offset_s=offset, sigma_s=sigma, intervals=n)
+
+
+def _axis_weighted(per_axis: np.ndarray) -> np.ndarray:
+    """(G,) cost from (G, 3) mean squares per candidate and axis: each axis divided by its own
+    smallest (floored at 1e-3 of the largest such): the LiDAR times its axes unequally (a roll held
+    by the ground alone scatters more), and an axis that scatters should not set the offset for the
+    others (a maximum-likelihood fit with a noise level per axis)."""
+    floor = max(float(per_axis.min(axis=0).max()) * 1e-3, 1e-12)
+    return np.asarray(per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor)), np.float64)
+
+
+def _grid_minimum(cost: np.ndarray) -> tuple[float, bool]:
+    """(the offset at the cost's minimum over GRID_S, refined by a parabola through it and its
+    neighbours, s; whether it lies on the search bound, unrefined)."""
+    k = int(np.argmin(cost))
+    if k == 0 or k == GRID_S.size - 1:
+        return float(GRID_S[k]), True
+    return float(GRID_S[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S), False
 
 
 def _block_sums(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack,
@@ -118,9 +130,8 @@ def _block_sums(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTra
     t_imu, integral = _gyro_integral(track)
     span = max(float(np.ptp(t0)), 1e-9)
     block = np.minimum(((t0 - t0.min()) / span * blocks).astype(np.int64), blocks - 1)
-    grid = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)
-    s1, s2 = np.zeros((grid.size, blocks, 3)), np.zeros((grid.size, blocks, 3))
-    for g, o in enumerate(grid):
+    s1, s2 = np.zeros((GRID_S.size, blocks, 3)), np.zeros((GRID_S.size, blocks, 3))
+    for g, o in enumerate(GRID_S):
         diff = _imu_rates(t_imu, integral, t0 + o, t1 + o) - lidar
         for a in range(3):
             s1[g, :, a] = np.bincount(block, diff[:, a], minlength=blocks)
@@ -128,18 +139,12 @@ def _block_sums(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTra
     return s1, s2, np.bincount(block, minlength=blocks).astype(np.float64)
 
 
-def _offset_from_sums(s1: np.ndarray, s2: np.ndarray, n: np.ndarray) -> float:
-    """The grid fit of `imu_time_offset` (each axis's mean square after removing its mean difference,
-    divided by its own smallest; parabolic vertex) from block sums; s."""
+def _offset_from_sums(s1: np.ndarray, s2: np.ndarray, n: np.ndarray) -> tuple[float, bool]:
+    """The grid fit of `offset_from_rates` (each axis's mean square after removing its mean difference)
+    from block sums: (offset s, on the search bound)."""
     total = float(n.sum())
     a, b = s1.sum(axis=1), s2.sum(axis=1)  # (G, 3)
-    per_axis = (b - a * a / total) / total
-    floor = max(float(per_axis.min(axis=0).max()) * 1e-3, 1e-12)
-    cost = per_axis @ (1.0 / np.maximum(per_axis.min(axis=0), floor))
-    k = int(np.argmin(cost))
-    if k == 0 or k == cost.size - 1:
-        return float(-SEARCH_S + k * STEP_S)
-    return float(-SEARCH_S + (k + parabola_vertex(cost[k - 1], cost[k], cost[k + 1])) * STEP_S)
+    return _grid_minimum(_axis_weighted((b - a * a / total) / total))
 
 
 def offset_from_overlapping(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack, *,
@@ -151,11 +156,11 @@ def offset_from_overlapping(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t
     if t0.size < max(10, blocks) or float(np.std(lidar, axis=0).max()) < 1e-3:
         return None
     s1, s2, n = _block_sums(t0, t1, lidar, track, blocks)
-    found = _offset_from_sums(s1, s2, n)
-    if abs(found) >= SEARCH_S - STEP_S / 2:
+    found, on_bound = _offset_from_sums(s1, s2, n)
+    if on_bound:
         return OffsetEstimate(offset_s=found, sigma_s=float("inf"), intervals=int(t0.size))
     keep = n > 0
-    reps = np.array([_offset_from_sums(np.delete(s1, b, axis=1), np.delete(s2, b, axis=1), np.delete(n, b))
+    reps = np.array([_offset_from_sums(np.delete(s1, b, axis=1), np.delete(s2, b, axis=1), np.delete(n, b))[0]
                      for b in np.flatnonzero(keep)])
     m = reps.size
     sigma = float(np.sqrt((m - 1) / m * np.sum((reps - reps.mean()) ** 2))) if m > 1 else float("inf")
