@@ -40,8 +40,9 @@ def _rms(a: np.ndarray, b: np.ndarray) -> float:
     return float(np.sqrt(np.mean(np.sum((a - b) ** 2, axis=1))))
 
 
-def _filtered(t: np.ndarray, fixes: np.ndarray) -> tuple[np.ndarray, TrackFilter]:
-    f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=3.5)
+def _filtered(t: np.ndarray, fixes: np.ndarray, **rules: float) -> tuple[np.ndarray, TrackFilter]:
+    """The filter's position after each fix; `rules`: TrackFilter settings beyond the common ones."""
+    f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=3.5, **rules)
     est = []
     for ti, z in zip(t, fixes, strict=True):
         f.update(float(ti), z, SIGMA)
@@ -230,19 +231,11 @@ def _back_on_the_fixes(lag_check_s: float) -> tuple[int, int]:
     back = drops = 0
     for seed in range(20):
         t, truth, fixes = _lagging_drive(seed)
-        f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=3.5, lag_check_s=lag_check_s)
-        est = []
-        for ti, z in zip(t, fixes, strict=True):
-            f.update(float(ti), z, SIGMA)
-            assert f.x is not None
-            est.append(f.x[:2].copy())
+        est, _ = _filtered(t, fixes, lag_check_s=lag_check_s)
         late = (t >= 21.0) & (t < 28.0)
-        back += _rms(np.array(est)[late], truth[late]) < 0.5
+        back += _rms(est[late], truth[late]) < 0.5
         t, truth, fixes = _drive(seed)
-        f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=3.5, lag_check_s=lag_check_s)
-        for ti, z in zip(t, fixes, strict=True):
-            f.update(float(ti), z, SIGMA)
-        drops += f.lag_drops
+        drops += _filtered(t, fixes, lag_check_s=lag_check_s)[1].lag_drops
     return back, drops
 
 
@@ -272,13 +265,7 @@ def test_a_step_completed_at_the_lag_windows_end_with_sparse_fixes_decides_nothi
 
 
 def _box_run(t: np.ndarray, fixes: np.ndarray, box_window_s: float) -> tuple[np.ndarray, TrackFilter]:
-    f = TrackFilter(accel_sigma=0.3, step_fixes=4, max_offset_m=3.5, lag_check_s=2.0, box_window_s=box_window_s)
-    est = []
-    for ti, z in zip(t, fixes, strict=True):
-        f.update(float(ti), z, SIGMA)
-        assert f.x is not None
-        est.append(f.x[:2].copy())
-    return np.array(est), f
+    return _filtered(t, fixes, lag_check_s=2.0, box_window_s=box_window_s)
 
 
 def _absorbed_drive(seed: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
