@@ -308,8 +308,9 @@ def _box_fit(dt: np.ndarray, fixes: np.ndarray, after: np.ndarray, held: np.ndar
 
 def _rss(a: np.ndarray, y: np.ndarray) -> tuple[float, np.ndarray]:
     """Least squares of y (n, 2) on columns a (n, k): residual sum of squares and coefficients (k, 2)."""
-    coef, *_ = np.linalg.lstsq(a.astype(float), y, rcond=None)
-    return float(np.sum((y - a.astype(float) @ coef) ** 2)), coef
+    a = a.astype(float)  # the box column is boolean
+    coef, *_ = np.linalg.lstsq(a, y, rcond=None)
+    return float(np.sum((y - a @ coef) ** 2)), coef
 
 
 def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
