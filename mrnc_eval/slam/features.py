@@ -16,9 +16,6 @@ from mrnc_eval.slam.range_image import RangeImage
 class Features:
     edges: np.ndarray  # (Ne, 3) float64, sensor frame (deskewed); float32 once kept with a keyframe
     surfs: np.ndarray  # (Ns, 3)
-    edge_time: np.ndarray | None = None  # (Ne,) each edge's time after the sweep stamp (s), when asked for
-    surf_time: np.ndarray | None = None  # (Ns,) each surface centroid's mean point time (s)
-    motion: np.ndarray | None = None  # (6,) PROTO v, a of the translation deskew
 
 
 def _smoothness(rng: np.ndarray, xyz: np.ndarray, paper: bool) -> np.ndarray:
@@ -108,7 +105,7 @@ def _ground_of(points: np.ndarray, candidates: np.ndarray, vertical: np.ndarray,
 
 
 def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig, *, labels: np.ndarray | None = None,
-                     vertical: np.ndarray | None = None, timed: bool = False) -> Features:
+                     vertical: np.ndarray | None = None) -> Features:
     """Edges and planes of one sweep. `image` gives the ring-major order and the (raw) ranges,
     `points` (N, 3) the same points deskewed. `labels` (`feature_labels`) and `vertical`
     (`vertical_neighbours`), when given, were computed ahead from the image alone."""
@@ -124,19 +121,4 @@ def extract_features(image: RangeImage, points: np.ndarray, cfg: FeatureConfig, 
         edge_idx = edge_idx[~_ground_of(points, edge_idx, vertical, tan_max)]
     edges = points[edge_idx]
     surfs = voxel_downsample(points[labels < 0], cfg.surf_leaf_m)
-    if not timed or image.point_time is None:
-        return Features(edges=edges, surfs=surfs)
-    return Features(edges=edges, surfs=surfs, edge_time=image.point_time[edge_idx],
-                    surf_time=_voxel_mean_np(points[labels < 0], image.point_time[labels < 0], cfg.surf_leaf_m))
-
-
-def _voxel_mean_np(points: np.ndarray, values: np.ndarray, leaf: float) -> np.ndarray:
-    if points.shape[0] == 0 or leaf <= 0:
-        return values
-    k = (np.floor(points / leaf).astype(np.int64) + (1 << 20))
-    key = (k[:, 0] << 42) | (k[:, 1] << 21) | k[:, 2]
-    _, first, inv = np.unique(key, return_index=True, return_inverse=True)
-    order = np.argsort(first)
-    rank = np.empty_like(order); rank[order] = np.arange(order.size)
-    g = rank[inv]
-    return np.bincount(g, values) / np.bincount(g)
+    return Features(edges=edges, surfs=surfs)

@@ -60,9 +60,7 @@ class SweepStore:
             return
         self.last = stamp
         self.feats[index] = Features(edges=_every_kth(feats.edges, self.max_points),
-                                     surfs=_every_kth(feats.surfs, self.max_points),
-                                     edge_time=None if feats.edge_time is None else _every_kth(feats.edge_time, self.max_points),
-                                     surf_time=None if feats.surf_time is None else _every_kth(feats.surf_time, self.max_points), motion=feats.motion)
+                                     surfs=_every_kth(feats.surfs, self.max_points))
         self.stamps[index] = stamp
         while len(self.feats) > self.max_sweeps:
             self.step *= 2
@@ -90,35 +88,27 @@ class RunForOffset:
     is_keyframe: np.ndarray
     kf_poses: np.ndarray
     kf_feats: list[Features]
-    kf_stamps: np.ndarray = None
 
 
-def global_map(run: RunForOffset, cfg: MatchingConfig, kf_feats=None) -> LocalMap:
+def global_map(run: RunForOffset, cfg: MatchingConfig) -> LocalMap:
     """Every keyframe's features in its final pose, voxelised as the local map is."""
-    kf_feats = run.kf_feats if kf_feats is None else kf_feats
-    edges = [se3.apply(p, f.edges) for p, f in zip(run.kf_poses, kf_feats, strict=True)]
-    surfs = [se3.apply(p, f.surfs) for p, f in zip(run.kf_poses, kf_feats, strict=True)]
+    edges = [se3.apply(p, f.edges) for p, f in zip(run.kf_poses, run.kf_feats, strict=True)]
+    surfs = [se3.apply(p, f.surfs) for p, f in zip(run.kf_poses, run.kf_feats, strict=True)]
     return LocalMap.build(voxel_downsample(np.vstack(edges), cfg.corner_leaf_m),
                           voxel_downsample(np.vstack(surfs), cfg.surf_leaf_m))
 
 
-def rematched_rotations(run: RunForOffset, cfg: MatchingConfig, keep: np.ndarray, workers: int = 1, feats=None, whole=None
+def rematched_rotations(run: RunForOffset, cfg: MatchingConfig, keep: np.ndarray, workers: int = 1
                         ) -> tuple[np.ndarray, np.ndarray]:
     """(indices, (M, 3, 3) rotations) of the kept sweeps in `keep` (bool per sweep) that are not
     keyframes and match the whole map again without a degenerate direction (a keyframe's sweep would
     meet its own cloud and keep its pose). The sweeps are independent: `workers` threads match them
     (the kernels release the GIL), the same rotations in the same order whatever the number."""
-    import os, dataclasses
-    tight = float(os.environ.get("OFF_TIGHT", "1"))
-    rq = os.environ.get("OFF_RQ")
-    cfg = dataclasses.replace(cfg, converge_rot_deg=cfg.converge_rot_deg * tight, converge_trans_cm=cfg.converge_trans_cm * tight,
-                              requery_motion_m=cfg.requery_motion_m if rq is None else float(rq))
-    whole = global_map(run, cfg) if whole is None else whole
-    feats = run.feats if feats is None else feats
+    whole = global_map(run, cfg)
     todo = [j for j in (int(k) for k in np.flatnonzero(keep & ~run.is_keyframe)) if j in run.feats]
 
     def one(j: int) -> np.ndarray | None:
-        f = feats[j]
+        f = run.feats[j]
         res = match(np.asarray(f.edges, np.float64), np.asarray(f.surfs, np.float64), whole, run.poses[j], cfg)
         return res.pose[:3, :3] if res.optimised and not res.degenerate else None
 
@@ -160,70 +150,4 @@ def rematch_time_offset(run: RunForOffset, track: ImuTrack, cfg: MatchingConfig,
     if idx.size < 2:
         return None
     t0, t1, rates = baseline_rates(t[idx], rots)
-    est = offset_from_overlapping(t0, t1, rates, track, blocks=JACKKNIFE_BLOCKS)
-    import os, json
-    iters = int(os.environ.get("OFF_ITERS", "0"))
-    oracle = os.environ.get("OFF_ORACLE")
-    kfre = os.environ.get("OFF_KF") == "1"
-    hist = [None if est is None else est.offset_s]
-    for _ in range(iters):
-        if est is None:
-            break
-        o = float(oracle) if oracle else est.offset_s
-        feats = {j: redeskew(f, t[j], track, o, _disp(run, j)) for j, f in run.feats.items()}
-        whole = None
-        if kfre:
-            kst = run.kf_stamps
-            whole = global_map(run, cfg, [redeskew(f, s, track, o, _disp(run, int(np.searchsorted(t, s)))) for f, s in zip(run.kf_feats, kst)])
-        idx, rots = rematched_rotations(run, cfg, keep, workers, feats, whole)
-        t0, t1, rates = baseline_rates(t[idx], rots)
-        est = offset_from_overlapping(t0, t1, rates, track, blocks=JACKKNIFE_BLOCKS)
-        hist.append(None if est is None else est.offset_s)
-    if os.environ.get("OFF_LOG"):
-        open(os.environ["OFF_LOG"], "a").write(json.dumps(hist) + "\n")
-    return est
-
-
-def _disp(run, j):
-    """PROTO quadratic through poses j-1, j, j+1: (v, a) in sensor axes at stamp j."""
-    t = run.stamps
-    if j <= 0 or j >= t.size - 1:
-        return None
-    P = run.poses[:, :3, 3]
-    R = run.poses[j, :3, :3]
-    d0, d1 = t[j] - t[j - 1], t[j + 1] - t[j]
-    vb, vf = (P[j] - P[j - 1]) / d0, (P[j + 1] - P[j]) / d1
-    a = (vf - vb) / (0.5 * (d0 + d1))
-    v = vf - a * d1 / 2
-    return np.r_[R.T @ v, R.T @ a]
-
-
-def redeskew(f: Features, stamp: float, track: ImuTrack, offset: float, disp=None) -> Features:
-    """The features deskewed again with the IMU stamps less `offset` (s): each point's run rotation
-    undone and the shifted one applied (translation left as the run deskewed it)."""
-    from mrnc_eval.slam import _prep_kernels
-    from mrnc_eval.slam.deskew import QUANTUM_S
-
-    va = f.motion if f.motion is not None else np.zeros(6)
-    import os
-    trans = os.environ.get("OFF_TRANS", "keep")  # keep | none
-
-    def one(p, tp):
-        if p.shape[0] == 0:
-            return np.asarray(p, np.float64)
-        tp = np.ascontiguousarray(tp, np.float64)
-        sh = (va[:3][None, :] * tp[:, None] + 0.5 * va[3:][None, :] * tp[:, None] ** 2)
-        p = np.asarray(p, np.float64) - sh
-        t0, t1 = min(float(tp.min()), 0.0), float(tp.max())
-        n = int(np.floor((t1 - t0) / QUANTUM_S + 0.5)) + 1
-        ts = stamp + t0 + QUANTUM_S * np.arange(n)
-        run = track.rotation_between(stamp, ts)
-        new = track.rotation_between(stamp + offset, ts + offset)
-        table = np.ascontiguousarray(new @ np.swapaxes(run, 1, 2))
-        out = np.empty((p.shape[0], 3))
-        _prep_kernels.deskew_apply(np.ascontiguousarray(p, np.float64), tp, t0, table, (0.0, 0.0, 0.0), (0.0, 0.0, 0.0), out)
-        if trans == "poses" and disp is not None:
-            return out + (disp[:3][None, :] * tp[:, None] + 0.5 * disp[3:][None, :] * tp[:, None] ** 2)
-        return out + (sh if trans == "keep" else 0.0)
-
-    return Features(edges=one(f.edges, f.edge_time), surfs=one(f.surfs, f.surf_time))
+    return offset_from_overlapping(t0, t1, rates, track, blocks=JACKKNIFE_BLOCKS)

@@ -205,11 +205,7 @@ class _Replay:
         stamp, image = prep.stamp, prep.image
         points = self.deskew(image, stamp)
         clock.lap("deskew")
-        timed = self.cfg.imu.estimate_time_offset and self.cfg.imu.time_offset_from == "rematch" and self.track is not None
-        feats = extract_features(image, points, self.cfg.features, labels=prep.labels, vertical=prep.vertical,
-                                 timed=timed)
-        if timed:
-            feats = replace(feats, motion=getattr(self, "_va", np.zeros(6)))
+        feats = extract_features(image, points, self.cfg.features, labels=prep.labels, vertical=prep.vertical)
         clock.lap("features")
         pose, degenerate = self.scan_to_map(stamp, feats)
         clock.lap("matching")
@@ -246,7 +242,6 @@ class _Replay:
             a_sensor = rots[0].T @ (vels[1] - vels[0]) / (t_end - stamp)
         elif cfg.deskew_translation and st.velocity is not None and st.pose is not None:
             v_sensor = st.pose[:3, :3].T @ st.velocity
-        self._va = np.r_[np.zeros(3) if v_sensor is None else v_sensor, np.zeros(3) if a_sensor is None else a_sensor]
         return deskew(image.points, image.point_time, stamp, self.track, v_sensor, a_sensor)
 
     def scan_to_map(self, stamp: float, feats: Features) -> tuple[np.ndarray, bool]:
@@ -523,8 +518,7 @@ class _Replay:
         c0 = time.process_time()  # the re-match's worker threads included (the reader is done by now)
         run = RunForOffset(stamps=stamps, poses=poses, feats=self.offset_sweeps.feats,
                            is_keyframe=np.isin(stamps, np.asarray(self.graph.stamps)),
-                           kf_poses=np.array(self.graph.poses), kf_feats=self.kf_features,
-                           kf_stamps=np.asarray(self.graph.stamps))
+                           kf_poses=np.array(self.graph.poses), kf_feats=self.kf_features)
         found = rematch_time_offset(run, self.track, self.cfg.matching, np.asarray(self.trace.measured, bool),
                                     self.workers)
         self.offset_cpu_ms = (time.process_time() - c0) * 1e3
@@ -683,9 +677,7 @@ def _local_map(graph: KeyframeGraph, feats: list[Features], cache: dict[int, tup
 def _compact(feats: Features) -> Features:
     """A keyframe's features as kept for the whole run: float32 (LIO-SAM's PCL clouds are float32
     too; 1e-6 m at 10 m), half the memory of every keyframe's feature clouds."""
-    return Features(edges=feats.edges.astype(np.float32), surfs=feats.surfs.astype(np.float32),
-                    edge_time=None if feats.edge_time is None else feats.edge_time.astype(np.float32),
-                    surf_time=None if feats.surf_time is None else feats.surf_time.astype(np.float32), motion=feats.motion)
+    return Features(edges=feats.edges.astype(np.float32), surfs=feats.surfs.astype(np.float32))
 
 
 def _local_keyframes(pos: np.ndarray, t: np.ndarray, cfg: SlamConfig) -> np.ndarray:
