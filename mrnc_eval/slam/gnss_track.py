@@ -249,7 +249,7 @@ class GnssTrack:
     engaged_final: bool = False  # ... on the final alignment (not the provisional one)
     up_in_lidar: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))  # the base's up axis
     level_antenna: bool = False  # the filter tracks the antenna with the base's tilt taken off (track_level_antenna)
-    sway: list[np.ndarray] = field(default_factory=list)  # per observed sweep (ins.chain_t): the antenna's tilt sway, map xy, m
+    sway: list[np.ndarray] = field(default_factory=list)  # per sweep of ins.chain_t: the tilt sway (map xy, m)
 
     def alignment(self) -> EnuAlignment | None:
         """The final alignment once fixed, else the provisional one (or None)."""
@@ -272,7 +272,7 @@ class GnssTrack:
         if align is None or not self.filter.fresh(t):
             return None  # before the alignment, or no fix for a while (an outage): the chain's own x, y
         x, _ = self.filter.predict(t)
-        return align.to_map(x[:2]) + sway
+        return np.asarray(align.to_map(x[:2]) + sway, np.float64)
 
     def _feed(self, t: float, align: EnuAlignment | None) -> None:
         """The usable fixes up to t into the filter; once aligned (the sway is in map axes), each less the
