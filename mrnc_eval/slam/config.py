@@ -375,7 +375,7 @@ class GpsConfig:
         "sway with the base's roll and pitch (the chain's attitude at the fix; a 2.2 m mast sways +-0.2 m "
         "across the course on rough ground, faster than a constant-velocity model follows), the sweep's own "
         "sway put back on the track; false: the antenna's fixes as they are. Off by default: RTK open line "
-        "better on 11 of 14 tuning seeds by ~5 mm, but report RTK seed 3 fell into a z walk (docs/simulation.md)")
+        "lower on 11 of 14 tuning seeds by 2-8 mm, but report RTK seed 3 fell into a z walk (docs/simulation.md)")
 
 
 @dataclass(frozen=True)

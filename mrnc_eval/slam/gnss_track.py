@@ -46,6 +46,7 @@ PROVISIONAL_SPREAD_DEG = 15.0
 # what tells a jump the filter absorbed from the step (with 1 s, a genuine 3.4 m step on open line seed 2
 # was taken for the end of a box).
 PRE_BOX_S = 3.0
+SWAY_KEEP = 8  # the sway of this many latest sweeps is kept (the fixes fed at a sweep are since the last one)
 KEEP_PRE_S = 6.0  # ... and keeps up to this long of them (s): a quadratic through 3 s bends into an 8 s box
 
 
@@ -249,7 +250,7 @@ class GnssTrack:
     engaged_final: bool = False  # ... on the final alignment (not the provisional one)
     up_in_lidar: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))  # the base's up axis
     level_antenna: bool = False  # the filter tracks the antenna with the base's tilt taken off (track_level_antenna)
-    sway: list[np.ndarray] = field(default_factory=list)  # per sweep of ins.chain_t: the tilt sway (map xy, m)
+    sway: list[np.ndarray] = field(default_factory=list)  # the latest sweeps' tilt sway (map xy, m; ins.chain_t's tail)
 
     def alignment(self) -> EnuAlignment | None:
         """The final alignment once fixed, else the provisional one (or None)."""
@@ -266,8 +267,11 @@ class GnssTrack:
             self.provisional = ins.fit_alignment(t, self.provisional_travel_m, PROVISIONAL_SPREAD_DEG,
                                                  PROVISIONAL_PAIRS)
         align = self.alignment()
-        sway = tilt_sway(pose, ins.antenna_in_lidar, self.up_in_lidar) if self.level_antenna else np.zeros(2)
-        self.sway.append(sway)
+        sway = np.zeros(2)
+        if self.level_antenna:
+            sway = tilt_sway(pose, ins.antenna_in_lidar, self.up_in_lidar)
+            self.sway.append(sway)
+            del self.sway[:-SWAY_KEEP]
         self._feed(t, align)
         if align is None or not self.filter.fresh(t):
             return None  # before the alignment, or no fix for a while (an outage): the chain's own x, y
@@ -281,14 +285,15 @@ class GnssTrack:
         not +-0.2 m across it with the base's roll on rough ground."""
         ins, gnss = self.ins, self.ins.gnss
         end = int(np.searchsorted(gnss.stamps, t, side="right"))
-        sway = np.asarray(self.sway)
+        to_enu = align.rot.T if align is not None and self.level_antenna else None  # map -> ENU axes
+        # the latest sweeps only: the fixes fed now are from since the last one
+        ts, sway = np.asarray(ins.chain_t[len(ins.chain_t) - len(self.sway):]), np.asarray(self.sway)
         for i in range(self.next_fix, end):
             if ins.usable[i]:
                 sigma = float(np.sqrt(np.max(np.diag(gnss.covariance[i])[:2])))
                 stamp, z = float(gnss.stamps[i]), gnss.enu[i, :2]
-                if align is not None and self.level_antenna:
-                    at = np.array([np.interp(stamp, ins.chain_t, sway[:, k]) for k in range(2)])
-                    z = z - align.rot.T @ at  # map -> ENU axes
+                if to_enu is not None:
+                    z = z - to_enu @ np.array([np.interp(stamp, ts, sway[:, k]) for k in range(2)])
                 self.filter.update(stamp, z, sigma)
         self.next_fix = max(self.next_fix, end)
 
