@@ -370,6 +370,12 @@ class GpsConfig:
         "long before, the step is its end and the fixes are clean now (they fit a smooth track with a box "
         "offset ending at the step better than with the offset held); then the offset goes to zero and the "
         "filter to the fixes' track; 0: off", "s", ge=0.0, le=30.0)
+    track_level_antenna: bool = param(
+        False, "GNSS track: the filter tracks the antenna as if the base were level: each fix less the antenna's "
+        "sway with the base's roll and pitch (the chain's attitude at the fix; a 2.2 m mast sways +-0.2 m "
+        "across the course on rough ground, faster than a constant-velocity model follows), the sweep's own "
+        "sway put back on the track; false: the antenna's fixes as they are. Off by default: RTK open line "
+        "lower on 11 of 14 tuning seeds by 2-8 mm, but report RTK seed 3 fell into a z walk (docs/simulation.md)")
 
 
 @dataclass(frozen=True)

@@ -46,6 +46,7 @@ PROVISIONAL_SPREAD_DEG = 15.0
 # what tells a jump the filter absorbed from the step (with 1 s, a genuine 3.4 m step on open line seed 2
 # was taken for the end of a box).
 PRE_BOX_S = 3.0
+SWAY_KEEP = 8  # the sway of this many latest sweeps is kept (the fixes fed at a sweep are since the last one)
 KEEP_PRE_S = 6.0  # ... and keeps up to this long of them (s): a quadratic through 3 s bends into an 8 s box
 
 
@@ -247,6 +248,9 @@ class GnssTrack:
     next_fix: int = 0
     engaged: bool = False  # the replay has moved a sweep to the track
     engaged_final: bool = False  # ... on the final alignment (not the provisional one)
+    up_in_lidar: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))  # the base's up axis
+    level_antenna: bool = False  # the filter tracks the antenna with the base's tilt taken off (track_level_antenna)
+    sway: list[np.ndarray] = field(default_factory=list)  # the latest sweeps' tilt sway (map xy, m; ins.chain_t's tail)
 
     def alignment(self) -> EnuAlignment | None:
         """The final alignment once fixed, else the provisional one (or None)."""
@@ -262,18 +266,36 @@ class GnssTrack:
         if ins.alignment is None and self.provisional is None and self.provisional_travel_m > 0:
             self.provisional = ins.fit_alignment(t, self.provisional_travel_m, PROVISIONAL_SPREAD_DEG,
                                                  PROVISIONAL_PAIRS)
-        gnss = ins.gnss
-        end = int(np.searchsorted(gnss.stamps, t, side="right"))
-        for i in range(self.next_fix, end):
-            if ins.usable[i]:
-                sigma = float(np.sqrt(np.max(np.diag(gnss.covariance[i])[:2])))
-                self.filter.update(float(gnss.stamps[i]), gnss.enu[i, :2], sigma)
-        self.next_fix = max(self.next_fix, end)
         align = self.alignment()
+        sway = np.zeros(2)
+        if self.level_antenna:
+            sway = tilt_sway(pose, ins.antenna_in_lidar, self.up_in_lidar)
+            self.sway.append(sway)
+            del self.sway[:-SWAY_KEEP]
+        self._feed(t, align)
         if align is None or not self.filter.fresh(t):
             return None  # before the alignment, or no fix for a while (an outage): the chain's own x, y
         x, _ = self.filter.predict(t)
-        return align.to_map(x[:2])
+        return np.asarray(align.to_map(x[:2]) + sway, np.float64)
+
+    def _feed(self, t: float, align: EnuAlignment | None) -> None:
+        """The usable fixes up to t into the filter; once aligned (the sway is in map axes), each less the
+        antenna's sway with the base's tilt at its stamp (interpolated between the observed sweeps): the
+        filter tracks the antenna as if the base were level, a point that moves along the course and
+        not +-0.2 m across it with the base's roll on rough ground."""
+        ins, gnss = self.ins, self.ins.gnss
+        end = int(np.searchsorted(gnss.stamps, t, side="right"))
+        to_enu = align.rot.T if align is not None and self.level_antenna else None  # map -> ENU axes
+        # the latest sweeps only: the fixes fed now are from since the last one
+        ts, sway = np.asarray(ins.chain_t[len(ins.chain_t) - len(self.sway):]), np.asarray(self.sway)
+        for i in range(self.next_fix, end):
+            if ins.usable[i]:
+                sigma = float(np.sqrt(np.max(np.diag(gnss.covariance[i])[:2])))
+                stamp, z = float(gnss.stamps[i]), gnss.enu[i, :2]
+                if to_enu is not None:
+                    z = z - to_enu @ np.array([np.interp(stamp, ts, sway[:, k]) for k in range(2)])
+                self.filter.update(stamp, z, sigma)
+        self.next_fix = max(self.next_fix, end)
 
     def velocity_map(self, t: float) -> np.ndarray:
         """The filter's horizontal velocity (map, m/s) at t; zero before the alignment."""
@@ -282,6 +304,22 @@ class GnssTrack:
             return np.zeros(2)
         x, _ = self.filter.predict(t)
         return np.asarray(align.rot @ x[2:], np.float64)
+
+
+def tilt_sway(pose: np.ndarray, antenna_in_lidar: np.ndarray, up_in_lidar: np.ndarray) -> np.ndarray:
+    """The horizontal displacement (map, m) of the antenna by the base's roll and pitch in `pose` (the
+    LiDAR's, 4x4): the lever arm as posed, less the lever arm with the base's up axis turned back to
+    vertical by the smallest rotation (the heading kept). A 2.2 m mast on a base rolled by 5 deg: 0.19 m."""
+    rot = pose[:3, :3]
+    up = rot @ up_in_lidar
+    k = np.cross(up, [0.0, 0.0, 1.0])  # axis * sin(tilt)
+    s, c = float(np.linalg.norm(k)), float(up[2])
+    if s < 1e-12:
+        return np.zeros(2)
+    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
+    level = np.eye(3) + kx + kx @ kx * ((1.0 - c) / s ** 2)  # Rodrigues: takes `up` to vertical
+    arm = rot @ antenna_in_lidar
+    return np.asarray((arm - level @ arm)[:2], np.float64)
 
 
 def _box_fit(dt: np.ndarray, fixes: np.ndarray, after: np.ndarray, held: np.ndarray, *, box: np.ndarray | None,
@@ -318,7 +356,9 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
     """The track when slam.gps.track asks for it: fixes in the log, GNSS on, no wheel odometry used."""
     if gnss is None or not gnss.stamps.size or not cfg.enabled or cfg.track != "without_wheels" or with_wheels:
         return None
+    base = np.eye(4) if base_to_sensor is None else np.asarray(base_to_sensor, float)
     return GnssTrack(ins=new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor),
+                     up_in_lidar=base[:3, :3].T @ np.array([0.0, 0.0, 1.0]), level_antenna=cfg.track_level_antenna,
                      provisional_travel_m=cfg.track_provisional_travel_m,
                      filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
                                         max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
