@@ -230,20 +230,12 @@ class WheelCalibrator:
         heading, exact ones keep it. The increments after the last consumed bin take the same blend.
         (The fitted offset c is not added to the gyro: on a straight
         drive it trades off against the L/R term.) Rejected bins take the gyro's yaw."""
-        f, a, c = self.theta
-        f = f if abs(f) > 0.2 else 1.0
+        _, a, c = self.theta
+        f = self._track_factor_used()
         dt = np.diff(self.inc.stamps)
         fwd = self.inc.forward_m / self.scale
         yaw = (self.inc.yaw_rad - a * self.inc.forward_m - c * dt) / f
-        w_gyro = 0.0
-        # from the first bin when the standing start measured the gyro's bias (the wheels' variance the
-        # configured one until the fit has its own): the warm-up's raw wheel yaw was 0.7 of 2.5 deg of the
-        # open line's final heading error (tuning seed 6). It carries a lagging IMU's timing into the online
-        # poses (the online offset estimate's 30 ms read 27.9 ms in two passes), not into the default
-        # re-matched estimate (calibrated wheels, yard and forest seeds 3-5: 17 of 18 within 2 ms, 14 without)
-        if self.cfg.gyro_yaw_rate_sigma_rad_s > 0 and self.standing_start:
-            var_w = max(self.sigma2, 1e-12) / f ** 2
-            w_gyro = var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2)
+        w_gyro = self.gyro_weight()
         n = self.next_bin
         # the increments after the last consumed bin (the current sweep's): the same blend, increment by
         # increment, ungated (their bin is not complete); without it a sweep's wheel guess took the
@@ -260,13 +252,40 @@ class WheelCalibrator:
             yaw[idx] = (1.0 - w) * yaw[idx] + w * gyro
         return integrate(self.inc, fwd, yaw)
 
+    def _track_factor_used(self) -> float:
+        """The fitted track factor, or 1 while the fit is implausible (|f| <= 0.2)."""
+        f = float(self.theta[0])
+        return f if abs(f) > 0.2 else 1.0
+
+    def gyro_weight(self) -> float:
+        """The gyro's weight in a consumed bin's yaw (and the increments after the last): the inverse-
+        variance share against the calibrated wheels' (their variance the measured residual one over
+        f^2; the configured one until the fit has its own). 0 without a standing start (the gyro's bias
+        unmeasured) or with gyro_yaw_rate_sigma_rad_s = 0. From the first bin: the warm-up's raw wheel
+        yaw was 0.7 of 2.5 deg of the open line's final heading error (tuning seed 6). It carries a
+        lagging IMU's timing into the online poses (the online offset estimate's 30 ms read 27.9 ms in
+        two passes), not into the default re-matched estimate (calibrated wheels, yard and forest seeds
+        3-5: 17 of 18 within 2 ms, 14 without)."""
+        if self.cfg.gyro_yaw_rate_sigma_rad_s <= 0 or not self.standing_start:
+            return 0.0
+        var_w = max(self.sigma2, 1e-12) / self._track_factor_used() ** 2
+        return float(var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2))
 
     def yaw_quality(self) -> float:
-        """Weight (0-1] for the yaw hold: the reference yaw-rate sigma over the measured residual
-        sigma after calibration, squared (an information ratio)."""
+        """Weight (0-1] for the yaw hold: the reference yaw-rate sigma over the sigma of the guess's
+        yaw rate, squared (an information ratio). The guess's yaw is `track()`'s: with the gyro blended
+        in, the blend's variance (w^2 gyro + (1 - w)^2 wheels: at most the gyro's, so the full hold with
+        the defaults); without, the wheels' measured residual variance. Held by the wheels' residual
+        alone, the open line's guess (97 % gyro) let scan-to-map's yaw steps through (0.05-0.15 deg a
+        sweep, +1.8 deg over 40 s on tuning seed 6, where the gyro alone stayed within 0.2 deg)."""
         if self.n_bins < self.cfg.warmup_bins:
             return 1.0
-        ratio = self.cfg.yaw_rate_sigma_rad_s ** 2 / max(self.sigma2, 1e-12)
+        var = max(self.sigma2, 1e-12)
+        w = self.gyro_weight()
+        if w > 0:
+            var_w = var / self._track_factor_used() ** 2
+            var = w ** 2 * self.cfg.gyro_yaw_rate_sigma_rad_s ** 2 + (1.0 - w) ** 2 * var_w
+        ratio = self.cfg.yaw_rate_sigma_rad_s ** 2 / var
         return float(np.clip(ratio, self.cfg.min_yaw_quality, 1.0))
 
 

@@ -411,6 +411,35 @@ def test_the_warm_up_takes_the_gyro_when_its_bias_was_measured() -> None:
     assert errors[0] < 0.1 < 0.3 < errors[1]  # measured 0.05 and 0.61 deg
 
 
+def test_the_yaw_hold_weighs_the_guess_s_yaw_not_the_wheels_alone() -> None:
+    """yaw_quality scales the hold of the matched yaw towards the wheel guess, whose yaw is track()'s
+    blend: calibrated-class wheels (0.05 m/s pickups, residual 0.015 rad/s) with a measured gyro bias
+    are 98 % gyro, so the full hold (1.0); the wheels' yaw alone (gyro_yaw_rate_sigma 0) keeps the
+    hold scaled by their residual (0.47). Negative control: that residual rule, the one before, gives
+    the blended guess 0.47 as well. With a tighter reference sigma the scale is the blend's
+    information ratio, w^2 gyro + (1 - w)^2 wheels (0.25 here, the residual rule's floor 0.05)."""
+    err = CASES["calibrated"][0]
+    t, v, w = _drive()
+    quality, old = [], []
+    configs = (WheelCalibrationConfig(), WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0),
+               WheelCalibrationConfig(yaw_rate_sigma_rad_s=0.001))
+    for cfg in configs:
+        cal = WheelCalibrator.build(_wheel_track(t, v, w, err, 0), _imu(t, w, 0), np.eye(4), cfg)
+        assert cal is not None
+        assert cal.standing_start
+        cal.update(float(t[-1]))
+        quality.append(cal.yaw_quality())
+        old.append(float(np.clip(cfg.yaw_rate_sigma_rad_s ** 2 / cal.sigma2, cfg.min_yaw_quality, 1.0)))
+    assert quality[0] == 1.0
+    assert 0.2 < quality[1] < 0.7
+    assert quality[1] == pytest.approx(old[1])
+    assert old[0] < 0.7  # the residual rule would hold the gyro-dominated guess as weakly as the wheels
+    wg = cal.gyro_weight()
+    var = wg ** 2 * cal.cfg.gyro_yaw_rate_sigma_rad_s ** 2 + (1 - wg) ** 2 * cal.sigma2 / cal.track_factor ** 2
+    assert quality[2] == pytest.approx(1e-6 / var, rel=1e-9)
+    assert 0.1 < quality[2] < 0.6
+    assert old[2] < 0.1
+
 
 def test_the_gyro_blend_follows_an_applied_imu_offset() -> None:
     """restamp_gyro(shift): the tail's gyro increments are those of the IMU re-stamped by -shift (the
