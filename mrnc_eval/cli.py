@@ -728,6 +728,10 @@ def _stdout_gone() -> int:
 
 def _dispatch(argv: list[str] | None) -> Any:
     fast = fast_command(sys.argv[1:] if argv is None else argv, {"ape": ape, "rpe": rpe, "slam": slam})
+    if fast is None or fast[0] is not slam:  # __main__ paused collection for a plain `slam` line only
+        from mrnc_eval import gc_pause
+
+        gc_pause.resume()
     if fast is None:
         return app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
     _main()  # a plain ape/rpe/slam line: typer's per-run validators and pydantic ~0.1 s CPU (cli_fast)

@@ -4,7 +4,8 @@ Why: a short run creates ~70,000 long-lived container objects while it imports i
 configuration and opens the log (the classes, functions and constants of numpy, gtsam, rosbags
 and the package), and the collector walks them again on each older-generation pass: ~40 ms CPU
 of a 0.7 s run (forest30 --end 0.25: 15 collections of generation 1 or 2, one full one 15 ms),
-nearly none of it finding garbage. Paused from the command's start to the SLAM loop's; then what
+nearly none of it finding garbage. Paused from the command's start (`python -m mrnc_eval`: from
+before the CLI's imports, resumed at once for any other command) to the SLAM loop's; then what
 exists is frozen (gc.freeze: moved to the permanent generation, never walked again; without it
 the first pass after resuming walks everything made while paused, ~90 ms) and collection resumes,
 so a long run frees its cyclic garbage as before. The cost: cyclic garbage already made when the

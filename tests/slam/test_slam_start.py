@@ -131,3 +131,27 @@ def test_gc_pause_only_resumes_what_it_paused() -> None:
     gc_pause.resume()
     assert gc.isenabled()
     gc.unfreeze()
+
+
+MAIN_SCRIPT = textwrap.dedent("""
+    import gc, json, runpy, sys
+    sys.argv = ["mrnc_eval", *sys.argv[1:]]
+    code = None
+    try:
+        runpy.run_module("mrnc_eval", run_name="__main__")
+    except SystemExit as exc:
+        code = exc.code
+    print(json.dumps({"code": code, "enabled": gc.isenabled()}))
+""")
+
+
+@pytest.mark.parametrize("verb", [["config"], ["slam", "--dump-config"]])
+def test_python_m_resumes_collection_for_other_commands(tmp_path: Path, verb: list[str]) -> None:
+    """`python -m mrnc_eval` pauses collection before the CLI's imports: another verb resumes it at
+    dispatch, a `slam` line when it ends (here --dump-config, before any log is read)."""
+    env = {"PYTHONPATH": str(REPO), "HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}
+    proc = subprocess.run([sys.executable, "-c", MAIN_SCRIPT, *verb], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=600, env=env, check=False)
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["code"] in (0, None), proc.stderr[-2000:]
+    assert out["enabled"]
