@@ -77,9 +77,12 @@ class Ros2McapSource:
         self.path = path
         self.summary = summary
         types: dict[str, Any] = {}
+        parsed: dict[int, dict[str, Any]] = {}  # AnyReader parses a schema per channel: the same text, the same types
         for ch in summary.channels.values():
-            schema = summary.schemas[ch.schema_id]
-            types.update(_types_of(schema, schema.name))
+            if ch.schema_id not in parsed:
+                schema = summary.schemas[ch.schema_id]
+                parsed[ch.schema_id] = _types_of(schema, schema.name)
+            types.update(parsed[ch.schema_id])
         self._store = get_typestore(Stores.EMPTY)
         self._store.register(types)
         counts = summary.statistics.channel_message_counts
