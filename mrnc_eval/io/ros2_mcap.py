@@ -6,7 +6,8 @@ a single MCAP file's overview, first messages and sweeps are read from its index
 (io/mcap_index.py, io/mcap_stream.py). What AnyReader gives such a file is made here the same way:
 the channels (topic, type from the schema name, count from the statistics, encoding) and one
 typestore of every channel's definition, parsed and registered in the channels' order with rosbags'
-own parsers, so the same messages decode to the same objects (tests/io/test_ros2_mcap.py). A
+own parsers, so the same messages decode to the same objects (tests/io/test_ros2_mcap.py;
+NavSatFix, TFMessage and JointState to objects alike, read by io/small_msgs.py). A
 full read of messages (`messages`), the fallback when the indexes cannot be used, opens the
 AnyReader source then.
 
@@ -21,6 +22,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
+from mrnc_eval.io import small_msgs
 from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.sources import Channel, RosbagsSource
 
@@ -97,6 +99,7 @@ class Ros2McapSource:
             else:
                 self.channels[ch.topic] = Channel(ch.topic, msgtype, int(counts.get(cid, 0)), "cdr")
         self._full: RosbagsSource | None = None
+        self._standard: dict[str, bool] = {}  # msgtype -> defined as io/small_msgs.py reads it
 
     def messages(self, topics: list[str]) -> Iterator[tuple[str, int, bytes]]:
         """Every message of `topics` in log order, through AnyReader (opened on first use)."""
@@ -107,11 +110,18 @@ class Ros2McapSource:
     def indexed_overview(self, topics: list[str], wants: dict[str, int]) -> Iterator[tuple[str, int, bytes]]:
         raise IndexUnusable("not a ROS 1 bag")
 
-    def deserialize(self, raw: bytes, topic: str) -> Any:  # a rosbags message object
+    def deserialize(self, raw: bytes, topic: str) -> Any:  # a rosbags message object, or one alike
+        msgtype = self.channels[topic].msgtype
+        if msgtype not in self._standard:
+            self._standard[msgtype] = small_msgs.standard(self._store.fielddefs, msgtype)
+        msg = small_msgs.decode(raw, msgtype) if self._standard[msgtype] else None
+        return msg if msg is not None else self._library_deserialize(raw, msgtype)
+
+    def _library_deserialize(self, raw: bytes, msgtype: str) -> Any:
         from rosbags.serde import SerdeError
 
         try:
-            return self._store.deserialize_cdr(raw, self.channels[topic].msgtype)
+            return self._store.deserialize_cdr(raw, msgtype)
         except SerdeError as err:  # as AnyReader reports it
             from rosbags.highlevel import AnyReaderError
 
