@@ -7,9 +7,11 @@ a single MCAP file's overview, first messages and sweeps are read from its index
 the channels (topic, type from the schema name, count from the statistics, encoding) and one
 typestore of every channel's definition, parsed and registered in the channels' order with rosbags'
 own parsers, so the same messages decode to the same objects (tests/io/test_ros2_mcap.py;
-NavSatFix, TFMessage and JointState to objects alike, read by io/small_msgs.py). A
-full read of messages (`messages`), the fallback when the indexes cannot be used, opens the
-AnyReader source then.
+NavSatFix, TFMessage and JointState to objects alike, read by io/small_msgs.py). When every schema
+is plainly written (io/msg_text.py reads it: then rosbags' grammar accepts it too), that typestore
+is made only when a message is first decoded through rosbags, which a `slam` run never does: it
+imports no part of rosbags (~30 ms of parsing, registering and importing saved). A full read of
+messages (`messages`), the fallback when the indexes cannot be used, opens the AnyReader source then.
 
 Only a plainly well-formed file takes this path: a ros2 profile, a summary with statistics and
 schemas, every channel CDR with a ros2msg/ros2idl schema whose type its definition declares.
@@ -22,7 +24,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from mrnc_eval.io import small_msgs
+from mrnc_eval.io import msg_text, small_msgs
 from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.sources import Channel, RosbagsSource
 
@@ -74,24 +76,16 @@ class Ros2McapSource:
     read_summary, kept for the chunk indexes)."""
 
     def __init__(self, path: Path, summary: Any) -> None:
-        from rosbags.typesys import Stores, get_typestore
-
         self.path = path
         self.summary = summary
-        types: dict[str, Any] = {}
-        parsed: dict[int, dict[str, Any]] = {}  # AnyReader parses a schema per channel: the same text, the same types
-        for ch in summary.channels.values():
-            if ch.schema_id not in parsed:
-                schema = summary.schemas[ch.schema_id]
-                parsed[ch.schema_id] = _types_of(schema, schema.name)
-            types.update(parsed[ch.schema_id])
-        self._store = get_typestore(Stores.EMPTY)
-        self._store.register(types)
+        self._store: Any = None  # rosbags' typestore of every schema, made when first needed
+        self._defined = msg_text.definitions(summary)  # None: rosbags parses the schemas now
+        types = self._defined if self._defined is not None else self._typestore().fielddefs
         counts = summary.statistics.channel_message_counts
         self.channels: dict[str, Channel] = {}
         for cid, ch in summary.channels.items():
             msgtype = summary.schemas[ch.schema_id].name
-            if msgtype not in self._store.fielddefs:
+            if msgtype not in types:
                 raise NotPlain(f"{msgtype}: not in its own definition")
             known = self.channels.get(ch.topic)
             if known is not None:  # one topic on several channels: AnyReader counts them all, keeps the first type
@@ -100,6 +94,23 @@ class Ros2McapSource:
                 self.channels[ch.topic] = Channel(ch.topic, msgtype, int(counts.get(cid, 0)), "cdr")
         self._full: RosbagsSource | None = None
         self._standard: dict[str, bool] = {}  # msgtype -> defined as io/small_msgs.py reads it
+
+    def _typestore(self) -> Any:
+        """rosbags' typestore of every channel's schema, as AnyReader makes it (made once)."""
+        if self._store is None:
+            from rosbags.typesys import Stores, get_typestore
+
+            types: dict[str, Any] = {}
+            parsed: dict[int, dict[str, Any]] = {}  # AnyReader parses a schema per channel: the same types
+            for ch in self.summary.channels.values():
+                if ch.schema_id not in parsed:
+                    schema = self.summary.schemas[ch.schema_id]
+                    parsed[ch.schema_id] = _types_of(schema, schema.name)
+                types.update(parsed[ch.schema_id])
+            store = get_typestore(Stores.EMPTY)
+            store.register(types)
+            self._store = store
+        return self._store
 
     def messages(self, topics: list[str]) -> Iterator[tuple[str, int, bytes]]:
         """Every message of `topics` in log order, through AnyReader (opened on first use)."""
@@ -113,7 +124,8 @@ class Ros2McapSource:
     def deserialize(self, raw: bytes, topic: str) -> Any:  # a rosbags message object, or one alike
         msgtype = self.channels[topic].msgtype
         if msgtype not in self._standard:
-            self._standard[msgtype] = small_msgs.standard(self._store.fielddefs, msgtype)
+            self._standard[msgtype] = (small_msgs.standard_in(self._defined, msgtype) if self._defined is not None
+                                       else small_msgs.standard(self._typestore().fielddefs, msgtype))
         msg = small_msgs.decode(raw, msgtype) if self._standard[msgtype] else None
         return msg if msg is not None else self._library_deserialize(raw, msgtype)
 
@@ -121,7 +133,7 @@ class Ros2McapSource:
         from rosbags.serde import SerdeError
 
         try:
-            return self._store.deserialize_cdr(raw, msgtype)
+            return self._typestore().deserialize_cdr(raw, msgtype)
         except SerdeError as err:  # as AnyReader reports it
             from rosbags.highlevel import AnyReaderError
 

@@ -67,6 +67,12 @@ def _field_type(desc: Any) -> str:
 def standard(fielddefs: Any, msgtype: str) -> bool:
     """Whether the log defines `msgtype` and every type it holds as _STANDARD does (rosbags'
     fielddefs: name -> (constants, [(field, description)]))."""
+    return standard_in({name: tuple((str(f), _field_type(d)) for f, d in fielddefs[name][1])
+                        for name in fielddefs}, msgtype)
+
+
+def standard_in(defined: dict[str, tuple[tuple[str, str], ...]], msgtype: str) -> bool:
+    """`standard` on definitions in _STANDARD's notation (type -> ((field, type), ...))."""
     if msgtype not in _DECODERS:
         return False
     todo, seen = [msgtype], set()
@@ -75,12 +81,9 @@ def standard(fielddefs: Any, msgtype: str) -> bool:
         if name in seen:
             continue
         seen.add(name)
-        if name not in _STANDARD or name not in fielddefs:
+        if name not in _STANDARD or defined.get(name) != _STANDARD[name]:
             return False
-        fields = tuple((str(f), _field_type(d)) for f, d in fielddefs[name][1])
-        if fields != _STANDARD[name]:
-            return False
-        todo += [t.split("[")[0] for _, t in fields if "/" in t]
+        todo += [t.split("[")[0] for _, t in _STANDARD[name] if "/" in t]
     return True
 
 
