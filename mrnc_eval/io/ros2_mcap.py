@@ -24,7 +24,7 @@ from collections.abc import Iterator
 from pathlib import Path
 from typing import Any
 
-from mrnc_eval.io import msg_text, small_msgs
+from mrnc_eval.io import mcap_summary, msg_text, small_msgs
 from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.sources import Channel, RosbagsSource
 
@@ -54,14 +54,21 @@ def _types_of(schema: Any, msgtype: str) -> dict[str, Any]:
 
 
 def read_summary(path: Path) -> Any:
-    """The file's mcap summary, if it is plainly a ROS 2 MCAP file (see the module's docstring)."""
-    from mcap.reader import make_reader
-
-    with path.open("rb") as fh:
-        reader = make_reader(fh)
-        if reader.get_header().profile != "ros2":
+    """The file's mcap summary, if it is plainly a ROS 2 MCAP file (see the module's docstring);
+    read without the mcap library when it can be (io/mcap_summary.py)."""
+    summary: Any
+    try:
+        if mcap_summary.profile(path) != "ros2":
             raise NotPlain("profile is not ros2")
-        summary = reader.get_summary()
+        summary = mcap_summary.read(path)
+    except mcap_summary.Unreadable:
+        from mcap.reader import make_reader
+
+        with path.open("rb") as fh:
+            reader = make_reader(fh)
+            if reader.get_header().profile != "ros2":
+                raise NotPlain("profile is not ros2") from None
+            summary = reader.get_summary()
     if summary is None or summary.statistics is None or not summary.schemas or not summary.channels:
         raise NotPlain("no summary, statistics or schemas")
     for ch in summary.channels.values():
