@@ -190,6 +190,22 @@ def slam(
     Ground truth: a pose topic (Odometry, PoseStamped, ...) named like ground_truth or gt, or the one
     --set io.roles.ground_truth=TOPIC names (io.roles.ROLE=TOPIC picks the topic of any role), else
     <log>.gt.tum beside the log (TUM)."""
+    from mrnc_eval import gc_pause
+
+    gc_pause.pause()  # until the SLAM loop starts (gc_pause.py); whatever happens, on again after the command
+    try:
+        _slam(logs, method=method, out=out, flags=(no_loop, no_gps, json_out, dump_config), topic=topic,
+              span=(start, end, n_scans), threads=threads, config=config, set_=set_)
+    finally:
+        gc_pause.resume()
+
+
+def _slam(logs: list[Path] | None, *, method: SlamMethod | None, out: Path, flags: tuple[bool, bool, bool, bool],
+          topic: str | None, span: tuple[float | None, float | None, int | None], threads: int | None,
+          config: Path | None, set_: list[str] | None) -> None:
+    """`slam`'s body (flags: --no-loop, --no-gps, --json, --dump-config; span: --start, --end, --n-scans)."""
+    no_loop, no_gps, json_out, dump_config = flags
+    start, end, n_scans = span
     set_ = _slam_start(logs, method, threads, set_)
     cfg = _config(config, set_, dump_config)  # --dump-config needs no LOG
     if not logs:
@@ -712,6 +728,10 @@ def _stdout_gone() -> int:
 
 def _dispatch(argv: list[str] | None) -> Any:
     fast = fast_command(sys.argv[1:] if argv is None else argv, {"ape": ape, "rpe": rpe, "slam": slam})
+    if fast is None or fast[0] is not slam:  # __main__ paused collection for a plain `slam` line only
+        from mrnc_eval import gc_pause
+
+        gc_pause.resume()
     if fast is None:
         return app(args=argv, prog_name="mrnc-eval", standalone_mode=False)
     _main()  # a plain ape/rpe/slam line: typer's per-run validators and pydantic ~0.1 s CPU (cli_fast)

@@ -37,6 +37,8 @@ _UNSUPPORTED = {"callback": None, "is_eager": False, "envvar": None, "default_fa
 
 @dataclass(frozen=True)
 class _Param:
+    """One parameter of a command function as the fast parser reads it."""
+
     name: str
     kind: type  # bool, int, float, str, Path or an Enum
     is_list: bool

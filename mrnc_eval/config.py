@@ -13,6 +13,7 @@ from __future__ import annotations
 
 import contextlib
 import dataclasses
+import functools
 import hashlib
 import json
 import math
@@ -22,8 +23,6 @@ import typing
 from dataclasses import Field, dataclass, fields, is_dataclass
 from pathlib import Path
 from typing import Any, Literal, TypeVar, get_args, get_origin
-
-import yaml
 
 from mrnc_eval.control.config import ControlConfig
 from mrnc_eval.errors import ConfigError, InputError
@@ -273,23 +272,31 @@ MAX_YAML_BYTES = 1_000_000  # a configuration is a few kB; anything this big is 
 MAX_YAML_NODES = 100_000  # nodes after alias expansion (a "billion laughs" file is rejected, not expanded)
 
 
-class _StrictLoader(yaml.SafeLoader):  # type: ignore[misc]  # PyYAML ships no types here
-    """Safe loader that rejects duplicate keys (the second would silently win)."""
+@functools.cache
+def _strict_loader() -> Any:
+    """The safe loader that rejects duplicate keys (the second would silently win); made on first
+    use, so a run without a config file or --set never imports yaml."""
+    import yaml
 
-    def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
-        seen: set[tuple[str, str]] = set()
-        for key_node, _ in node.value:
-            if isinstance(key_node, yaml.ScalarNode):
-                key = (key_node.tag, key_node.value)
-                if key in seen:
-                    raise yaml.constructor.ConstructorError(
-                        None, None, f"duplicate key {shorten(key_node.value, 80)}", key_node.start_mark)
-                seen.add(key)
-        return super().construct_mapping(node, deep=deep)
+    class StrictLoader(yaml.SafeLoader):  # type: ignore[misc]  # PyYAML ships no types here
+        def construct_mapping(self, node: yaml.MappingNode, deep: bool = False) -> dict[Any, Any]:
+            seen: set[tuple[str, str]] = set()
+            for key_node, _ in node.value:
+                if isinstance(key_node, yaml.ScalarNode):
+                    key = (key_node.tag, key_node.value)
+                    if key in seen:
+                        raise yaml.constructor.ConstructorError(
+                            None, None, f"duplicate key {shorten(key_node.value, 80)}", key_node.start_mark)
+                    seen.add(key)
+            return super().construct_mapping(node, deep=deep)
+
+    return StrictLoader
 
 
-def _expanded_size(node: yaml.Node, memo: dict[int, int], active: set[int]) -> int:
+def _expanded_size(node: Any, memo: dict[int, int], active: set[int]) -> int:
     """Number of nodes the document has once every alias is expanded (memoised: O(distinct nodes))."""
+    import yaml
+
     if id(node) in memo:
         return memo[id(node)]
     if id(node) in active:
@@ -308,10 +315,12 @@ def _expanded_size(node: yaml.Node, memo: dict[int, int], active: set[int]) -> i
 
 def load_yaml(text: str, where: str) -> Any:
     """Parse YAML text with the strict, bounded loader; every problem is a one-line ConfigError."""
+    import yaml
+
     if len(text) > MAX_YAML_BYTES:
         raise ConfigError(f"{where}: YAML larger than {MAX_YAML_BYTES // 1000} kB")
     try:
-        loader = _StrictLoader(text)  # the reader already rejects control characters
+        loader = _strict_loader()(text)  # the reader already rejects control characters
     except yaml.YAMLError as err:
         raise ConfigError(f"{where}: invalid YAML: {shorten(' '.join(str(err).split()), 300)}") from err
     try:
@@ -433,14 +442,44 @@ def plain_yaml_scalar(v: Any) -> str | None:
     return text.replace("e", ".0e", 1) if "." not in text and "e" in text else text  # 1e17 -> 1.0e17, as yaml
 
 
+_PLAIN_WORD = re.compile(r"[A-Za-z][A-Za-z0-9_]*")  # a str safe_dump leaves unquoted, unless a YAML 1.1 word below
+_YAML_WORDS = {w for word in ("yes", "no", "true", "false", "on", "off", "null")
+               for w in (word, word.capitalize(), word.upper())}  # PyYAML's bool and null resolvers
+
+
+def plain_yaml_flow(v: Any) -> str | None:
+    """yaml.safe_dump(v, default_flow_style=True)'s text (stripped) of a scalar (plain_yaml_scalar),
+    a word-like str (single-quoted when YAML 1.1 reads it as a bool or null: 'off'), or a list,
+    tuple or dict (keys sorted, as safe_dump sorts them) of those, made without yaml (whose import
+    is ~6 ms of a `slam` run's start); None for anything else (a str that is not a plain word, any
+    other type): ask yaml then."""
+    if isinstance(v, str):
+        if type(v) is not str or not _PLAIN_WORD.fullmatch(v):
+            return None
+        return f"'{v}'" if v in _YAML_WORDS else v  # quoted, or it would read back as a bool or null
+    if type(v) in (list, tuple):
+        items = [plain_yaml_flow(x) for x in v]
+        return None if None in items else "[" + ", ".join(typing.cast(list[str], items)) + "]"
+    if type(v) is dict:
+        if not all(type(k) is str for k in v):
+            return None
+        pairs = [(plain_yaml_flow(k), plain_yaml_flow(v[k])) for k in sorted(v)]
+        if any(a is None or b is None for a, b in pairs):
+            return None
+        return "{" + ", ".join(f"{a}: {b}" for a, b in pairs) + "}"
+    return plain_yaml_scalar(v)
+
+
 def dump_config(cfg: Any) -> str:
     """YAML with each parameter's help text and unit as a comment."""
     lines: list[str] = ["# mrnc-eval effective configuration"]
 
     def scalar(v: Any) -> str:
-        plain = plain_yaml_scalar(v)
+        plain = plain_yaml_flow(v)
         if plain is not None:
             return plain
+        import yaml
+
         return yaml.safe_dump(v, default_flow_style=True, width=1 << 16).strip().removesuffix("...").strip()
 
     def walk(obj: Any, indent: int) -> None:

@@ -77,6 +77,8 @@ def metric_direction(name: str, stored: bool | None = None) -> bool | None:
 
 @dataclass(kw_only=True)
 class Metric:
+    """One named value of a run, with its unit."""
+
     name: str  # unit-bearing key, e.g. "ape_rmse_m", "settling_time_s"
     value: float | int | None
     unit: str = ""
@@ -91,6 +93,8 @@ class Metric:
 
 @dataclass(kw_only=True)
 class Event:
+    """Something that happened during a run, at a log time."""
+
     t_s: float  # seconds since the log start
     kind: str  # "loop_closure", "degeneracy", "safety_stop", "slip", ...
     message: str
@@ -99,6 +103,8 @@ class Event:
 
 @dataclass(kw_only=True)
 class RunResult:
+    """Everything one run produced: metrics, events, warnings, series and provenance."""
+
     kind: str  # "slam" | "control" | "info"
     log_path: str
     log_id: str

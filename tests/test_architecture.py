@@ -25,9 +25,10 @@ LAYERS: tuple[tuple[str, frozenset[str]], ...] = (
                         "outputs"})),  # outputs: the one overwrite rule every writer calls
     ("pure", frozenset({"slam", "control", "evaluation", "sim"})),
     ("geometry", frozenset({"geometry"})),  # SE(3), quaternions, resampling, point fits: below slam, io, evaluation
-    # schema: the names inside a result folder, shared by writers and readers; extras: which install a verb needs
+    # schema: the names inside a result folder, shared by writers and readers; extras: which install a verb needs;
+    # gc_pause: the collector paused while `slam` starts up (cli and commands call it)
     ("base", frozenset({"__init__", "data", "errors", "params", "geodesy", "tables", "text", "spelling", "peaks",
-                        "schema", "extras"})),
+                        "schema", "extras", "gc_pause"})),
 )
 PURE = "pure"  # packages of this layer import only themselves and the layers below
 

@@ -121,3 +121,55 @@ def test_config_dump_leaves_strings_and_lists_to_yaml() -> None:
 
     for value in ("yes", "1.0", "", [1, 2], (0.5,), {"a": 1}):
         assert plain_yaml_scalar(value) is None
+
+
+def _by_yaml(value: object) -> str:
+    return yaml.safe_dump(value, default_flow_style=True, width=1 << 16).strip().removesuffix("...").strip()
+
+
+@pytest.mark.parametrize("value", ["lio", "QR", "RNG19_RFL8_SIG16_NIR16", "os_sensor", "a", "x1", "ONE", "off", "Off",
+                                   "OFF", "on", "yes", "No", "true", "FALSE", "null", "Null", [1, "off"], {"a": "on"},
+                                   "y", "N", "e", "E1", "NaN", "inf", "True1",
+                                   "nullable", "offset", [], (), {}, (4.0, 4.0, 16.0), [1, 2.5, -0.0, None, True],
+                                   {"b": 1.0, "a": "lio", "c": [1e17, 2]}, [{"y_m": -6.0, "x_m": 1.583}],
+                                   {"lidar": "os_lidar"}, ((1.0, 2.0), (3.0,))])
+def test_config_dump_writes_words_and_flow_collections_as_yaml_does(value: object) -> None:
+    """dump_config writes plain words and lists/tuples/dicts of them and of numbers itself (yaml
+    not imported by a run without a config file): the same text yaml.safe_dump gives."""
+    from mrnc_eval.config import plain_yaml_flow
+
+    assert plain_yaml_flow(value) == _by_yaml(value)
+
+
+@pytest.mark.parametrize("value", ["", "1.0", "a b", "/ouster/points", "x:y", "-a", "é", {1: 2}, b"x", {2.0, 1.0}])
+def test_config_dump_leaves_other_strings_and_types_to_yaml(value: object) -> None:
+    """Anything not a plain word, number or collection of those: None (yaml writes it)."""
+    from mrnc_eval.config import plain_yaml_flow
+
+    assert plain_yaml_flow(value) is None
+
+
+@pytest.mark.parametrize("word", ["off", "On", "YES", "no", "True", "false", "null", "NULL"])
+def test_yaml_quotes_its_bool_and_null_words(word: str) -> None:
+    """The negative control of the quoting: written plain, these would read back as bools or None."""
+    assert _by_yaml(word) == f"'{word}'"
+    assert yaml.safe_load(word) != word
+
+
+def test_config_dump_of_the_defaults_needs_no_yaml_and_is_unchanged() -> None:
+    """Every value of the default configuration is written without yaml, as yaml writes it."""
+    from dataclasses import fields, is_dataclass
+
+    from mrnc_eval.config import Config, as_dict, plain_yaml_flow
+
+    def leaves(node: object) -> list[object]:
+        if not is_dataclass(node):
+            return [as_dict(node) if isinstance(node, (list, tuple, dict)) else node]  # as dump_config passes it
+        return [x for f in fields(node) for x in leaves(getattr(node, f.name))]
+
+    values = leaves(Config())
+    assert len(values) > 300
+    for v in values:
+        text = plain_yaml_flow(v)
+        assert text is not None, v
+        assert text == _by_yaml(v)

@@ -28,6 +28,8 @@ class RobotGeometry(Protocol):
 
 @dataclass(frozen=True)
 class PurePursuitConfig:
+    """Path following by pure pursuit."""
+
     lookahead_m: float = param(1.0, "lookahead distance L (paper: 1 m)", "m")
     desired_speed_mps: float = param(0.38, "desired forward speed (paper: 0.38 m/s)", "m/s")
     max_speed_mps: float = param(0.4, "maximum speed setting (paper: 0.4 m/s); also bounds each side's "
@@ -50,6 +52,8 @@ class PurePursuitConfig:
 
 @dataclass(frozen=True)
 class KinematicsConfig:
+    """Inverse kinematics: how the wheel references are shaped."""
+
     reference_shaping: Literal["none", "slew", "slew_rate_ff"] = param(
         "slew", "wheel references: none (the inverse kinematics as issued, as the paper), slew (rate-limited by "
         "reference_accel_limit_mps2; not in the paper), slew_rate_ff (slewed, and every law's feed-forward adds "
@@ -80,6 +84,8 @@ def shaping_text(cfg: ControlConfig) -> str:
 
 @dataclass(frozen=True)
 class FunnelConfig:
+    """The prescribed-performance funnel o(t) of the paper."""
+
     o_ov_mps: float = param(0.30, "funnel start o(0) = o_ov (paper: 0.19 + 0.11)", "m/s")
     o_b_mps: float = param(0.11, "funnel floor o_b (steady-state bound)", "m/s")
     o_star_per_s: float = param(0.09, "funnel decay rate o* (paper: 0.00009 per 1 kHz sample)", "1/s")
@@ -102,6 +108,8 @@ class StepDetectorConfig:
 
 @dataclass(frozen=True)
 class SupervisorConfig:
+    """The safety stop: which laws it applies to."""
+
     stop_rule: Literal["raid_only", "all"] = param(
         "raid_only", "the paper's safety stop (|e| >= o(t) or a non-finite value: command 0 on that side for the "
         "rest of the run): for RAID alone (paper), or for every law (parity)")
@@ -109,6 +117,8 @@ class SupervisorConfig:
 
 @dataclass(frozen=True)
 class RaidConfig:
+    """The RAID controller of the paper (RBF network, adaptive law)."""
+
     beta: float = param(1.2, "beta (paper)", gt=0.0)
     kappa: float = param(5.2, "kappa of the adaptive law (paper)")
     n_neurons: int = param(9, "RBF neurons N (paper)")
@@ -129,6 +139,8 @@ class RaidConfig:
 
 @dataclass(frozen=True)
 class PidConfig:
+    """The PID baseline controller."""
+
     kp: float = param(4800.0, "proportional gain", "RPM/(m/s)")
     ki: float = param(12000.0, "integral gain", "RPM/m")
     kd: float = param(0.0, "derivative gain", "RPM s/(m/s)")
@@ -169,6 +181,8 @@ class FoptcConfig:
 
 @dataclass(frozen=True)
 class ActuatorConfig:
+    """The pump actuators: the safety limit and what it bounds."""
+
     u_max_rpm: float = param(1250.0, "safety actuator limit |U*| (paper)", "RPM")
     saturation_applies_to: Literal["total", "feedback"] = param(
         "total", "whether 1250 RPM bounds the total pump command (default) or only the feedback part")
@@ -221,6 +235,8 @@ class PlantConfig:
 
 @dataclass(frozen=True)
 class SlipPatchConfig:
+    """One patch of slippery ground in the scenario."""
+
     x_m: float = param(0.0, "patch centre x", "m")
     y_m: float = param(0.0, "patch centre y", "m")
     radius_m: float = param(1.0, "patch radius", "m")
@@ -229,6 +245,8 @@ class SlipPatchConfig:
 
 @dataclass(frozen=True)
 class ScenarioConfig:
+    """The paper's scenario: circle, waypoints, slip patches."""
+
     circle_radius_m: float = param(5.0, "paper scenario: circle radius", "m")
     n_waypoints: int = param(8, "paper scenario: waypoints on the circle")
     centre_xy_m: tuple[float, float] = param(
@@ -245,6 +263,8 @@ class ScenarioConfig:
 
 @dataclass(frozen=True)
 class MetricsConfig:
+    """How settling, steady state, saturation and recovery are measured."""
+
     settling_band: float = param(0.02, "settling band relative to |step|")
     settling_floor_mps: float = param(0.02, "absolute floor of the settling band", "m/s")
     step_threshold_mps: float = param(1e-3, "a per-sample reference change larger than this restarts a "
@@ -337,6 +357,8 @@ class TuneConfig:
 
 @dataclass(frozen=True)
 class ControlConfig:
+    """Pure pursuit, kinematics, the controllers, the plant and the control metrics."""
+
     rate_hz: float = param(1000.0, "wheel control loop rate of the closed-loop simulation", "Hz")
     seed: int = param(0, "seed of the measurement noise")
     pure_pursuit: PurePursuitConfig = section(PurePursuitConfig, "path following")

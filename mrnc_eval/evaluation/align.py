@@ -24,6 +24,8 @@ __all__ = ["Alignment", "align_positions", "align_rotations", "estimate_alignmen
 
 @dataclass(frozen=True)
 class Alignment:
+    """A rigid (or similarity) alignment of the estimate onto the reference."""
+
     mode: AlignMode
     rotation: NDArray[np.float64]  # (3, 3)
     translation: NDArray[np.float64]  # (3,)

@@ -76,6 +76,8 @@ class AlignedPair:
 
 @dataclass(frozen=True, eq=False)
 class ApeResult:
+    """Absolute pose errors of one estimate, with their statistics."""
+
     name: str
     relation: Relation
     unit: str

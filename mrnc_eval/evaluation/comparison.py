@@ -21,6 +21,8 @@ NOT_RUN = "not run"
 
 @dataclass(frozen=True)
 class Cell:
+    """One APE cell of a comparison table (a value, or why there is none)."""
+
     value: float | None  # APE RMSE (m); None when failed
     reason: str = ""  # why it failed
     not_run: bool = False  # the method was never run on this sequence: no verdict

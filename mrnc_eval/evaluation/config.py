@@ -9,6 +9,8 @@ from mrnc_eval.params import param
 
 @dataclass(frozen=True)
 class EvaluationConfig:
+    """Trajectory evaluation defaults: association tolerances, time offset, when a run counts as failed."""
+
     max_diff_s: float = param(0.01, "association: maximum stamp difference", "s", ge=0.0)
     gt_max_diff_s: float = param(
         0.01, "slam and export: maximum stamp difference when pairing the estimate with the ground truth "
@@ -26,6 +28,8 @@ class EvaluationConfig:
 
 @dataclass(frozen=True)
 class GatesConfig:
+    """Pass/fail limits of reports and the nightly job."""
+
     ape_rmse_max_m: float = param(0.10, "SLAM gate: APE translation RMSE after SE(3) alignment", "m", ge=0.0)
     funnel_violations_max: int = param(0, "control gate: samples with |e| >= o(t), per side", ge=0)
     saturation_ratio_max: float = param(0.2, "control gate: fraction of samples at the RPM limit", ge=0.0, le=1.0)

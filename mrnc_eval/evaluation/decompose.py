@@ -24,6 +24,8 @@ MIN_STEP_M = 1e-6  # reference steps shorter than this do not define a direction
 
 @dataclass(frozen=True)
 class Decomposition:
+    """Position errors split along the path, across it and vertically, m."""
+
     along_m: NDArray[np.float64]
     cross_m: NDArray[np.float64]
     vertical_m: NDArray[np.float64]

@@ -26,6 +26,8 @@ from mrnc_eval.geometry.interpolate import interpolate_at, sorted_unique
 
 @dataclass(frozen=True)
 class Matches:
+    """Index pairs of reference and estimate poses associated by time."""
+
     ref_idx: NDArray[np.int64]
     est_idx: NDArray[np.int64]
 

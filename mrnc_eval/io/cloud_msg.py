@@ -23,18 +23,24 @@ _MAX_FIELDS = 1024  # a longer field list is not a point cloud's: left to the li
 
 @dataclass(frozen=True, kw_only=True)
 class Stamp:
+    """A header stamp (sec, nanosec)."""
+
     sec: int
     nanosec: int
 
 
 @dataclass(frozen=True, kw_only=True)
 class Header:
+    """A cloud message's header."""
+
     stamp: Stamp
     frame_id: str
 
 
 @dataclass(frozen=True, kw_only=True)
 class Field:
+    """One PointField of a cloud message."""
+
     name: str
     offset: int
     datatype: int

@@ -13,6 +13,8 @@ from mrnc_eval.spelling import did_you_mean
 
 @dataclass(frozen=True)
 class IoConfig:
+    """Log reading: topic roles, GNSS origin and unknown variance, the small-topic cache, validation."""
+
     roles: dict[str, str] = param(
         {},
         "role -> topic overrides (roles: lidar, imu, chassis_imu, gnss, wheel_odom, wheel_speeds, "

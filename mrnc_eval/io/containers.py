@@ -136,6 +136,13 @@ def _bag_storage(meta: Path) -> str:
 
 
 def _mcap_is_ros2(path: Path) -> bool:
+    from mrnc_eval.io import mcap_summary
+
+    try:  # the header alone, without the mcap library (io/mcap_summary.py); anything odd: the library's reading
+        if mcap_summary.profile(path) == "ros2":
+            return True
+    except (mcap_summary.Unreadable, OSError):
+        pass
     from mcap.reader import make_reader
 
     try:

@@ -27,6 +27,8 @@ N_DOUBLES = 37
 
 @dataclass(frozen=True)
 class ImuBatch:
+    """A batch of IMU messages decoded at once."""
+
     stamps: np.ndarray  # (N,) s
     orientation: np.ndarray  # (N, 4) xyzw
     orientation_cov0: np.ndarray  # (N,) first element of orientation_covariance

@@ -28,6 +28,8 @@ _CRC_AT = 24  # the CRC field's offset in a chunk record's content
 
 @dataclass(frozen=True, kw_only=True)
 class DamagedChunk:
+    """A chunk whose data cannot be trusted."""
+
     offset: int  # byte offset of the chunk record in the file
     start_s: float  # log time of its first and last message, s
     end_s: float
@@ -42,6 +44,8 @@ class DamagedChunk:
 
 @dataclass(kw_only=True)
 class ChunkCheck:
+    """What checking the chunks of a file found."""
+
     chunks: int = 0
     with_crc: int = 0
     damaged: list[DamagedChunk] = field(default_factory=list)
@@ -49,6 +53,8 @@ class ChunkCheck:
 
 @dataclass(frozen=True, kw_only=True)
 class _ChunkRecord:
+    """Where a chunk record sits in the file and what it covers."""
+
     offset: int  # of the record (its opcode byte)
     content: int  # of its content
     start_ns: int

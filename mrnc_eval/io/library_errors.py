@@ -13,6 +13,7 @@ import functools
 import importlib
 import sqlite3
 import struct
+import sys
 
 # raised by the libraries' own parsing on bad bytes: short buffers, bad lengths, bad text; rosbags'
 # ROS 1 reader asserts on some corrupt chunks (tests/io/test_io_bad_input.py's fuzzing finds it)
@@ -20,19 +21,28 @@ _PARSING = (struct.error, EOFError, OSError, ValueError, KeyError, IndexError, O
             AssertionError)
 
 
-@functools.cache
+# rosbags' errors, (module, name): in data_errors() once their module is imported (only its own code
+# raises them, and it is imported before it runs); importing them for the tuple alone would cost a
+# single ROS 2 MCAP file, read without rosbags (io/ros2_mcap.py), ~45 ms
+_READER_ERRORS = (("rosbags.highlevel", "AnyReaderError"), ("rosbags.rosbag1", "ReaderError"),
+                  ("rosbags.rosbag2", "ReaderError"), ("rosbags.serde", "SerdeError"),
+                  ("rosbags.typesys", "TypesysError"))
+
+
 def data_errors() -> tuple[type[Exception], ...]:
     """The exception types a log library raises for bad data (imported on first use: the
-    libraries are heavy and only needed when a log is read)."""
-    from mcap.exceptions import McapError
-    from rosbags.highlevel import AnyReaderError
-    from rosbags.rosbag1 import ReaderError as Ros1ReaderError
-    from rosbags.rosbag2 import ReaderError as Ros2ReaderError
-    from rosbags.serde import SerdeError
-    from rosbags.typesys import TypesysError
+    libraries are heavy and only needed when a log is read; rosbags' once imported, see
+    _READER_ERRORS)."""
+    readers = tuple(getattr(sys.modules.get(module), name, None) for module, name in _READER_ERRORS)
+    return _library_errors() + tuple(err for err in readers if err is not None)
 
-    found: list[type[Exception]] = [McapError, AnyReaderError, Ros1ReaderError, Ros2ReaderError, SerdeError,
-                                        TypesysError, sqlite3.Error, *_PARSING]
+
+@functools.cache
+def _library_errors() -> tuple[type[Exception], ...]:
+    """data_errors() without rosbags'."""
+    from mcap.exceptions import McapError
+
+    found: list[type[Exception]] = [McapError, sqlite3.Error, *_PARSING]
     for module in ("zstandard", "backports.zstd", "compression.zstd"):  # mcap's, rosbags' (py < 3.14, >= 3.14)
         with contextlib.suppress(ImportError, AttributeError):  # not installed: that library refuses zstd itself
             found.append(importlib.import_module(module).ZstdError)

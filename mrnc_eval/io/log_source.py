@@ -20,6 +20,7 @@ from mrnc_eval.errors import InputError
 from mrnc_eval.io.chunk_prefix import IndexUnusable
 from mrnc_eval.io.containers import describe_error, detect_container, openable
 from mrnc_eval.io.library_errors import data_errors
+from mrnc_eval.io.ros2_mcap import NotPlain, Ros2McapSource, read_summary
 from mrnc_eval.io.sources import Channel, McapSource, RosbagsSource
 from mrnc_eval.io.split_logs import SplitSource, split_log_paths
 
@@ -53,19 +54,29 @@ class LogSource:
         """A single MCAP file's `mcap_index.chunk_indexes` (its summary), read once for the roles,
         the overview and the sweep stream; IndexUnusable as there (not kept: asked again, it is read again)."""
         if self._index is None:
-            from mrnc_eval.io.mcap_index import chunk_indexes
+            from mrnc_eval.io.mcap_index import chunk_indexes, summary_indexes
 
-            with self.path.open("rb") as fh:
-                self._index = chunk_indexes(fh)
+            if isinstance(self.src, Ros2McapSource):  # the summary it was opened from
+                self._index = summary_indexes(self.src.summary)
+            else:
+                with self.path.open("rb") as fh:
+                    self._index = chunk_indexes(fh)
         return self._index
 
-    def _open_source(self, named: list[Path]) -> McapSource | RosbagsSource | SplitSource:
-        """The reading library for the container; `named`: the paths as rosbags can open them."""
+    def _open_source(self, named: list[Path]) -> McapSource | RosbagsSource | Ros2McapSource | SplitSource:
+        """The reading library for the container; `named`: the paths as rosbags can open them. A
+        single ROS 2 MCAP file from its summary when it is plainly well-formed (io/ros2_mcap.py)."""
         if self.container != "ros1" and len(named) > 1:  # split ROS 2 / MCAP: one source per file
             return SplitSource([McapSource(p) if self.container == "mcap" else RosbagsSource([p], ros1=False)
                                 for p in named], self.paths)
         if self.container == "mcap":
             return McapSource(self.path)
+        if self.container == "ros2-mcap" and len(named) == 1 and named[0].is_file():
+            fallback: tuple[type[Exception], ...] = (NotPlain, *data_errors())
+            try:
+                return Ros2McapSource(named[0], read_summary(self.path))
+            except fallback:  # AnyReader opens it, with its own checks and errors
+                pass
         return RosbagsSource(named, ros1=self.container == "ros1")
 
     def close(self) -> None:

@@ -211,6 +211,11 @@ def chunk_indexes(fh: BinaryIO) -> Index:
         summary = make_reader(fh).get_summary()
     except data_errors() as err:  # the full read reports what is wrong with the file
         raise IndexUnusable(str(err)) from err
+    return summary_indexes(summary)
+
+
+def summary_indexes(summary: Any) -> Index:
+    """`chunk_indexes` from a summary already read (mcap's Summary, or None)."""
     if summary is None or summary.statistics is None or not summary.chunk_indexes:
         raise IndexUnusable("no summary, statistics or chunk index")
     indexed = sum(_index_bytes(ci) for ci in summary.chunk_indexes) // 16

@@ -38,6 +38,8 @@ _HEADER_BYTES = HEAD  # serialised bytes up to the end of a header stamp (ROS 1 
 
 @dataclass(frozen=True)
 class TopicInfo:
+    """One topic as the overview pass found it."""
+
     topic: str
     msgtype: str
     count: int

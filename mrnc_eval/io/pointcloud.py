@@ -42,6 +42,8 @@ def _cached_dtype(key: tuple[tuple[str, int, int, int], ...], point_step: int, b
 
 @dataclass(frozen=True, kw_only=True)
 class _FieldKey:
+    """A cloud field's name, offset and type (the key of a cached layout)."""
+
     name: str
     offset: int
     datatype: int

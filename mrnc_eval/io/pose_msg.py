@@ -41,6 +41,8 @@ _STRINGS_AT = 12  # frame_id's length field (ROS 1 and CDR)
 
 @dataclass(frozen=True, kw_only=True)
 class PoseBatch:
+    """A batch of pose messages decoded at once."""
+
     stamps: np.ndarray  # (N,) header stamps, s
     position: np.ndarray  # (N, 3) m
     orientation: np.ndarray  # (N, 4) xyzw

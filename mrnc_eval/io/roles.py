@@ -80,6 +80,8 @@ class Candidate:
 
 @dataclass(frozen=True)
 class Ambiguity:
+    """A role with several candidate topics and the one chosen."""
+
     role: str
     chosen: str
     alternatives: tuple[str, ...]  # the other candidates, best first

@@ -25,6 +25,8 @@ _PCD_TYPES = {("F", 4): "f4", ("F", 8): "f8", ("I", 1): "i1", ("I", 2): "i2", ("
 
 @dataclass(frozen=True)
 class ScanFolder:
+    """A folder of .bin/.pcd scans and their stamps."""
+
     path: Path
     files: tuple[Path, ...]
     stamps: NDArray[np.float64]

@@ -29,6 +29,8 @@ from mrnc_eval.io.library_errors import data_errors
 
 @dataclass(frozen=True)
 class Channel:
+    """One topic of a log as its container lists it."""
+
     topic: str
     msgtype: str  # ROS 2 style, pkg/msg/Name
     count: int  # from the container's index (-1: unknown); LogReader recounts while scanning

@@ -21,6 +21,8 @@ from mrnc_eval.params import param
 
 @dataclass(frozen=True)
 class ValidationConfig:
+    """Input validation: what is dropped, what is refused."""
+
     max_bad_fraction: float = param(
         0.05, "a stream with more bad samples than this fraction is refused; fewer are dropped and counted",
         ge=0.0, le=1.0)

@@ -18,6 +18,8 @@ DEPLOYED = ("raid", "recorded")  # control gates judge the deployed controller (
 
 @dataclass(frozen=True)
 class Gate:
+    """One pass/fail gate of a report."""
+
     label: str
     value: str
     limit: str

@@ -6,8 +6,6 @@ bold; text cells such as "Failed" pass through (escaped).
 
 from __future__ import annotations
 
-import csv
-import html
 import io
 import math
 import re
@@ -131,6 +129,8 @@ def decimals_for(label: str, table: Table) -> int:
 
 
 def _csv(table: Table) -> str:
+    import csv  # here: `slam` imports this module for is_number alone
+
     buf = io.StringIO()
     w = csv.writer(buf, lineterminator="\n")
     w.writerow([_title(table)] + table.column_labels)
@@ -142,6 +142,8 @@ def _csv(table: Table) -> str:
 
 
 def _html(table: Table) -> str:
+    import html  # here: `slam` imports this module for is_number alone (html.entities: ~2 ms)
+
     e = html.escape
     best = best_cells(table)
     head = "".join(f"<th>{e(c)}</th>" for c in table.column_labels)

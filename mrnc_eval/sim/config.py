@@ -10,6 +10,8 @@ from mrnc_eval.params import param, section
 
 @dataclass(frozen=True)
 class LidarSimConfig:
+    """The simulated LiDAR (Ouster OS0 class)."""
+
     beams: int = param(128, "beams (OS0: 128, 64 or 32)")
     columns: int = param(1024, "columns per sweep (512, 1024, 2048)")
     rate_hz: float = param(10.0, "sweep rate (10 or 20)", "Hz")
@@ -53,6 +55,8 @@ class LidarSimConfig:
 
 @dataclass(frozen=True)
 class ImuSimConfig:
+    """The simulated IMU."""
+
     rate_hz: float = param(100.0, "sensor IMU rate (Ouster internal IMU)", "Hz")
     acc_noise_density: float = param(2.3e-3, "accelerometer white noise (ICM-20948 class)", "m/s^2/sqrt(Hz)")
     gyro_noise_density: float = param(2.6e-4, "gyro white noise", "rad/s/sqrt(Hz)")
@@ -68,6 +72,8 @@ class ImuSimConfig:
 
 @dataclass(frozen=True)
 class GnssSimConfig:
+    """The simulated GNSS receiver."""
+
     rate_hz: float = param(5.0, "fix rate", "Hz")
     origin_lla: tuple[float, float, float] = param((61.4498, 23.8595, 120.0), "geodetic origin of the map frame "
                                                    "(lat deg, lon deg, alt m)")
@@ -174,6 +180,8 @@ class FieldCalibrationConfig:
 
 @dataclass(frozen=True)
 class FieldLidarConfig:
+    """The field profile's LiDAR: body returns, range noise, beam divergence, mixed pixels, dark and wet surfaces."""
+
     body_in_cloud: bool = param(True, "the machine's body returns rays (sim.lidar.self_occlusion on)")
     range_noise_floor_m: float = param(0.01, "1-sigma range noise of a bright target up close (OS0 datasheet "
                                        "precision class, +-1 cm)", "m")
@@ -196,6 +204,8 @@ class FieldLidarConfig:
 
 @dataclass(frozen=True)
 class FieldWorldConfig:
+    """The field profile's world: terrain roughness, stones, shaking, a moving object."""
+
     terrain_roughness_m: float = param(0.04, "small-scale roughness amplitude (wavelengths 2.7-3.7 m; the "
                                        "ideal profile uses sim.terrain_roughness_m)", "m")
     stones_per_m: float = param(0.5, "stones and ruts a wheel rolls over, per metre driven (assumed, rough "
@@ -217,6 +227,8 @@ class FieldWorldConfig:
 
 @dataclass(frozen=True)
 class FieldGnssConfig:
+    """The field profile's GNSS: fix quality near structures, multipath jumps."""
+
     sigma_fixed_m: float = param(0.02, "horizontal 1-sigma with an RTK fixed solution in the open (status "
                                  "GBAS_FIX = 2; RTK receivers: 1-2 cm)", "m")
     sigma_float_m: float = param(0.3, "... RTK float / SBAS near structures (status SBAS_FIX = 1)", "m")
@@ -242,6 +254,8 @@ class FieldConfig:
 
 @dataclass(frozen=True)
 class SimConfig:
+    """The synthetic log generator."""
+
     profile: Literal["ideal", "field"] = param("ideal", "sensor profile: ideal (the logs of before: no biases, "
                                                "one clock, exact mounting, thin rays, static scenes) or field "
                                                "(sim.field.*: what a real machine records)")

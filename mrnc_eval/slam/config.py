@@ -120,6 +120,8 @@ class ImuConfig:
 
 @dataclass(frozen=True)
 class FeatureConfig:
+    """Point selection and feature extraction."""
+
     min_range_m: float = param(1.0, "drop points closer than this (LIO-SAM lidarMinRange)", "m")
     max_range_m: float = param(1000.0, "drop points farther than this (lidarMaxRange)", "m")
     body_crop_box_m: tuple[float, float, float, float, float, float] | None = param(
@@ -144,6 +146,8 @@ class FeatureConfig:
 
 @dataclass(frozen=True)
 class MatchingConfig:
+    """Scan-to-map matching."""
+
     corner_leaf_m: float = param(0.2, "map voxel size for edges (mappingCornerLeafSize)", "m")
     surf_leaf_m: float = param(0.4, "map voxel size for planes (mappingSurfLeafSize)", "m")
     map_radius_m: float = param(50.0, "keyframes within this of the last one form the local map "
@@ -183,6 +187,8 @@ class MatchingConfig:
 
 @dataclass(frozen=True)
 class GraphConfig:
+    """Keyframes and the factor graph."""
+
     keyframe_dist_m: float = param(1.0, "new keyframe after this translation "
                                    "(surroundingkeyframeAddingDistThreshold)", "m")
     keyframe_angle_rad: float = param(0.2, "... or this rotation", "rad")
@@ -213,6 +219,8 @@ class GraphConfig:
 
 @dataclass(frozen=True)
 class LoopConfig:
+    """Radius-search loop closure."""
+
     enabled: bool = param(True, "radius-search loop closure (loopClosureEnableFlag); the CLI's --no-loop sets it "
                           "to false")
     search_radius_m: float = param(15.0, "candidate keyframes within this (historyKeyframeSearchRadius)", "m")
@@ -234,6 +242,8 @@ class LoopConfig:
 
 @dataclass(frozen=True)
 class GpsConfig:
+    """GNSS factors."""
+
     enabled: bool = param(True, "add GNSS factors when the log has GNSS; the CLI's --no-gps sets it to false")
     pose_cov_threshold_m2: float = param(25.0, "only when the x/y pose variance exceeds this (poseCovThreshold)", "m^2")
     gps_cov_threshold_m2: float = param(2.0, "drop fixes with a larger variance (gpsCovThreshold)", "m^2")
@@ -476,6 +486,8 @@ class WheelOdomConfig:
 
 @dataclass(frozen=True)
 class SlamConfig:
+    """The LIO-SAM-style SLAM replay (and the kiss-icp peer's choice)."""
+
     method: Literal["lio", "kiss-icp"] = param("lio", "SLAM method: lio (this project's LIO-SAM replay) or "
                                                "kiss-icp (peer); the CLI's --method sets it")
     table_trajectory: Literal["online", "smoothed"] = param(

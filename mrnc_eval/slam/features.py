@@ -14,6 +14,8 @@ from mrnc_eval.slam.range_image import RangeImage
 
 @dataclass(frozen=True, kw_only=True)
 class Features:
+    """A sweep's edge and plane features."""
+
     edges: np.ndarray  # (Ne, 3) float64, sensor frame (deskewed); float32 once kept with a keyframe
     surfs: np.ndarray  # (Ns, 3)
 

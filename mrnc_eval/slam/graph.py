@@ -19,6 +19,8 @@ from mrnc_eval.slam.nearest import KdTree
 
 @dataclass(kw_only=True)
 class KeyframeGraph:
+    """The keyframes and their factor graph."""
+
     cfg: GraphConfig
     poses: list[np.ndarray] = field(default_factory=list)  # optimised keyframe poses (4x4)
     stamps: list[float] = field(default_factory=list)

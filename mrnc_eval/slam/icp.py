@@ -25,6 +25,8 @@ MIN_PAIRS = 3  # a rigid fit needs three non-collinear pairs
 
 @dataclass(frozen=True, kw_only=True)
 class IcpResult:
+    """The outcome of one ICP registration."""
+
     transform: NDArray[np.float64]  # 4x4, source -> target frame (includes the initial guess)
     fitness: float  # inlier fraction: pairs within the correspondence distance / source points
     inlier_rmse_m: float  # RMSE of those pairs' distances, m (inf without pairs)

@@ -22,6 +22,8 @@ from mrnc_eval.slam.nearest import KdTree
 
 @dataclass(frozen=True, kw_only=True)
 class MapQuality:
+    """How crisp the map is: entropy and plane variance."""
+
     mean_map_entropy: float  # nats
     mean_plane_variance_m2: float
     points_evaluated: int

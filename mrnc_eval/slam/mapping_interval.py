@@ -14,6 +14,8 @@ from dataclasses import dataclass
 
 @dataclass(kw_only=True)
 class MappingInterval:
+    """Which sweeps are mapped: one per interval."""
+
     interval_s: float  # s; 0 takes every sweep
     last_s: float = float("-inf")  # stamp of the last sweep taken, s
 

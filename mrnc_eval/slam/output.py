@@ -17,6 +17,8 @@ STAGES = ("read", "projection", "deskew", "features", "matching", "graph", "loop
 
 @dataclass(kw_only=True)
 class SlamEvent:
+    """Something that happened during the replay, at a log time."""
+
     t: float  # log time, s
     kind: str  # "degeneracy", "loop_closure", "loop_rejected", "warning", "gps", "imu_time_offset"
     message: str
@@ -25,6 +27,8 @@ class SlamEvent:
 
 @dataclass(kw_only=True)
 class SlamOutput:
+    """Everything the replay returns: poses, keyframes, map, events, timings."""
+
     stamps: np.ndarray  # processed sweeps, s
     poses: np.ndarray  # (N, 4, 4) LiDAR poses in the map frame, loop-corrected through their keyframe
     kf_stamps: np.ndarray

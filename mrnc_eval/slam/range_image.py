@@ -15,6 +15,8 @@ from mrnc_eval.slam.config import FeatureConfig, SensorConfig
 
 @dataclass(frozen=True, kw_only=True)
 class RangeImage:
+    """A sweep's points in range-image order, with ring and column."""
+
     points: np.ndarray  # (N, 3) float64, sensor frame, ring-major then column order
     ring: np.ndarray  # (N,) int64 row of the image
     column: np.ndarray  # (N,) int64

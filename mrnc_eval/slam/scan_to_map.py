@@ -15,6 +15,8 @@ from mrnc_eval.slam.config import MatchingConfig
 
 @dataclass(kw_only=True)
 class LocalMap:
+    """The local map a sweep is matched to, with its search trees."""
+
     edges: np.ndarray
     surfs: np.ndarray
     edge_tree: object | None  # `_match_kernels.build_tree`'s k-d tree of edges; None below 5 points
@@ -32,6 +34,8 @@ def _tree(points: np.ndarray) -> object:
 
 @dataclass(frozen=True, kw_only=True)
 class MatchResult:
+    """The outcome of matching one sweep to the local map."""
+
     pose: np.ndarray  # 4x4 sensor pose in the map
     iterations: int
     converged: bool

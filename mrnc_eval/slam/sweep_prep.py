@@ -20,6 +20,8 @@ from mrnc_eval.slam.range_image import RangeImage, project
 
 @dataclass(frozen=True, kw_only=True)
 class PreparedSweep:
+    """A sweep with what needs no pose done (in the reader thread)."""
+
     stamp: float  # the sweep's, s
     n_points: int  # the decoded sweep's points (0: an empty sweep, counted and skipped)
     image: RangeImage  # the sweep's points in range-image order (the decoded arrays themselves are not kept)

@@ -51,6 +51,8 @@ def _axis_costs(offset: float, t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray
 
 @dataclass(frozen=True, kw_only=True)
 class OffsetEstimate:
+    """An IMU-LiDAR time offset estimate with its standard error."""
+
     offset_s: float
     sigma_s: float  # formal standard error (residuals taken as independent: a lower bound), s
     intervals: int  # sweep intervals compared

@@ -331,20 +331,26 @@ def test_advice_on_something_that_is_not_a_file_is_ignored() -> None:
 
 
 def test_an_open_mcap_log_reads_its_summary_once(tmp_path: Path, monkeypatch: pytest.MonkeyPatch) -> None:
-    """The roles, the overview and the sweep stream share one read of the file's chunk indexes."""
-    from mrnc_eval.io import mcap_stream
+    """The opening, the roles, the overview and the sweep stream share one read of the file's
+    summary (a ROS 2 MCAP file: the one it is opened from, io/ros2_mcap.py)."""
+    from mrnc_eval.io import log_source, mcap_stream
 
     path = tmp_path / "multi.mcap"
     _multi_chunk_log(path)
-    calls: list[int] = []
-    real = mcap_index.chunk_indexes
+    calls: list[str] = []
+    real, real_summary = mcap_index.chunk_indexes, log_source.read_summary
 
     def counted(fh: Any) -> Any:
-        calls.append(1)
+        calls.append("chunk_indexes")
         return real(fh)
+
+    def counted_summary(p: Path) -> Any:
+        calls.append("read_summary")
+        return real_summary(p)
 
     monkeypatch.setattr(mcap_index, "chunk_indexes", counted)
     monkeypatch.setattr(mcap_stream, "chunk_indexes", counted)
+    monkeypatch.setattr(log_source, "read_summary", counted_summary)
     with open_log(path) as lg:
         assert lg.source.first_raw("/ouster/imu") is not None
         assert lg.duration_s > 0

@@ -31,7 +31,8 @@ SCRIPT = textwrap.dedent("""
     extras.read_ahead = spy
     from mrnc_eval.cli import main
     code = main(sys.argv[1:])
-    print(json.dumps({"code": code, "pydantic": "pydantic" in sys.modules, "read_ahead": calls}))
+    print(json.dumps({"code": code, "pydantic": "pydantic" in sys.modules, "read_ahead": calls,
+                      "unneeded": sorted(m for m in ("rosbags", "mcap.reader", "html", "yaml") if m in sys.modules)}))
 """)
 
 
@@ -49,6 +50,7 @@ def test_a_plain_slam_line_skips_typers_validators_and_reads_gtsam_ahead(tmp_pat
     assert plain["code"] == 0
     assert plain["pydantic"] is False
     assert plain["read_ahead"] == [["slam", False]]  # once, before numpy (the config) is imported
+    assert plain["unneeded"] == []  # rosbags, mcap.reader (io/ros2_mcap.py), html (reports/tables.py), yaml (config.py)
     through_typer = _run(tmp_path, "-q", *args)  # a global option: typer parses the line
     assert through_typer["code"] == 0
     assert through_typer["pydantic"] is True
@@ -74,3 +76,84 @@ def test_read_ahead_advises_gtsams_libraries(monkeypatch: pytest.MonkeyPatch) ->
     names = [Path(p) for p in advised]
     assert any(p.parent == gtsam_dir and ".so" in p.name for p in names)  # its extension module
     assert all(".so" in p.name for p in names)  # libraries only: no sources, no data
+
+
+GC_SCRIPT = textwrap.dedent("""
+    import gc, json, sys
+    import mrnc_eval.gc_pause as gc_pause
+    if sys.argv[1] == "never-paused":  # the negative control: collection stays on throughout
+        gc_pause.pause = lambda: None
+    older = []
+    gc.callbacks.append(lambda phase, info: older.append(info["generation"])
+                        if phase == "start" and info["generation"] > 0 else None)
+    from mrnc_eval.cli import main
+    code = main(sys.argv[2:])
+    print(json.dumps({"code": code, "older_passes": len(older), "enabled": gc.isenabled(),
+                      "frozen": gc.get_freeze_count()}))
+""")
+
+
+def _gc_run(tmp_path: Path, mode: str, *argv: str) -> dict:
+    env = {"PYTHONPATH": str(REPO), "HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}
+    proc = subprocess.run([sys.executable, "-c", GC_SCRIPT, mode, *argv], cwd=tmp_path, capture_output=True,
+                          text=True, timeout=600, env=env, check=False)
+    return json.loads(proc.stdout.strip().splitlines()[-1])
+
+
+def test_the_collector_is_paused_until_the_slam_loop_and_always_resumed(tmp_path: Path) -> None:
+    args = ["slam", str(LOG), "--n-scans", "2", "--out", str(tmp_path / "out")]
+    paused = _gc_run(tmp_path, "paused", *args)
+    never = _gc_run(tmp_path, "never-paused", *args)
+    assert paused["code"] == never["code"] == 0
+    assert paused["enabled"]
+    assert never["enabled"]
+    assert paused["frozen"] > 20_000
+    assert never["frozen"] == 0
+    assert 3 * paused["older_passes"] <= never["older_passes"]  # generation 1 and 2 passes over them
+    failed = _gc_run(tmp_path, "paused", "slam", str(tmp_path / "missing.mcap"), "--out", str(tmp_path / "out"))
+    assert failed["code"] != 0
+    assert failed["enabled"]
+
+
+def test_gc_pause_only_resumes_what_it_paused() -> None:
+    import gc
+
+    from mrnc_eval import gc_pause
+
+    gc.disable()
+    try:
+        gc_pause.pause()
+        gc_pause.resume()
+        assert not gc.isenabled()  # the caller's choice kept
+    finally:
+        gc.enable()
+    gc_pause.pause()
+    assert not gc.isenabled()
+    gc_pause.resume()
+    gc_pause.resume()
+    assert gc.isenabled()
+    gc.unfreeze()
+
+
+MAIN_SCRIPT = textwrap.dedent("""
+    import gc, json, runpy, sys
+    sys.argv = ["mrnc_eval", *sys.argv[1:]]
+    code = None
+    try:
+        runpy.run_module("mrnc_eval", run_name="__main__")
+    except SystemExit as exc:
+        code = exc.code
+    print(json.dumps({"code": code, "enabled": gc.isenabled()}))
+""")
+
+
+@pytest.mark.parametrize("verb", [["config"], ["slam", "--dump-config"]])
+def test_python_m_resumes_collection_for_other_commands(tmp_path: Path, verb: list[str]) -> None:
+    """`python -m mrnc_eval` pauses collection before the CLI's imports: another verb resumes it at
+    dispatch, a `slam` line when it ends (here --dump-config, before any log is read)."""
+    env = {"PYTHONPATH": str(REPO), "HOME": str(tmp_path), "PATH": "/usr/bin:/bin"}
+    proc = subprocess.run([sys.executable, "-c", MAIN_SCRIPT, *verb], cwd=tmp_path, capture_output=True, text=True,
+                          timeout=600, env=env, check=False)
+    out = json.loads(proc.stdout.strip().splitlines()[-1])
+    assert out["code"] in (0, None), proc.stderr[-2000:]
+    assert out["enabled"]
