@@ -149,3 +149,16 @@ def test_bag_readers_errors_are_data_errors_once_imported() -> None:
     from mrnc_eval.io.library_errors import data_errors
 
     assert {AnyReaderError, Ros1ReaderError, Ros2ReaderError} <= set(data_errors())
+
+
+def test_a_summary_anyreader_refuses_is_refused_as_before(tmp_path: Path) -> None:
+    """A summary start inside the header: AnyReader's error, not a fast path that reads it anyway."""
+    data = bytearray(CIRCLE.read_bytes())
+    at = len(data) - 8 - 20  # the footer's summary start
+    data[at:at + 8] = (8).to_bytes(8, "little")
+    path = tmp_path / "early.mcap"
+    path.write_bytes(bytes(data))
+    with pytest.raises(NotPlain):
+        read_summary(path)
+    with pytest.raises(InputError, match="Invalid MCAP summary offset"):
+        LogSource([path])
