@@ -27,7 +27,7 @@ _BASE = {"bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int32", "u
 _TYPE = re.compile(r"([A-Za-z][A-Za-z0-9_]*(?:/[A-Za-z][A-Za-z0-9_]*){0,2})(\[\d*\])?")
 _FIELD = re.compile(r"[a-z][a-z0-9_]*")
 _CONSTANT = re.compile(r"([a-z][a-z0-9]*)\s+([A-Z][A-Z0-9_]*)\s*=\s*(.*)")
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
+_NUMBER = re.compile(r"[-+]?(?:\d+(?:\.\d*)?|\.\d+)(?:[eE][-+]?\d+)?")  # one way to match: linear time
 _INTEGER = re.compile(r"[-+]?\d+")
 
 Fields = tuple[tuple[str, str], ...]  # ((field name, type), ...): "float64", "pkg/msg/Name", "type[9]", "type[]"

@@ -100,3 +100,18 @@ def test_a_type_defined_two_ways_is_left_to_rosbags() -> None:
     b = "pkg/Point p\n" + SEP + "\nMSG: pkg/Point\nfloat32 x\n"
     assert msg_text.definitions(_summary(("pkg/msg/A", "ros2msg", a), ("pkg/msg/B", "ros2msg", a))) is not None
     assert msg_text.definitions(_summary(("pkg/msg/A", "ros2msg", a), ("pkg/msg/B", "ros2msg", b))) is None
+
+
+def test_a_long_number_in_a_schema_is_read_in_linear_time() -> None:
+    """A schema line is text from the file: 20,000 digits and a letter (not a number) took ~7 s
+    CPU with a backtracking number pattern (quadratic; a 1 MB line: hours)."""
+    import time
+
+    digits = "1" * 20_000
+    text = f"float64 X={digits}x\nfloat64 y {digits}.{digits}e{digits}x\n"
+    start = time.process_time()
+    assert msg_text.definitions(_summary(("test_msgs/msg/T", "ros2msg", text))) is None
+    assert time.process_time() - start < 0.5
+    plain = f"float64 X={digits}.{digits}e-{digits}\nfloat64 y -{digits}.\n"  # the negative control: numbers
+    ours = msg_text.definitions(_summary(("test_msgs/msg/T", "ros2msg", plain)))
+    assert ours == {"test_msgs/msg/T": (("y", "float64"),)}
