@@ -34,7 +34,10 @@ Fields = tuple[tuple[str, str], ...]  # ((field name, type), ...): "float64", "p
 
 
 def _full_name(name: str) -> str | None:
-    """pkg/msg/Name for pkg/Name or pkg/msg/Name; None for anything else."""
+    """pkg/msg/Name for pkg/Name or pkg/msg/Name; None for anything else (a part that is not an identifier)."""
+    match = _TYPE.fullmatch(name)
+    if match is None or match.group(2):
+        return None
     parts = name.split("/")
     if len(parts) == 2:
         return f"{parts[0]}/msg/{parts[1]}"

@@ -86,6 +86,8 @@ NOT_PLAIN = [
     ("ros2msg", "int8 K=1.5\n"),
     ("ros2msg", "time t\n"),  # ROS 1's
     ("ros2msg", "float64 x\n" + SEP + "\nNOT: pkg/Name\nfloat64 y\n"),
+    ("ros2msg", "pkg/Name n\n" + SEP + "\nMSG: pkg/Na\0\0me\nfloat64 y\n"),  # rosbags' grammar refuses it
+    ("ros2msg", "pkg/Name n\n" + SEP + "\nMSG: pkg/Na me\nfloat64 y\n"),
 ]
 
 
