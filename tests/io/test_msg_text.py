@@ -117,3 +117,26 @@ def test_a_long_number_in_a_schema_is_read_in_linear_time() -> None:
     plain = f"float64 X={digits}.{digits}e-{digits}\nfloat64 y -{digits}.\n"  # the negative control: numbers
     ours = msg_text.definitions(_summary(("test_msgs/msg/T", "ros2msg", plain)))
     assert ours == {"test_msgs/msg/T": (("y", "float64"),)}
+
+
+REFUSED_BY_ROSBAGS = [
+    "float64 x\r\nfloat64 y\n",  # CRLF
+    "float64 x\x0cfloat64 y\n",  # a form feed: a line break to str.splitlines
+    "float64\u00a0x\n",  # a no-break space: a space to str.split
+    "int32 A_=1\n",  # a constant name ending in "_"
+    "uint8/Foo f\n",  # a package named like a base type
+    "geometrY_msgs/Twist t\n",  # a package name with a capital
+    "pkg/Na__me n\n",
+    "pkg/Name n\n" + SEP + "\nMSG:  pkg/Name\nfloat64 y\n",  # two spaces after "MSG:"
+]
+
+
+@pytest.mark.parametrize("text", REFUSED_BY_ROSBAGS)
+def test_what_rosbags_grammar_refuses_is_never_read_here(text: str) -> None:
+    """Else a file AnyReader refuses would open through io/ros2_mcap.py (found by fuzzing the
+    sample log's summary: one changed byte in a schema)."""
+    from rosbags.typesys import TypesysError, get_types_from_msg
+
+    with pytest.raises(TypesysError):  # the negative control: rosbags refuses each
+        get_types_from_msg(text, "test_msgs/msg/T")
+    assert msg_text.definitions(_summary(("test_msgs/msg/T", "ros2msg", text))) is None
