@@ -63,6 +63,8 @@ class _Fields:
         while self.pos < end:
             k = self.text() if key == "s" else self.num(key)
             out[k] = self.text() if value == "s" else self.num(value)
+        if self.pos != end:  # the last entry runs past the map (rosbags refuses it: not whole entries)
+            raise Unreadable("a map's entries run past its length")
         return out
 
 
