@@ -184,3 +184,14 @@ def test_a_map_whose_entries_overrun_its_length_is_refused_as_before(tmp_path: P
     with pytest.raises(InputError, match="multiple of 10 bytes"):  # AnyReader's refusal
         LogSource([path])
     assert mcap_summary.read(CIRCLE) is not None  # the negative control
+
+
+def test_a_footer_of_another_length_is_refused_as_before(tmp_path: Path) -> None:
+    data = bytearray(CIRCLE.read_bytes())
+    data[-8 - 20 - 8] = 21  # the footer record's length (20)
+    path = tmp_path / "footer.mcap"
+    path.write_bytes(bytes(data))
+    with pytest.raises(NotPlain):
+        read_summary(path)
+    with pytest.raises(InputError, match="Invalid MCAP footer"):  # AnyReader's refusal
+        LogSource([path])
