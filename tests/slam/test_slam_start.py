@@ -195,3 +195,12 @@ def test_python_m_resumes_collection_for_other_commands(tmp_path: Path, verb: li
     out = json.loads(proc.stdout.strip().splitlines()[-1])
     assert out["code"] in (0, None), proc.stderr[-2000:]
     assert out["enabled"]
+
+
+def test_importing_main_leaves_collection_on() -> None:
+    """Only running `python -m mrnc_eval` pauses collection; a tool importing every module must
+    not be left with it off (nothing would resume it)."""
+    code = "import gc, mrnc_eval.__main__; print(gc.isenabled())"
+    proc = subprocess.run([sys.executable, "-c", code], capture_output=True, text=True, timeout=120, check=True,
+                          env={"PYTHONPATH": str(REPO), "PATH": "/usr/bin:/bin"})
+    assert proc.stdout.strip() == "True"
