@@ -197,7 +197,7 @@ def slam(
         _slam(logs, method=method, out=out, flags=(no_loop, no_gps, json_out, dump_config), topic=topic,
               span=(start, end, n_scans), threads=threads, config=config, set_=set_)
     finally:
-        gc_pause.resume()
+        gc_pause.end_command()
 
 
 def _slam(logs: list[Path] | None, *, method: SlamMethod | None, out: Path, flags: tuple[bool, bool, bool, bool],

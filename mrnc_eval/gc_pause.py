@@ -8,21 +8,25 @@ nearly none of it finding garbage. Paused from the command's start (`python -m m
 before the CLI's imports, resumed at once for any other command) to the SLAM loop's; then what
 exists is frozen (gc.freeze: moved to the permanent generation, never walked again; without it
 the first pass after resuming walks everything made while paused, ~90 ms) and collection resumes,
-so a long run frees its cyclic garbage as before. The cost: cyclic garbage already made when the
-run starts is never freed (a process running many commands in turn, as the tests do, keeps
-what was garbage at each start). Only ever re-enables what `pause` disabled (a caller that
-turned collection off keeps it off).
+so a long run frees its cyclic garbage as before. When the command ends (`end_command`, also on an
+error) what was frozen is handed back to the collector (gc.unfreeze), unless the process exits
+after this one command (`python -m mrnc_eval`): a process running many commands in turn (the
+tests, a loop calling cli.main over many logs) would otherwise keep the cyclic garbage that existed
+at each command's start for good. Only ever re-enables what `pause` disabled (a caller that
+turned collection off keeps it off), and only unfreezes what it froze (nothing frozen before it).
 """
 
 from __future__ import annotations
 
 import gc
 
-_state = {"paused": False}
+_state = {"paused": False, "froze": False, "one_command": False}
 
 
-def pause() -> None:
-    """Stop automatic collection until `resume` (a no-op when it is already off)."""
+def pause(*, one_command: bool = False) -> None:
+    """Stop automatic collection until `resume` (a no-op when it is already off); one_command:
+    the process exits after this command (what `resume` freezes may stay frozen)."""
+    _state["one_command"] = _state["one_command"] or one_command
     if gc.isenabled():
         gc.disable()
         _state["paused"] = True
@@ -33,5 +37,14 @@ def resume() -> None:
     (idempotent)."""
     if _state["paused"]:
         _state["paused"] = False
+        _state["froze"] = gc.get_freeze_count() == 0  # someone else's frozen objects are never unfrozen here
         gc.freeze()
         gc.enable()
+
+
+def end_command() -> None:
+    """`resume`, then what it froze back in the collector's care, unless the process exits now."""
+    resume()
+    if _state["froze"] and not _state["one_command"]:
+        _state["froze"] = False
+        gc.unfreeze()

@@ -11,9 +11,11 @@ strings as a uint32 length and UTF-8 bytes, maps as a uint32 byte length and the
 past a record's known fields skipped. The result has the attributes of mcap's Summary and
 records (tests/io/test_mcap_summary.py compares them on the project's logs).
 
-Anything unusual (no magic, a record running past its section, text that is not UTF-8, no footer
-where it belongs) raises Unreadable: the caller then reads the file with the mcap library, as
-before, with its own checks and errors.
+Anything unusual (no magic, a length or offset outside the file, a summary start before the data
+section, a record running past its section, text that is not UTF-8, no footer where it belongs, a
+summary over 64 MiB) raises Unreadable: the caller then reads the file with a library, as before,
+with its own checks and errors (io/ros2_mcap.py: rosbags' AnyReader, io/containers.py: mcap).
+Every length is checked against the file before anything that size is read.
 """
 
 from __future__ import annotations
@@ -26,6 +28,7 @@ from typing import Any
 MAGIC = b"\x89MCAP0\r\n"
 _HEADER, _FOOTER, _SCHEMA, _CHANNEL, _CHUNK_INDEX, _STATISTICS = 0x01, 0x02, 0x03, 0x04, 0x08, 0x0B
 _FOOTER_SIZE = 1 + 8 + 20  # opcode, length, summary start u64, summary offset start u64, CRC u32
+_MAX_SUMMARY = 1 << 26  # bytes read at once; a summary is ~160 B a chunk (~8 MB for 50,000): beyond, mcap streams it
 
 
 class Unreadable(Exception):
@@ -60,6 +63,8 @@ class _Fields:
         while self.pos < end:
             k = self.text() if key == "s" else self.num(key)
             out[k] = self.text() if value == "s" else self.num(value)
+        if self.pos != end:  # the last entry runs past the map (rosbags refuses it: not whole entries)
+            raise Unreadable("a map's entries run past its length")
         return out
 
 
@@ -95,10 +100,11 @@ def profile(path: Path) -> str:
         head = fh.read(8 + 9 + 4)
         if len(head) < 21 or head[:8] != MAGIC or head[8] != _HEADER:
             raise Unreadable("no MCAP header")
-        (n,) = struct.unpack_from("<I", head, 17)
+        (length, n) = struct.unpack_from("<QI", head, 9)
+        if n + 4 > length or 17 + length > fh.seek(0, 2):  # checked before reading: n comes from the file
+            raise Unreadable("the header ends early")
+        fh.seek(21)
         text = fh.read(n)
-    if len(text) != n:
-        raise Unreadable("the header ends early")
     try:
         return text.decode()
     except UnicodeDecodeError as err:
@@ -118,8 +124,12 @@ def read(path: Path) -> SimpleNamespace | None:
             start = struct.unpack_from("<Q", tail, 9)[0]
             if start == 0:
                 return None
-            if not 8 <= start <= size - _FOOTER_SIZE - 8:
+            fh.seek(9)
+            data_start = 17 + struct.unpack("<Q", fh.read(8))[0]  # after the header record, as rosbags checks
+            if not data_start <= start <= size - _FOOTER_SIZE - 8:
                 raise Unreadable("summary start outside the file")
+            if size - 8 - start > _MAX_SUMMARY:
+                raise Unreadable("a summary section this large is streamed by mcap")
             fh.seek(start)
             return _records(fh.read(size - 8 - start))
     except (struct.error, UnicodeDecodeError) as err:

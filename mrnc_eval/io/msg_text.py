@@ -9,8 +9,9 @@ holds after a line of 80 "=" and "MSG: pkg/Name", every line a field (`type name
 numeric default) or a constant (`type NAME=value`), comments after "#".
 
 Anything else in any schema of the file (an IDL schema, a bounded or unknown type spelling, a field
-or type name that is not a plain identifier, a default that is not a number, a type defined twice
-differently) makes `definitions` return None, and the file's schemas are then parsed by rosbags
+or type name not spelled as rosbags' grammar spells names, a default that is not a number, a line
+break other than "\n" or a character other than printable ASCII, space and tab outside a comment,
+a type defined twice differently) makes `definitions` return None, and the file's schemas are then parsed by rosbags
 when it is opened, as before. Everything accepted here is valid in rosbags' grammar too, so a file
 it accepts would also have opened with rosbags (tests/io/test_msg_text.py checks both readings on
 the project's logs).
@@ -24,30 +25,35 @@ from typing import Any
 SEPARATOR = "=" * 80
 _BASE = {"bool", "byte", "char", "int8", "uint8", "int16", "uint16", "int32", "uint32", "int64", "uint64",
          "float32", "float64", "string"}
-_TYPE = re.compile(r"([A-Za-z][A-Za-z0-9_]*(?:/[A-Za-z][A-Za-z0-9_]*){0,2})(\[\d*\])?")
+# names as rosbags' msg grammar spells them (package: lower snake case, type: mixed camel case, constant:
+# upper snake case; no "__", no trailing "_"), each written with one way to match (linear time)
+_TYPE = re.compile(r"(?:([a-z][a-z0-9]*(?:_[a-z0-9]+)*)/(msg/)?)?([A-Za-z][A-Za-z0-9]*(?:_[A-Za-z0-9]+)*)(\[[0-9]*\])?")
 _FIELD = re.compile(r"[a-z][a-z0-9_]*")
-_CONSTANT = re.compile(r"([a-z][a-z0-9]*)\s+([A-Z][A-Z0-9_]*)\s*=\s*(.*)")
-_NUMBER = re.compile(r"[-+]?(\d+\.?\d*|\.\d+)([eE][-+]?\d+)?")
-_INTEGER = re.compile(r"[-+]?\d+")
+_CONSTANT = re.compile(r"([a-z][a-z0-9]*)[ \t]+([A-Z][A-Z0-9]*(?:_[A-Z0-9]+)*)[ \t]*=[ \t]*(.*)")
+_NUMBER = re.compile(r"[-+]?(?:[0-9]+(?:\.[0-9]*)?|\.[0-9]+)(?:[eE][-+]?[0-9]+)?")
+_INTEGER = re.compile(r"[-+]?[0-9]+")
+_ODD_CHAR = re.compile(r"[^\x21-\x7e \t]")  # outside comments: rosbags' grammar reads no other (\r, \f, unicode)
+_SPACE = re.compile(r"[ \t]+")
 
 Fields = tuple[tuple[str, str], ...]  # ((field name, type), ...): "float64", "pkg/msg/Name", "type[9]", "type[]"
 
 
 def _full_name(name: str) -> str | None:
     """pkg/msg/Name for pkg/Name or pkg/msg/Name; None for anything else."""
-    parts = name.split("/")
-    if len(parts) == 2:
-        return f"{parts[0]}/msg/{parts[1]}"
-    return name if len(parts) == 3 and parts[1] == "msg" else None
+    full = _type(name)
+    return None if full is None or "/" not in full or full.endswith("]") else full
 
 
 def _type(word: str) -> str | None:
+    """A base type or pkg/msg/Name, with its array suffix; None for anything else (rosbags reads a
+    package named like a base type, "uint8/Foo", as that base type and then fails)."""
     match = _TYPE.fullmatch(word)
     if match is None:
         return None
-    base, suffix = match.group(1), match.group(2) or ""
-    full = base if base in _BASE else _full_name(base)
-    return None if full is None else full + suffix
+    package, name, suffix = match.group(1), match.group(3), match.group(4) or ""
+    if package is None:
+        return name + suffix if name in _BASE else None
+    return None if package in _BASE else f"{package}/msg/{name}{suffix}"
 
 
 def _plain_constant(typ: str, value: str) -> bool:
@@ -62,8 +68,11 @@ def _plain_constant(typ: str, value: str) -> bool:
 def _fields(body: str) -> Fields | None:
     """A definition's fields (constants skipped), or None when a line is not plainly a field or a constant."""
     out: list[tuple[str, str]] = []
-    for line in body.splitlines():
-        text = line.split("#", 1)[0].strip()
+    for line in body.split("\n"):
+        text = line.split("#", 1)[0]
+        if _ODD_CHAR.search(text):
+            return None
+        text = text.strip(" \t")
         if not text:
             continue
         constant = _CONSTANT.fullmatch(text)
@@ -71,7 +80,7 @@ def _fields(body: str) -> Fields | None:
             if not _plain_constant(constant.group(1), constant.group(3)):
                 return None
             continue
-        words = text.split()
+        words = _SPACE.split(text)
         typ = _type(words[0])
         if typ is None or len(words) not in (2, 3) or not _FIELD.fullmatch(words[1]) \
                 or (len(words) == 3 and not _NUMBER.fullmatch(words[2])):
@@ -86,7 +95,7 @@ def _schema(text: str, name: str) -> dict[str, Fields] | None:
     defined: dict[str, Fields] = {}
     for k, part in enumerate(parts):
         head, _, body = part.partition("\n") if k else ("MSG: " + name, "", part)
-        full = _full_name(head[5:].strip()) if head.startswith("MSG: ") else None
+        full = _full_name(head[5:].rstrip(" \t")) if head.startswith("MSG: ") else None
         fields = _fields(body)
         if full is None or fields is None or defined.get(full, fields) != fields:
             return None

@@ -54,21 +54,14 @@ def _types_of(schema: Any, msgtype: str) -> dict[str, Any]:
 
 
 def read_summary(path: Path) -> Any:
-    """The file's mcap summary, if it is plainly a ROS 2 MCAP file (see the module's docstring);
-    read without the mcap library when it can be (io/mcap_summary.py)."""
-    summary: Any
+    """The file's mcap summary, if it is plainly a ROS 2 MCAP file (see the module's docstring),
+    read without the mcap library (io/mcap_summary.py); NotPlain when it cannot be read so."""
     try:
         if mcap_summary.profile(path) != "ros2":
             raise NotPlain("profile is not ros2")
         summary = mcap_summary.read(path)
-    except mcap_summary.Unreadable:
-        from mcap.reader import make_reader
-
-        with path.open("rb") as fh:
-            reader = make_reader(fh)
-            if reader.get_header().profile != "ros2":
-                raise NotPlain("profile is not ros2") from None
-            summary = reader.get_summary()
+    except mcap_summary.Unreadable as err:  # AnyReader's checks then (mcap's reader accepts some it refuses)
+        raise NotPlain(str(err)) from err
     if summary is None or summary.statistics is None or not summary.schemas or not summary.channels:
         raise NotPlain("no summary, statistics or schemas")
     for ch in summary.channels.values():

@@ -124,3 +124,33 @@ def _not_mcap(tmp_path: Path) -> Path:
     path = tmp_path / "text.mcap"
     path.write_bytes(b"not an mcap file at all, just text")
     return path
+
+
+def _peak_bytes(read: Any, path: Path) -> int:
+    """Peak Python allocation of `read(path)`, which must raise Unreadable."""
+    import tracemalloc
+
+    tracemalloc.start()
+    try:
+        with pytest.raises(mcap_summary.Unreadable):
+            read(path)
+        return tracemalloc.get_traced_memory()[1]
+    finally:
+        tracemalloc.stop()
+
+
+def test_lengths_and_offsets_from_the_file_are_checked_before_reading(tmp_path: Path) -> None:
+    """A header profile length of ~4 GiB is refused without allocating it; a summary start inside
+    the header (rosbags refuses it: 'Invalid MCAP summary offset') is refused without reading the
+    whole file as its summary."""
+    data = SAMPLE.read_bytes()
+    huge = bytearray(data)
+    huge[17:21] = (0xFFFFFFF0).to_bytes(4, "little")  # the header's profile string length
+    (tmp_path / "huge.mcap").write_bytes(bytes(huge))
+    assert _peak_bytes(mcap_summary.profile, tmp_path / "huge.mcap") < 1_000_000
+    early = bytearray(data)
+    at = _footer_summary_start(early)
+    early[at:at + 8] = (8).to_bytes(8, "little")  # the header record's offset
+    (tmp_path / "early.mcap").write_bytes(bytes(early))
+    assert _peak_bytes(mcap_summary.read, tmp_path / "early.mcap") < len(data) // 4
+    assert mcap_summary.read(SAMPLE) is not None  # the negative control: the intact file reads

@@ -86,6 +86,8 @@ NOT_PLAIN = [
     ("ros2msg", "int8 K=1.5\n"),
     ("ros2msg", "time t\n"),  # ROS 1's
     ("ros2msg", "float64 x\n" + SEP + "\nNOT: pkg/Name\nfloat64 y\n"),
+    ("ros2msg", "pkg/Name n\n" + SEP + "\nMSG: pkg/Na\0\0me\nfloat64 y\n"),  # rosbags' grammar refuses it
+    ("ros2msg", "pkg/Name n\n" + SEP + "\nMSG: pkg/Na me\nfloat64 y\n"),
 ]
 
 
@@ -100,3 +102,41 @@ def test_a_type_defined_two_ways_is_left_to_rosbags() -> None:
     b = "pkg/Point p\n" + SEP + "\nMSG: pkg/Point\nfloat32 x\n"
     assert msg_text.definitions(_summary(("pkg/msg/A", "ros2msg", a), ("pkg/msg/B", "ros2msg", a))) is not None
     assert msg_text.definitions(_summary(("pkg/msg/A", "ros2msg", a), ("pkg/msg/B", "ros2msg", b))) is None
+
+
+def test_a_long_number_in_a_schema_is_read_in_linear_time() -> None:
+    """A schema line is text from the file: 20,000 digits and a letter (not a number) took ~7 s
+    CPU with a backtracking number pattern (quadratic; a 1 MB line: hours)."""
+    import time
+
+    digits = "1" * 20_000
+    text = f"float64 X={digits}x\nfloat64 y {digits}.{digits}e{digits}x\n"
+    start = time.process_time()
+    assert msg_text.definitions(_summary(("test_msgs/msg/T", "ros2msg", text))) is None
+    assert time.process_time() - start < 0.5
+    plain = f"float64 X={digits}.{digits}e-{digits}\nfloat64 y -{digits}.\n"  # the negative control: numbers
+    ours = msg_text.definitions(_summary(("test_msgs/msg/T", "ros2msg", plain)))
+    assert ours == {"test_msgs/msg/T": (("y", "float64"),)}
+
+
+REFUSED_BY_ROSBAGS = [
+    "float64 x\r\nfloat64 y\n",  # CRLF
+    "float64 x\x0cfloat64 y\n",  # a form feed: a line break to str.splitlines
+    "float64\u00a0x\n",  # a no-break space: a space to str.split
+    "int32 A_=1\n",  # a constant name ending in "_"
+    "uint8/Foo f\n",  # a package named like a base type
+    "geometrY_msgs/Twist t\n",  # a package name with a capital
+    "pkg/Na__me n\n",
+    "pkg/Name n\n" + SEP + "\nMSG:  pkg/Name\nfloat64 y\n",  # two spaces after "MSG:"
+]
+
+
+@pytest.mark.parametrize("text", REFUSED_BY_ROSBAGS)
+def test_what_rosbags_grammar_refuses_is_never_read_here(text: str) -> None:
+    """Else a file AnyReader refuses would open through io/ros2_mcap.py (found by fuzzing the
+    sample log's summary: one changed byte in a schema)."""
+    from rosbags.typesys import TypesysError, get_types_from_msg
+
+    with pytest.raises(TypesysError):  # the negative control: rosbags refuses each
+        get_types_from_msg(text, "test_msgs/msg/T")
+    assert msg_text.definitions(_summary(("test_msgs/msg/T", "ros2msg", text))) is None

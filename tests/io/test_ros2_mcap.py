@@ -149,3 +149,49 @@ def test_bag_readers_errors_are_data_errors_once_imported() -> None:
     from mrnc_eval.io.library_errors import data_errors
 
     assert {AnyReaderError, Ros1ReaderError, Ros2ReaderError} <= set(data_errors())
+
+
+def test_a_summary_anyreader_refuses_is_refused_as_before(tmp_path: Path) -> None:
+    """A summary start inside the header: AnyReader's error, not a fast path that reads it anyway."""
+    data = bytearray(CIRCLE.read_bytes())
+    at = len(data) - 8 - 20  # the footer's summary start
+    data[at:at + 8] = (8).to_bytes(8, "little")
+    path = tmp_path / "early.mcap"
+    path.write_bytes(bytes(data))
+    with pytest.raises(NotPlain):
+        read_summary(path)
+    with pytest.raises(InputError, match="Invalid MCAP summary offset"):
+        LogSource([path])
+
+
+def test_a_map_whose_entries_overrun_its_length_is_refused_as_before(tmp_path: Path) -> None:
+    """The first chunk index's message index offsets (10-byte entries) given 5 bytes less than
+    they hold: read on past it, the fast path opened a file AnyReader refuses."""
+    from mrnc_eval.io import mcap_summary
+
+    data = bytearray(CIRCLE.read_bytes())
+    summary_start = int.from_bytes(data[-28:-20], "little")
+    at = summary_start
+    while data[at] != 0x08:  # the summary's records up to its first ChunkIndex
+        at += 9 + int.from_bytes(data[at + 1:at + 9], "little")
+    offsets_len = at + 9 + 32  # opcode, length, 4 u64 before the map's byte length
+    n = int.from_bytes(data[offsets_len:offsets_len + 4], "little")
+    data[offsets_len:offsets_len + 4] = (n - 5).to_bytes(4, "little")
+    path = tmp_path / "overrun.mcap"
+    path.write_bytes(bytes(data))
+    with pytest.raises(mcap_summary.Unreadable, match="map"):
+        mcap_summary.read(path)
+    with pytest.raises(InputError, match="multiple of 10 bytes"):  # AnyReader's refusal
+        LogSource([path])
+    assert mcap_summary.read(CIRCLE) is not None  # the negative control
+
+
+def test_a_footer_of_another_length_is_refused_as_before(tmp_path: Path) -> None:
+    data = bytearray(CIRCLE.read_bytes())
+    data[-8 - 20 - 8] = 21  # the footer record's length (20)
+    path = tmp_path / "footer.mcap"
+    path.write_bytes(bytes(data))
+    with pytest.raises(NotPlain):
+        read_summary(path)
+    with pytest.raises(InputError, match="Invalid MCAP footer"):  # AnyReader's refusal
+        LogSource([path])
