@@ -410,7 +410,7 @@ class MountCheckConfig:
     blocks: int = param(10, "contiguous time blocks of the delete-one-block jackknife", ge=2, le=100)
     min_samples: int = param(30, "fewer samples (poses of the final trajectory) than this, or than 2 x blocks: "
                              "verdict insufficient", ge=1)
-    min_distance_m: float = param(5.0, "less straight motion than this: verdict insufficient", "m", ge=0.0)
+    min_distance_m: float = param(3.0, "less straight motion than this: verdict insufficient", "m", ge=0.0)
     flag_deg: float = param(0.2, "flag a pitch or yaw error above this ...", "deg", ge=0.0, le=90.0)
     flag_sigmas: float = param(3.0, "... and above this many standard errors", ge=0.0, le=100.0)
 

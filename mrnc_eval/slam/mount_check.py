@@ -28,7 +28,7 @@ class MountCheck:
     yaw_deg: float  # mount yaw error (base axes): minus the motion's lateral angle, deg
     yaw_sigma_deg: float
     samples: int  # motion samples used (moving, yaw rate below the limit)
-    distance_m: float  # distance driven over them (each sample's chord over span_s)
+    distance_m: float  # distance driven over them, m
     # rotation to right-multiply the written mount's rotation by (roll, pitch, yaw, fixed axes, LiDAR
     # axes, deg): the correction that removes the error found; roll is not observable and stays 0
     correction_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
@@ -71,7 +71,7 @@ def motion_samples(stamps: np.ndarray, poses: np.ndarray, cfg: MountCheckConfig)
     """Per pose, the chord from span_s/2 before to span_s/2 after it in the pose's own base axes (the
     chord of a constant-curvature arc is along the heading at its middle), kept where the speed is
     above min_speed_mps and the yaw rate below max_yaw_rate_rad_s; flipped forward when reversing.
-    Returns the (M, 3) chords (m) and their summed length (m)."""
+    Returns the (M, 3) chords (m) and the distance driven over the poses kept (m)."""
     if stamps.size < 3:
         return np.zeros((0, 3)), 0.0
     half = 0.5 * cfg.span_s
@@ -86,7 +86,8 @@ def motion_samples(stamps: np.ndarray, poses: np.ndarray, cfg: MountCheckConfig)
     speed = np.linalg.norm(chord, axis=1) / dt
     keep = (speed > cfg.min_speed_mps) & (np.abs(yaw_rate) < cfg.max_yaw_rate_rad_s)
     u = chord[keep] * np.where(chord[keep, 0] < 0.0, -1.0, 1.0)[:, None]
-    return u, float(np.linalg.norm(u, axis=1).sum())
+    driven = speed[keep] * np.gradient(stamps)[i[keep]]  # each pose's share of the distance, m
+    return u, float(driven.sum())
 
 
 def _angles(s: np.ndarray) -> np.ndarray:
