@@ -101,7 +101,8 @@ def _jackknife(u: np.ndarray, blocks: int) -> np.ndarray:
     total = u.sum(axis=0)
     est = np.array([_angles(total - u[p].sum(axis=0)) for p in parts])
     n = len(parts)
-    return np.sqrt((n - 1) / n * np.sum((est - est.mean(axis=0)) ** 2, axis=0))
+    spread: np.ndarray = np.sum((est - est.mean(axis=0)) ** 2, axis=0)
+    return np.sqrt((n - 1) / n * spread)
 
 
 def _off(value: float, sigma: float, cfg: MountCheckConfig) -> bool:
