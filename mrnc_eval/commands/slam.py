@@ -722,18 +722,14 @@ def corrected_mount(base_to_sensor: np.ndarray, rpy_deg: tuple[float, float, flo
     (LiDAR axes); the IMU's pose in the LiDAR frame stays as written (it is inside the LiDAR)."""
     if not any(rpy_deg):
         return base_to_sensor
-    from scipy.spatial.transform import Rotation
-
     out = base_to_sensor.copy()
-    out[:3, :3] = base_to_sensor[:3, :3] @ Rotation.from_euler("xyz", rpy_deg, degrees=True).as_matrix()
+    out[:3, :3] = base_to_sensor[:3, :3] @ rotation.from_rpy(np.radians(rpy_deg))
     return out
 
 
 def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg: Config) -> None:
     """The LiDAR mount's pitch and yaw error from the final trajectory's motion (slam/mount_check.py):
     metrics, the record in metrics.json (`mount_check`) and the result, and a warning when it stands out."""
-    from scipy.spatial.transform import Rotation
-
     from mrnc_eval.geometry import lie
     from mrnc_eval.slam.mount_check import mount_check
 
@@ -744,8 +740,8 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
     check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
     cpu_ms = (time.process_time() - t0) * 1e3
     applied = cfg.slam.sensor.mount_rpy_correction_deg
-    total = (Rotation.from_euler("xyz", applied, degrees=True)
-             * Rotation.from_euler("xyz", check.correction_rpy_deg, degrees=True)).as_euler("xyz", degrees=True)
+    total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(applied))
+                                    @ rotation.from_rpy(np.radians(check.correction_rpy_deg))))
     result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied), "cpu_ms": cpu_ms}
     if check.verdict == "insufficient":  # too little straight motion: no numbers to show
         return

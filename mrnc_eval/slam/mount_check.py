@@ -16,8 +16,8 @@ from __future__ import annotations
 from dataclasses import dataclass, field
 
 import numpy as np
-from scipy.spatial.transform import Rotation
 
+from mrnc_eval.geometry import rotation
 from mrnc_eval.slam.config import MountCheckConfig
 
 
@@ -62,7 +62,7 @@ def mount_check(stamps: np.ndarray, base_poses: np.ndarray, mount_rotation: np.n
     out.verdict = "misaligned" if out.reasons else "ok"
     # only the flagged angles enter the correction, turned from base into LiDAR axes
     w_base = np.radians([0.0, angles[0] * flagged[0], angles[1] * flagged[1]])
-    corr = Rotation.from_rotvec(np.asarray(mount_rotation, float).T @ w_base).as_euler("xyz", degrees=True)
+    corr = np.degrees(rotation.rpy(rotation.exp(np.asarray(mount_rotation, float).T @ w_base)))
     out.correction_rpy_deg = (float(corr[0]), float(corr[1]), float(corr[2]))
     return out
 
@@ -82,7 +82,7 @@ def motion_samples(stamps: np.ndarray, poses: np.ndarray, cfg: MountCheckConfig)
     dt = stamps[k] - stamps[j]
     chord = np.einsum("nji,nj->ni", poses[i, :3, :3], poses[k, :3, 3] - poses[j, :3, 3])
     rel = np.einsum("nji,njk->nik", poses[j, :3, :3], poses[k, :3, :3])
-    yaw_rate = Rotation.from_matrix(rel).as_rotvec()[:, 2] / dt
+    yaw_rate = rotation.log(rel)[:, 2] / dt
     speed = np.linalg.norm(chord, axis=1) / dt
     keep = (speed > cfg.min_speed_mps) & (np.abs(yaw_rate) < cfg.max_yaw_rate_rad_s)
     u = chord[keep] * np.where(chord[keep, 0] < 0.0, -1.0, 1.0)[:, None]
