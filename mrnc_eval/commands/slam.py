@@ -752,10 +752,10 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
                               note=f"LiDAR mount yaw error from the motion +- {check.yaw_sigma_deg:.2f} deg "
                                    "(wheel factors holding the lateral motion hide it)")]
     if check.verdict == "misaligned":
-        text = (f"the LiDAR mount in /tf_static looks rotated from where the motion says: {'; '.join(check.reasons)} "
-                "(true relative to written, base axes; roll is not observable); base_link poses and the end drift "
-                "carry it; correct /tf_static or set slam.sensor.mount_rpy_correction_deg="
-                f"[{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}]")
+        text = (f"the LiDAR mount in /tf_static looks off by {'; '.join(check.reasons)} (the machine's motion, "
+                f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
+                "base_link poses and the end drift carry it; correct /tf_static or set "
+                f"slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}]")
         result.warnings.append(text)
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": check.verdict}))
 
