@@ -220,6 +220,8 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
         _add_gnss_disagreement(result, inputs.gnss, out, rmse)
     _add_time_offset(result, out, cfg)
     _add_wheel_health(result, out)
+    if "input" not in result.extra:  # a log's /tf_static mount (a scan folder has none)
+        _add_mount_check(result, est, inputs, cfg)
     _add_map_quality(result, out, cfg)
     _write_files(result, out_dir, cfg, {"trajectory.tum": est, "trajectory_online.tum": online,
                                         "keyframes.tum": keyframes}, out.map_points)
@@ -258,6 +260,7 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
         raise InputError(log_path, f"slam.sensor.lidar_frame {lidar_frame!r} is not in the static transforms "
                          f"(frames: {', '.join(sorted(frames))}); set it to the clouds' frame", topic="/tf_static")
     base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
+    base_to_sensor = corrected_mount(base_to_sensor, cfg.slam.sensor.mount_rpy_correction_deg)
     imu = lg.imu() if lg.has_role("imu") else None
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
@@ -718,6 +721,49 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"wheel_verdict": h["verdict"]}))
 
 
+def corrected_mount(base_to_sensor: np.ndarray, rpy_deg: tuple[float, float, float]) -> np.ndarray:
+    """/tf_static's base_link -> LiDAR mount with slam.sensor.mount_rpy_correction_deg right-multiplied
+    (LiDAR axes); the IMU's pose in the LiDAR frame stays as written (it is inside the LiDAR)."""
+    if not any(rpy_deg):
+        return base_to_sensor
+    out = base_to_sensor.copy()
+    out[:3, :3] = base_to_sensor[:3, :3] @ rotation.from_rpy(np.radians(rpy_deg))
+    return out
+
+
+def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg: Config) -> None:
+    """The LiDAR mount's pitch and yaw error from the final trajectory's motion (slam/mount_check.py):
+    metrics, the record in metrics.json (`mount_check`) and the result, and a warning when it stands out."""
+    from mrnc_eval.geometry import lie
+    from mrnc_eval.slam.mount_check import mount_check
+
+    mcfg = cfg.slam.mount_check
+    if not mcfg.enabled:
+        return
+    t0 = time.process_time()
+    check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
+    cpu_ms = (time.process_time() - t0) * 1e3
+    applied = cfg.slam.sensor.mount_rpy_correction_deg
+    total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(applied))
+                                    @ rotation.from_rpy(np.radians(check.correction_rpy_deg))))
+    result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied), "cpu_ms": cpu_ms}
+    if check.verdict == "insufficient":  # too little straight motion: no numbers to show
+        return
+    result.metrics += [Metric(name="mount_pitch_error_deg", value=check.pitch_deg, unit="deg", group="slam/health",
+                              note=f"LiDAR mount pitch error from the motion +- {check.pitch_sigma_deg:.2f} deg "
+                                   f"({check.samples} samples, {check.verdict})"),
+                       Metric(name="mount_yaw_error_deg", value=check.yaw_deg, unit="deg", group="slam/health",
+                              note=f"LiDAR mount yaw error from the motion +- {check.yaw_sigma_deg:.2f} deg "
+                                   "(wheel factors holding the lateral motion hide it)")]
+    if check.verdict == "misaligned":
+        text = (f"the LiDAR mount in /tf_static looks off by {'; '.join(check.reasons)} (the machine's motion, "
+                f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
+                "base_link poses and the end drift carry it; correct /tf_static or set "
+                f"slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}]")
+        result.warnings.append(text)
+        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": check.verdict}))
+
+
 def _slip_note(h: dict[str, Any]) -> str:
     """The distance steps the scale fit put down to slip (soft or wet ground), not to calibration."""
     if not h.get("slip_steps"):
@@ -763,8 +809,9 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
             write_pcd_xyz(tmp / "map.pcd", map_points)
             files["map.ply"], files["map.pcd"] = tmp / "map.ply", tmp / "map.pcd"
         metrics: dict[str, object] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
-        if "wheel_health" in result.extra:
-            metrics["wheel_health"] = result.extra["wheel_health"]
+        for key in ("wheel_health", "mount_check"):
+            if key in result.extra:
+                metrics[key] = result.extra[key]
         (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")
         files["metrics.json"] = tmp / "metrics.json"
         write_result(result, out_dir, dump_config(cfg), files)

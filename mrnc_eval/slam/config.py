@@ -18,6 +18,10 @@ class SensorConfig:
     downsample_rate: int = param(1, "keep every n-th ring (downsampleRate)")
     vertical_fov_deg: tuple[float, float] = param((-45.0, 45.0), "OS0 vertical field of view [min, max], "
                                                    "for rings computed from elevation", "deg")
+    mount_rpy_correction_deg: tuple[float, float, float] = param(
+        (0.0, 0.0, 0.0), "rotation applied to /tf_static's base_link -> LiDAR mount (right-multiplied: roll, pitch, "
+        "yaw about the LiDAR's fixed axes); the mount check (slam.mount_check) tells the value when the motion shows "
+        "the mount rotated", "deg", ge=-10.0, le=10.0)
 
 
 @dataclass(frozen=True)
@@ -400,6 +404,28 @@ class MapQualityConfig:
 
 
 @dataclass(frozen=True)
+class MountCheckConfig:
+    """The LiDAR mount's pitch and yaw error from the final trajectory's motion (slam/mount_check.py):
+    a ground vehicle moves along its base x axis, so over moving, nearly straight stretches the motion's
+    direction in the estimated base frame shows how far /tf_static's mount is rotated."""
+
+    enabled: bool = param(True, "estimate the mount's pitch and yaw error after the run (mount_check in metrics.json)")
+    span_s: float = param(1.0, "each motion sample is the chord over this long around a pose", "s", gt=0.0, le=10.0)
+    min_speed_mps: float = param(0.3, "samples slower than this are left out (standing, creeping)", "m/s",
+                                 ge=0.0, le=10.0)
+    max_yaw_rate_rad_s: float = param(0.2, "samples turning faster than this are left out (a skid-steer side-slips "
+                                      "in turns; the simulated scenes' truth moved within 0.1 deg of its x axis up "
+                                      "to 0.2 rad/s, and 0.2 leaves the 20 m loop enough samples)", "rad/s",
+                                      gt=0.0, le=3.0)
+    blocks: int = param(10, "contiguous time blocks of the delete-one-block jackknife", ge=2, le=100)
+    min_samples: int = param(30, "fewer samples (poses of the final trajectory) than this, or than 2 x blocks: "
+                             "verdict insufficient", ge=1)
+    min_distance_m: float = param(3.0, "less straight motion than this: verdict insufficient", "m", ge=0.0)
+    flag_deg: float = param(0.2, "flag a pitch or yaw error above this ...", "deg", ge=0.0, le=90.0)
+    flag_sigmas: float = param(3.0, "... and above this many standard errors", ge=0.0, le=100.0)
+
+
+@dataclass(frozen=True)
 class WheelCalibrationConfig:
     """Online calibration and gating of the wheel odometry (slam/wheel_calibration.py) and the
     wheel_health verdict (slam/wheel_health.py)."""
@@ -513,3 +539,4 @@ class SlamConfig:
     gps: GpsConfig = section(GpsConfig, "GNSS factors")
     wheel_odom: WheelOdomConfig = section(WheelOdomConfig, "wheel odometry factors in graph #1")
     map_quality: MapQualityConfig = section(MapQualityConfig, "map quality without ground truth")
+    mount_check: MountCheckConfig = section(MountCheckConfig, "the LiDAR mount's pitch and yaw from the motion")

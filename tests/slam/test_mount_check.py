@@ -1,0 +1,149 @@
+"""The mount check (slam/mount_check.py) on synthetic drives with a known mount error: the base
+poses a SLAM reports are the LiDAR's true poses through the written mount, so a rotated mount
+shows the motion off the base x axis."""
+
+from __future__ import annotations
+
+from pathlib import Path
+
+import numpy as np
+import pytest
+from scipy.spatial.transform import Rotation
+
+from mrnc_eval.slam.config import MountCheckConfig
+from mrnc_eval.slam.mount_check import mount_check
+
+RATE_HZ = 5.0  # the final trajectory's rate at the default mapping interval
+
+
+def _drive(seed: int, *, turn_rad_s: float = 0.0, slip_deg_per_rad_s: float = 0.0,
+           pitch_noise_deg: float = 0.0) -> tuple[np.ndarray, np.ndarray]:
+    """True base poses (N, 4, 4) of a 60 s drive at 1 m/s over gentle hills: straight stretches and
+    turns at turn_rad_s; in turns the base side-slips by slip_deg_per_rad_s x yaw rate (skid-steer)."""
+    rng = np.random.default_rng(seed)
+    fine = 200.0  # integration rate, Hz; the poses are every (fine / RATE_HZ)-th
+    t = np.arange(0.0, 60.0, 1.0 / fine)
+    yaw_rate = np.where((t % 20.0) > 14.0, turn_rad_s, 0.0)
+    yaw = np.cumsum(yaw_rate) / fine
+    slope = np.radians(3.0) * np.sin(2 * np.pi * t / 25.0)  # the ground's pitch, rad
+    slip = np.radians(slip_deg_per_rad_s) * yaw_rate
+    v = np.stack([np.cos(slope) * np.cos(yaw + slip), np.cos(slope) * np.sin(yaw + slip), np.sin(slope)], axis=1)
+    pos = np.cumsum(v, axis=0) / fine
+    every = slice(None, None, int(fine / RATE_HZ))
+    t, yaw, slope, pos = t[every], yaw[every], slope[every], pos[every]
+    att = Rotation.from_euler("ZY", np.stack([yaw, -slope], axis=1))
+    poses = np.tile(np.eye(4), (t.size, 1, 1))
+    poses[:, :3, :3] = att.as_matrix()
+    poses[:, :3, 3] = pos + rng.normal(0.0, 0.003, pos.shape)  # SLAM's position noise, m
+    jitter = Rotation.from_rotvec(rng.normal(0.0, np.radians(pitch_noise_deg + 0.02), (t.size, 3)))
+    poses[:, :3, :3] = (att * jitter).as_matrix()
+    return t, poses
+
+
+def _as_estimated(poses: np.ndarray, written: np.ndarray, error_rpy_deg: tuple[float, float, float]) -> np.ndarray:
+    """The base poses a SLAM reports when the LiDAR really sits at written x error (error: true
+    relative to written, LiDAR axes): the LiDAR's true poses through the written mount."""
+    true = written.copy()
+    true[:3, :3] = written[:3, :3] @ Rotation.from_euler("xyz", error_rpy_deg, degrees=True).as_matrix()
+    return poses @ true @ np.linalg.inv(written)
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_known_mount_error_is_recovered_and_flagged(seed: int) -> None:
+    t, poses = _drive(seed, turn_rad_s=0.1)
+    est = _as_estimated(poses, np.eye(4), (0.3, -0.4, 0.5))
+    check = mount_check(t, est, np.eye(3), MountCheckConfig())
+    # measured: within 0.01 deg of (-0.4, +0.5) at sigma ~0.005 deg; the truth within 0.03 deg
+    assert check.pitch_deg == pytest.approx(-0.4, abs=0.03)
+    assert check.yaw_deg == pytest.approx(0.5, abs=0.03)
+    assert check.verdict == "misaligned"
+    assert len(check.reasons) == 2
+    assert 0.0 < check.pitch_sigma_deg < 0.05
+    assert 0.0 < check.yaw_sigma_deg < 0.05
+    assert check.correction_rpy_deg[1:] == pytest.approx((-0.4, 0.5), abs=0.03)
+    assert check.correction_rpy_deg[0] == pytest.approx(0.0, abs=0.01)  # roll is not observable
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_the_true_mount_is_not_flagged(seed: int) -> None:
+    """Negative control of the test above: the same drives through the true mount."""
+    t, poses = _drive(seed, turn_rad_s=0.1)
+    check = mount_check(t, poses, np.eye(3), MountCheckConfig())
+    assert abs(check.pitch_deg) < 0.03
+    assert abs(check.yaw_deg) < 0.03
+    assert check.verdict == "ok"
+    assert not check.reasons
+    assert check.correction_rpy_deg == (0.0, 0.0, 0.0)
+
+
+def test_a_small_error_within_its_noise_is_not_flagged() -> None:
+    """Pitch noise of 0.5 deg per pose: 0.1 deg of error is below flag_deg and not flagged; 1 deg is."""
+    t, poses = _drive(0, pitch_noise_deg=0.5)
+    cfg = MountCheckConfig()
+    assert mount_check(t, _as_estimated(poses, np.eye(4), (0.0, 0.1, 0.0)), np.eye(3), cfg).verdict == "ok"
+    big = mount_check(t, _as_estimated(poses, np.eye(4), (0.0, 1.0, 0.0)), np.eye(3), cfg)
+    assert big.verdict == "misaligned"
+    assert big.pitch_deg == pytest.approx(1.0, abs=3 * big.pitch_sigma_deg + 0.02)
+
+
+def test_side_slip_in_turns_is_left_out() -> None:
+    """A skid-steer side-slipping 20 deg per rad/s in 0.5 rad/s turns (10 deg off its x axis there):
+    the yaw-rate limit leaves the turns out; without it (negative control) the slip reads as yaw."""
+    t, poses = _drive(0, turn_rad_s=0.5, slip_deg_per_rad_s=20.0)
+    check = mount_check(t, poses, np.eye(3), MountCheckConfig())
+    assert abs(check.yaw_deg) < 0.15
+    assert check.verdict == "ok"
+    loose = mount_check(t, poses, np.eye(3), MountCheckConfig(max_yaw_rate_rad_s=3.0))
+    assert abs(loose.yaw_deg) > 1.0  # measured -3.0 deg (its jackknife sigma is large: the turns sit in few blocks)
+
+
+def test_the_correction_is_in_lidar_axes_and_reversing_reads_the_same() -> None:
+    """A LiDAR mounted turned 90 deg about z and driven backwards: the correction right-multiplied
+    onto the written mount gives back the true mount's pitch and yaw."""
+    t, poses = _drive(1)
+    back = poses.copy()
+    back[:, :3, 3] = poses[::-1, :3, 3]  # the same path driven in reverse, facing the same way
+    back[:, :3, :3] = poses[::-1, :3, :3]
+    written = np.eye(4)
+    written[:3, :3] = Rotation.from_euler("z", 90.0, degrees=True).as_matrix()
+    for drive in (poses, back):
+        est = _as_estimated(drive, written, (-0.4, 0.0, 0.5))  # roll about the LiDAR's x = the base's y
+        check = mount_check(t, est, written[:3, :3], MountCheckConfig())
+        assert check.pitch_deg == pytest.approx(-0.4, abs=0.03)
+        assert check.yaw_deg == pytest.approx(0.5, abs=0.03)
+        assert check.correction_rpy_deg == pytest.approx((-0.4, 0.0, 0.5), abs=0.03)
+
+
+def test_standing_still_is_insufficient() -> None:
+    t, poses = _drive(0)
+    poses[:, :3, 3] = poses[:1, :3, 3]
+    check = mount_check(t, poses, np.eye(3), MountCheckConfig())
+    assert check.verdict == "insufficient"
+    assert check.samples == 0
+    assert np.isnan(check.pitch_deg)
+    assert mount_check(t[:2], poses[:2], np.eye(3), MountCheckConfig()).verdict == "insufficient"
+
+
+def test_the_slam_command_reports_a_mount_rotated_by_the_config(yard_log: Path, tmp_path: Path) -> None:
+    """The ideal-profile yard line (true mount in /tf_static): no finding; with the mount turned by
+    slam.sensor.mount_rpy_correction_deg = 1 deg of pitch (a wrong correction) the run flags pitch
+    -1 deg and tells the value that undoes it (about 0)."""
+    from mrnc_eval.commands.slam import run_log
+    from mrnc_eval.config import Config, replace_path, replace_paths
+
+    cfg = replace_paths(Config(), {"slam.gps.enabled": False, "slam.mount_check.min_samples": 10,
+                                   "slam.mount_check.blocks": 5, "slam.mount_check.min_distance_m": 1.0})
+    ok = run_log(yard_log, cfg, tmp_path / "ok")
+    assert ok.extra["mount_check"]["verdict"] == "ok", ok.extra["mount_check"]
+    assert not any("mount" in w for w in ok.warnings)
+    bad = run_log(yard_log, replace_path(cfg, "slam.sensor.mount_rpy_correction_deg", (0.0, 1.0, 0.0)),
+                  tmp_path / "bad")
+    check = bad.extra["mount_check"]
+    assert check["verdict"] == "misaligned", check
+    assert check["pitch_deg"] == pytest.approx(-1.0, abs=0.3)  # measured -0.95 +- 0.12 (0.05 +- 0.12 without)
+    (text,) = [w for w in bad.warnings if "mount" in w]
+    assert "mount_rpy_correction_deg=[" in text
+    total = [float(x) for x in text.rsplit("=[", 1)[1].rstrip("]").split(",")]
+    assert total[1] == pytest.approx(0.0, abs=0.3)
+    assert bad.metric("mount_pitch_error_deg") is not None
+
