@@ -62,7 +62,7 @@ def mount_check(stamps: np.ndarray, base_poses: np.ndarray, mount_rotation: np.n
     out.verdict = "misaligned" if out.reasons else "ok"
     # only the flagged angles enter the correction, turned from base into LiDAR axes
     w_base = np.radians([0.0, angles[0] * flagged[0], angles[1] * flagged[1]])
-    corr = np.degrees(rotation.rpy(rotation.exp(np.asarray(mount_rotation, float).T @ w_base)))
+    corr = np.degrees(rotation.rpy(rotation.exp(np.asarray(mount_rotation, float).T @ w_base))) + 0.0  # no -0.0
     out.correction_rpy_deg = (float(corr[0]), float(corr[1]), float(corr[2]))
     return out
 

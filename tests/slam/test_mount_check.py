@@ -147,3 +147,51 @@ def test_the_slam_command_reports_a_mount_rotated_by_the_config(yard_log: Path, 
     assert total[1] == pytest.approx(0.0, abs=0.3)
     assert bad.metric("mount_pitch_error_deg") is not None
 
+
+
+def test_an_unflagged_angle_s_correction_is_plain_zero() -> None:
+    """Only the flagged yaw enters the correction: the unflagged pitch (-0.1 deg, under flag_deg) is
+    0.0, not -0.0 (the run's warning printed `slam.sensor.mount_rpy_correction_deg=[0.00, -0.00, 0.46]`)."""
+    t, poses = _drive(0, turn_rad_s=0.1)
+    check = mount_check(t, _as_estimated(poses, np.eye(4), (0.0, -0.1, 0.5)), np.eye(3), MountCheckConfig())
+    assert [r.split()[0] for r in check.reasons] == ["yaw"]
+    assert check.pitch_deg < 0.0
+    assert [np.copysign(1.0, c) for c in check.correction_rpy_deg[:2]] == [1.0, 1.0]
+    assert f"{check.correction_rpy_deg[1]:.2f}" == "0.00"
+
+
+def _mount(rpy_deg: tuple[float, float, float], xyz: tuple[float, float, float]) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_euler("xyz", rpy_deg, degrees=True).as_matrix()
+    out[:3, 3] = xyz
+    return out
+
+
+@pytest.mark.parametrize(("lidar_frame", "imu_frame", "on_base"), [
+    ("os_sensor", "os_imu", False), ("os_lidar", "os_imu", False), ("os_sensor", "chassis_imu", True)])
+def test_the_correction_turns_an_imu_in_the_lidar_with_it_and_leaves_a_chassis_imu_on_the_base(
+        lidar_frame: str, imu_frame: str, on_base: bool) -> None:
+    """The sample logs' tree (os_imu and os_lidar under os_sensor, chassis_imu under base_link): with
+    slam.sensor.mount_rpy_correction_deg the Ouster's own IMU keeps its pose in the LiDAR frame, a
+    chassis IMU keeps its pose on the base (base -> corrected LiDAR -> IMU = /tf_static's base -> IMU).
+    Negative control: the written LiDAR -> chassis IMU pose puts it 1 deg off its base mount."""
+    from mrnc_eval.commands.slam import corrected_mount, imu_in_corrected_sensor
+    from mrnc_eval.io.tf_tree import static_pose
+
+    statics = {("base_link", "os_sensor"): _mount((0.0, 0.0, 90.0), (1.2, 0.0, 1.9)),
+               ("os_sensor", "os_lidar"): _mount((0.0, 0.0, 180.0), (0.0, 0.0, 0.036)),
+               ("os_sensor", "os_imu"): _mount((0.0, 0.0, 0.0), (0.006, -0.012, 0.008)),
+               ("base_link", "chassis_imu"): _mount((0.0, 0.0, 0.0), (0.0, 0.0, 0.3))}
+    rpy = (0.0, 1.0, 0.0)
+    written = static_pose(statics, lidar_frame, imu_frame, where=Path("log"))
+    mount = corrected_mount(static_pose(statics, "base_link", lidar_frame, where=Path("log")), rpy)
+    got = imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame, imu_frame=imu_frame, rpy_deg=rpy)
+    on_base_pose = static_pose(statics, "base_link", imu_frame, where=Path("log"))
+    if on_base:
+        np.testing.assert_allclose(mount @ got, on_base_pose, atol=1e-12)
+        assert np.degrees(Rotation.from_matrix((mount @ written)[:3, :3].T @ on_base_pose[:3, :3]).magnitude()) \
+            == pytest.approx(1.0)
+    else:
+        np.testing.assert_array_equal(got, written)
+    np.testing.assert_array_equal(imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame,
+                                                          imu_frame=imu_frame, rpy_deg=(0.0, 0.0, 0.0)), written)
