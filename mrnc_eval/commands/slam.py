@@ -50,6 +50,7 @@ from mrnc_eval.text import printable
 if TYPE_CHECKING:
     from mrnc_eval.io.reader import LogReader
     from mrnc_eval.slam.config import SlamConfig
+    from mrnc_eval.slam.mount_check import MountCheck
     from mrnc_eval.slam.sweep_prep import PreparedSweep
 
 log = logging.getLogger(__name__)
@@ -772,7 +773,8 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
     applied = cfg.slam.sensor.mount_rpy_correction_deg
     total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(applied))
                                     @ rotation.from_rpy(np.radians(check.correction_rpy_deg)))) + 0.0  # no -0.0
-    result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied), "cpu_ms": cpu_ms}
+    result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied),
+                                   "suggested_rpy_deg": [float(a) for a in total], "cpu_ms": cpu_ms}
     if check.verdict == "insufficient":  # too little straight motion: no numbers to show
         return
     result.metrics += [Metric(name="mount_pitch_error_deg", value=check.pitch_deg, unit="deg", group="slam/health",
@@ -782,12 +784,23 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
                               note=f"LiDAR mount yaw error from the motion +- {check.yaw_sigma_deg:.2f} deg "
                                    "(with wheel factors, their hold on the lateral motion hides it)")]
     if check.verdict == "misaligned":
-        text = (f"the LiDAR mount in /tf_static looks off by {'; '.join(check.reasons)} (the machine's motion, "
-                f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
-                "base_link poses and the end drift carry it; correct /tf_static or set "
-                f"slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}]")
+        text = _mount_warning(check, total, cfg)
         result.warnings.append(text)
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": check.verdict}))
+
+
+def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config) -> str:
+    """The misaligned mount check's warning, with the slam.sensor.mount_rpy_correction_deg that undoes it
+    (`total`: the applied correction and the check's, deg) when the parameter's range admits it."""
+    param = next(f for f in dataclasses.fields(cfg.slam.sensor) if f.name == "mount_rpy_correction_deg")
+    limit = float(param.metadata["bounds"]["le"])
+    fix = (f"correct /tf_static or set slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, "
+           f"{total[2]:.2f}]" if np.all(np.abs(total) <= limit) else
+           f"correct /tf_static (by [{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}] deg, beyond what "
+           f"slam.sensor.mount_rpy_correction_deg takes: +-{limit:g} deg)")
+    return (f"the LiDAR mount in /tf_static looks off by {'; '.join(check.reasons)} (the machine's motion, "
+            f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
+            f"base_link poses and the end drift carry it; {fix}")
 
 
 def _slip_note(h: dict[str, Any]) -> str:
