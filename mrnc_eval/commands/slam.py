@@ -50,6 +50,7 @@ from mrnc_eval.text import printable
 if TYPE_CHECKING:
     from mrnc_eval.io.reader import LogReader
     from mrnc_eval.slam.config import SlamConfig
+    from mrnc_eval.slam.mount_check import MountCheck
     from mrnc_eval.slam.sweep_prep import PreparedSweep
 
 log = logging.getLogger(__name__)
@@ -264,7 +265,9 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     imu = lg.imu() if lg.has_role("imu") else None
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
-        sensor_to_imu = lg.transform(lidar_frame, imu.frame_id)
+        sensor_to_imu = imu_in_corrected_sensor(lg.transform(lidar_frame, imu.frame_id), statics,
+                                                lidar_frame=lidar_frame, imu_frame=imu.frame_id,
+                                                rpy_deg=cfg.slam.sensor.mount_rpy_correction_deg)
     gnss, gnss_note = _gnss_or_none(lg, cfg)
     has_antenna = "gnss" in frames and "base_link" in frames
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
@@ -723,11 +726,35 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
 
 def corrected_mount(base_to_sensor: np.ndarray, rpy_deg: tuple[float, float, float]) -> np.ndarray:
     """/tf_static's base_link -> LiDAR mount with slam.sensor.mount_rpy_correction_deg right-multiplied
-    (LiDAR axes); the IMU's pose in the LiDAR frame stays as written (it is inside the LiDAR)."""
+    (LiDAR axes); the IMU's pose in the LiDAR frame: imu_in_corrected_sensor."""
     if not any(rpy_deg):
         return base_to_sensor
     out = base_to_sensor.copy()
     out[:3, :3] = base_to_sensor[:3, :3] @ rotation.from_rpy(np.radians(rpy_deg))
+    return out
+
+
+def imu_in_corrected_sensor(written: np.ndarray, statics: Iterable[tuple[str, str]], *, lidar_frame: str,
+                            imu_frame: str, rpy_deg: tuple[float, float, float]) -> np.ndarray:
+    """The IMU's pose in the LiDAR frame once corrected_mount has turned the LiDAR by C (`written`:
+    /tf_static's, `statics`: its (parent, child) edges). An IMU in the LiDAR's own branch of the tree
+    (the OS0's os_imu beside os_lidar under os_sensor) turns with it: kept as written. One whose path
+    to the LiDAR goes through base_link (a chassis IMU) stays on the base: C^-1 x written."""
+    parent = dict((c, p) for p, c in statics)
+
+    def up(frame: str) -> list[str]:  # the frame and its ancestors, nearest first
+        chain = [frame]
+        while chain[-1] in parent and parent[chain[-1]] not in chain:
+            chain.append(parent[chain[-1]])
+        return chain
+
+    lidar_up, imu_up = up(lidar_frame), set(up(imu_frame))
+    meet = next((i for i, f in enumerate(lidar_up) if f in imu_up), len(lidar_up) - 1)
+    if not any(rpy_deg) or "base_link" not in lidar_up[:meet + 1]:
+        return written
+    out = written.copy()
+    undo = rotation.from_rpy(np.radians(rpy_deg)).T
+    out[:3, :3], out[:3, 3] = undo @ written[:3, :3], undo @ written[:3, 3]
     return out
 
 
@@ -745,8 +772,9 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
     cpu_ms = (time.process_time() - t0) * 1e3
     applied = cfg.slam.sensor.mount_rpy_correction_deg
     total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(applied))
-                                    @ rotation.from_rpy(np.radians(check.correction_rpy_deg))))
-    result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied), "cpu_ms": cpu_ms}
+                                    @ rotation.from_rpy(np.radians(check.correction_rpy_deg)))) + 0.0  # no -0.0
+    result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied),
+                                   "suggested_rpy_deg": [float(a) for a in total], "cpu_ms": cpu_ms}
     if check.verdict == "insufficient":  # too little straight motion: no numbers to show
         return
     result.metrics += [Metric(name="mount_pitch_error_deg", value=check.pitch_deg, unit="deg", group="slam/health",
@@ -754,14 +782,25 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
                                    f"({check.samples} samples, {check.verdict})"),
                        Metric(name="mount_yaw_error_deg", value=check.yaw_deg, unit="deg", group="slam/health",
                               note=f"LiDAR mount yaw error from the motion +- {check.yaw_sigma_deg:.2f} deg "
-                                   "(wheel factors holding the lateral motion hide it)")]
+                                   "(with wheel factors, their hold on the lateral motion hides it)")]
     if check.verdict == "misaligned":
-        text = (f"the LiDAR mount in /tf_static looks off by {'; '.join(check.reasons)} (the machine's motion, "
-                f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
-                "base_link poses and the end drift carry it; correct /tf_static or set "
-                f"slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}]")
+        text = _mount_warning(check, total, cfg)
         result.warnings.append(text)
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": check.verdict}))
+
+
+def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config) -> str:
+    """The misaligned mount check's warning, with the slam.sensor.mount_rpy_correction_deg that undoes it
+    (`total`: the applied correction and the check's, deg) when the parameter's range admits it."""
+    param = next(f for f in dataclasses.fields(cfg.slam.sensor) if f.name == "mount_rpy_correction_deg")
+    limit = float(param.metadata["bounds"]["le"])
+    fix = (f"correct /tf_static or set slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, "
+           f"{total[2]:.2f}]" if np.all(np.abs(total) <= limit) else
+           f"correct /tf_static (by [{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}] deg, beyond what "
+           f"slam.sensor.mount_rpy_correction_deg takes: +-{limit:g} deg)")
+    return (f"the LiDAR mount in /tf_static looks off by {'; '.join(check.reasons)} (the machine's motion, "
+            f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
+            f"base_link poses and the end drift carry it; {fix}")
 
 
 def _slip_note(h: dict[str, Any]) -> str:

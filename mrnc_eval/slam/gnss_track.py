@@ -46,8 +46,8 @@ PROVISIONAL_SPREAD_DEG = 15.0
 # what tells a jump the filter absorbed from the step (with 1 s, a genuine 3.4 m step on open line seed 2
 # was taken for the end of a box).
 PRE_BOX_S = 3.0
-SWAY_KEEP = 8  # the sway of this many latest sweeps is kept (the fixes fed at a sweep are since the last one)
 KEEP_PRE_S = 6.0  # ... and keeps up to this long of them (s): a quadratic through 3 s bends into an 8 s box
+SWAY_KEEP = 8  # the sway of this many latest sweeps is kept (the fixes fed at a sweep are since the last one)
 
 
 @dataclass(kw_only=True)

@@ -44,10 +44,11 @@ class MountCheck:
 
 def mount_check(stamps: np.ndarray, base_poses: np.ndarray, mount_rotation: np.ndarray,
                 cfg: MountCheckConfig) -> MountCheck:
-    """The mount's pitch and yaw error from base poses (N, 4, 4, map frame, stamps in s);
+    """The mount's pitch and yaw error from base poses (N, 4, 4, map frame, stamps in s, any order);
     `mount_rotation`: the written base_link -> LiDAR rotation (3x3), to express the correction in
     LiDAR axes."""
-    u, dist = motion_samples(np.asarray(stamps, float), np.asarray(base_poses, float), cfg)
+    order = np.argsort(stamps, kind="stable")  # searchsorted's order (a trajectory is; a caller's may not be)
+    u, dist = motion_samples(np.asarray(stamps, float)[order], np.asarray(base_poses, float)[order], cfg)
     if u.shape[0] < max(cfg.min_samples, 2 * cfg.blocks) or dist < cfg.min_distance_m:
         return MountCheck(pitch_deg=float("nan"), pitch_sigma_deg=float("nan"), yaw_deg=float("nan"),
                           yaw_sigma_deg=float("nan"), samples=int(u.shape[0]), distance_m=dist,
@@ -62,7 +63,7 @@ def mount_check(stamps: np.ndarray, base_poses: np.ndarray, mount_rotation: np.n
     out.verdict = "misaligned" if out.reasons else "ok"
     # only the flagged angles enter the correction, turned from base into LiDAR axes
     w_base = np.radians([0.0, angles[0] * flagged[0], angles[1] * flagged[1]])
-    corr = np.degrees(rotation.rpy(rotation.exp(np.asarray(mount_rotation, float).T @ w_base)))
+    corr = np.degrees(rotation.rpy(rotation.exp(np.asarray(mount_rotation, float).T @ w_base))) + 0.0  # no -0.0
     out.correction_rpy_deg = (float(corr[0]), float(corr[1]), float(corr[2]))
     return out
 
@@ -71,7 +72,7 @@ def motion_samples(stamps: np.ndarray, poses: np.ndarray, cfg: MountCheckConfig)
     """Per pose, the chord from span_s/2 before to span_s/2 after it in the pose's own base axes (the
     chord of a constant-curvature arc is along the heading at its middle), kept where the speed is
     above min_speed_mps and the yaw rate below max_yaw_rate_rad_s; flipped forward when reversing.
-    Returns the (M, 3) chords (m) and the distance driven over the poses kept (m)."""
+    `stamps` ascending. Returns the (M, 3) chords (m) and the distance driven over the poses kept (m)."""
     if stamps.size < 3:
         return np.zeros((0, 3)), 0.0
     half = 0.5 * cfg.span_s

@@ -147,3 +147,99 @@ def test_the_slam_command_reports_a_mount_rotated_by_the_config(yard_log: Path, 
     assert total[1] == pytest.approx(0.0, abs=0.3)
     assert bad.metric("mount_pitch_error_deg") is not None
 
+
+
+def test_an_unflagged_angle_s_correction_is_plain_zero() -> None:
+    """Only the flagged yaw enters the correction: the unflagged pitch (-0.1 deg, under flag_deg) is
+    0.0, not -0.0 (the run's warning printed `slam.sensor.mount_rpy_correction_deg=[0.00, -0.00, 0.46]`)."""
+    t, poses = _drive(0, turn_rad_s=0.1)
+    check = mount_check(t, _as_estimated(poses, np.eye(4), (0.0, -0.1, 0.5)), np.eye(3), MountCheckConfig())
+    assert [r.split()[0] for r in check.reasons] == ["yaw"]
+    assert check.pitch_deg < 0.0
+    assert [np.copysign(1.0, c) for c in check.correction_rpy_deg[:2]] == [1.0, 1.0]
+    assert f"{check.correction_rpy_deg[1]:.2f}" == "0.00"
+
+
+def _mount(rpy_deg: tuple[float, float, float], xyz: tuple[float, float, float]) -> np.ndarray:
+    out = np.eye(4)
+    out[:3, :3] = Rotation.from_euler("xyz", rpy_deg, degrees=True).as_matrix()
+    out[:3, 3] = xyz
+    return out
+
+
+@pytest.mark.parametrize(("lidar_frame", "imu_frame", "on_base"), [
+    ("os_sensor", "os_imu", False), ("os_lidar", "os_imu", False), ("os_sensor", "chassis_imu", True)])
+def test_the_correction_turns_an_imu_in_the_lidar_with_it_and_leaves_a_chassis_imu_on_the_base(
+        lidar_frame: str, imu_frame: str, on_base: bool) -> None:
+    """The sample logs' tree (os_imu and os_lidar under os_sensor, chassis_imu under base_link): with
+    slam.sensor.mount_rpy_correction_deg the Ouster's own IMU keeps its pose in the LiDAR frame, a
+    chassis IMU keeps its pose on the base (base -> corrected LiDAR -> IMU = /tf_static's base -> IMU).
+    Negative control: the written LiDAR -> chassis IMU pose puts it 1 deg off its base mount."""
+    from mrnc_eval.commands.slam import corrected_mount, imu_in_corrected_sensor
+    from mrnc_eval.io.tf_tree import static_pose
+
+    statics = {("base_link", "os_sensor"): _mount((0.0, 0.0, 90.0), (1.2, 0.0, 1.9)),
+               ("os_sensor", "os_lidar"): _mount((0.0, 0.0, 180.0), (0.0, 0.0, 0.036)),
+               ("os_sensor", "os_imu"): _mount((0.0, 0.0, 0.0), (0.006, -0.012, 0.008)),
+               ("base_link", "chassis_imu"): _mount((0.0, 0.0, 0.0), (0.0, 0.0, 0.3))}
+    rpy = (0.0, 1.0, 0.0)
+    written = static_pose(statics, lidar_frame, imu_frame, where=Path("log"))
+    mount = corrected_mount(static_pose(statics, "base_link", lidar_frame, where=Path("log")), rpy)
+    got = imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame, imu_frame=imu_frame, rpy_deg=rpy)
+    on_base_pose = static_pose(statics, "base_link", imu_frame, where=Path("log"))
+    if on_base:
+        np.testing.assert_allclose(mount @ got, on_base_pose, atol=1e-12)
+        assert np.degrees(Rotation.from_matrix((mount @ written)[:3, :3].T @ on_base_pose[:3, :3]).magnitude()) \
+            == pytest.approx(1.0)
+    else:
+        np.testing.assert_array_equal(got, written)
+    np.testing.assert_array_equal(imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame,
+                                                          imu_frame=imu_frame, rpy_deg=(0.0, 0.0, 0.0)), written)
+
+
+def test_stamps_out_of_order_read_as_in_order() -> None:
+    """The poses handed over in reverse stamp order: the same finding (before: an IndexError out of
+    searchsorted on unsorted stamps)."""
+    t, poses = _drive(0, turn_rad_s=0.1)
+    est = _as_estimated(poses, np.eye(4), (0.0, -0.4, 0.5))
+    want = mount_check(t, est, np.eye(3), MountCheckConfig())
+    got = mount_check(t[::-1], est[::-1], np.eye(3), MountCheckConfig())
+    assert got.as_dict() == want.as_dict()
+
+
+def _checked(error_rpy_deg: tuple[float, float, float], applied: tuple[float, float, float]) -> tuple[dict, list]:
+    """commands.slam._add_mount_check on the synthetic drive, its base poses those of a LiDAR really
+    at /tf_static's mount turned by error_rpy_deg, the run corrected by `applied` (deg)."""
+    from mrnc_eval.commands.slam import LogInputs, _add_mount_check, corrected_mount
+    from mrnc_eval.config import Config, replace_path
+    from mrnc_eval.data import Trajectory
+    from mrnc_eval.geometry import rotation
+    from mrnc_eval.results import RunResult
+
+    t, poses = _drive(0, turn_rad_s=0.1)
+    mount = corrected_mount(np.eye(4), applied)
+    est = _as_estimated(poses, mount, error_rpy_deg)
+    traj = Trajectory(t, est[:, :3, 3], rotation.matrix_to_quat(est[:, :3, :3]), name="lio")
+    inputs = LogInputs(duration_s=60.0, base_to_sensor=mount, imu=None, sensor_to_imu=np.eye(4), gnss=None,
+                       ground_truth=None, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3), n_sweeps=300,
+                       max_sweep_gap_s=0.2)
+    result = RunResult(kind="slam", log_path="log.mcap", log_id="log", config_hash="0")
+    _add_mount_check(result, traj, inputs, replace_path(Config(), "slam.sensor.mount_rpy_correction_deg", applied))
+    return result.extra["mount_check"], result.warnings
+
+
+def test_the_suggested_correction_composes_the_applied_one_and_is_offered_only_in_range() -> None:
+    """A run corrected by 3 deg of yaw whose LiDAR is still off by -0.4 deg pitch and +0.5 deg yaw:
+    metrics.json's suggested_rpy_deg and the warning's value are the applied correction and the new
+    one composed (~[0, -0.4, 3.5]); a 20 deg yaw error is beyond the parameter's +-10 deg range: the
+    warning says correct /tf_static and offers no value the config would refuse."""
+    record, warnings = _checked((0.0, -0.4, 0.5), (0.0, 0.0, 3.0))
+    assert record["applied_rpy_deg"] == [0.0, 0.0, 3.0]
+    assert record["suggested_rpy_deg"] == pytest.approx([0.0, -0.4, 3.5], abs=0.03)
+    (text,) = warnings
+    assert text.endswith(", ".join(f"{a:.2f}" for a in record["suggested_rpy_deg"]) + "]")
+    record, warnings = _checked((0.0, 0.0, 20.0), (0.0, 0.0, 0.0))
+    assert record["suggested_rpy_deg"][2] == pytest.approx(20.0, abs=0.1)
+    (text,) = warnings
+    assert "mount_rpy_correction_deg=" not in text
+    assert "correct /tf_static (by [" in text
