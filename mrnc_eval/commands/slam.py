@@ -942,6 +942,8 @@ def _print_summary(results: list[tuple[Path, RunResult]], cells: dict[tuple[str,
         line = (f"{r.log_id} ({used}): APE RMSE {ape}, RTF {vals['rtf']:.2f} ({mapping_rate(r)}), "
                 f"{vals['keyframes']} keyframes, {vals['loop_closures']} loop closures -> {d}")
         sys.stdout.write(printable(line) + "\n")  # topic names come from the log
+        for warning in r.warnings:  # the run's findings (a sensor that let it down) where the user looks
+            log.warning("%s: %s", r.log_id, warning)
     if len(rows) > 1:
         title = f"APE RMSE (SE(3) aligned, {cfg.slam.table_trajectory} trajectory)"
         sys.stdout.write(render_table(table_one(cells, rows, [cfg.slam.method], title=title),

@@ -149,6 +149,24 @@ def test_the_slam_command_reports_a_mount_rotated_by_the_config(yard_log: Path, 
 
 
 
+def test_the_slam_command_line_prints_the_run_s_findings(yard_log: Path, tmp_path: Path,
+                                                         capsys: pytest.CaptureFixture[str]) -> None:
+    """A run's findings (here the mount check's) reach the terminal on stderr, named by the log, not
+    only result.json and the report; -q keeps stderr to errors; the summary line stays on stdout."""
+    from mrnc_eval.cli import main
+
+    sets = [f"--set={kv}" for kv in ("slam.gps.enabled=false", "slam.mount_check.min_samples=10",
+                                     "slam.mount_check.blocks=5", "slam.mount_check.min_distance_m=1.0",
+                                     "slam.sensor.mount_rpy_correction_deg=[0,1,0]")]
+    assert main(["slam", str(yard_log), "--out", str(tmp_path / "loud"), *sets]) == 0
+    loud = capsys.readouterr()
+    (said,) = [line for line in loud.err.splitlines() if "LiDAR mount" in line]
+    assert f"{yard_log.stem}: the LiDAR mount in /tf_static looks off by pitch" in said
+    assert "loop closures ->" in loud.out
+    assert "LiDAR mount" not in loud.out
+    assert main(["-q", "slam", str(yard_log), "--out", str(tmp_path / "quiet"), *sets]) == 0
+    assert "LiDAR mount" not in capsys.readouterr().err  # negative control: -q says errors only
+
 def test_an_unflagged_angle_s_correction_is_plain_zero() -> None:
     """Only the flagged yaw enters the correction: the unflagged pitch (-0.1 deg, under flag_deg) is
     0.0, not -0.0 (the run's warning printed `slam.sensor.mount_rpy_correction_deg=[0.00, -0.00, 0.46]`)."""
