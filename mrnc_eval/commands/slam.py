@@ -267,7 +267,7 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
         sensor_to_imu = imu_in_corrected_sensor(lg.transform(lidar_frame, imu.frame_id), statics,
                                                 lidar_frame=lidar_frame, imu_frame=imu.frame_id,
-                                                rpy_deg=cfg.slam.sensor.mount_rpy_correction_deg)
+                                                rpy_deg=cfg.slam.sensor.mount_rpy_correction_deg, where=log_path)
     gnss, gnss_note = _gnss_or_none(lg, cfg)
     has_antenna = "gnss" in frames and "base_link" in frames
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
@@ -735,22 +735,15 @@ def corrected_mount(base_to_sensor: np.ndarray, rpy_deg: tuple[float, float, flo
 
 
 def imu_in_corrected_sensor(written: np.ndarray, statics: Iterable[tuple[str, str]], *, lidar_frame: str,
-                            imu_frame: str, rpy_deg: tuple[float, float, float]) -> np.ndarray:
+                            imu_frame: str, rpy_deg: tuple[float, float, float], where: Path) -> np.ndarray:
     """The IMU's pose in the LiDAR frame once corrected_mount has turned the LiDAR by C (`written`:
-    /tf_static's, `statics`: its (parent, child) edges). An IMU in the LiDAR's own branch of the tree
-    (the OS0's os_imu beside os_lidar under os_sensor) turns with it: kept as written. One whose path
-    to the LiDAR goes through base_link (a chassis IMU) stays on the base: C^-1 x written."""
-    parent = dict((c, p) for p, c in statics)
+    /tf_static's, `statics`: its (parent, child) edges, `where`: the log). An IMU whose path to the
+    LiDAR in the tree does not pass base_link (the OS0's os_imu beside os_lidar under os_sensor)
+    turns with it: kept as written. One whose path goes through base_link (a chassis IMU) stays on
+    the base: C^-1 x written."""
+    from mrnc_eval.io.tf_chain import frame_path
 
-    def up(frame: str) -> list[str]:  # the frame and its ancestors, nearest first
-        chain = [frame]
-        while chain[-1] in parent and parent[chain[-1]] not in chain:
-            chain.append(parent[chain[-1]])
-        return chain
-
-    lidar_up, imu_up = up(lidar_frame), set(up(imu_frame))
-    meet = next((i for i, f in enumerate(lidar_up) if f in imu_up), len(lidar_up) - 1)
-    if not any(rpy_deg) or "base_link" not in lidar_up[:meet + 1]:
+    if not any(rpy_deg) or "base_link" not in frame_path(statics, lidar_frame, imu_frame, where=where):
         return written
     out = written.copy()
     undo = rotation.from_rpy(np.radians(rpy_deg)).T

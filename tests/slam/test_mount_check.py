@@ -203,7 +203,8 @@ def test_the_correction_turns_an_imu_in_the_lidar_with_it_and_leaves_a_chassis_i
     rpy = (0.0, 1.0, 0.0)
     written = static_pose(statics, lidar_frame, imu_frame, where=Path("log"))
     mount = corrected_mount(static_pose(statics, "base_link", lidar_frame, where=Path("log")), rpy)
-    got = imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame, imu_frame=imu_frame, rpy_deg=rpy)
+    got = imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame, imu_frame=imu_frame, rpy_deg=rpy,
+                                  where=Path("log"))
     on_base_pose = static_pose(statics, "base_link", imu_frame, where=Path("log"))
     if on_base:
         np.testing.assert_allclose(mount @ got, on_base_pose, atol=1e-12)
@@ -211,8 +212,9 @@ def test_the_correction_turns_an_imu_in_the_lidar_with_it_and_leaves_a_chassis_i
             == pytest.approx(1.0)
     else:
         np.testing.assert_array_equal(got, written)
-    np.testing.assert_array_equal(imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame,
-                                                          imu_frame=imu_frame, rpy_deg=(0.0, 0.0, 0.0)), written)
+    uncorrected = imu_in_corrected_sensor(written, statics, lidar_frame=lidar_frame, imu_frame=imu_frame,
+                                          rpy_deg=(0.0, 0.0, 0.0), where=Path("log"))
+    np.testing.assert_array_equal(uncorrected, written)
 
 
 def test_stamps_out_of_order_read_as_in_order() -> None:
