@@ -36,6 +36,7 @@ from pathlib import Path
 
 import pytest
 
+from benchmarks.cold_start import scans_folder
 from mrnc_eval.config import Config
 
 pytestmark = pytest.mark.benchmark
@@ -149,21 +150,6 @@ def _resident_mb_per_import(modules: tuple[str, ...]) -> dict[str, float]:
     return json.loads(proc.stdout.strip().splitlines()[-1])
 
 
-def _sweeps_as_bin_folder(log: Path, folder: Path) -> Path:
-    """The log's clouds as KITTI-style .bin scans (float32 x, y, z, intensity): kiss_icp_pipeline's
-    own reader takes a folder of them (its mcap reader rejects the simulator's clouds)."""
-    import numpy as np
-
-    from mrnc_eval.io import open_log
-
-    folder.mkdir(parents=True, exist_ok=True)
-    with open_log(log) as lg:
-        for k, s in enumerate(lg.sweeps()):
-            inten = s.intensity if s.intensity is not None else np.zeros(len(s.points), np.float32)
-            np.c_[s.points, inten].astype(np.float32).tofile(folder / f"{k:06d}.bin")
-    return folder
-
-
 def _kiss_icp_pipeline(folder: Path, cwd: Path) -> dict[str, float]:
     """kiss-icp's own command on the scans, in a child process: wall s, CPU s and peak resident MB."""
     exe = Path(sys.executable).with_name("kiss_icp_pipeline")
@@ -189,7 +175,7 @@ def test_slam_equal_work_speed_and_memory_vs_kiss_icp(bench_log: Path, tmp_path:
             rounds[name].append(_run(bench_log, tmp_path / f"{k}-{i}", method, interval, threads))
     runs = {name: _median_run(rs) for name, rs in rounds.items()}
     loads = [r["load"] for rs in rounds.values() for r in rs]
-    pipeline = _kiss_icp_pipeline(_sweeps_as_bin_folder(bench_log, tmp_path / "scans"), tmp_path / "kiss_out")
+    pipeline = _kiss_icp_pipeline(scans_folder(bench_log, tmp_path / "scans"), tmp_path / "kiss_out")
     per_import = _resident_mb_per_import(("numpy", *RUN_IMPORTS["lio"]))
     profile = "as recorded" if os.environ.get("MRNC_BENCH_SLAM_LOG") else "field sensor profile"
     print(f"{bench_log.name} ({bench_log.stat().st_size / 1e9:.2f} GB), {profile}; medians of {REPEATS} alternating "
@@ -234,7 +220,7 @@ def test_slam_memory_within_issue_30_targets_vs_kiss_icp_pipeline(bench_log: Pat
     pytest.importorskip("kiss_icp", reason="kiss-icp extra not installed")
     _run(SAMPLE, tmp_path / "warm", "lio", 0.15)
     full = _run(bench_log, tmp_path / "lio", "lio", 0.0)
-    pipeline = _kiss_icp_pipeline(_sweeps_as_bin_folder(bench_log, tmp_path / "scans"), tmp_path / "kiss_out")
+    pipeline = _kiss_icp_pipeline(scans_folder(bench_log, tmp_path / "scans"), tmp_path / "kiss_out")
     holds = full["peak_mb"] - full["after_imports_mb"]
     print(f"\nload average {os.getloadavg()}: lio peak {full['peak_mb']:.0f} MB (run holds {holds:.0f} MB), "
           f"kiss_icp_pipeline peak {pipeline['peak_mb']:.0f} MB")
