@@ -19,6 +19,7 @@ those of the chunks it reads.
 
 from __future__ import annotations
 
+import os
 import struct
 from dataclasses import dataclass
 from pathlib import Path
@@ -254,7 +255,10 @@ def read_message_index(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tu
 
 def _index_records(fh: BinaryIO, ci: Any, topics: dict[int, str]) -> list[tuple[int, np.ndarray]]:
     """(channel, its entries: (n, 2) log time, offset) of each message index record of the chunk."""
-    fh.seek(ci.chunk_start_offset + ci.chunk_length)
+    at = ci.chunk_start_offset + ci.chunk_length
+    if at + ci.message_index_length > os.fstat(fh.fileno()).st_size:  # checked before reading: a crafted
+        raise IndexUnusable("truncated message index")  # length would otherwise be allocated first
+    fh.seek(at)
     block = fh.read(ci.message_index_length)
     if len(block) != ci.message_index_length:
         raise IndexUnusable("truncated message index")
@@ -290,6 +294,8 @@ def read_chunk_head(fh: BinaryIO, ci: Any) -> ChunkHead:
     if len(head) != 41 or head[0] != 0x06:
         raise IndexUnusable("no chunk record at an indexed position")
     _start, _end, size, crc, name_len = struct.unpack_from("<QQQII", head, 9)
+    if name_len != len(ci.compression.encode()):  # before reading it: a crafted length is not allocated
+        raise IndexUnusable("chunk record disagrees with its index")
     compression = fh.read(name_len).decode("utf-8", "replace")
     size_field = fh.read(8)
     if len(size_field) != 8:

@@ -356,3 +356,20 @@ def test_an_open_mcap_log_reads_its_summary_once(tmp_path: Path, monkeypatch: py
         assert lg.duration_s > 0
         assert len(list(lg.sweeps())) == len(CLOUD_STAMPS) - 2  # the duplicate and the late cloud skipped
     assert len(calls) == 1
+
+
+@pytest.mark.parametrize("length", [2**62, 2**33, 91])
+def test_message_index_longer_than_the_file_is_refused_before_it_is_read(tmp_path: Path, length: int) -> None:
+    """A chunk index whose message index length runs past the end of the file (a crafted summary):
+    IndexUnusable (the full read then reports the file), not a MemoryError from allocating it."""
+    from types import SimpleNamespace
+
+    path = tmp_path / "x.mcap"
+    path.write_bytes(bytes(100))
+    with path.open("rb") as fh:
+        with pytest.raises(IndexUnusable, match="truncated message index"):
+            mcap_index.read_message_index(fh, SimpleNamespace(chunk_start_offset=10, chunk_length=0,
+                                                              message_index_length=length), {})
+        assert mcap_index.read_message_index(fh, SimpleNamespace(
+            chunk_start_offset=10, chunk_length=0, message_index_length=90, message_start_time=0,
+            message_end_time=0), {}) == []  # the same file, a length that fits: read (zero padding)
