@@ -312,7 +312,8 @@ def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> Grou
         if isinstance(sweeps, Generator):  # stop the decoder of the stream started here
             sweeps.close()
     points = np.vstack(clouds) if clouds else np.zeros((0, 3))
-    out = ground_mount(points, base_to_sensor[:3, :3], gcfg)
+    labels = np.repeat(np.arange(len(clouds)), [c.shape[0] for c in clouds])
+    out = ground_mount(points, base_to_sensor[:3, :3], gcfg, sweep=labels)
     out.cpu_ms = (time.process_time() - t0) * 1e3
     out.sweeps = len(clouds)
     return out

@@ -50,13 +50,16 @@ class GroundMount:
                 "verdict": self.verdict, "reasons": list(self.reasons), "sweeps": self.sweeps, "cpu_ms": self.cpu_ms}
 
 
-def ground_mount(points: np.ndarray, mount_rotation: np.ndarray, cfg: GroundMountConfig) -> GroundMount:
+def ground_mount(points: np.ndarray, mount_rotation: np.ndarray, cfg: GroundMountConfig, *,
+                 sweep: np.ndarray | None = None) -> GroundMount:
     """The mount's roll and pitch error from (N, 3) points in the written base frame (m; the first
-    sweeps through /tf_static's mount, the machine's body removed); `mount_rotation`: the written
-    base_link -> LiDAR rotation (3x3), to express the correction in LiDAR axes."""
+    sweeps through /tf_static's mount, the machine's body removed; `sweep`: each point's sweep, None
+    = one); `mount_rotation`: the written base_link -> LiDAR rotation (3x3), for LiDAR axes."""
     p = np.asarray(points, float)
     rh = np.hypot(p[:, 0], p[:, 1])
-    ring = p[(rh >= cfg.ring_m[0]) & (rh <= cfg.ring_m[1])]
+    in_ring = (rh >= cfg.ring_m[0]) & (rh <= cfg.ring_m[1])
+    ring = p[in_ring]
+    labels = np.zeros(p.shape[0], int)[in_ring] if sweep is None else np.asarray(sweep)[in_ring]
     nan = float("nan")
     out = GroundMount(roll_deg=nan, pitch_deg=nan, roll_sigma_deg=nan, pitch_sigma_deg=nan, points=0,
                       residual_m=nan, inlier_fraction=0.0)
@@ -68,7 +71,7 @@ def ground_mount(points: np.ndarray, mount_rotation: np.ndarray, cfg: GroundMoun
     out.points, out.residual_m, out.inlier_fraction = int(g.shape[0]), sigma, float(inl.mean())
     tilt, fit_sd = _tilt(coef), _fit_sigma(g, sigma)
     out.roll_deg, out.pitch_deg = float(tilt[0]), float(tilt[1])
-    spread, bend = slope_spread(g, coef, cfg), _bend(g, cfg)
+    spread, bend = slope_spread(g, cfg, labels[inl]), _bend(g, cfg)
     out.slope_spread_deg, out.bend_deg = (float(spread[0]), float(spread[1])), (float(bend[0]), float(bend[1]))
     total = np.sqrt(fit_sd ** 2 + spread ** 2 + bend ** 2)
     out.roll_sigma_deg, out.pitch_sigma_deg = float(total[0]), float(total[1])
@@ -141,13 +144,28 @@ def _fit_sigma(g: np.ndarray, sigma: float) -> np.ndarray:
     return np.degrees(np.sqrt([cov[2, 2], cov[1, 1]]))
 
 
-def slope_spread(g: np.ndarray, coef: np.ndarray, cfg: GroundMountConfig) -> np.ndarray:
-    """RMS of the ground's local slope about the plane's, (across y: roll, along x: pitch) deg, from the
-    mean height residuals of cells `cell_m` wide taken `slope_baseline_m` apart; each pair's noise
-    (the cells' standard errors) is removed from the mean square."""
-    r = g[:, 2] - (coef[0] + coef[1] * g[:, 0] + coef[2] * g[:, 1])
+def slope_spread(g: np.ndarray, cfg: GroundMountConfig, sweep: np.ndarray | None = None) -> np.ndarray:
+    """RMS of the ground's local slope about a smooth bowl's, (across y: roll, along x: pitch) deg, from
+    the mean height residuals of cells `cell_m` wide taken `slope_baseline_m` apart; each pair's noise
+    (the cells' standard errors) is removed from the mean square. The bowl (a quadratic surface) takes
+    out gentle relief: its curvature tilts the ring's sides against each other, yet a plane fitted over
+    a ring around the base still has the slope at its centre. Per sweep (`sweep`: each point's sweep),
+    mean squares averaged: a standing machine's sweeps repeat each pixel's range error (incidence,
+    divergence), so copies of one return in a cell are not independent noise."""
+    x, y = g[:, 0], g[:, 1]
+    a = np.c_[np.ones_like(x), x, y, x * x, x * y, y * y]
+    r = g[:, 2] - a @ np.linalg.lstsq(a, g[:, 2], rcond=None)[0]
+    labels = np.zeros(g.shape[0], int) if sweep is None else np.asarray(sweep)
+    msq = np.array([_slope_msq(g[labels == k, :2], r[labels == k], cfg) for k in np.unique(labels)])
+    spread: np.ndarray = np.degrees(np.arctan(np.sqrt(np.maximum(np.mean(msq, axis=0), 0.0))))
+    return spread
+
+
+def _slope_msq(xy: np.ndarray, r: np.ndarray, cfg: GroundMountConfig) -> np.ndarray:
+    """Noise-corrected mean square of the cell-mean height slopes of one sweep, (roll, pitch) axes,
+    (m/m)^2; inf with fewer than 10 cell pairs."""
     half = int(np.ceil(cfg.ring_m[1] / cfg.cell_m))
-    ij = np.clip(np.floor(g[:, :2] / cfg.cell_m).astype(int) + half, 0, 2 * half - 1)
+    ij = np.clip(np.floor(xy / cfg.cell_m).astype(int) + half, 0, 2 * half - 1)
     n, s, s2 = (np.zeros((2 * half, 2 * half)) for _ in range(3))
     np.add.at(n, (ij[:, 0], ij[:, 1]), 1.0)
     np.add.at(s, (ij[:, 0], ij[:, 1]), r)
@@ -162,8 +180,7 @@ def slope_spread(g: np.ndarray, coef: np.ndarray, cfg: GroundMountConfig) -> np.
         d = _shifted(mean, k, axis)
         v = _shifted(var_mean, k, axis, add=True)
         good = np.isfinite(d) & np.isfinite(v)
-        msq = float(np.mean((d[good] / base) ** 2 - v[good] / base ** 2)) if good.sum() >= 10 else float("inf")
-        out.append(np.degrees(np.arctan(np.sqrt(max(msq, 0.0)))))
+        out.append(float(np.mean((d[good] / base) ** 2 - v[good] / base ** 2)) if good.sum() >= 10 else np.inf)
     return np.array(out)
 
 
