@@ -847,7 +847,7 @@ def _add_ground_check(result: RunResult, inputs: LogInputs, cfg: Config) -> None
     if g.verdict != "misaligned":
         return
     value = "[" + ", ".join(f"{a:.2f}" for a in g.correction_rpy_deg) + "]"
-    what = (f"applied {value} deg to /tf_static's base_link -> LiDAR rotation from the first sweep (set "
+    what = (f"applied {value} deg to /tf_static's base_link -> LiDAR rotation before the run (set "
             "slam.sensor.mount_rpy_correction_deg to override, slam.ground_mount.apply=false to keep /tf_static)"
             if applied else f"/tf_static kept; slam.sensor.mount_rpy_correction_deg={value} would take it out"
             + (" (the one set wins)" if any(cfg.slam.sensor.mount_rpy_correction_deg) else ""))

@@ -1,7 +1,7 @@
 """The ground check of the mount through the run's own input pass (commands.slam._read_inputs) on
 simulated 1 s starts of the open line: the field profile's LiDAR sits at /tf_static's mount turned by
-roll 0.3, pitch -0.4, yaw 0.5 deg. On flat ground the check reads it and, with slam.ground_mount.apply,
-the run's mount takes it; on the field terrain's waves it says "not measurable" and /tf_static stays."""
+roll 0.3, pitch -0.4, yaw 0.5 deg. On flat ground the check reads it and the run's mount takes it (by
+default); on the field terrain's waves it says "not measurable" and /tf_static stays."""
 
 from __future__ import annotations
 
@@ -37,7 +37,7 @@ def _inputs(log: Path, sets: dict[str, object]):
 
 def test_flat_ground_reads_the_mount_and_apply_takes_it(tmp_path: Path) -> None:
     log = _start(tmp_path, 0.0)
-    inputs, written = _inputs(log, {"slam.ground_mount.apply": True})
+    inputs, written = _inputs(log, {})
     g = inputs.ground_mount
     assert g is not None
     assert g.verdict == "misaligned"
@@ -47,17 +47,17 @@ def test_flat_ground_reads_the_mount_and_apply_takes_it(tmp_path: Path) -> None:
     assert inputs.mount_rpy_deg == g.correction_rpy_deg
     assert not np.allclose(inputs.base_to_sensor[:3, :3], written[:3, :3])
     # the user's correction wins over the ground's
-    user, _ = _inputs(log, {"slam.ground_mount.apply": True, "slam.sensor.mount_rpy_correction_deg": (0.0, -0.42, 0.0)})
+    user, _ = _inputs(log, {"slam.sensor.mount_rpy_correction_deg": (0.0, -0.42, 0.0)})
     assert user.mount_rpy_deg == (0.0, -0.42, 0.0)
-    # default: a check only, /tf_static kept
-    kept, _ = _inputs(log, {})
+    # apply off: a check only, /tf_static kept
+    kept, _ = _inputs(log, {"slam.ground_mount.apply": False})
     np.testing.assert_array_equal(kept.base_to_sensor, written)
 
 
 def test_the_field_terrain_is_not_measurable_and_the_mount_stays(tmp_path: Path) -> None:
     """Negative control: the same start on the field terrain's 0.04 m waves (measured: roll +4.7,
     pitch -0.4 deg at sigma 0.7 / 0.9)."""
-    inputs, written = _inputs(_start(tmp_path, 0.04), {"slam.ground_mount.apply": True})
+    inputs, written = _inputs(_start(tmp_path, 0.04), {})
     assert inputs.ground_mount is not None
     assert inputs.ground_mount.verdict == "not measurable"
     np.testing.assert_array_equal(inputs.base_to_sensor, written)
