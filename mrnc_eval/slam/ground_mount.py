@@ -118,16 +118,22 @@ def robust_plane(p: np.ndarray, max_residual_m: float, iterations: int = 8) -> t
     ground under walls, trunks, bushes), then refitted to the points within 3 robust sigma (floor
     max_residual_m / 3). Returns the coefficients, the robust sigma of the kept points (m) and the mask."""
     a = np.c_[np.ones(p.shape[0]), p[:, 0], p[:, 1]]
-    keep = p[:, 2] <= np.median(p[:, 2])
+    keep = p[:, 2] <= _median(p[:, 2])
     coef, sigma = np.zeros(3), float("inf")
     for _ in range(iterations):
         coef = np.linalg.lstsq(a[keep], p[keep, 2], rcond=None)[0]
         r = p[:, 2] - a @ coef
-        sigma = float(1.4826 * np.median(np.abs(r[keep])))
+        sigma = 1.4826 * _median(np.abs(r[keep]))
         keep = np.abs(r) <= 3.0 * max(sigma, max_residual_m / 3.0)
         if keep.sum() < 3:
             break
     return coef, sigma, keep
+
+
+def _median(x: np.ndarray) -> float:
+    """The (upper) median by partition: np.median's first call imports numpy.ma (~20 ms before the run)."""
+    k = x.size // 2
+    return float(np.partition(x, k)[k]) if x.size else float("nan")
 
 
 def _tilt(coef: np.ndarray) -> np.ndarray:
@@ -156,7 +162,9 @@ def slope_spread(g: np.ndarray, cfg: GroundMountConfig, sweep: np.ndarray | None
     a = np.c_[np.ones_like(x), x, y, x * x, x * y, y * y]
     r = g[:, 2] - a @ np.linalg.lstsq(a, g[:, 2], rcond=None)[0]
     labels = np.zeros(g.shape[0], int) if sweep is None else np.asarray(sweep)
-    msq = np.array([_slope_msq(g[labels == k, :2], r[labels == k], cfg) for k in np.unique(labels)])
+    # sweeps by bincount, not np.unique: its first call imports numpy.ma (~20 ms before the run)
+    msq = np.array([_slope_msq(g[labels == k, :2], r[labels == k], cfg)
+                    for k in np.flatnonzero(np.bincount(labels))])
     spread: np.ndarray = np.degrees(np.arctan(np.sqrt(np.maximum(np.mean(msq, axis=0), 0.0))))
     return spread
 
