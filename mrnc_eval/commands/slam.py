@@ -50,6 +50,7 @@ from mrnc_eval.text import printable
 if TYPE_CHECKING:
     from mrnc_eval.io.reader import LogReader
     from mrnc_eval.slam.config import SlamConfig
+    from mrnc_eval.slam.ground_mount import GroundMount
     from mrnc_eval.slam.mount_check import MountCheck
     from mrnc_eval.slam.sweep_prep import PreparedSweep
 
@@ -79,6 +80,8 @@ class LogInputs:
     n_sweeps: int  # LiDAR messages in the log
     max_sweep_gap_s: float  # largest gap between consecutive LiDAR header stamps
     notes: tuple[str, ...] = ()  # why an input was not used (GNSS without a fix)
+    ground_mount: GroundMount | None = None  # the ground check of the mount at the start
+    mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # rotation applied to /tf_static's mount, deg
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -261,13 +264,16 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
         raise InputError(log_path, f"slam.sensor.lidar_frame {lidar_frame!r} is not in the static transforms "
                          f"(frames: {', '.join(sorted(frames))}); set it to the clouds' frame", topic="/tf_static")
     base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
-    base_to_sensor = corrected_mount(base_to_sensor, cfg.slam.sensor.mount_rpy_correction_deg)
+    ground = ground_check(lg, corrected_mount(base_to_sensor, cfg.slam.sensor.mount_rpy_correction_deg), cfg) \
+        if "base_link" in frames else None
+    rpy = applied_mount_rpy(cfg, ground)
+    base_to_sensor = corrected_mount(base_to_sensor, rpy)
     imu = lg.imu() if lg.has_role("imu") else None
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
         sensor_to_imu = imu_in_corrected_sensor(lg.transform(lidar_frame, imu.frame_id), statics,
                                                 lidar_frame=lidar_frame, imu_frame=imu.frame_id,
-                                                rpy_deg=cfg.slam.sensor.mount_rpy_correction_deg, where=log_path)
+                                                rpy_deg=rpy, where=log_path)
     gnss, gnss_note = _gnss_or_none(lg, cfg)
     has_antenna = "gnss" in frames and "base_link" in frames
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
@@ -276,7 +282,51 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
                      gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
                      antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
-                     notes=(gnss_note,) if gnss_note else ())
+                     notes=(gnss_note,) if gnss_note else (), ground_mount=ground, mount_rpy_deg=rpy)
+
+
+def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> GroundMount | None:
+    """The mount's roll and pitch from the ground in the log's first sweeps (slam/ground_mount.py), read
+    through `base_to_sensor` (/tf_static's mount with the user's correction); None when switched off."""
+    from mrnc_eval.slam.ground_mount import ground_mount
+
+    gcfg = cfg.slam.ground_mount
+    if not gcfg.enabled:
+        return None
+    t0 = time.process_time()
+    box = cfg.slam.features.body_crop_box_m
+    clouds: list[np.ndarray] = []
+    first = None
+    sweeps = lg.sweeps()
+    try:
+        for sweep in sweeps:
+            first = sweep.stamp if first is None else first
+            if len(clouds) >= gcfg.max_sweeps or sweep.stamp - first > gcfg.span_s:
+                break
+            p = sweep.points.astype(np.float64)
+            p = p[np.all(np.isfinite(p), axis=1)]
+            if box is not None:  # the machine's own body, in the cloud frame
+                p = p[~np.all((p >= np.asarray(box[:3])) & (p <= np.asarray(box[3:])), axis=1)]
+            clouds.append(p @ base_to_sensor[:3, :3].T + base_to_sensor[:3, 3])
+    finally:
+        if isinstance(sweeps, Generator):  # stop the decoder of the stream started here
+            sweeps.close()
+    points = np.vstack(clouds) if clouds else np.zeros((0, 3))
+    labels = np.repeat(np.arange(len(clouds)), [c.shape[0] for c in clouds])
+    out = ground_mount(points, base_to_sensor[:3, :3], gcfg, sweep=labels)
+    out.cpu_ms = (time.process_time() - t0) * 1e3
+    out.sweeps = len(clouds)
+    return out
+
+
+def applied_mount_rpy(cfg: Config, ground: GroundMount | None) -> tuple[float, float, float]:
+    """The rotation right-multiplied onto /tf_static's LiDAR mount (deg, LiDAR axes): the user's
+    slam.sensor.mount_rpy_correction_deg when set, else the ground check's flagged reading when
+    slam.ground_mount.apply, else none."""
+    user = cfg.slam.sensor.mount_rpy_correction_deg
+    if any(user) or ground is None or not cfg.slam.ground_mount.apply or ground.verdict != "misaligned":
+        return user
+    return ground.correction_rpy_deg
 
 
 def _gnss_or_none(lg: LogReader, cfg: Config) -> tuple[GnssSeries | None, str]:
@@ -758,16 +808,19 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
     from mrnc_eval.slam.mount_check import mount_check
 
     mcfg = cfg.slam.mount_check
+    _add_ground_check(result, inputs, cfg)
     if not mcfg.enabled:
         return
     t0 = time.process_time()
     check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
     cpu_ms = (time.process_time() - t0) * 1e3
-    applied = cfg.slam.sensor.mount_rpy_correction_deg
+    applied = inputs.mount_rpy_deg
     total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(applied))
                                     @ rotation.from_rpy(np.radians(check.correction_rpy_deg)))) + 0.0  # no -0.0
+    ground = result.extra.get("mount_check", {}).get("ground")
     result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied),
-                                   "suggested_rpy_deg": [float(a) for a in total], "cpu_ms": cpu_ms}
+                                   "suggested_rpy_deg": [float(a) for a in total], "cpu_ms": cpu_ms,
+                                   **({"ground": ground} if ground is not None else {})}
     if check.verdict == "insufficient":  # too little straight motion: no numbers to show
         return
     result.metrics += [Metric(name="mount_pitch_error_deg", value=check.pitch_deg, unit="deg", group="slam/health",
@@ -780,6 +833,28 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
         text = _mount_warning(check, total, cfg)
         result.warnings.append(text)
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": check.verdict}))
+
+
+def _add_ground_check(result: RunResult, inputs: LogInputs, cfg: Config) -> None:
+    """The ground check of the mount at the start (slam/ground_mount.py) as `mount_check.ground` in
+    metrics.json, with what was applied; a warning when it flags the mount, naming /tf_static and the value."""
+    g = inputs.ground_mount
+    if g is None:
+        return
+    applied = g.verdict == "misaligned" and inputs.mount_rpy_deg == g.correction_rpy_deg \
+        and not any(cfg.slam.sensor.mount_rpy_correction_deg)
+    result.extra["mount_check"] = {"ground": {**g.as_dict(), "applied": applied}}
+    if g.verdict != "misaligned":
+        return
+    value = "[" + ", ".join(f"{a:.2f}" for a in g.correction_rpy_deg) + "]"
+    what = (f"applied {value} deg to /tf_static's base_link -> LiDAR rotation before the run (set "
+            "slam.sensor.mount_rpy_correction_deg to override, slam.ground_mount.apply=false to keep /tf_static)"
+            if applied else f"/tf_static kept; slam.sensor.mount_rpy_correction_deg={value} would take it out"
+            + (" (the one set wins)" if any(cfg.slam.sensor.mount_rpy_correction_deg) else ""))
+    text = (f"the ground around the machine at the start says the LiDAR mount in /tf_static is off by "
+            f"{'; '.join(g.reasons)} (roll/pitch, base axes; the ground's plane through the written mount): {what}")
+    result.warnings.append(text)
+    result.events.append(Event(t_s=0.0, kind="health", message=text, data={"ground_mount_verdict": g.verdict}))
 
 
 def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config) -> str:

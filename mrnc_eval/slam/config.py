@@ -426,6 +426,41 @@ class MountCheckConfig:
 
 
 @dataclass(frozen=True)
+class GroundMountConfig:
+    """The LiDAR mount's roll and pitch error from the ground around the machine in the first sweeps
+    (slam/ground_mount.py): the base frame stands parallel to the ground under the wheels, so the ground
+    ring's plane, put into base axes through /tf_static, is tilted by the mount's error when the ring is
+    the footprint's plane; its sigma says when it is not (slope spread, bend) and the check stays silent."""
+
+    enabled: bool = param(True, "fit the ground in the first sweeps before the run (mount_check.ground in "
+                          "metrics.json)")
+    apply: bool = param(True, "correct /tf_static's roll/pitch of the LiDAR mount by the ground's reading when it is "
+                        "flagged (a warning names both; the field terrain's waves never open the gate: 172 of 172 "
+                        "matrix logs not measurable); slam.sensor.mount_rpy_correction_deg, when set, wins")
+    span_s: float = param(0.5, "the sweeps of the log's first this many seconds (the machine standing or slow)",
+                          "s", ge=0.0, le=10.0)
+    max_sweeps: int = param(5, "at most this many sweeps", ge=1, le=100)
+    ring_m: tuple[float, float] = param((2.0, 8.0), "horizontal distance from the base origin of the ground used "
+                                        "[inner, outer]: beyond the body, near enough to be the footprint's "
+                                        "ground", "m", gt=0.0, le=50.0)
+    min_points: int = param(500, "fewer ground points in the ring than this: not measurable", ge=3)
+    max_residual_m: float = param(0.05, "heights scattering more than this about the plane (vegetation, "
+                                  "clutter): not measurable; a third of it is the floor of the fit's 3-sigma "
+                                  "cut", "m", gt=0.0, le=1.0)
+    min_inlier_fraction: float = param(0.5, "less of the ring on the plane than this: not measurable",
+                                       ge=0.0, le=1.0)
+    cell_m: float = param(0.5, "cell of the slope spread's mean heights", "m", gt=0.0, le=5.0)
+    slope_baseline_m: float = param(1.0, "distance of the cells compared for the local slope (half the MPD's "
+                                    "wheelbase: on the field terrain's 2.7-3.7 m waves 2 m saw a third of the "
+                                    "slope under the base, the readings off by up to 9.6 sigma; 1 m: 3.3)", "m",
+                                    gt=0.0, le=10.0)
+    max_sigma_deg: float = param(0.15, "an axis whose sigma (fit, slope spread, bend) is above this is not read",
+                                 "deg", gt=0.0, le=90.0)
+    flag_deg: float = param(0.15, "flag a roll or pitch error above this ...", "deg", ge=0.0, le=90.0)
+    flag_sigmas: float = param(3.0, "... and above this many sigma", ge=0.0, le=100.0)
+
+
+@dataclass(frozen=True)
 class WheelCalibrationConfig:
     """Online calibration and gating of the wheel odometry (slam/wheel_calibration.py) and the
     wheel_health verdict (slam/wheel_health.py)."""
@@ -540,3 +575,5 @@ class SlamConfig:
     wheel_odom: WheelOdomConfig = section(WheelOdomConfig, "wheel odometry factors in graph #1")
     map_quality: MapQualityConfig = section(MapQualityConfig, "map quality without ground truth")
     mount_check: MountCheckConfig = section(MountCheckConfig, "the LiDAR mount's pitch and yaw from the motion")
+    ground_mount: GroundMountConfig = section(GroundMountConfig, "the LiDAR mount's roll and pitch from the "
+                                              "ground at the start")

@@ -242,7 +242,7 @@ def _checked(error_rpy_deg: tuple[float, float, float], applied: tuple[float, fl
     traj = Trajectory(t, est[:, :3, 3], rotation.matrix_to_quat(est[:, :3, :3]), name="lio")
     inputs = LogInputs(duration_s=60.0, base_to_sensor=mount, imu=None, sensor_to_imu=np.eye(4), gnss=None,
                        ground_truth=None, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3), n_sweeps=300,
-                       max_sweep_gap_s=0.2)
+                       max_sweep_gap_s=0.2, mount_rpy_deg=applied)
     result = RunResult(kind="slam", log_path="log.mcap", log_id="log", config_hash="0")
     _add_mount_check(result, traj, inputs, replace_path(Config(), "slam.sensor.mount_rpy_correction_deg", applied))
     return result.extra["mount_check"], result.warnings
