@@ -303,7 +303,8 @@ def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> Grou
             first = sweep.stamp if first is None else first
             if len(clouds) >= gcfg.max_sweeps or sweep.stamp - first > gcfg.span_s:
                 break
-            p = sweep.points.astype(np.float64)
+            stride = -(-len(sweep.points) // gcfg.max_points_per_sweep)  # ceil: a dense sweep thinned first
+            p = sweep.points[::stride].astype(np.float64)
             p = p[np.all(np.isfinite(p), axis=1)]
             if box is not None:  # the machine's own body, in the cloud frame
                 p = p[~np.all((p >= np.asarray(box[:3])) & (p <= np.asarray(box[3:])), axis=1)]

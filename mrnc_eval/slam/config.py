@@ -440,6 +440,9 @@ class GroundMountConfig:
     span_s: float = param(0.5, "the sweeps of the log's first this many seconds (the machine standing or slow)",
                           "s", ge=0.0, le=10.0)
     max_sweeps: int = param(5, "at most this many sweeps", ge=1, le=100)
+    max_points_per_sweep: int = param(10_000, "every k-th point of a denser sweep, so that at most this many are "
+                                      "read (an OS0-128 x 1024 sweep's 80,000 cost ~0.5 s CPU over 5 sweeps; "
+                                      "OS0-32 x 512 is read whole)", ge=500)
     ring_m: tuple[float, float] = param((2.0, 8.0), "horizontal distance from the base origin of the ground used "
                                         "[inner, outer]: beyond the body, near enough to be the footprint's "
                                         "ground", "m", gt=0.0, le=50.0)

@@ -52,6 +52,12 @@ def test_flat_ground_recovers_a_one_degree_pitch_and_the_run_takes_it(tmp_path: 
     # the user's correction wins over the ground's
     user, _ = _inputs(log, {"slam.sensor.mount_rpy_correction_deg": (0.0, 0.9, 0.0)})
     assert user.mount_rpy_deg == (0.0, 0.9, 0.0)
+    # a dense sweep is read thinned (every k-th point; a 6,400-point OS0-32 sweep whole by default): the
+    # same reading within its sigma from a third of the points
+    thin, _ = _inputs(log, {"slam.ground_mount.max_points_per_sweep": 2000})
+    assert thin.ground_mount is not None
+    assert thin.ground_mount.points < 0.5 * g.points
+    assert thin.ground_mount.pitch_deg == pytest.approx(1.0, abs=max(2.0 * thin.ground_mount.pitch_sigma_deg, 0.2))
     # apply off: a check only, /tf_static kept
     kept, _ = _inputs(log, {"slam.ground_mount.apply": False})
     np.testing.assert_array_equal(kept.base_to_sensor, written)
