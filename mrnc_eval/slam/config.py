@@ -384,6 +384,10 @@ class GpsConfig:
         "long before, the step is its end and the fixes are clean now (they fit a smooth track with a box "
         "offset ending at the step better than with the offset held); then the offset goes to zero and the "
         "filter to the fixes' track; 0: off", "s", ge=0.0, le=30.0)
+    track_both_axes: bool = param(
+        True, "GNSS track: a sweep whose match left a horizontal direction free takes x and y both from the track; "
+        "on bare ground the other horizontal direction is matched against a map the track itself laid (on the "
+        "open line without wheels it held the antenna up to 4.3 m off the track); false: only the free directions")
     track_level_antenna: bool = param(
         False, "GNSS track: the filter tracks the antenna as if the base were level: each fix less the antenna's "
         "sway with the base's roll and pitch (the chain's attitude at the fix; a 2.2 m mast sways +-0.2 m "

@@ -250,6 +250,7 @@ class GnssTrack:
     engaged_final: bool = False  # ... on the final alignment (not the provisional one)
     up_in_lidar: np.ndarray = field(default_factory=lambda: np.array([0.0, 0.0, 1.0]))  # the base's up axis
     level_antenna: bool = False  # the filter tracks the antenna with the base's tilt taken off (track_level_antenna)
+    both_axes: bool = False  # a sweep with a horizontal direction free takes x and y from the track (track_both_axes)
     sway: list[np.ndarray] = field(default_factory=list)  # the latest sweeps' tilt sway (map xy, m; ins.chain_t's tail)
 
     def alignment(self) -> EnuAlignment | None:
@@ -359,6 +360,7 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
     base = np.eye(4) if base_to_sensor is None else np.asarray(base_to_sensor, float)
     return GnssTrack(ins=new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor),
                      up_in_lidar=base[:3, :3].T @ np.array([0.0, 0.0, 1.0]), level_antenna=cfg.track_level_antenna,
+                     both_axes=cfg.track_both_axes,
                      provisional_travel_m=cfg.track_provisional_travel_m,
                      filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
                                         max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
@@ -367,16 +369,19 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
 
 
 def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,
-                    directions: np.ndarray) -> np.ndarray:
+                    directions: np.ndarray, *, both_axes: bool = False) -> np.ndarray:
     """The pose with its translation moved toward putting the antenna at antenna_xy (map, m), only
     within the span of the translation parts of `directions` (k, 6; [rot, trans], map axes) and in
-    x, y: what the match measured stays."""
+    x, y: what the match measured stays. both_axes: when that span has a horizontal direction, x and
+    y both go to antenna_xy (the other horizontal direction the match measured is not kept)."""
     ant = pose[:3, :3] @ antenna_in_lidar + pose[:3, 3]
     want = np.r_[antenna_xy - ant[:2], 0.0]
     trans = np.asarray(directions, float)[:, 3:6].copy()
     trans[:, 2] = 0.0
     u, s, _ = np.linalg.svd(trans.T, full_matrices=False)
     basis = u[:, s > 0.5]  # horizontal directions the match left free
+    if both_axes and basis.shape[1] > 0:
+        basis = np.eye(3)[:, :2]
     out = pose.copy()
     out[:3, 3] += basis @ (basis.T @ want)
     return out

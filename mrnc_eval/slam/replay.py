@@ -282,7 +282,7 @@ class _Replay:
             return pose
         if not track.engaged or (track.ins.alignment is not None and not track.engaged_final):
             self.engage_track(track, stamp)
-        return move_along_free(pose, track.ins.antenna_in_lidar, antenna_xy, self.st.loose)
+        return move_along_free(pose, track.ins.antenna_in_lidar, antenna_xy, self.st.loose, both_axes=track.both_axes)
 
     def engage_track(self, track: GnssTrack, stamp: float) -> None:
         """The track takes over x, y (on the provisional alignment, or the final one), or moves from the

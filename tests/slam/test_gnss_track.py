@@ -116,6 +116,24 @@ def test_move_along_free_moves_only_the_free_directions() -> None:
     assert moved[2, 3] == 3.0  # z is never the fixes'
 
 
+def test_both_axes_puts_the_antenna_on_the_track_when_one_horizontal_direction_is_free() -> None:
+    """slam.gps.track_both_axes: a match that left x free and measured y (bare ground: y matched against a
+    map the track itself laid) has the antenna put on the track in x and y; a match that left no horizontal
+    direction free keeps its pose. Negative control: without it, y stays the match's, 5 m off the track."""
+    pose = se3.make(_rot_z(np.radians(90.0)), np.array([1.0, 2.0, 3.0]))
+    along_x = np.array([[0.0, 0.0, 0.0, 1.0, 0.0, 0.0]])
+    lever = np.array([0.0, -1.0, 2.2])  # a mast 1 m right of the sensor; yaw 90 deg: +x in the map
+    track = np.array([4.0, 7.0])
+    moved = move_along_free(pose, lever, track, along_x, both_axes=True)
+    np.testing.assert_allclose((moved[:3, :3] @ lever + moved[:3, 3])[:2], track)
+    assert moved[2, 3] == 3.0
+    np.testing.assert_allclose(moved[:3, :3], pose[:3, :3])
+    only_free = move_along_free(pose, lever, track, along_x)
+    assert abs((only_free[:3, :3] @ lever + only_free[:3, 3])[1] - track[1]) > 4.9  # y: 2 m, the track 7 m
+    yaw_and_z = np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 0.0, 0.0, 1.0]])
+    np.testing.assert_allclose(move_along_free(pose, lever, track, yaw_and_z, both_axes=True), pose)
+
+
 def test_an_outage_hands_x_y_back_to_the_chain_and_the_track_restarts_at_the_fixes() -> None:
     """A 10 s outage while the drive turns 90 deg: 2 s (max_gap_s) into it the track is no longer
     fresh, so the chain carries x, y (its straight extrapolation, the negative control, ends metres
