@@ -297,9 +297,11 @@ def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> Grou
     box = cfg.slam.features.body_crop_box_m
     clouds: list[np.ndarray] = []
     first = None
-    sweeps = lg.sweeps()
+    sweeps = lg.sweeps(note_skips=False)  # the run's own pass notes the sweeps it skips
     try:
         for sweep in sweeps:
+            if not len(sweep):  # no returns (a driver starting up): nothing to read, not a sweep of the ground
+                continue
             first = sweep.stamp if first is None else first
             if len(clouds) >= gcfg.max_sweeps or sweep.stamp - first > gcfg.span_s:
                 break

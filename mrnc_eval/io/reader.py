@@ -177,10 +177,12 @@ class LogReader:
     def wheel_odometry(self, topic: str | None = None) -> Trajectory:
         return self.trajectory(self._topic_for("wheel_odom", topic))
 
-    def sweeps(self, topic: str | None = None, *, keep: Callable[[float], bool] | None = None) -> Iterator[Sweep]:
+    def sweeps(self, topic: str | None = None, *, keep: Callable[[float], bool] | None = None,
+               note_skips: bool = True) -> Iterator[Sweep]:
         """Decoded sweeps in log order, streamed one at a time; a sweep not after the last one
-        yielded is skipped and noted, one whose header stamp `keep` refuses skipped before decoding."""
-        yield from self._series.sweeps(self._topic_for("lidar", topic), keep=keep)
+        yielded is skipped and noted (unless `note_skips` is False: a look ahead of the run's own
+        pass), one whose header stamp `keep` refuses skipped before decoding."""
+        yield from self._series.sweeps(self._topic_for("lidar", topic), keep=keep, note_skips=note_skips)
 
     def strings(self, topic: str) -> list[str]:
         return self._series.strings(topic)

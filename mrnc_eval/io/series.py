@@ -252,11 +252,14 @@ class SeriesReader:
                                                bad_quaternions(q_a, v.quat_norm_tolerance)})
         return np.asarray(t, float)[valid], p_a[valid], normalised(q_a[valid])
 
-    def sweeps(self, topic: str, *, keep: Callable[[float], bool] | None = None) -> Iterator[Sweep]:
+    def sweeps(self, topic: str, *, keep: Callable[[float], bool] | None = None,
+               note_skips: bool = True) -> Iterator[Sweep]:
         """Decoded sweeps in log order, streamed one at a time. A sweep whose header stamp is not
         after the last one yielded (a duplicate or out-of-order cloud) is skipped and noted in the
-        health. `keep` is asked with each remaining header stamp before decoding; False skips the
-        sweep undecoded (a mapping rate below the sensor rate: slam/mapping_interval.py)."""
+        health (`note_skips` False: not noted, for a look at the first sweeps before the run, whose
+        own pass notes them; noted twice they read as twice the skips). `keep` is asked with each
+        remaining header stamp before decoding; False skips the sweep undecoded (a mapping rate below
+        the sensor rate: slam/mapping_interval.py)."""
         msgtype = self.src.msgtype(topic)
         if msgtype != "sensor_msgs/msg/PointCloud2":
             raise InputError(self.src.path, f"expected sensor_msgs/msg/PointCloud2, got {msgtype}", topic=topic)
@@ -279,7 +282,7 @@ class SeriesReader:
                 last = stamp
                 yield sweep
         finally:
-            if skipped:
+            if skipped and note_skips:
                 self.health.note(topic, f"{skipped} sweep(s) skipped: header stamp not after the previous sweep")
 
     def strings(self, topic: str) -> list[str]:

@@ -146,7 +146,10 @@ def _fit_sigma(g: np.ndarray, sigma: float) -> np.ndarray:
     """Least-squares standard errors of the (roll, pitch) tilt, deg; neighbouring returns share the
     ground's texture, so the point count is taken as a hundredth of itself (a conservative floor)."""
     a = np.c_[np.ones(g.shape[0]), g[:, 0], g[:, 1]]
-    cov = np.linalg.inv(a.T @ a) * sigma ** 2 * 100.0
+    try:
+        cov = np.linalg.inv(a.T @ a) * sigma ** 2 * 100.0
+    except np.linalg.LinAlgError:  # returns on one line (or one point): the plane's tilt is not determined
+        return np.array([np.inf, np.inf])
     return np.degrees(np.sqrt([cov[2, 2], cov[1, 1]]))
 
 
@@ -164,8 +167,11 @@ def slope_spread(g: np.ndarray, cfg: GroundMountConfig, sweep: np.ndarray | None
     labels = np.zeros(g.shape[0], int) if sweep is None else np.asarray(sweep)
     # sweeps by bincount, not np.unique: its first call imports numpy.ma (~20 ms before the run)
     msq = np.array([_slope_msq(g[labels == k, :2], r[labels == k], cfg)
-                    for k in np.flatnonzero(np.bincount(labels))])
-    spread: np.ndarray = np.degrees(np.arctan(np.sqrt(np.maximum(np.mean(msq, axis=0), 0.0))))
+                    for k in np.flatnonzero(np.bincount(labels))]).reshape(-1, 2)
+    # a sweep with too few cell pairs (a partial one; inf) says nothing, the others still do; none: inf
+    said = np.isfinite(msq)
+    mean = np.where(said.any(axis=0), np.where(said, msq, 0.0).sum(axis=0) / np.maximum(said.sum(axis=0), 1), np.inf)
+    spread: np.ndarray = np.degrees(np.arctan(np.sqrt(np.maximum(mean, 0.0))))
     return spread
 
 

@@ -4,11 +4,18 @@ that error in the written base frame; rough, bent or overgrown ground must say "
 
 from __future__ import annotations
 
+from pathlib import Path
+from types import SimpleNamespace
+from typing import Any
+
 import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mrnc_eval.commands.slam import corrected_mount
+from mrnc_eval.commands.slam import corrected_mount, ground_check
+from mrnc_eval.config import Config
+from mrnc_eval.data import Sweep
+from mrnc_eval.io import open_log
 from mrnc_eval.slam.config import GroundMountConfig
 from mrnc_eval.slam.ground_mount import ground_mount
 
@@ -141,3 +148,83 @@ def test_too_few_points_is_not_measurable() -> None:
     g = ground_mount(np.zeros((10, 3)), np.eye(3), GroundMountConfig())
     assert g.verdict == "not measurable"
     assert "too few" in g.reasons[0]
+
+
+# --- the check's bad inputs and its warning (review of the seventh session's merge) ---------------------------
+
+
+def _log_of(sweeps: list[Sweep]) -> Any:
+    """A stand-in for the LogReader: ground_check reads only its sweeps."""
+    return SimpleNamespace(sweeps=lambda **_: iter(sweeps))
+
+
+def _in_sensor_frame(pts: np.ndarray, stamps: list[float]) -> list[Sweep]:
+    """`_first_sweeps`' points (written base frame) back in the LiDAR frame, as len(stamps) sweeps."""
+    sensor = ((pts - WRITTEN[:3, 3]) @ WRITTEN[:3, :3]).astype(np.float32)
+    return [Sweep(stamp=t, points=p) for t, p in zip(stamps, np.array_split(sensor, len(stamps)), strict=True)]
+
+
+def test_an_empty_sweep_at_the_start_is_skipped_not_a_crash() -> None:
+    """A sweep with no returns (a driver starting up; no-return points are removed when read) ahead of
+    five good ones: it was sliced with a step of 0 (ValueError, the run stopped before it began). Now it
+    is passed over and the good sweeps give the reading; negative control: the good sweeps alone read
+    the same."""
+    good = _in_sensor_frame(_first_sweeps((0.3, -0.4, 0.5)), [0.1, 0.2, 0.3, 0.4, 0.5])
+    empty = Sweep(stamp=0.0, points=np.zeros((0, 3), np.float32))
+    g = ground_check(_log_of([empty, *good]), WRITTEN, Config())
+    alone = ground_check(_log_of(good), WRITTEN, Config())
+    assert g is not None
+    assert alone is not None
+    assert g.verdict == "misaligned"
+    assert g.sweeps == 5
+    assert g.correction_rpy_deg == alone.correction_rpy_deg
+    assert g.correction_rpy_deg[1] == pytest.approx(-0.4, abs=0.03)
+
+
+def test_a_ring_without_a_plane_to_fit_is_not_measurable_not_a_crash() -> None:
+    """Ground returns all on one line (x only: a plane's y slope undetermined; the same for returns
+    repeating one point): the fit's covariance was a singular inverse (LinAlgError stopped the run).
+    Now the undetermined axis has an infinite sigma and is not read."""
+    rng = np.random.default_rng(0)
+    line = np.c_[rng.uniform(3.0, 7.0, 2000), np.zeros(2000), -BASE_HEIGHT_M + rng.normal(0.0, 0.01, 2000)]
+    g = ground_mount(line, np.eye(3), GroundMountConfig())
+    assert g.verdict == "not measurable"
+    assert g.correction_rpy_deg == (0.0, 0.0, 0.0)
+    assert not np.isfinite(g.roll_sigma_deg)
+
+
+def test_a_nearly_empty_sweep_does_not_hide_the_other_sweeps() -> None:
+    """Five good sweeps and a sixth of 20 returns (too few cell pairs for a slope of its own): its
+    infinite mean square made the whole slope spread infinite (sigma 90 deg, not measurable). Now a
+    sweep that cannot say is left out of the mean. Negative control: when no sweep has the pairs (one
+    sparse sweep) the spread stays infinite and the check says not measurable."""
+    pts = _first_sweeps((0.3, -0.4, 0.5))
+    labels = np.repeat(np.arange(5), -(-pts.shape[0] // 5))[:pts.shape[0]]
+    g = ground_mount(np.vstack([pts, pts[:20]]), WRITTEN[:3, :3], GroundMountConfig(), sweep=np.r_[labels, [5] * 20])
+    assert g.verdict == "misaligned"
+    assert max(g.slope_spread_deg) < 0.05
+    assert g.correction_rpy_deg[1] == pytest.approx(-0.4, abs=0.03)
+    # one sweep, two returns a 0.5 m cell (a cell mean needs 3): plenty for the plane, no slope of its own
+    centres = np.mgrid[-7.75:8.0:0.5, -7.75:8.0:0.5].reshape(2, -1).T
+    xy = np.vstack([centres, centres + 0.1])
+    xy = xy[(np.hypot(xy[:, 0], xy[:, 1]) >= 2.0) & (np.hypot(xy[:, 0], xy[:, 1]) <= 8.0)]
+    s = ground_mount(np.c_[xy, -BASE_HEIGHT_M + 0.005 * xy[:, 0]], WRITTEN[:3, :3], GroundMountConfig())
+    assert s.points >= 500  # enough for the fit: only the slope spread cannot be had
+    assert s.verdict == "not measurable"
+    assert s.slope_spread_deg == (90.0, 90.0)  # arctan of an infinite slope: none to be had
+
+
+def test_sweeps_skipped_in_the_first_ones_are_noted_once(tmp_path: Path) -> None:
+    """The check's look at the first sweeps and the run's pass both met the duplicate and the late cloud:
+    the run warned '2 sweep(s) skipped' twice (four, read as written). Negative control: the run's pass
+    alone notes them once."""
+    from tests.io.test_mcap_index import _multi_chunk_log
+
+    log = tmp_path / "dup.mcap"
+    _multi_chunk_log(log)
+    with open_log(log) as lg:
+        assert ground_check(lg, np.eye(4), Config()) is not None
+        assert not [n for n in lg.health_notes() if "skipped" in n]
+        assert len(list(lg.sweeps())) == 4
+        assert [n for n in lg.health_notes() if "skipped" in n] == [
+            "/ouster/points: 2 sweep(s) skipped: header stamp not after the previous sweep"]
