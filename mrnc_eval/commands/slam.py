@@ -840,31 +840,52 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
 
 def _add_ground_check(result: RunResult, inputs: LogInputs, cfg: Config) -> None:
     """The ground check of the mount at the start (slam/ground_mount.py) as `mount_check.ground` in
-    metrics.json, with what was applied; a warning when it flags the mount, naming /tf_static and the value."""
+    metrics.json, with what was applied; a warning when it flags the mount, naming the mount it read
+    through (/tf_static's, with the user's correction when set) and the whole correction."""
     g = inputs.ground_mount
     if g is None:
         return
-    applied = g.verdict == "misaligned" and inputs.mount_rpy_deg == g.correction_rpy_deg \
-        and not any(cfg.slam.sensor.mount_rpy_correction_deg)
+    user = cfg.slam.sensor.mount_rpy_correction_deg
+    applied = g.verdict == "misaligned" and inputs.mount_rpy_deg == g.correction_rpy_deg and not any(user)
     result.extra["mount_check"] = {"ground": {**g.as_dict(), "applied": applied}}
     if g.verdict != "misaligned":
         return
-    value = "[" + ", ".join(f"{a:.2f}" for a in g.correction_rpy_deg) + "]"
-    what = (f"applied {value} deg to /tf_static's base_link -> LiDAR rotation before the run (set "
-            "slam.sensor.mount_rpy_correction_deg to override, slam.ground_mount.apply=false to keep /tf_static)"
-            if applied else f"/tf_static kept; slam.sensor.mount_rpy_correction_deg={value} would take it out"
-            + (" (the one set wins)" if any(cfg.slam.sensor.mount_rpy_correction_deg) else ""))
-    text = (f"the ground around the machine at the start says the LiDAR mount in /tf_static is off by "
-            f"{'; '.join(g.reasons)} (roll/pitch, base axes; the ground's plane through the written mount): {what}")
+    # the check read through the user's correction: what takes the reading out is the two together
+    total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(user))
+                                    @ rotation.from_rpy(np.radians(g.correction_rpy_deg)))) + 0.0  # no -0.0
+    value, limit = _rpy_text(total), _correction_limit(cfg)
+    mount = (f"/tf_static's LiDAR mount with slam.sensor.mount_rpy_correction_deg={_rpy_text(user)}" if any(user)
+             else "the LiDAR mount in /tf_static")
+    kept = "the set correction kept" if any(user) else "/tf_static kept"
+    if applied:
+        what = (f"applied {value} deg to /tf_static's base_link -> LiDAR rotation before the run (set slam.sensor."
+                "mount_rpy_correction_deg to override, slam.ground_mount.apply=false to keep /tf_static)")
+    elif np.all(np.abs(total) <= limit):
+        what = f"{kept}; slam.sensor.mount_rpy_correction_deg={value} would take it out"
+    else:  # not a value the parameter takes
+        what = (f"{kept}; correct /tf_static by {value} deg (beyond what slam.sensor.mount_rpy_correction_deg "
+                f"takes: +-{limit:g} deg)")
+    text = (f"the ground around the machine at the start says {mount} is off by {'; '.join(g.reasons)} "
+            f"(roll/pitch, base axes; the ground's plane through that mount): {what}")
     result.warnings.append(text)
     result.events.append(Event(t_s=0.0, kind="health", message=text, data={"ground_mount_verdict": g.verdict}))
+
+
+def _rpy_text(rpy: Iterable[float]) -> str:
+    """Roll, pitch, yaw (deg) as the config writes them: [0.00, -0.42, 0.50]."""
+    return "[" + ", ".join(f"{a:.2f}" for a in rpy) + "]"
+
+
+def _correction_limit(cfg: Config) -> float:
+    """The largest angle slam.sensor.mount_rpy_correction_deg takes (its declared range), deg."""
+    param = next(f for f in dataclasses.fields(cfg.slam.sensor) if f.name == "mount_rpy_correction_deg")
+    return float(param.metadata["bounds"]["le"])
 
 
 def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config) -> str:
     """The misaligned mount check's warning, with the slam.sensor.mount_rpy_correction_deg that undoes it
     (`total`: the applied correction and the check's, deg) when the parameter's range admits it."""
-    param = next(f for f in dataclasses.fields(cfg.slam.sensor) if f.name == "mount_rpy_correction_deg")
-    limit = float(param.metadata["bounds"]["le"])
+    limit = _correction_limit(cfg)
     fix = (f"correct /tf_static or set slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, "
            f"{total[2]:.2f}]" if np.all(np.abs(total) <= limit) else
            f"correct /tf_static (by [{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}] deg, beyond what "

@@ -12,12 +12,13 @@ import numpy as np
 import pytest
 from scipy.spatial.transform import Rotation
 
-from mrnc_eval.commands.slam import corrected_mount, ground_check
-from mrnc_eval.config import Config
+from mrnc_eval.commands.slam import LogInputs, _add_ground_check, applied_mount_rpy, corrected_mount, ground_check
+from mrnc_eval.config import Config, replace_paths
 from mrnc_eval.data import Sweep
 from mrnc_eval.io import open_log
+from mrnc_eval.results import RunResult
 from mrnc_eval.slam.config import GroundMountConfig
-from mrnc_eval.slam.ground_mount import ground_mount
+from mrnc_eval.slam.ground_mount import GroundMount, ground_mount
 
 BASE_HEIGHT_M = 0.6  # base_link above the ground, as the simulator's
 # the written base_link -> LiDAR mount: 1.9 m up, yawed 90 deg so that LiDAR and base axes differ
@@ -228,3 +229,48 @@ def test_sweeps_skipped_in_the_first_ones_are_noted_once(tmp_path: Path) -> None
         assert len(list(lg.sweeps())) == 4
         assert [n for n in lg.health_notes() if "skipped" in n] == [
             "/ouster/points: 2 sweep(s) skipped: header stamp not after the previous sweep"]
+
+
+def _warned(correction: tuple[float, float, float], user: tuple[float, float, float], *,
+            apply: bool = True) -> tuple[str, dict[str, Any]]:
+    """_add_ground_check's warning and record for a flagged reading `correction` (LiDAR axes, deg) made
+    through /tf_static's mount with the user's `user` correction."""
+    g = GroundMount(roll_deg=0.0, pitch_deg=correction[1], roll_sigma_deg=0.05, pitch_sigma_deg=0.05, points=5000,
+                    residual_m=0.01, inlier_fraction=0.9, correction_rpy_deg=correction, verdict="misaligned",
+                    reasons=[f"pitch {correction[1]:+.2f} +- 0.05 deg"])
+    cfg = replace_paths(Config(), {"slam.sensor.mount_rpy_correction_deg": user, "slam.ground_mount.apply": apply})
+    inputs = LogInputs(duration_s=60.0, base_to_sensor=np.eye(4), imu=None, sensor_to_imu=np.eye(4), gnss=None,
+                       ground_truth=None, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3), n_sweeps=300,
+                       max_sweep_gap_s=0.1, ground_mount=g, mount_rpy_deg=applied_mount_rpy(cfg, g))
+    result = RunResult(kind="slam", log_path="log.mcap", log_id="log", config_hash="0")
+    _add_ground_check(result, inputs, cfg)
+    assert len(result.warnings) == 1
+    return result.warnings[0], result.extra["mount_check"]["ground"]
+
+
+def test_the_ground_warning_under_a_set_correction_names_the_whole_value() -> None:
+    """With slam.sensor.mount_rpy_correction_deg set the check reads through it, so a flagged reading is
+    what is left on top of it: the value that takes it out is the two together ([0, 0.5, 0] set and
+    0.5 more read: [0, 1, 0]), not the reading alone, and what is off is the corrected mount, not
+    /tf_static. Negative control: nothing set, the reading is the value and /tf_static is named."""
+    text, rec = _warned((0.0, 0.5, 0.0), (0.0, 0.5, 0.0))
+    assert "slam.sensor.mount_rpy_correction_deg=[0.00, 1.00, 0.00]" in text
+    assert "mount in /tf_static is off" not in text
+    assert rec["applied"] is False
+    text, rec = _warned((0.0, 0.5, 0.0), (0.0, 0.0, 0.0), apply=False)
+    assert "slam.sensor.mount_rpy_correction_deg=[0.00, 0.50, 0.00]" in text
+    assert "mount in /tf_static is off" in text
+    assert rec["applied"] is False
+    text, rec = _warned((0.0, 0.5, 0.0), (0.0, 0.0, 0.0))
+    assert "applied [0.00, 0.50, 0.00] deg" in text
+    assert rec["applied"] is True
+
+
+def test_the_ground_warning_does_not_suggest_a_correction_the_config_refuses() -> None:
+    """slam.sensor.mount_rpy_correction_deg takes +-10 deg: a reading beyond it (here 9 set + 2 read) is
+    named as the /tf_static correction it needs, not as a setting the config would refuse."""
+    text, _ = _warned((0.0, 2.0, 0.0), (0.0, 9.0, 0.0))
+    assert "would take it out" not in text
+    assert "mount_rpy_correction_deg=[0.00, 11" not in text
+    assert "[0.00, 11.00, 0.00]" in text
+    assert "+-10 deg" in text
