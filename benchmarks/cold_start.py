@@ -76,20 +76,21 @@ def main() -> None:
     ap.add_argument("--python", default=sys.executable, help="the interpreter both sides run with")
     ap.add_argument("--warm", action="store_true", help="do not drop the page cache (warm runs)")
     args = ap.parse_args()
-    work = Path(tempfile.mkdtemp(prefix="cold_start_"))
-    scans = scans_folder(args.log, work / "scans")
-    first_two = work / "scans2"
-    first_two.mkdir()
-    for f in sorted(scans.iterdir())[:2]:
-        (first_two / f.name).write_bytes(f.read_bytes())
-    cmds = commands(args.python, args.log.resolve(), scans, first_two, work / "out")
-    rows: dict[str, list[tuple[float, float, float, float]]] = {name: [] for name in cmds}
-    for _ in range(args.rounds):
-        for name, cmd in cmds.items():
-            if not args.warm:
-                drop_page_cache()
-            load = os.getloadavg()[0]
-            rows[name].append((*timed(cmd, work), load))
+    with tempfile.TemporaryDirectory(prefix="cold_start_") as tmp:  # the scans: ~0.4 GB for forest30
+        work = Path(tmp)
+        scans = scans_folder(args.log, work / "scans")
+        first_two = work / "scans2"
+        first_two.mkdir()
+        for f in sorted(scans.iterdir())[:2]:
+            (first_two / f.name).write_bytes(f.read_bytes())
+        cmds = commands(args.python, args.log.resolve(), scans, first_two, work / "out")
+        rows: dict[str, list[tuple[float, float, float, float]]] = {name: [] for name in cmds}
+        for _ in range(args.rounds):
+            for name, cmd in cmds.items():
+                if not args.warm:
+                    drop_page_cache()
+                load = os.getloadavg()[0]
+                rows[name].append((*timed(cmd, work), load))
     print(f"{'warm' if args.warm else 'page cache dropped before each run'}, {args.rounds} alternating rounds, "
           f"log {args.log}, python {args.python}\n")
     print("| run | wall s (rounds) | median wall s | median CPU s | peak MB | load |\n|---|---|---|---|---|---|")
