@@ -300,11 +300,11 @@ def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> Grou
     sweeps = lg.sweeps(note_skips=False)  # the run's own pass notes the sweeps it skips
     try:
         for sweep in sweeps:
-            if not len(sweep):  # no returns (a driver starting up): nothing to read, not a sweep of the ground
-                continue
-            first = sweep.stamp if first is None else first
+            first = sweep.stamp if first is None else first  # the span from the first sweep, empty or not
             if len(clouds) >= gcfg.max_sweeps or sweep.stamp - first > gcfg.span_s:
                 break
+            if not len(sweep):  # no returns (a driver starting up): nothing to read, not a sweep of the ground
+                continue
             stride = -(-len(sweep.points) // gcfg.max_points_per_sweep)  # ceil: a dense sweep thinned first
             p = sweep.points[::stride].astype(np.float64)
             p = p[np.all(np.isfinite(p), axis=1)]

@@ -180,6 +180,19 @@ def test_an_empty_sweep_at_the_start_is_skipped_not_a_crash() -> None:
     assert g.sweeps == 5
     assert g.correction_rpy_deg == alone.correction_rpy_deg
     assert g.correction_rpy_deg[1] == pytest.approx(-0.4, abs=0.03)
+    # a log of empty sweeps is looked at for span_s only, not decoded to its end: the 7th is never asked for
+    asked: list[float] = []
+
+    def stream(**_: Any) -> Any:
+        for k in range(100):
+            asked.append(0.1 * k)
+            yield Sweep(stamp=0.1 * k, points=np.zeros((0, 3), np.float32))
+
+    none = ground_check(SimpleNamespace(sweeps=stream), WRITTEN, Config())
+    assert none is not None
+    assert none.verdict == "not measurable"
+    assert none.sweeps == 0
+    assert len(asked) == 7  # 0.0-0.5 s, and the one past the span that ends the look
 
 
 def test_a_ring_without_a_plane_to_fit_is_not_measurable_not_a_crash() -> None:
