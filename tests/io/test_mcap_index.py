@@ -373,3 +373,33 @@ def test_message_index_longer_than_the_file_is_refused_before_it_is_read(tmp_pat
         assert mcap_index.read_message_index(fh, SimpleNamespace(
             chunk_start_offset=10, chunk_length=0, message_index_length=90, message_start_time=0,
             message_end_time=0), {}) == []  # the same file, a length that fits: read (zero padding)
+
+
+def test_chunk_compression_name_longer_than_its_index_says_is_refused_before_it_is_read(tmp_path: Path) -> None:
+    """A chunk record whose compression name length (u32) disagrees with its index (a crafted 2**31):
+    IndexUnusable naming the disagreement, the name never read (a read of its length would allocate it
+    first). Negative control: the index's own length ("lz4", 3) goes on to the next check (the file
+    ends there: truncated chunk)."""
+    import struct
+    from types import SimpleNamespace
+
+    def head(name_len: int) -> Path:
+        path = tmp_path / f"h{name_len}.mcap"
+        path.write_bytes(b"\x06" + bytes(8) + struct.pack("<QQQII", 0, 0, 100, 0, name_len) + b"lz4")
+        return path
+
+    ci = SimpleNamespace(chunk_start_offset=0, compression="lz4", uncompressed_size=100, compressed_size=0)
+    asked: list[int] = []
+    with head(2**31).open("rb") as raw:
+        real_read = raw.read
+
+        def read(n: int = -1) -> bytes:
+            asked.append(n)
+            return real_read(n)
+
+        fh = SimpleNamespace(seek=raw.seek, read=read, tell=raw.tell, fileno=raw.fileno)
+        with pytest.raises(IndexUnusable, match="disagrees with its index"):
+            mcap_index.read_chunk_head(fh, ci)  # type: ignore[arg-type]
+    assert max(asked) < 100
+    with head(3).open("rb") as fh3, pytest.raises(IndexUnusable, match="truncated chunk"):
+        mcap_index.read_chunk_head(fh3, ci)
