@@ -833,7 +833,7 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
                               note=f"LiDAR mount yaw error from the motion +- {check.yaw_sigma_deg:.2f} deg "
                                    "(with wheel factors, their hold on the lateral motion hides it)")]
     if check.verdict == "misaligned":
-        text = _mount_warning(check, total, cfg)
+        text = _mount_warning(check, total, cfg, applied=applied)
         result.warnings.append(text)
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": check.verdict}))
 
@@ -882,15 +882,21 @@ def _correction_limit(cfg: Config) -> float:
     return float(param.metadata["bounds"]["le"])
 
 
-def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config) -> str:
+def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config, *,
+                   applied: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> str:
     """The misaligned mount check's warning, with the slam.sensor.mount_rpy_correction_deg that undoes it
-    (`total`: the applied correction and the check's, deg) when the parameter's range admits it."""
+    (`total`: the applied correction and the check's, deg) when the parameter's range admits it; the
+    mount named is the one the motion was read through (/tf_static's turned by `applied`, deg)."""
     limit = _correction_limit(cfg)
+    who = "slam.sensor.mount_rpy_correction_deg" if any(cfg.slam.sensor.mount_rpy_correction_deg) \
+        else "the ground check"
+    mount = (f"the LiDAR mount (/tf_static's turned by {_rpy_text(applied)} deg by {who} before the run)"
+             if any(applied) else "the LiDAR mount in /tf_static")
     fix = (f"correct /tf_static or set slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, "
            f"{total[2]:.2f}]" if np.all(np.abs(total) <= limit) else
            f"correct /tf_static (by [{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}] deg, beyond what "
            f"slam.sensor.mount_rpy_correction_deg takes: +-{limit:g} deg)")
-    return (f"the LiDAR mount in /tf_static looks off by {'; '.join(check.reasons)} (the machine's motion, "
+    return (f"{mount} looks off by {'; '.join(check.reasons)} (the machine's motion, "
             f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
             f"base_link poses and the end drift carry it; {fix}")
 

@@ -161,7 +161,9 @@ def test_the_slam_command_line_prints_the_run_s_findings(yard_log: Path, tmp_pat
     assert main(["slam", str(yard_log), "--out", str(tmp_path / "loud"), *sets]) == 0
     loud = capsys.readouterr()
     (said,) = [line for line in loud.err.splitlines() if "LiDAR mount" in line]
-    assert f"{yard_log.stem}: the LiDAR mount in /tf_static looks off by pitch" in said
+    # the 1 deg set is what is wrong (/tf_static is the true mount): the mount named is the one turned by it
+    assert (f"{yard_log.stem}: the LiDAR mount (/tf_static's turned by [0.00, 1.00, 0.00] deg by "
+            "slam.sensor.mount_rpy_correction_deg before the run) looks off by pitch") in said
     assert "loop closures ->" in loud.out
     assert "LiDAR mount" not in loud.out
     assert main(["-q", "slam", str(yard_log), "--out", str(tmp_path / "quiet"), *sets]) == 0
@@ -227,9 +229,11 @@ def test_stamps_out_of_order_read_as_in_order() -> None:
     assert got.as_dict() == want.as_dict()
 
 
-def _checked(error_rpy_deg: tuple[float, float, float], applied: tuple[float, float, float]) -> tuple[dict, list]:
+def _checked(error_rpy_deg: tuple[float, float, float], applied: tuple[float, float, float], *,
+             by_ground: bool = False) -> tuple[dict, list]:
     """commands.slam._add_mount_check on the synthetic drive, its base poses those of a LiDAR really
-    at /tf_static's mount turned by error_rpy_deg, the run corrected by `applied` (deg)."""
+    at /tf_static's mount turned by error_rpy_deg, the run corrected by `applied` (deg): the user's
+    slam.sensor.mount_rpy_correction_deg, or with `by_ground` the ground check's (nothing set)."""
     from mrnc_eval.commands.slam import LogInputs, _add_mount_check, corrected_mount
     from mrnc_eval.config import Config, replace_path
     from mrnc_eval.data import Trajectory
@@ -244,7 +248,8 @@ def _checked(error_rpy_deg: tuple[float, float, float], applied: tuple[float, fl
                        ground_truth=None, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3), n_sweeps=300,
                        max_sweep_gap_s=0.2, mount_rpy_deg=applied)
     result = RunResult(kind="slam", log_path="log.mcap", log_id="log", config_hash="0")
-    _add_mount_check(result, traj, inputs, replace_path(Config(), "slam.sensor.mount_rpy_correction_deg", applied))
+    user = (0.0, 0.0, 0.0) if by_ground else applied
+    _add_mount_check(result, traj, inputs, replace_path(Config(), "slam.sensor.mount_rpy_correction_deg", user))
     return result.extra["mount_check"], result.warnings
 
 
@@ -263,3 +268,20 @@ def test_the_suggested_correction_composes_the_applied_one_and_is_offered_only_i
     (text,) = warnings
     assert "mount_rpy_correction_deg=" not in text
     assert "correct /tf_static (by [" in text
+
+
+@pytest.mark.parametrize("by_ground", [False, True])
+def test_the_warning_names_the_mount_the_motion_was_read_through(by_ground: bool) -> None:
+    """Run with /tf_static's mount turned by 3 deg of yaw (the user's correction, or the ground check's
+    applied by default), the motion reads what is left on top of it (-0.4 pitch): the warning said
+    "the LiDAR mount in /tf_static looks off by pitch -0.40", which /tf_static is not; it names the
+    corrected mount and who turned it. Negative control: nothing applied names /tf_static."""
+    _, warnings = _checked((0.0, -0.4, 0.0), (0.0, 0.0, 3.0), by_ground=by_ground)
+    (text,) = warnings
+    assert "in /tf_static looks off" not in text
+    assert "turned by [0.00, 0.00, 3.00] deg" in text
+    assert ("the ground check" in text) == by_ground
+    assert ("slam.sensor.mount_rpy_correction_deg before the run" in text) == (not by_ground)
+    _, warnings = _checked((0.0, -0.4, 0.0), (0.0, 0.0, 0.0), by_ground=by_ground)
+    (text,) = warnings
+    assert "the LiDAR mount in /tf_static looks off by pitch" in text
