@@ -441,8 +441,8 @@ class GroundMountConfig:
     apply: bool = param(True, "correct /tf_static's roll/pitch of the LiDAR mount by the ground's reading when it is "
                         "flagged (a warning names both; the field terrain's waves never open the gate: 172 of 172 "
                         "matrix logs not measurable); slam.sensor.mount_rpy_correction_deg, when set, wins")
-    span_s: float = param(0.5, "the sweeps of the log's first this many seconds (the machine standing or slow)",
-                          "s", ge=0.0, le=10.0)
+    span_s: float = param(0.5, "the sweeps within this many seconds of the log's first LiDAR sweep (the machine "
+                          "standing or slow; a sweep without returns is passed over)", "s", ge=0.0, le=10.0)
     max_sweeps: int = param(5, "at most this many sweeps", ge=1, le=100)
     max_points_per_sweep: int = param(10_000, "every k-th point of a denser sweep, so that at most this many are "
                                       "read (an OS0-128 x 1024 sweep's 80,000 cost ~0.5 s CPU over 5 sweeps; "
