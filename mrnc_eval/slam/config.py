@@ -439,7 +439,7 @@ class GroundMountConfig:
     enabled: bool = param(True, "fit the ground in the first sweeps before the run (mount_check.ground in "
                           "metrics.json)")
     apply: bool = param(True, "correct /tf_static's roll/pitch of the LiDAR mount by the ground's reading when it is "
-                        "flagged (a warning names both; the field terrain's waves never open the gate: 172 of 172 "
+                        "flagged (a warning names both; the field terrain's waves never open the gate: 171 of 171 "
                         "matrix logs not measurable); slam.sensor.mount_rpy_correction_deg, when set, wins")
     span_s: float = param(0.5, "the sweeps within this many seconds of the log's first LiDAR sweep (the machine "
                           "standing or slow; a sweep without returns is passed over)", "s", ge=0.0, le=10.0)
