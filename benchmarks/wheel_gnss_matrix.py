@@ -116,7 +116,29 @@ def end_split(gt_file: Path, online_file: Path) -> dict[str, float] | None:
     tilt = [rotation.rpy(rotation.quat_to_matrix(q[None])[0]) for q in (est.quat_xyzw[0], gt.quat_xyzw[i])]
     roll, pitch = np.degrees(tilt[0][:2] - tilt[1][:2])
     return {"along_m": float(d.along_m[-1]), "cross_m": float(d.cross_m[-1]), "z_m": float(d.vertical_m[-1]),
-            "yaw_deg": float(d.yaw_deg[-1]), "first_roll_deg": float(roll), "first_pitch_deg": float(pitch)}
+            "yaw_deg": float(d.yaw_deg[-1]), "first_roll_deg": float(roll), "first_pitch_deg": float(pitch),
+            **height_checks(gt, est)}
+
+
+def height_checks(gt, est) -> dict[str, float]:
+    """Where the end z comes from (docs/simulation.md, "holding the line's z"): `map_climb_deg`, the
+    estimate's climb in its map minus the truth's (start to end over the horizontal distance; the
+    map's tilt from the IMU's start, which the origin alignment takes out with the first pose's
+    tilt: first pitch error + map climb = the base_link mount's pitch error), and `z_height_held_m`,
+    the end z had every height been the truth's (what a perfect GNSS height hold would give)."""
+    import dataclasses
+
+    import numpy as np
+
+    from mrnc_eval.evaluation.ape import ape
+
+    idx = np.abs(gt.stamps[None, :] - est.stamps[:, None]).argmin(axis=1)
+    dz_est, dz_gt = est.positions[-1, 2] - est.positions[0, 2], gt.positions[idx[-1], 2] - gt.positions[idx[0], 2]
+    run = float(np.linalg.norm(est.positions[-1, :2] - est.positions[0, :2]))
+    held = est.positions.copy()
+    held[:, 2] = held[0, 2] + gt.positions[idx, 2] - gt.positions[idx[0], 2]
+    z = ape(gt, dataclasses.replace(est, positions=held), align="origin", max_diff=0.05).decompose().vertical_m[-1]
+    return {"map_climb_deg": float(np.degrees(np.arctan2(dz_est - dz_gt, max(run, 1e-9)))), "z_height_held_m": float(z)}
 
 
 def cells(a: argparse.Namespace):
@@ -167,7 +189,8 @@ def table(results: dict[tuple, dict]) -> str:
 def split_table(results: dict[tuple, dict]) -> str:
     """Markdown: per cell and seed the online APE, the end drift and its split (`end_split`)."""
     lines = ["| scene | wheels | GNSS | seed | online APE (m) | end drift (m) | along / cross / z (m) | yaw (deg) "
-             "| first roll / pitch error (deg) |", "|---|---|---|---|---|---|---|---|---|"]
+             "| first roll / pitch error (deg) | map climb (deg) | z, heights held (m) |",
+             "|---|---|---|---|---|---|---|---|---|---|---|"]
     for (scene, wheels, gnss, seed, _method), r in sorted(results.items()):
         sp = r.get("end_split")
         if r.get("ape_online_m") is None or not sp:
@@ -175,8 +198,14 @@ def split_table(results: dict[tuple, dict]) -> str:
         lines.append(f"| {scene} | {wheels} | {gnss} | {seed} | {r['ape_online_m']:.3f} "
                      f"| {r['end_drift_online_m']:.2f} | {sp['along_m']:+.2f} / {sp['cross_m']:+.2f} "
                      f"/ {sp['z_m']:+.2f} | {sp['yaw_deg']:+.2f} "
-                     f"| {sp['first_roll_deg']:+.2f} / {sp['first_pitch_deg']:+.2f} |")
+                     f"| {sp['first_roll_deg']:+.2f} / {sp['first_pitch_deg']:+.2f} "
+                     f"| {_signed(sp.get('map_climb_deg'))} | {_signed(sp.get('z_height_held_m'))} |")
     return "\n".join(lines)
+
+
+def _signed(x: float | None) -> str:
+    """A split column (results from before the column was added: -)."""
+    return "-" if x is None else f"{x:+.2f}"
 
 
 def main() -> None:

@@ -190,6 +190,11 @@ class _Replay:
         track, odom, imu, bias = _imu_setup(imu, extr, cfg, warnings, noise)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
+        if aligner is not None and cfg.gps.use_elevation and cfg.gps.gate == "residual":
+            # it was set in vain on the open line (identical runs): heights would hold the map level, while
+            # the line's z is the base's mount pitch (docs/simulation.md, "holding the line's z")
+            warnings.append("slam.gps.use_elevation is for the lio_sam gate: the residual gate's GNSS factors "
+                            "keep the chain's own z")
         graph = KeyframeGraph(cfg=cfg.graph, anchored=anchored)
         return cls(cfg=cfg, extr=extr, imu=imu, track=track, odom=odom, graph=graph, aligner=aligner,
                    timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise,
