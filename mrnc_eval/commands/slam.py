@@ -82,6 +82,7 @@ class LogInputs:
     notes: tuple[str, ...] = ()  # why an input was not used (GNSS without a fix)
     ground_mount: GroundMount | None = None  # the ground check of the mount at the start
     mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # rotation applied to /tf_static's mount, deg
+    mount_written: bool = True  # /tf_static has a base_link -> LiDAR mount (False: the LiDAR pose is the base)
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -282,7 +283,8 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
                      gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
                      antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
-                     notes=(gnss_note,) if gnss_note else (), ground_mount=ground, mount_rpy_deg=rpy)
+                     notes=(gnss_note,) if gnss_note else (), ground_mount=ground, mount_rpy_deg=rpy,
+                     mount_written={"base_link", lidar_frame} <= frames)
 
 
 def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> GroundMount | None:
@@ -812,7 +814,7 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
 
     mcfg = cfg.slam.mount_check
     _add_ground_check(result, inputs, cfg)
-    if not mcfg.enabled:
+    if not mcfg.enabled or not inputs.mount_written:  # no mount to check: the LiDAR's pose is the base's
         return
     t0 = time.process_time()
     check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)

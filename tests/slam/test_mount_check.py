@@ -230,7 +230,7 @@ def test_stamps_out_of_order_read_as_in_order() -> None:
 
 
 def _checked(error_rpy_deg: tuple[float, float, float], applied: tuple[float, float, float], *,
-             by_ground: bool = False) -> tuple[dict, list]:
+             by_ground: bool = False, mount_written: bool = True) -> tuple[dict, list]:
     """commands.slam._add_mount_check on the synthetic drive, its base poses those of a LiDAR really
     at /tf_static's mount turned by error_rpy_deg, the run corrected by `applied` (deg): the user's
     slam.sensor.mount_rpy_correction_deg, or with `by_ground` the ground check's (nothing set)."""
@@ -246,11 +246,23 @@ def _checked(error_rpy_deg: tuple[float, float, float], applied: tuple[float, fl
     traj = Trajectory(t, est[:, :3, 3], rotation.matrix_to_quat(est[:, :3, :3]), name="lio")
     inputs = LogInputs(duration_s=60.0, base_to_sensor=mount, imu=None, sensor_to_imu=np.eye(4), gnss=None,
                        ground_truth=None, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3), n_sweeps=300,
-                       max_sweep_gap_s=0.2, mount_rpy_deg=applied)
+                       max_sweep_gap_s=0.2, mount_rpy_deg=applied, mount_written=mount_written)
     result = RunResult(kind="slam", log_path="log.mcap", log_id="log", config_hash="0")
     user = (0.0, 0.0, 0.0) if by_ground else applied
     _add_mount_check(result, traj, inputs, replace_path(Config(), "slam.sensor.mount_rpy_correction_deg", user))
-    return result.extra["mount_check"], result.warnings
+    return result.extra.get("mount_check", {}), result.warnings
+
+
+def test_a_log_without_a_base_link_mount_gets_no_mount_check() -> None:
+    """A log whose /tf_static has no base_link -> LiDAR mount (the LiDAR's pose taken as the base): no
+    mount to check, so no record and no warning saying /tf_static's mount looks off. Negative control:
+    the same motion with a written mount is flagged."""
+    record, warnings = _checked((0.0, -0.4, 0.0), (0.0, 0.0, 0.0), mount_written=False)
+    assert record == {}
+    assert warnings == []
+    record, warnings = _checked((0.0, -0.4, 0.0), (0.0, 0.0, 0.0))
+    assert record["verdict"] == "misaligned"
+    assert len(warnings) == 1
 
 
 def test_the_suggested_correction_composes_the_applied_one_and_is_offered_only_in_range() -> None:
