@@ -188,6 +188,9 @@ def run_scan_folder(folder: Path, cfg: Config, out_dir: Path, *, method: str | N
     gt = read_tum(gt_file) if gt_file.is_file() else None
     result.extra["ground_truth"] = str(gt_file.resolve()) if gt is not None else None
     result.extra["input"] = f"scan folder: {len(scans.files)} scans ({scans.files[0].suffix}), stamps from the folder"
+    if any(cfg.slam.sensor.mount_rpy_correction_deg):  # a config shared with the machine's logs: say, not fail
+        result.warnings.append(f"slam.sensor.mount_rpy_correction_deg {list(cfg.slam.sensor.mount_rpy_correction_deg)} "
+                               "ignored: a scan folder has no /tf_static mount (poses in the sensor frame)")
     stream: Iterator[Sweep] = scan_sweeps(scans)
     if window is not None and window.active:
         result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}

@@ -120,6 +120,12 @@ def test_slam_on_a_folder_of_bin_and_pcd_scans(sim_runs: Runs, tmp_path: Path) -
     result = json.loads((run / "result.json").read_text())
     ape = next(m["value"] for m in result["metrics"] if m["name"] == "ape_rmse_m")
     assert ape < 0.3  # the sensor's path against the base's ground truth (lever arm inside), kiss-icp on 6 s
+    assert not any("mount_rpy_correction_deg" in w for w in result["warnings"])
+    # a mount correction (from a config shared with the machine's logs) has nothing to turn here: said, not silent
+    corrected = _run([str(folder), "--method", "kiss-icp", "--n-scans", "5", "--set",
+                      "slam.sensor.mount_rpy_correction_deg=[0,1,0]"], tmp_path / "corrected")
+    warnings = json.loads((corrected / "result.json").read_text())["warnings"]
+    assert any("mount_rpy_correction_deg [0.0, 1.0, 0.0] ignored: a scan folder" in w for w in warnings)
     # lio needs an IMU: refused with the reason; a stamps file of the wrong length names itself
     assert main(["slam", str(folder), "--method", "lio", "--out", str(tmp_path / "lio")]) == 2
     (folder / "timestamps.txt").write_text("\n".join(stamps[:-1]) + "\n")
