@@ -482,8 +482,9 @@ class WheelCalibrationConfig:
                                                      "the offset is the gyro's bias left after the standing start)")
     yaw_rate_sigma_rad_s: float = param(0.01, "reference sigma of a bin's wheel-minus-model yaw rate (good wheels "
                                         "and the gyro); the yaw hold is scaled by (this / the guess's yaw-rate "
-                                        "sigma)^2: the gyro blend's with a standing start, else the wheels' "
-                                        "measured residual", "rad/s", gt=0.0)
+                                        "sigma)^2: the gyro blend's with a standing start, else the calibrated "
+                                        "wheels' (the measured residual over the track factor squared)", "rad/s",
+                                        gt=0.0)
     gyro_yaw_rate_sigma_rad_s: float = param(0.002, "sigma of the gyro's bin yaw rate (bias left after the standing "
                                              "start and the fit, vibration) when it is blended with the calibrated "
                                              "wheels' by inverse variance; 0 = the wheels' yaw alone", "rad/s", ge=0.0)

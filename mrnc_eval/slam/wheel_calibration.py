@@ -268,23 +268,26 @@ class WheelCalibrator:
         3-5: 17 of 18 within 2 ms, 14 without)."""
         if self.cfg.gyro_yaw_rate_sigma_rad_s <= 0 or not self.standing_start:
             return 0.0
-        var_w = max(self.sigma2, 1e-12) / self._track_factor_used() ** 2
+        var_w = self._wheel_yaw_rate_var()
         return float(var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2))
+
+    def _wheel_yaw_rate_var(self) -> float:
+        """Variance of the calibrated wheels' yaw rate, (rad/s)^2: sigma2 is measured on the raw wheel
+        yaw rate (the model's f x gyro + a v + c), and track() divides the wheels' yaw by f."""
+        return max(self.sigma2, 1e-12) / self._track_factor_used() ** 2
 
     def yaw_quality(self) -> float:
         """Weight (0-1] for the yaw hold: the reference yaw-rate sigma over the sigma of the guess's
         yaw rate, squared (an information ratio). The guess's yaw is `track()`'s: with the gyro blended
         in, the blend's variance (w^2 gyro + (1 - w)^2 wheels: at most the gyro's, so the full hold with
-        the defaults); without, the wheels' measured residual variance. Held by the wheels' residual
-        alone, the open line's guess (97 % gyro) let scan-to-map's yaw steps through (0.05-0.15 deg a
-        sweep, +1.8 deg over 40 s on tuning seed 6, where the gyro alone stayed within 0.2 deg)."""
+        the defaults); without (w = 0), the calibrated wheels' (the measured residual variance over f^2,
+        as the blend's wheel term: continuous in w). Held by the wheels' residual alone, the open line's
+        guess (97 % gyro) let scan-to-map's yaw steps through (0.05-0.15 deg a sweep, +1.8 deg over
+        40 s on tuning seed 6, where the gyro alone stayed within 0.2 deg)."""
         if self.n_bins < self.cfg.warmup_bins:
             return 1.0
-        var = max(self.sigma2, 1e-12)
         w = self.gyro_weight()
-        if w > 0:
-            var_w = var / self._track_factor_used() ** 2
-            var = w ** 2 * self.cfg.gyro_yaw_rate_sigma_rad_s ** 2 + (1.0 - w) ** 2 * var_w
+        var = w ** 2 * self.cfg.gyro_yaw_rate_sigma_rad_s ** 2 + (1.0 - w) ** 2 * self._wheel_yaw_rate_var()
         ratio = self.cfg.yaw_rate_sigma_rad_s ** 2 / var
         return float(np.clip(ratio, self.cfg.min_yaw_quality, 1.0))
 

@@ -415,12 +415,13 @@ def test_the_yaw_hold_weighs_the_guess_s_yaw_not_the_wheels_alone() -> None:
     """yaw_quality scales the hold of the matched yaw towards the wheel guess, whose yaw is track()'s
     blend: calibrated-class wheels (0.05 m/s pickups, residual 0.015 rad/s) with a measured gyro bias
     are 98 % gyro, so the full hold (1.0); the wheels' yaw alone (gyro_yaw_rate_sigma 0) keeps the
-    hold scaled by their residual (0.47). Negative control: that residual rule, the one before, gives
-    the blended guess 0.47 as well. With a tighter reference sigma the scale is the blend's
-    information ratio, w^2 gyro + (1 - w)^2 wheels (0.25 here, the residual rule's floor 0.05)."""
+    hold scaled by the calibrated wheels' variance, their residual over f^2 (0.57, f = 1.11). Negative
+    control: the residual rule, the one before, gives the blended guess 0.47. With a tighter
+    reference sigma the scale is the blend's information ratio, w^2 gyro + (1 - w)^2 wheels (0.25
+    here, the residual rule's floor 0.05)."""
     err = CASES["calibrated"][0]
     t, v, w = _drive()
-    quality, old = [], []
+    quality, old, factor = [], [], []
     configs = (WheelCalibrationConfig(), WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0),
                WheelCalibrationConfig(yaw_rate_sigma_rad_s=0.001))
     for cfg in configs:
@@ -429,16 +430,54 @@ def test_the_yaw_hold_weighs_the_guess_s_yaw_not_the_wheels_alone() -> None:
         assert cal.standing_start
         cal.update(float(t[-1]))
         quality.append(cal.yaw_quality())
+        factor.append(cal.track_factor)
         old.append(float(np.clip(cfg.yaw_rate_sigma_rad_s ** 2 / cal.sigma2, cfg.min_yaw_quality, 1.0)))
     assert quality[0] == 1.0
     assert 0.2 < quality[1] < 0.7
-    assert quality[1] == pytest.approx(old[1])
+    assert quality[1] == pytest.approx(old[1] * factor[1] ** 2)
     assert old[0] < 0.7  # the residual rule would hold the gyro-dominated guess as weakly as the wheels
     wg = cal.gyro_weight()
     var = wg ** 2 * cal.cfg.gyro_yaw_rate_sigma_rad_s ** 2 + (1 - wg) ** 2 * cal.sigma2 / cal.track_factor ** 2
     assert quality[2] == pytest.approx(1e-6 / var, rel=1e-9)
     assert 0.1 < quality[2] < 0.6
     assert old[2] < 0.1
+
+
+def test_the_yaw_hold_is_continuous_as_the_gyro_weight_goes_to_zero() -> None:
+    """The guess's yaw is the calibrated wheels' (raw / f) when the gyro is not blended in (w = 0: no
+    standing start, or gyro_yaw_rate_sigma 0), so yaw_quality there is the blend's limit as w -> 0
+    (gyro_yaw_rate_sigma 100 rad/s, w ~ 1e-8): to 1e-6 on combined-class wheels (fitted f 1.57,
+    reference sigma 0.005 rad/s so that the scale is not clipped: 0.29). Negative control: the
+    wheels-only rule before (the raw residual variance, not over f^2) jumps to 0.12 there, f^2 = 2.47
+    off; with the track factor at 1 the two rules agree."""
+    t, v, w = _drive()
+    cfg = WheelCalibrationConfig(yaw_rate_sigma_rad_s=0.005)
+    cal = WheelCalibrator.build(_wheel_track(t, v, w, CASES["combined"][0], 0), _imu(t, w, 0), np.eye(4), cfg)
+    assert cal is not None
+    cal.update(float(t[-1]))
+
+    def qualities() -> tuple[float, float, float, float]:
+        cal.cfg = replace(cfg, gyro_yaw_rate_sigma_rad_s=100.0)
+        limit, w_small = cal.yaw_quality(), cal.gyro_weight()
+        cal.cfg = replace(cfg, gyro_yaw_rate_sigma_rad_s=0.0)
+        unblended = cal.yaw_quality()
+        cal.cfg, cal.standing_start = cfg, False
+        no_start = cal.yaw_quality()
+        cal.standing_start = True
+        assert 0.0 < w_small < 1e-6
+        assert cal.gyro_weight() > 0.5
+        return limit, unblended, no_start, cfg.yaw_rate_sigma_rad_s ** 2 / cal.sigma2
+
+    limit, unblended, no_start, rule_before = qualities()
+    assert 1.4 < cal.track_factor < 1.8
+    assert 0.1 < limit < 0.6  # not clipped
+    assert unblended == pytest.approx(limit, rel=1e-6)
+    assert no_start == pytest.approx(limit, rel=1e-6)
+    assert rule_before < 0.5 * limit  # the rule before: discontinuous by f^2
+    cal.theta[0] = 1.0  # f = 1: raw and calibrated wheels are the same, both rules agree
+    limit, unblended, no_start, rule_before = qualities()
+    assert unblended == pytest.approx(limit, rel=1e-6)
+    assert rule_before == pytest.approx(limit, rel=1e-6)
 
 
 def test_the_gyro_blend_follows_an_applied_imu_offset() -> None:
