@@ -16,6 +16,8 @@ is cached in <logs>/results-<label>.jsonl (delete it to re-run). Usage:
     python benchmarks/wheel_gnss_matrix.py run --scenes line --wheels calibrated combined none --gnss float none \
         --seeds 3 4 5 --label report
     python benchmarks/wheel_gnss_matrix.py table --label report
+    python benchmarks/wheel_gnss_matrix.py run --scenes line loop --wheels calibrated combined --gnss float \
+        --seeds 0 1 2 --label midstart --start 5     # results-midstart-start5.jsonl: a log begun mid-drive
 
 Seeds 0-2 are for tuning, 3-5 for the report (never tuned on).
 """
@@ -221,14 +223,18 @@ def main() -> None:
     p.add_argument("--label", default="report", help="results file name part (a code version or experiment)")
     p.add_argument("--split", action="store_true", help="table: per seed, the online end drift split into "
                    "along, cross, z and yaw, and the first pose's tilt error")
+    p.add_argument("--start", type=float, default=None, help="slam --start S: the log cut S s after its start "
+                   "(sweeps, IMU, wheels, GNSS), as a log recorded mid-drive; the label gets -start<S>")
     p.add_argument("--set", dest="sets", action="append", default=[], help="extra slam --set KEY=VALUE")
     a = p.parse_args()
     a.logs.mkdir(parents=True, exist_ok=True)
+    if a.start is not None:  # its own results file: never mixed with the standing-start cells
+        a.label = f"{a.label}-start{a.start:g}"
     if a.command == "table":
         print(split_table(load(a.logs, a.label)) if a.split else table(load(a.logs, a.label)))
         return
     done = load(a.logs, a.label)
-    extra = [x for s in a.sets for x in ("--set", s)]
+    extra = [x for s in a.sets for x in ("--set", s)] + ([] if a.start is None else ["--start", f"{a.start:g}"])
     for scene, wheels, gnss, seed in cells(a):
         gen_wheels = "calibrated" if wheels == "none" else wheels
         log = generate(a.logs, scene, gen_wheels, "float" if gnss == "none" else gnss, seed)

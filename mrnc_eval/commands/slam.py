@@ -147,7 +147,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         log.info("%s: %s, %.1f s; roles %s", log_path, lg.container, lg.duration_s,
                  ", ".join(f"{r} {t}" for r, t in sorted(lg.roles.items())))
-        inputs = _read_inputs(lg, log_path, cfg)
+        inputs = _inputs_from(_read_inputs(lg, log_path, cfg), window, lg.start_s)
         log.debug("inputs: IMU %s samples, GNSS %s fixes, ground truth %s poses",
                   None if inputs.imu is None else inputs.imu.stamps.size,
                   None if inputs.gnss is None else inputs.gnss.stamps.size,
@@ -386,7 +386,7 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
         with openmp_threads(max(1, threads - 1)), \
                 (Prefetched(items, depth=2) if threads > 1 else closing(items)) as sweeps:
             return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
-                            antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg),
+                            antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg, window),
                             base_to_sensor=inputs.base_to_sensor, progress=tick, warmup_ms=warmup_ms,
                             workers=threads)
 
@@ -445,12 +445,39 @@ def _inputs_used(lg: LogReader, inputs: LogInputs, cfg: Config) -> dict[str, str
     return {role: lg.roles[role] for role, yes in used.items() if yes and role in lg.roles}
 
 
-def _wheel_track(lg: LogReader, cfg: Config) -> WheelTrack | None:
-    """The wheel odometry (odom -> base_link) when slam.wheel_odom.enabled and the log has it."""
+def _wheel_track(lg: LogReader, cfg: Config, window: SweepWindow | None = None) -> WheelTrack | None:
+    """The wheel odometry (odom -> base_link) when slam.wheel_odom.enabled and the log has it;
+    from `window`'s start on, as `_inputs_from` cuts the IMU and GNSS."""
     if not cfg.slam.wheel_odom.enabled or not lg.has_role("wheel_odom"):
         return None
     odom = lg.wheel_odometry()
-    return WheelTrack(stamps=odom.stamps, positions=odom.positions, quat_xyzw=odom.quat_xyzw)
+    keep = _from_start(odom.stamps, window, lg.start_s)
+    return WheelTrack(stamps=odom.stamps[keep], positions=odom.positions[keep], quat_xyzw=odom.quat_xyzw[keep])
+
+
+def _from_start(stamps: np.ndarray, window: SweepWindow | None, t0_s: float) -> np.ndarray:
+    """Mask of the samples at or after `window`'s start (seconds after t0_s, the log's start)."""
+    if window is None or window.start_s is None:
+        return np.ones(stamps.shape, dtype=bool)
+    return np.asarray(stamps >= t0_s + window.start_s)
+
+
+def _inputs_from(inputs: LogInputs, window: SweepWindow | None, t0_s: float) -> LogInputs:
+    """The IMU and GNSS from `window`'s start on, as if the log began there (--start: a log recorded
+    mid-drive; the IMU set-up and the wheel calibration must not see the standing start before it).
+    The end (--end, --n-scans) cuts only the sweeps: what follows the last one is never used."""
+    if window is None or window.start_s is None:
+        return inputs
+    imu, gnss = inputs.imu, inputs.gnss
+    if imu is not None:
+        k = _from_start(imu.stamps, window, t0_s)
+        imu = dataclasses.replace(imu, stamps=imu.stamps[k], acc=imu.acc[k], gyro=imu.gyro[k], orientation_xyzw=(
+            None if imu.orientation_xyzw is None else imu.orientation_xyzw[k]))
+    if gnss is not None:
+        k = _from_start(gnss.stamps, window, t0_s)
+        gnss = dataclasses.replace(gnss, stamps=gnss.stamps[k], lla=gnss.lla[k], enu=gnss.enu[k],
+                                   covariance=gnss.covariance[k]) if k.any() else None
+    return dataclasses.replace(inputs, imu=imu, gnss=gnss)
 
 
 def _kiss_icp_deskew(first: Sweep | None, max_gap_s: float) -> tuple[bool, str | None]:

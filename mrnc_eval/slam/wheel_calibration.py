@@ -229,8 +229,12 @@ class WheelCalibrator:
         wheels and gyro_yaw_rate_sigma_rad_s for the gyro: noisy speed pickups random-walk the wheel
         heading, exact ones keep it. The increments after the last consumed bin take the same blend.
         (The fitted offset c is not added to the gyro: on a straight
-        drive it trades off against the L/R term.) Rejected bins take the gyro's yaw."""
+        drive it trades off against the L/R term.) Rejected bins take the gyro's yaw. Without a
+        standing start c is left out: the gyro's bias is then unmeasured and c soaks it up (c = -f x
+        bias; open loop begun mid-drive, tuning seeds: c -1.5..-15.8 mrad/s, against -0.5..+1.8 with
+        the standing start), which the wheels' yaw would carry (end yaw 1.3-4.1 deg, 0.5-1.0 without)."""
         _, a, c = self.theta
+        c = c if self.standing_start else 0.0  # no wheel phenomenon: a yaw-rate offset is the gyro's bias
         f = self._track_factor_used()
         dt = np.diff(self.inc.stamps)
         fwd = self.inc.forward_m / self.scale
