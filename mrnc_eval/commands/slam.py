@@ -316,6 +316,8 @@ def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> Grou
             if box is not None:  # the machine's own body, in the cloud frame
                 p = p[~np.all((p >= np.asarray(box[:3])) & (p <= np.asarray(box[3:])), axis=1)]
             clouds.append(p @ base_to_sensor[:3, :3].T + base_to_sensor[:3, 3])
+            if len(clouds) >= gcfg.max_sweeps:  # enough: the next sweep is not decoded only to stop
+                break
     finally:
         if isinstance(sweeps, Generator):  # stop the decoder of the stream started here
             sweeps.close()
