@@ -33,6 +33,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
+from mrnc_eval.geometry import rotation
 from mrnc_eval.slam.config import GpsConfig
 from mrnc_eval.slam.gnss_ins import EnuAlignment, GnssIns, new_ins
 
@@ -317,8 +318,7 @@ def tilt_sway(pose: np.ndarray, antenna_in_lidar: np.ndarray, up_in_lidar: np.nd
     s, c = float(np.linalg.norm(k)), float(up[2])
     if s < 1e-12:
         return np.zeros(2)
-    kx = np.array([[0.0, -k[2], k[1]], [k[2], 0.0, -k[0]], [-k[1], k[0], 0.0]])
-    level = np.eye(3) + kx + kx @ kx * ((1.0 - c) / s ** 2)  # Rodrigues: takes `up` to vertical
+    level = rotation.exp(k / s * np.arctan2(s, c))  # takes `up` to vertical
     arm = rot @ antenna_in_lidar
     return np.asarray((arm - level @ arm)[:2], np.float64)
 
