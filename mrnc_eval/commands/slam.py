@@ -852,8 +852,7 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
     check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
     cpu_ms = (time.process_time() - t0) * 1e3
     applied = inputs.mount_rpy_deg
-    total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(applied))
-                                    @ rotation.from_rpy(np.radians(check.correction_rpy_deg)))) + 0.0  # no -0.0
+    total = _composed_rpy(applied, check.correction_rpy_deg)
     ground = result.extra.get("mount_check", {}).get("ground")
     result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied),
                                    "suggested_rpy_deg": [float(a) for a in total], "cpu_ms": cpu_ms,
@@ -885,8 +884,7 @@ def _add_ground_check(result: RunResult, inputs: LogInputs, cfg: Config) -> None
     if g.verdict != "misaligned":
         return
     # the check read through the user's correction: what takes the reading out is the two together
-    total = np.degrees(rotation.rpy(rotation.from_rpy(np.radians(user))
-                                    @ rotation.from_rpy(np.radians(g.correction_rpy_deg)))) + 0.0  # no -0.0
+    total = _composed_rpy(user, g.correction_rpy_deg)
     value, limit = _rpy_text(total), _correction_limit(cfg)
     mount = (f"/tf_static's LiDAR mount with slam.sensor.mount_rpy_correction_deg={_rpy_text(user)}" if any(user)
              else "the LiDAR mount in /tf_static")
@@ -903,6 +901,13 @@ def _add_ground_check(result: RunResult, inputs: LogInputs, cfg: Config) -> None
             f"(roll/pitch, base axes; the ground's plane through that mount): {what}")
     result.warnings.append(text)
     result.events.append(Event(t_s=0.0, kind="health", message=text, data={"ground_mount_verdict": g.verdict}))
+
+
+def _composed_rpy(first: Iterable[float], then: Iterable[float]) -> np.ndarray:
+    """Roll, pitch, yaw (deg) of the rotation `first` right-multiplied by `then` (both deg, as the mount
+    corrections are applied: the one a check read through, then its own reading)."""
+    r = rotation.from_rpy(np.radians(list(first))) @ rotation.from_rpy(np.radians(list(then)))
+    return np.degrees(rotation.rpy(r)) + 0.0  # no -0.0
 
 
 def _rpy_text(rpy: Iterable[float]) -> str:
@@ -926,10 +931,10 @@ def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config, *,
         else "the ground check"
     mount = (f"the LiDAR mount (/tf_static's turned by {_rpy_text(applied)} deg by {who} before the run)"
              if any(applied) else "the LiDAR mount in /tf_static")
-    fix = (f"correct /tf_static or set slam.sensor.mount_rpy_correction_deg=[{total[0]:.2f}, {total[1]:.2f}, "
-           f"{total[2]:.2f}]" if np.all(np.abs(total) <= limit) else
-           f"correct /tf_static (by [{total[0]:.2f}, {total[1]:.2f}, {total[2]:.2f}] deg, beyond what "
-           f"slam.sensor.mount_rpy_correction_deg takes: +-{limit:g} deg)")
+    value = _rpy_text(total)
+    fix = (f"correct /tf_static or set slam.sensor.mount_rpy_correction_deg={value}" if np.all(np.abs(total) <= limit)
+           else f"correct /tf_static (by {value} deg, beyond what slam.sensor.mount_rpy_correction_deg takes: "
+           f"+-{limit:g} deg)")
     return (f"{mount} looks off by {'; '.join(check.reasons)} (the machine's motion, "
             f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
             f"base_link poses and the end drift carry it; {fix}")
