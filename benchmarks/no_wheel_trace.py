@@ -40,7 +40,7 @@ from mrnc_eval.io import open_log
 from mrnc_eval.io.trajectory_files import read_tum
 from mrnc_eval.sim.config import FieldClockConfig, GnssSimConfig
 from mrnc_eval.slam.config import GpsConfig
-from mrnc_eval.slam.gnss_track import TrackFilter
+from mrnc_eval.slam.gnss_track import track_filter
 
 JUMP_M = 0.4  # a 1 s running median of the fix error beyond this: a multipath jump is on (white noise 0.3 m / sqrt 5)
 HEADER = ("| seed | online APE (m) | end drift (m) | alignment yaw error (deg) | 2 L sin(err/2) (m) | "
@@ -74,10 +74,7 @@ def truth_antenna(gt: Trajectory, stamps: np.ndarray, lever: np.ndarray) -> np.n
 def filter_alone(gnss: GnssSeries, cfg: GpsConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """The track filter (default settings, not the run's --set) on every fix: per fix whether it was
     taken, the filter's position (ENU, m) and whether a multipath offset was held."""
-    f = TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
-                    max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
-                    sigma_floor_m=cfg.track_sigma_floor_m, lag_check_s=cfg.track_lag_check_s,
-                    box_window_s=cfg.track_box_check_s)
+    f = track_filter(cfg)
     taken, pos, held = [], [], []
     for t, z, cov in zip(gnss.stamps, gnss.enu[:, :2], gnss.covariance, strict=True):
         taken.append(f.update(float(t), z, float(np.sqrt(np.max(np.diag(cov)[:2])))))

@@ -362,10 +362,15 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
                      up_in_lidar=base[:3, :3].T @ np.array([0.0, 0.0, 1.0]), level_antenna=cfg.track_level_antenna,
                      both_axes=cfg.track_both_axes,
                      provisional_travel_m=cfg.track_provisional_travel_m,
-                     filter=TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
-                                        max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
-                                        sigma_floor_m=cfg.track_sigma_floor_m,
-                                        lag_check_s=cfg.track_lag_check_s, box_window_s=cfg.track_box_check_s))
+                     filter=track_filter(cfg))
+
+
+def track_filter(cfg: GpsConfig) -> TrackFilter:
+    """The track's filter as slam.gps configures it (the run's, and a diagnosis of the fixes alone)."""
+    return TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
+                       max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
+                       sigma_floor_m=cfg.track_sigma_floor_m, lag_check_s=cfg.track_lag_check_s,
+                       box_window_s=cfg.track_box_check_s)
 
 
 def move_along_free(pose: np.ndarray, antenna_in_lidar: np.ndarray, antenna_xy: np.ndarray,
