@@ -21,6 +21,7 @@ import numpy as np
 from mrnc_eval.commands.gates import raise_on_failed_gates
 from mrnc_eval.commands.progress import progress_bar
 from mrnc_eval.commands.slam_threads import openmp_threads, run_threads
+from mrnc_eval.commands.slam_wheels import clock_checked, clock_warning, read_wheel_track
 from mrnc_eval.config import Config, config_hash, dump_config, replace_path
 from mrnc_eval.data import GnssSeries, ImuSeries, Sweep, Trajectory
 from mrnc_eval.errors import EvaluationError, InputError, NoGnssFix, UsageError
@@ -53,6 +54,7 @@ if TYPE_CHECKING:
     from mrnc_eval.slam.ground_mount import GroundMount
     from mrnc_eval.slam.mount_check import MountCheck
     from mrnc_eval.slam.sweep_prep import PreparedSweep
+    from mrnc_eval.slam.wheel_clock import WheelClock
 
 log = logging.getLogger(__name__)
 TABLE_METRIC = {"online": "ape_online_rmse_m", "smoothed": "ape_rmse_m"}
@@ -83,6 +85,8 @@ class LogInputs:
     ground_mount: GroundMount | None = None  # the ground check of the mount at the start
     mount_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)  # rotation applied to /tf_static's mount, deg
     mount_written: bool = True  # /tf_static has a base_link -> LiDAR mount (False: the LiDAR pose is the base)
+    wheel: WheelTrack | None = None  # the wheel odometry lio reads (stamps corrected: commands/slam_wheels.py)
+    wheel_clock: WheelClock | None = None  # the wheel stamps' offset against the gyro, before the run
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -147,7 +151,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         log.info("%s: %s, %.1f s; roles %s", log_path, lg.container, lg.duration_s,
                  ", ".join(f"{r} {t}" for r, t in sorted(lg.roles.items())))
-        inputs = _inputs_from(_read_inputs(lg, log_path, cfg), window, lg.start_s)
+        inputs = _with_wheel_clock(_inputs_from(_read_inputs(lg, log_path, cfg), window, lg.start_s), cfg)
         log.debug("inputs: IMU %s samples, GNSS %s fixes, ground truth %s poses",
                   None if inputs.imu is None else inputs.imu.stamps.size,
                   None if inputs.gnss is None else inputs.gnss.stamps.size,
@@ -228,6 +232,7 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
         _add_gnss_disagreement(result, inputs.gnss, out, rmse)
     _add_time_offset(result, out, cfg)
     _add_wheel_health(result, out)
+    _add_wheel_clock(result, inputs, cfg)
     if "input" not in result.extra:  # a log's /tf_static mount (a scan folder has none)
         _add_mount_check(result, est, inputs, cfg)
     _add_map_quality(result, out, cfg)
@@ -287,7 +292,13 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
                      gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
                      antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
                      notes=(gnss_note,) if gnss_note else (), ground_mount=ground, mount_rpy_deg=rpy,
-                     mount_written={"base_link", lidar_frame} <= frames)
+                     mount_written={"base_link", lidar_frame} <= frames, wheel=read_wheel_track(lg, cfg.slam))
+
+
+def _with_wheel_clock(inputs: LogInputs, cfg: Config) -> LogInputs:
+    """The inputs with the wheel clock checked against the gyro (commands/slam_wheels.py)."""
+    wheel, clock = clock_checked(inputs.wheel, inputs.imu, inputs.base_to_sensor @ inputs.sensor_to_imu, cfg.slam)
+    return dataclasses.replace(inputs, wheel=wheel, wheel_clock=clock)
 
 
 def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> GroundMount | None:
@@ -388,7 +399,7 @@ def _replay(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool, windo
         with openmp_threads(max(1, threads - 1)), \
                 (Prefetched(items, depth=2) if threads > 1 else closing(items)) as sweeps:
             return run_slam(sweeps, inputs.imu, cfg.slam, sensor_to_imu=inputs.sensor_to_imu, gnss=inputs.gnss,
-                            antenna_in_sensor=inputs.antenna_in_sensor, wheel=_wheel_track(lg, cfg, window),
+                            antenna_in_sensor=inputs.antenna_in_sensor, wheel=inputs.wheel,
                             base_to_sensor=inputs.base_to_sensor, progress=tick, warmup_ms=warmup_ms,
                             workers=threads)
 
@@ -447,16 +458,6 @@ def _inputs_used(lg: LogReader, inputs: LogInputs, cfg: Config) -> dict[str, str
     return {role: lg.roles[role] for role, yes in used.items() if yes and role in lg.roles}
 
 
-def _wheel_track(lg: LogReader, cfg: Config, window: SweepWindow | None = None) -> WheelTrack | None:
-    """The wheel odometry (odom -> base_link) when slam.wheel_odom.enabled and the log has it;
-    from `window`'s start on, as `_inputs_from` cuts the IMU and GNSS."""
-    if not cfg.slam.wheel_odom.enabled or not lg.has_role("wheel_odom"):
-        return None
-    odom = lg.wheel_odometry()
-    keep = _from_start(odom.stamps, window, lg.start_s)
-    return WheelTrack(stamps=odom.stamps[keep], positions=odom.positions[keep], quat_xyzw=odom.quat_xyzw[keep])
-
-
 def _from_start(stamps: np.ndarray, window: SweepWindow | None, t0_s: float) -> np.ndarray:
     """Mask of the samples at or after `window`'s start (seconds after t0_s, the log's start)."""
     if window is None or window.start_s is None:
@@ -465,12 +466,12 @@ def _from_start(stamps: np.ndarray, window: SweepWindow | None, t0_s: float) -> 
 
 
 def _inputs_from(inputs: LogInputs, window: SweepWindow | None, t0_s: float) -> LogInputs:
-    """The IMU and GNSS from `window`'s start on, as if the log began there (--start: a log recorded
-    mid-drive; the IMU set-up and the wheel calibration must not see the standing start before it).
-    The end (--end, --n-scans) cuts only the sweeps: what follows the last one is never used."""
+    """The IMU, GNSS and wheels from `window`'s start on, as if the log began there (--start: a log
+    recorded mid-drive; the IMU set-up and the wheel calibration must not see the standing start before
+    it). The end (--end, --n-scans) cuts only the sweeps: what follows the last one is never used."""
     if window is None or window.start_s is None:
         return inputs
-    imu, gnss = inputs.imu, inputs.gnss
+    imu, gnss, wheel = inputs.imu, inputs.gnss, inputs.wheel
     if imu is not None:
         k = _from_start(imu.stamps, window, t0_s)
         imu = dataclasses.replace(imu, stamps=imu.stamps[k], acc=imu.acc[k], gyro=imu.gyro[k], orientation_xyzw=(
@@ -479,7 +480,10 @@ def _inputs_from(inputs: LogInputs, window: SweepWindow | None, t0_s: float) -> 
         k = _from_start(gnss.stamps, window, t0_s)
         gnss = dataclasses.replace(gnss, stamps=gnss.stamps[k], lla=gnss.lla[k], enu=gnss.enu[k],
                                    covariance=gnss.covariance[k]) if k.any() else None
-    return dataclasses.replace(inputs, imu=imu, gnss=gnss)
+    if wheel is not None:
+        k = _from_start(wheel.stamps, window, t0_s)
+        wheel = WheelTrack(stamps=wheel.stamps[k], positions=wheel.positions[k], quat_xyzw=wheel.quat_xyzw[k])
+    return dataclasses.replace(inputs, imu=imu, gnss=gnss, wheel=wheel)
 
 
 def _kiss_icp_deskew(first: Sweep | None, max_gap_s: float) -> tuple[bool, str | None]:
@@ -811,6 +815,22 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"wheel_verdict": h["verdict"]}))
 
 
+def _add_wheel_clock(result: RunResult, inputs: LogInputs, cfg: Config) -> None:
+    """The wheel clock check (slam/wheel_clock.py): a metric, the record in metrics.json (`wheel_clock`)
+    and the result, and a warning and an event when it flagged an offset."""
+    clock = inputs.wheel_clock
+    if clock is None:
+        return
+    result.extra["wheel_clock"] = clock.as_dict()
+    result.metrics.append(Metric(name="wheel_time_offset_s", value=clock.offset_s, unit="s", group="slam/health",
+                                 note=f"wheel stamps minus the IMU's for the same turn +- {clock.sigma_s:.4f} s "
+                                      f"({clock.verdict}; {clock.applied_s:.4f} s taken out)"))
+    text = clock_warning(clock, cfg.slam.wheel_odom.time_offset_s)
+    if text is not None:
+        result.warnings.append(text)
+        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"wheel_clock": clock.verdict}))
+
+
 def corrected_mount(base_to_sensor: np.ndarray, rpy_deg: tuple[float, float, float]) -> np.ndarray:
     """/tf_static's base_link -> LiDAR mount with slam.sensor.mount_rpy_correction_deg right-multiplied
     (LiDAR axes); the IMU's pose in the LiDAR frame: imu_in_corrected_sensor."""
@@ -985,7 +1005,7 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
             write_pcd_xyz(tmp / "map.pcd", map_points)
             files["map.ply"], files["map.pcd"] = tmp / "map.ply", tmp / "map.pcd"
         metrics: dict[str, object] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
-        for key in ("wheel_health", "mount_check"):
+        for key in ("wheel_health", "wheel_clock", "mount_check"):
             if key in result.extra:
                 metrics[key] = result.extra[key]
         (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")

@@ -138,7 +138,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         errors_on = cfg.sim.wheels.model == "errors" or (cfg.sim.wheels.model == "profile" and run.field is not None)
         wheel_errors = draw_wheel_errors(cfg.sim.wheels, errors_on, np.random.default_rng([seed, WHEEL_STREAM]))
         _write_drive(writer, world.trace, run.stamps(cfg.sim.wheel_rate_hz, world), cfg, LOG_EPOCH_S, run.host_stamps,
-                     wheel_errors, np.random.default_rng([seed, WHEEL_STREAM, 1]))
+                     wheel_errors, np.random.default_rng([seed, WHEEL_STREAM, 1]), latency_s=_wheel_latency(cfg))
         drawn = _errors_drawn(cfg, wheel_errors, fixes)
         writer.write_strings(TOPICS["sim_errors"], np.array([LOG_EPOCH_S]), [json.dumps(drawn, sort_keys=True)])
         gt = _write_ground_truth(writer, world.traj, run.stamps(cfg.sim.ground_truth_rate_hz, world), LOG_EPOCH_S)
@@ -372,9 +372,18 @@ def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes: GnssFixes) -> dict[st
     """What the log's sensors got wrong on purpose, for tests and benchmarks (the /sim/errors_drawn
     topic, a std_msgs/String of JSON, and <log>.errors.json beside the log)."""
     status, counts = np.unique(np.asarray(fixes.status), return_counts=True)
-    return {"profile": cfg.sim.profile, "wheels": wheels.as_dict(), "track_width_m": cfg.robot.track_width_m,
-            "gnss": {"mode": cfg.sim.gnss.mode, "outages_s": [list(o) for o in cfg.sim.gnss.outages_s],
-                     "status_counts": {str(int(s)): int(c) for s, c in zip(status, counts, strict=True)}}}
+    drawn: dict[str, Any] = {
+        "profile": cfg.sim.profile, "wheels": wheels.as_dict(), "track_width_m": cfg.robot.track_width_m,
+        "gnss": {"mode": cfg.sim.gnss.mode, "outages_s": [list(o) for o in cfg.sim.gnss.outages_s],
+                 "status_counts": {str(int(s)): int(c) for s, c in zip(status, counts, strict=True)}}}
+    if _wheel_latency(cfg):  # only then: the logs made before keep their bytes
+        drawn["clock"] = {"wheel_latency_s": _wheel_latency(cfg)}
+    return drawn
+
+
+def _wheel_latency(cfg: Config) -> float:
+    """sim.field.clock.wheel_latency_s with the field profile, else 0 (s)."""
+    return cfg.sim.field.clock.wheel_latency_s if cfg.sim.profile == "field" else 0.0
 
 
 def errors_json_path(log_path: Path) -> Path:
@@ -385,16 +394,17 @@ def errors_json_path(log_path: Path) -> Path:
 
 def _write_drive(writer: LogWriter, trace: ClosedLoopTrace, times: np.ndarray, cfg: Config, t0: float,
                  stamp: Callable[[np.ndarray], np.ndarray], errors: WheelErrors | None = None,
-                 rng: np.random.Generator | None = None) -> None:
+                 rng: np.random.Generator | None = None, *, latency_s: float = 0.0) -> None:
     """Drive-train topics; `stamp` maps true times to header stamps (the identity when ideal);
-    the wheel speeds and odometry carry `errors` (sim.wheels)."""
+    the wheel speeds and odometry carry `errors` (sim.wheels) and are stamped `latency_s` late."""
     d = drive_signals(trace, times, cfg.robot.wheel_radius_m, cfg.robot.track_width_m, errors, rng)
     header = stamp(d.stamps) + t0
-    writer.write_joint_state(TOPICS["wheels"], header, ["left_wheel", "right_wheel"], d.wheel_rad_s)
+    measured = stamp(d.stamps + latency_s) + t0 if latency_s else header
+    writer.write_joint_state(TOPICS["wheels"], measured, ["left_wheel", "right_wheel"], d.wheel_rad_s)
     writer.write_joint_state(TOPICS["pumps"], header, ["left_pump", "right_pump"], d.pump_rpm)
     writer.write_twist_stamped(TOPICS["cmd_vel"], replace(d.cmd_vel, stamps=header))
     zero = np.zeros_like(d.odom_v)
-    writer.write_odometry(TOPICS["wheel_odom"], replace(d.odometry, stamps=header), "odom",
+    writer.write_odometry(TOPICS["wheel_odom"], replace(d.odometry, stamps=measured), "odom",
                           "base_link", linear_velocity=np.c_[d.odom_v, zero, zero],
                           angular_velocity=np.c_[zero, zero, d.odom_omega])
 

@@ -163,6 +163,8 @@ class FieldClockConfig:
                                  "(assumed: a non-realtime ROS host)", "s")
     gnss_latency_s: float = param(0.12, "GNSS fixes are stamped this late (serial NMEA/UBX reception after the "
                                   "measurement epoch; assumed, 0.05-0.2 s is typical)", "s")
+    wheel_latency_s: float = param(0.0, "the wheel odometry and wheel speeds are stamped this late (a host or PLC "
+                                   "bridge; 0: on time, as in every log made before)", "s", ge=0.0, le=1.0)
 
 
 @dataclass(frozen=True)

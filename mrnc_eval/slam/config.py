@@ -517,6 +517,29 @@ class WheelCalibrationConfig:
 
 
 @dataclass(frozen=True)
+class WheelClockConfig:
+    """The wheel odometry's stamp offset against the gyro's, from the log's turns before the run
+    (slam/wheel_clock.py): a host- or PLC-stamped odometry is often tens of ms late."""
+
+    enabled: bool = param(True, "estimate the wheel stamps' offset against the gyro before the run (wheel_clock in "
+                          "metrics.json)")
+    apply: bool = param(True, "subtract a flagged offset from the wheel stamps for the run (a warning says so; "
+                        "slam.wheel_odom.time_offset_s is the known one)")
+    window_s: float = param(0.2, "yaw rates are means over this long (the pickups' noise averaged down)", "s",
+                            gt=0.0, le=2.0)
+    grid_s: float = param(0.02, "sample spacing of the fit", "s", gt=0.0, le=1.0)
+    max_lag_s: float = param(0.4, "offsets searched: +- this", "s", gt=0.0, le=2.0)
+    lag_step_s: float = param(0.005, "spacing of the searched offsets (refined between them)", "s", gt=0.0, le=0.1)
+    blocks: int = param(8, "contiguous time blocks of the jackknife standard error", ge=2, le=100)
+    max_sigma_s: float = param(0.05, "a standard error above this: verdict not measurable (a straight line, a "
+                               "circle at constant speed)", "s", gt=0.0, le=1.0)
+    flag_s: float = param(0.04, "flag an offset above this ... (the simulated skid-steer's wheels lead its body's "
+                          "yaw by 7-17 ms on firm ground, 27 ms on the soft circle: the plant, not the clock)", "s",
+                          ge=0.0, le=1.0)
+    flag_sigmas: float = param(3.0, "... and above this many standard errors", ge=0.0, le=100.0)
+
+
+@dataclass(frozen=True)
 class WheelOdomConfig:
     """Wheel odometry (the log's wheel_odom role, odom -> base_link): a relative-pose factor between
     consecutive keyframes in graph #1 with a skid-steer noise model (1 sigma, base_link axes), and
@@ -553,6 +576,10 @@ class WheelOdomConfig:
                                                "open-field APE but wrecks the sample logs (slip: the wheels turn "
                                                "wrongly, the gate then rejects the right match)", "deg")
     calibration: WheelCalibrationConfig = section(WheelCalibrationConfig, "online calibration, gating, health")
+    time_offset_s: float = param(0.0, "known wheel-odometry clock lag: subtracted from every wheel stamp before "
+                                 "anything else (the clock check, slam.wheel_odom.clock, tells the value)", "s",
+                                 ge=-1.0, le=1.0)
+    clock: WheelClockConfig = section(WheelClockConfig, "the wheel stamps' offset against the gyro's")
     restart_imu_after_m: float = param(0.02, "restart graph #2 from graph #1's pose and the wheels' velocity when "
                                        "the wheel factor moved the keyframe by more than this (negative: never)", "m")
 

@@ -1,6 +1,6 @@
-"""The claims matrix's open line (benchmarks/wheel_gnss_matrix.py): field profile, OS0-32 x 512, 40 s,
-40 m at 1 m/s, low-bandwidth packets, float GNSS; the slow tests simulate it with their own wheels and
-seed."""
+"""The claims matrix's open line and loop (benchmarks/wheel_gnss_matrix.py): field profile, OS0-32 x 512,
+40 s, a 40 m line (a 20 m loop) at 1 m/s, low-bandwidth packets, float GNSS; the slow tests simulate
+them with their own wheels and seed."""
 
 from __future__ import annotations
 
@@ -22,4 +22,13 @@ def simulate_open_line(path: Path, seed: int, wheels: dict[str, object] | None =
 
     return simulate_log(path, replace_paths(Config(), {**DRIVE, **(wheels or {})}),
                         SimRequest(scene="open_field", path="line", duration_s=40.0, lidar="os0-32", columns=512,
+                                   seed=seed, profile="field"))
+
+
+def simulate_open_loop(path: Path, seed: int, sets: dict[str, object] | None = None) -> Path:
+    """The open loop (20 m) at `path`; `sets`: config overrides (sim.wheels.*, sim.field.clock.*)."""
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
+
+    return simulate_log(path, replace_paths(Config(), {**DRIVE, "sim.path_size_m": 20.0, **(sets or {})}),
+                        SimRequest(scene="open_field", path="loop", duration_s=40.0, lidar="os0-32", columns=512,
                                    seed=seed, profile="field"))

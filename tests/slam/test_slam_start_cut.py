@@ -5,9 +5,11 @@ before it (commands/slam.py `_inputs_from`, `_from_start`). Negative control: no
 from __future__ import annotations
 
 import numpy as np
+import pytest
 
 from mrnc_eval.commands.slam import LogInputs, SweepWindow, _from_start, _inputs_from
 from mrnc_eval.data import GnssSeries, ImuSeries
+from mrnc_eval.slam.wheel_odometry import WheelTrack
 
 T0 = 100.0  # the log's first message, s
 
@@ -20,7 +22,13 @@ def _inputs() -> LogInputs:
                       covariance=np.tile(np.eye(3), (tg.size, 1, 1)), origin_lla=np.zeros(3))
     return LogInputs(duration_s=10.0, base_to_sensor=np.eye(4), imu=imu, sensor_to_imu=np.eye(4), gnss=gnss,
                      ground_truth=None, antenna=np.zeros(3), antenna_in_sensor=np.zeros(3), n_sweeps=100,
-                     max_sweep_gap_s=0.1)
+                     max_sweep_gap_s=0.1, wheel=_wheel())
+
+
+def _wheel() -> WheelTrack:
+    t = T0 + np.arange(0.0, 10.0, 0.02)
+    return WheelTrack(stamps=t, positions=np.c_[t - T0, np.zeros((t.size, 2))],
+                      quat_xyzw=np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1)))
 
 
 def test_start_cuts_imu_gnss_and_wheels_at_the_window_start() -> None:
@@ -34,6 +42,11 @@ def test_start_cuts_imu_gnss_and_wheels_at_the_window_start() -> None:
     assert cut.gnss.stamps.tolist() == [T0 + s for s in (5.0, 6.0, 7.0, 8.0, 9.0)]
     assert cut.gnss.enu[0, 0] == 5.0
     assert cut.gnss.covariance.shape == (5, 3, 3)
+    assert cut.wheel is not None
+    assert cut.wheel.stamps.min() >= T0 + 5.0
+    assert cut.wheel.stamps.size == 250
+    assert cut.wheel.positions.shape == (250, 3)
+    assert cut.wheel.positions[0, 0] == pytest.approx(5.0)
     wheel_stamps = T0 + np.arange(0.0, 10.0, 0.02)
     assert wheel_stamps[_from_start(wheel_stamps, SweepWindow(start_s=5.0), T0)].min() >= T0 + 5.0
 
@@ -47,6 +60,8 @@ def test_without_a_start_nothing_is_cut() -> None:
         assert same.imu.stamps.size == 1000
         assert same.gnss is not None
         assert same.gnss.stamps.size == 10
+        assert same.wheel is not None
+        assert same.wheel.stamps.size == 500
 
 
 def test_a_start_after_every_fix_leaves_no_gnss() -> None:
