@@ -47,9 +47,10 @@ def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
 
 
 def gyro_bias_record(cal: WheelCalibrator) -> dict[str, Any]:
-    """Where the gyro's bias came from ("standing start", "straight drive": the gyro's mean over a straight stretch found late, "none":
-    unmeasured, the gyro then not blended), its value and 1 sigma (rad/s), and for a late one when it
-    arrived (s after the wheels' first sample)."""
+    """Where the gyro's bias came from ("standing start"; "straight drive": its mean over a straight
+    stretch found later, without a standing start; "none": unmeasured, the gyro then not blended),
+    its value and 1 sigma (rad/s), and for a late one when it arrived (s after the wheels' first
+    sample)."""
     late = cal.gyro_bias_t is not None and not cal.standing_start
     return {"gyro_bias_source": cal.gyro_bias_source,
             "gyro_bias_rad_s": cal.gyro_bias if cal.bias_known else None,
