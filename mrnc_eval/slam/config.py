@@ -494,6 +494,19 @@ class WheelCalibrationConfig:
     min_yaw_quality: float = param(0.05, "lower bound of the yaw-hold scale", gt=0.0, le=1.0)
     stationary_speed_mps: float = param(0.05, "the wheels' speed below which the start counts as standing (the "
                                         "gyro's mean there is its bias)", "m/s", ge=0.0)
+    straight_bias_window_s: float = param(4.0, "without a standing start, the gyro's bias is its mean over the "
+                                          "first stretch this long (1 s sub-bins) where the machine drives straight "
+                                          "by the wheels and the gyro (8 s: line begun mid-drive, tuning seeds, end "
+                                          "drift 0.71 / 1.60 m against 0.51 / 0.54 m); 0 = off (the gyro then not "
+                                          "blended)", "s", ge=0.0)
+    straight_min_speed_mps: float = param(0.3, "... every sub-bin driving at least this fast", "m/s", gt=0.0)
+    straight_max_yaw_rate_rad_s: float = param(0.02, "... the wheels' raw yaw rate at most this over the stretch "
+                                               "(L/R mismatch: 2 % is 12.5 mrad/s at 1 m/s) and 2.5x this in every "
+                                               "sub-bin", "rad/s", gt=0.0)
+    straight_max_gyro_spread_rad_s: float = param(0.02, "... the sub-bins' gyro means within this of each other",
+                                                  "rad/s", gt=0.0)
+    straight_bias_sigma_rad_s: float = param(0.002, "... the bias's 1 sigma (a gentle arc the guards let through), "
+                                             "with the standard error of the sub-bins' mean", "rad/s", gt=0.0)
     scale_prior_sigma: float = param(0.05, "prior sigma of the scale error (around 0)", gt=0.0)
     scale_distance_sigma_m: float = param(0.02, "sigma of a LiDAR keyframe distance for the scale fit", "m", gt=0.0)
     scale_max_turn_rad: float = param(0.02, "keyframe steps turning more than this do not enter the scale fit "

@@ -88,6 +88,35 @@ def stationary_gyro_bias(stamps: np.ndarray, yaw_rate: np.ndarray, inc: WheelInc
     return float(yaw_rate[still].mean()) if still.sum() >= 5 else None
 
 
+def straight_gyro_bias(stamps: np.ndarray, yaw_rate: np.ndarray, inc: WheelIncrements, t: float,
+                       cfg: WheelCalibrationConfig) -> tuple[float, float] | None:
+    """(bias, 1 sigma), rad/s: the gyro's mean yaw rate over [t - straight_bias_window_s, t] when the
+    machine drove straight through it, else None. Straight: in each 1 s sub-bin the wheels drove at
+    least straight_min_speed_mps and turned by at most 2.5 x straight_max_yaw_rate_rad_s, over the
+    window by at most straight_max_yaw_rate_rad_s (the raw wheels: an L/R mismatch turns them on a
+    straight), and the sub-bins' gyro means lie within straight_max_gyro_spread_rad_s. On a loop or
+    circle the mean gyro is the turn rate, not the bias: the wheels' turn fails the guard there
+    (matrix loops begun mid-drive, seeds 0-4: no stretch taken); a gentle arc under the limits
+    passes, which straight_bias_sigma_rad_s allows for."""
+    window = cfg.straight_bias_window_s
+    n = int(round(window))
+    if n < 2 or inc.stamps.size < 3 or t - window < inc.stamps[0] or t > inc.stamps[-1]:
+        return None
+    edges = t - window + np.linspace(0.0, window, n + 1)
+    i, j = np.searchsorted(inc.stamps, edges), np.searchsorted(stamps, edges)
+    if np.any(np.diff(j) == 0) or np.any(np.diff(i) == 0):
+        return None
+    span = window / n
+    dist = np.add.reduceat(inc.forward_m[:i[-1]], i[:-1]) / span  # only what arrived by t
+    turn = np.add.reduceat(inc.yaw_rad[:i[-1]], i[:-1]) / span
+    gyro = np.add.reduceat(yaw_rate[:j[-1]], j[:-1]) / np.diff(j)
+    if dist.min() < cfg.straight_min_speed_mps or abs(turn.mean()) > cfg.straight_max_yaw_rate_rad_s \
+            or np.abs(turn).max() > 2.5 * cfg.straight_max_yaw_rate_rad_s \
+            or np.ptp(gyro) > cfg.straight_max_gyro_spread_rad_s:
+        return None
+    return float(gyro.mean()), float(np.hypot(cfg.straight_bias_sigma_rad_s, gyro.std() / np.sqrt(n)))
+
+
 @dataclass(kw_only=True)
 class WheelCalibrator:
     """Causal estimator: `update(t)` consumes the bins that ended by t; `track()` is the wheel track
@@ -121,6 +150,10 @@ class WheelCalibrator:
     # (bias of the standing start removed), rad: the blend of the increments no bin has consumed yet
     sigma2: float = 0.0  # running residual variance, (rad/s)^2
     standing_start: bool = False  # the gyro bias was measured over a standing start
+    gyro_bias_source: str = "none"  # "standing start", "straight drive" (late, set_gyro_bias) or "none"
+    gyro_bias_sigma: float = 0.0  # 1 sigma of a late bias, rad/s (the standing start's counts as exact)
+    gyro_bias_t: float | None = None  # when a late bias arrived (log time), s
+    next_bias_try: float = -np.inf  # log time of the next straight-stretch check, s
 
     @classmethod
     def build(cls, track: WheelTrack, imu: ImuSeries | None, imu_in_base: np.ndarray | None,
@@ -136,6 +169,7 @@ class WheelCalibrator:
         cal = cls(cfg=cfg, inc=inc, gyro_t=gt, gyro_w=gw, gyro_bias=0.0 if bias is None else bias,
                   track_width_m=cfg.track_width_m)
         cal.standing_start = bias is not None
+        cal.gyro_bias_source = "standing start" if bias is not None else "none"
         cal.info = np.diag(1.0 / np.square(cfg.prior_sigmas))
         cal.vec = cal.info @ np.array([1.0, 0.0, 0.0])
         cal.sigma2 = cfg.yaw_rate_sigma_rad_s ** 2
@@ -168,12 +202,46 @@ class WheelCalibrator:
         """Right-minus-left radius mismatch (fraction) and its sigma: a x track width."""
         return float(self.theta[1] * self.track_width_m), float(np.sqrt(self.covariance[1, 1]) * self.track_width_m)
 
+    @property
+    def bias_known(self) -> bool:
+        """The gyro's bias was measured: over a standing start, or late (set_gyro_bias)."""
+        return self.standing_start or self.gyro_bias_t is not None
+
     def update(self, t: float) -> None:
-        """Consume the bins that end at or before t."""
+        """Consume the bins that end at or before t (after a late gyro bias, when one is due)."""
+        self._try_late_bias(t)
         starts, ends = self.bins
         while self.next_bin < starts.size and self.inc.stamps[ends[self.next_bin]] <= t:
             self._update_bin(self.next_bin)
             self.next_bin += 1
+
+    def _try_late_bias(self, t: float) -> None:
+        """Without a standing start, once a second: the gyro's mean over the last straight_bias_window_s
+        when the machine drove straight through it (straight_gyro_bias) is taken as its bias."""
+        cfg = self.cfg
+        if self.bias_known or cfg.straight_bias_window_s <= 0 or t < self.next_bias_try:
+            return
+        self.next_bias_try = t + 1.0
+        found = straight_gyro_bias(self.gyro_t, self.gyro_w, self.inc, t, cfg)
+        if found is not None:
+            self.set_gyro_bias(found[0], found[1], t)
+
+    def set_gyro_bias(self, bias: float, sigma: float, t: float, source: str = "straight drive") -> None:
+        """A gyro bias (rad/s, 1 sigma) measured late, at log time t: the yaw fit starts again from its
+        prior over the bins consumed so far with the gyro less this bias (the same data, known by t),
+        the gyro's increments follow, and from now on the gyro is blended (its sigma with the bias's)
+        and the fitted offset c kept, as after a standing start."""
+        self.gyro_bias, self.gyro_bias_sigma, self.gyro_bias_t, self.gyro_bias_source = bias, sigma, t, source
+        self.inc_yaw_gyro = _gyro_increments(self.gyro_t, self.gyro_w - self.gyro_bias, self.inc.stamps)
+        self.info = np.diag(1.0 / np.square(self.cfg.prior_sigmas))
+        self.vec = self.info @ np.array([1.0, 0.0, 0.0])
+        self.theta = np.array([1.0, 0.0, 0.0])
+        self.sigma2 = self.cfg.yaw_rate_sigma_rad_s ** 2
+        self.n_bins = self.n_rejected = 0
+        for name in ("raw_res", "res", "nis", "rejected_bins"):
+            getattr(self, name).clear()
+        for k in range(self.next_bin):
+            self._update_bin(k)
 
     def _update_bin(self, k: int) -> None:
         i0, i1 = self.bins[0][k], self.bins[1][k]
@@ -234,7 +302,7 @@ class WheelCalibrator:
         bias; open loop begun mid-drive, tuning seeds: c -1.5..-15.8 mrad/s, against -0.5..+1.8 with
         the standing start), which the wheels' yaw would carry (end yaw 1.3-4.1 deg, 0.5-1.0 without)."""
         _, a, c = self.theta
-        c = c if self.standing_start else 0.0  # no wheel phenomenon: a yaw-rate offset is the gyro's bias
+        c = c if self.bias_known else 0.0  # no wheel phenomenon: a yaw-rate offset is the gyro's bias
         f = self._track_factor_used()
         dt = np.diff(self.inc.stamps)
         fwd = self.inc.forward_m / self.scale
@@ -270,10 +338,14 @@ class WheelCalibrator:
         lagging IMU's timing into the online poses (the online offset estimate's 30 ms read 27.9 ms in
         two passes), not into the default re-matched estimate (calibrated wheels, yard and forest seeds
         3-5: 17 of 18 within 2 ms, 14 without)."""
-        if self.cfg.gyro_yaw_rate_sigma_rad_s <= 0 or not self.standing_start:
+        if self.cfg.gyro_yaw_rate_sigma_rad_s <= 0 or not self.bias_known:
             return 0.0
         var_w = self._wheel_yaw_rate_var()
-        return float(var_w / (var_w + self.cfg.gyro_yaw_rate_sigma_rad_s ** 2))
+        return float(var_w / (var_w + self._gyro_var()))
+
+    def _gyro_var(self) -> float:
+        """Variance of the gyro's bin yaw rate, (rad/s)^2: the configured one, plus a late bias's."""
+        return self.cfg.gyro_yaw_rate_sigma_rad_s ** 2 + self.gyro_bias_sigma ** 2
 
     def _wheel_yaw_rate_var(self) -> float:
         """Variance of the calibrated wheels' yaw rate, (rad/s)^2: sigma2 is measured on the raw wheel
@@ -291,7 +363,7 @@ class WheelCalibrator:
         if self.n_bins < self.cfg.warmup_bins:
             return 1.0
         w = self.gyro_weight()
-        var = w ** 2 * self.cfg.gyro_yaw_rate_sigma_rad_s ** 2 + (1.0 - w) ** 2 * self._wheel_yaw_rate_var()
+        var = w ** 2 * self._gyro_var() + (1.0 - w) ** 2 * self._wheel_yaw_rate_var()
         ratio = self.cfg.yaw_rate_sigma_rad_s ** 2 / var
         return float(np.clip(ratio, self.cfg.min_yaw_quality, 1.0))
 

@@ -35,7 +35,8 @@ def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
     reasons = flags(est, rejected, cfg)
     unreliable = too_many_rejected(rejected, est["rejected_fraction_sigma"], cfg)
     verdict = "ok" if not reasons else "unreliable" if unreliable else "miscalibrated"
-    return {**est, "gyro_bias_at_start_rad_s": cal.gyro_bias, "bins": cal.n_bins, "rejected_fraction": rejected,
+    return {**est, "gyro_bias_at_start_rad_s": cal.gyro_bias if cal.standing_start else 0.0, **gyro_bias_record(cal),
+            "bins": cal.n_bins, "rejected_fraction": rejected,
             "innovation_rms_rad_s": float(np.sqrt(np.mean(res ** 2))) if res.size else None,
             "innovation_nis_mean": float(np.mean(cal.nis)) if cal.nis else None,
             "raw_yaw_rate_minus_gyro_rms_rad_s": float(np.sqrt(np.mean(raw ** 2))) if raw.size else None,
@@ -43,6 +44,18 @@ def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
             "slip_steps": fit.slip_steps if fit is not None else 0,
             "slip_mean_over_read": fit.slip_mean if fit is not None else None,
             "verdict": verdict, "reasons": reasons}
+
+
+def gyro_bias_record(cal: WheelCalibrator) -> dict[str, Any]:
+    """Where the gyro's bias came from ("standing start"; "straight drive": its mean over a straight
+    stretch found later, without a standing start; "none": unmeasured, the gyro then not blended),
+    its value and 1 sigma (rad/s), and for a late one when it arrived (s after the wheels' first
+    sample)."""
+    late = cal.gyro_bias_t is not None and not cal.standing_start
+    return {"gyro_bias_source": cal.gyro_bias_source,
+            "gyro_bias_rad_s": cal.gyro_bias if cal.bias_known else None,
+            "gyro_bias_sigma_rad_s": cal.gyro_bias_sigma if cal.bias_known else None,
+            "gyro_bias_after_s": float(cal.gyro_bias_t - cal.inc.stamps[0]) if late and cal.gyro_bias_t else None}
 
 
 def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibrationConfig) -> list[str]:

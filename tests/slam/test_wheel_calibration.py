@@ -541,3 +541,60 @@ def test_without_a_standing_start_the_offset_c_stays_out_of_the_wheels_yaw(seed:
     before, _, _ = _mid_drive(err, seed, WheelCalibrationConfig(gyro_yaw_rate_sigma_rad_s=0.0))
     before.standing_start = True  # c subtracted, gyro weight 0: the rule before on a log without one
     assert after < _heading_error_deg(before.track(), t, true_yaw) - 1.0
+
+
+def _begun_mid_drive(w_const: float, cfg: WheelCalibrationConfig, seed: int = 0) -> tuple[WheelCalibrator, np.ndarray,
+                                                                                            np.ndarray]:
+    """A 40 s drive at 1 m/s with a constant yaw rate w_const (0: a straight line, else an arc or
+    circle) begun 3 s in (no standing start), calibrated-class wheels, the gyro's +12 mrad/s bias;
+    the calibrator consumed to the end, with the drive's stamps and true yaw."""
+    t = np.arange(0.0, 40.0, 0.02)
+    v, w = np.clip(t / 2.0, 0.0, 1.0), np.full(t.size, w_const) * np.clip(t / 2.0, 0.0, 1.0)
+    full, imu = _wheel_track(t, v, w, CASES["calibrated"][0], seed), _imu(t, w, seed)
+    k, ki = t >= 3.0, imu.stamps >= 3.0
+    track = WheelTrack(stamps=full.stamps[k], positions=full.positions[k], quat_xyzw=full.quat_xyzw[k])
+    cal = WheelCalibrator.build(track, replace(imu, stamps=imu.stamps[ki], acc=imu.acc[ki], gyro=imu.gyro[ki]),
+                                np.eye(4), cfg)
+    assert cal is not None
+    assert not cal.standing_start
+    for tk in np.arange(3.2, 40.0, 0.2):  # as the replay does, sweep by sweep
+        cal.update(float(tk))
+    return cal, t, np.r_[0.0, np.cumsum(w[:-1] * np.diff(t))]
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_a_straight_stretch_gives_the_gyro_bias_without_a_standing_start(seed: int) -> None:
+    """Begun mid-drive on a straight line, the gyro's mean over the first 4 s straight stretch is its
+    bias (measured within 0.17 mrad/s of 12, seeds 0-2): it arrives 4.2 s after the log's start, the
+    gyro is then blended (weight 0.98), and the heading error over the drive is 0.06-0.24 deg against
+    24-26 deg without it (straight_bias_window_s=0, the negative control: weight 0, the wheels' yaw
+    with the bias in a v)."""
+    cal, t, true_yaw = _begun_mid_drive(0.0, WheelCalibrationConfig(), seed)
+    assert cal.gyro_bias_source == "straight drive"
+    assert abs(cal.gyro_bias - GYRO_BIAS) < 0.00035
+    assert cal.gyro_bias_t is not None
+    assert cal.gyro_bias_t - 3.0 < 8.0
+    assert cal.gyro_weight() > 0.5
+    health = wheel_health(cal)
+    assert health["gyro_bias_source"] == "straight drive"
+    assert health["gyro_bias_sigma_rad_s"] >= 0.002
+    off, _, _ = _begun_mid_drive(0.0, WheelCalibrationConfig(straight_bias_window_s=0.0), seed)
+    assert off.gyro_weight() == 0.0
+    assert wheel_health(off)["gyro_bias_source"] == "none"
+    err_on = _heading_error_deg(cal.track(), t, true_yaw)
+    assert err_on < 0.5
+    assert _heading_error_deg(off.track(), t, true_yaw) > 12.0
+
+
+@pytest.mark.parametrize("w_const", [0.05, -0.1, 0.3])
+def test_a_circle_is_not_taken_for_a_straight_stretch(w_const: float) -> None:
+    """On a constant-curvature arc or circle the gyro's mean is the turn rate plus the bias: the
+    wheels' turn fails the guard, no bias is taken and the gyro stays out. Negative control: with
+    the guards opened the same check takes the turn rate for the bias (off by w_const to 0.2 mrad/s)."""
+    cal, _, _ = _begun_mid_drive(w_const, WheelCalibrationConfig())
+    assert cal.gyro_bias_source == "none"
+    assert cal.gyro_weight() == 0.0
+    wide = WheelCalibrationConfig(straight_max_yaw_rate_rad_s=1.0, straight_max_gyro_spread_rad_s=1.0)
+    fooled, _, _ = _begun_mid_drive(w_const, wide)
+    assert fooled.gyro_bias_source == "straight drive"
+    assert abs(fooled.gyro_bias - GYRO_BIAS) > 0.8 * abs(w_const)
