@@ -55,7 +55,8 @@ def gyro_bias_record(cal: WheelCalibrator) -> dict[str, Any]:
     return {"gyro_bias_source": cal.gyro_bias_source,
             "gyro_bias_rad_s": cal.gyro_bias if cal.bias_known else None,
             "gyro_bias_sigma_rad_s": cal.gyro_bias_sigma if cal.bias_known else None,
-            "gyro_bias_after_s": float(cal.gyro_bias_t - cal.inc.stamps[0]) if late and cal.gyro_bias_t else None}
+            "gyro_bias_after_s": float(cal.gyro_bias_t - cal.inc.stamps[0])
+            if late and cal.gyro_bias_t is not None else None}
 
 
 def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibrationConfig) -> list[str]:
