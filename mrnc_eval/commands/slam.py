@@ -288,11 +288,12 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
     antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
     lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
+    wheel, wheel_note = read_wheel_track(lg, cfg.slam)
     return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
                      gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
                      antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
-                     notes=(gnss_note,) if gnss_note else (), ground_mount=ground, mount_rpy_deg=rpy,
-                     mount_written={"base_link", lidar_frame} <= frames, wheel=read_wheel_track(lg, cfg.slam))
+                     notes=tuple(n for n in (gnss_note, wheel_note) if n), ground_mount=ground, mount_rpy_deg=rpy,
+                     mount_written={"base_link", lidar_frame} <= frames, wheel=wheel)
 
 
 def _with_wheel_clock(inputs: LogInputs, cfg: Config) -> LogInputs:

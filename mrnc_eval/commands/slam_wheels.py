@@ -10,7 +10,7 @@ from typing import TYPE_CHECKING
 import numpy as np
 
 from mrnc_eval.data import ImuSeries
-from mrnc_eval.slam.wheel_calibration import WheelIncrements, gyro_yaw_rate
+from mrnc_eval.slam.wheel_calibration import WheelIncrements, gyro_yaw_rate, track_from_twist
 from mrnc_eval.slam.wheel_clock import WheelClock, wheel_clock
 from mrnc_eval.slam.wheel_odometry import WheelTrack
 
@@ -19,14 +19,32 @@ if TYPE_CHECKING:
     from mrnc_eval.slam.config import SlamConfig
 
 
-def read_wheel_track(lg: LogReader, cfg: SlamConfig) -> WheelTrack | None:
-    """The wheel odometry when slam.wheel_odom.enabled, the method is lio and the log has it; its
-    stamps less slam.wheel_odom.time_offset_s."""
+def read_wheel_track(lg: LogReader, cfg: SlamConfig) -> tuple[WheelTrack | None, str]:
+    """The wheel odometry when slam.wheel_odom.enabled, the method is lio and the log has it, its
+    stamps less slam.wheel_odom.time_offset_s; and a note when its pose never moves while its twist
+    does (a driver that publishes only the twist: read by the pose the machine would stand all log,
+    open loop 0.026 -> 4.8 m online APE), where the twist is dead-reckoned instead."""
     if cfg.method != "lio" or not cfg.wheel_odom.enabled or not lg.has_role("wheel_odom"):
-        return None
+        return None, ""
     odom = lg.wheel_odometry()
-    return WheelTrack(stamps=odom.stamps - cfg.wheel_odom.time_offset_s, positions=odom.positions,
-                      quat_xyzw=odom.quat_xyzw)
+    track, note = WheelTrack(stamps=odom.stamps, positions=odom.positions, quat_xyzw=odom.quat_xyzw), ""
+    if _frozen(track):
+        twist = lg.odometry_twist()
+        if twist.stamps.size > 2 and max(np.abs(twist.v).max(), np.abs(twist.omega).max()) > FROZEN_MOVING:
+            track = track_from_twist(twist.stamps, twist.v, twist.omega)
+            note = (f"wheel odometry {lg.roles['wheel_odom']}: its pose never moves while its twist does (up to "
+                    f"{np.abs(twist.v).max():.2f} m/s): the SLAM dead-reckoned the twist")
+    return dataclasses.replace(track, stamps=track.stamps - cfg.wheel_odom.time_offset_s), note
+
+
+FROZEN_M, FROZEN_RAD = 1e-3, 1e-3  # a pose that moves less than this over the whole log does not move
+FROZEN_MOVING = 0.05  # a twist faster than this (m/s or rad/s) does
+
+
+def _frozen(track: WheelTrack) -> bool:
+    """The track's pose stays within FROZEN_M and FROZEN_RAD (yaw) over the whole log."""
+    yaw = np.cumsum(WheelIncrements.of(track).yaw_rad) if track.stamps.size > 1 else np.zeros(0)
+    return bool(np.ptp(track.positions, axis=0).max() < FROZEN_M and np.abs(yaw).max(initial=0.0) < FROZEN_RAD)
 
 
 def clock_checked(track: WheelTrack | None, imu: ImuSeries | None, imu_in_base: np.ndarray, cfg: SlamConfig

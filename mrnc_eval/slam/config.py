@@ -550,6 +550,9 @@ class WheelClockConfig:
                           "yaw by 7-17 ms on firm ground, 27 ms on the soft circle: the plant, not the clock)", "s",
                           ge=0.0, le=1.0)
     flag_sigmas: float = param(3.0, "... and above this many standard errors", ge=0.0, le=100.0)
+    min_track_factor: float = param(0.2, "the wheels' yaw must follow the gyro's by a factor in [this, 1 / this] "
+                                    "(the skid), else verdict not measurable (a frozen pose, another topic)",
+                                    gt=0.0, lt=1.0)
 
 
 @dataclass(frozen=True)

@@ -66,6 +66,16 @@ def integrate(inc: WheelIncrements, forward_m: np.ndarray, yaw_rad: np.ndarray) 
     return WheelTrack(stamps=inc.stamps, positions=pos, quat_xyzw=rotation.matrix_to_quat(rotation.yaw_matrix(yaw)))
 
 
+def track_from_twist(stamps: np.ndarray, v_mps: np.ndarray, yaw_rate_rad_s: np.ndarray) -> WheelTrack:
+    """Dead-reckon an odometry's body twist (forward speed m/s, yaw rate rad/s at `stamps`, s; mean of
+    neighbouring samples over each step) into a planar odom -> base_link track from the identity."""
+    dt = np.diff(np.asarray(stamps, float))
+    fwd = 0.5 * (v_mps[1:] + v_mps[:-1]) * dt
+    inc = WheelIncrements(stamps=np.asarray(stamps, float), forward_m=fwd, lateral_m=np.zeros(fwd.size),
+                          yaw_rad=0.5 * (yaw_rate_rad_s[1:] + yaw_rate_rad_s[:-1]) * dt, start=np.eye(4))
+    return integrate(inc, inc.forward_m, inc.yaw_rad)
+
+
 def gyro_yaw_rate(imu: ImuSeries, imu_in_base: np.ndarray) -> tuple[np.ndarray, np.ndarray]:
     """(stamps, yaw rate about base_link z, rad/s) from the IMU's gyro and its rotation in base_link."""
     return np.asarray(imu.stamps, float), np.asarray(imu.gyro @ imu_in_base[:3, :3].T, float)[:, 2]

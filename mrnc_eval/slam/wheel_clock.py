@@ -47,14 +47,20 @@ def wheel_clock(wheel_t: np.ndarray, wheel_yaw: np.ndarray, wheel_dist: np.ndarr
     if grid.size < 4 * cfg.blocks:
         return WheelClock(offset_s=float("nan"), sigma_s=float("nan"), samples=int(grid.size),
                           reasons=[f"{grid.size} samples where wheels and gyro overlap: too few"])
-    rss, lags = _residuals(grid, (wheel_t, wheel_yaw, wheel_dist), (gyro_t, _cumulative(gyro_t, gyro_yaw_rate)),
-                           cfg)
+    rss, factor, lags = _residuals(grid, (wheel_t, wheel_yaw, wheel_dist),
+                                   (gyro_t, _cumulative(gyro_t, gyro_yaw_rate)), cfg)
     offset = _argmin(rss.sum(axis=1), lags)
     jack = np.array([_argmin(rss.sum(axis=1) - rss[:, j], lags) for j in range(cfg.blocks)])
     n = cfg.blocks
     sigma = float(np.sqrt((n - 1) / n * np.sum((jack - jack.mean()) ** 2)))
     out = WheelClock(offset_s=offset, sigma_s=sigma, samples=int(grid.size), verdict="ok")
-    if not sigma <= cfg.max_sigma_s:  # NaN too
+    f = float(factor[int(np.argmin(rss.sum(axis=1)))])
+    if not cfg.min_track_factor <= f <= 1.0 / cfg.min_track_factor:  # NaN too
+        # wheels that do not turn with the gyro (a frozen pose, another machine's topic) time nothing:
+        # every lag fits them equally, and a jackknife over equal costs reads 0 s
+        out.verdict = "not measurable"
+        out.reasons = [f"the wheels' yaw follows the gyro's by a factor of {f:.2f}: nothing to time them by"]
+    elif not sigma <= cfg.max_sigma_s:  # NaN too
         out.verdict = "not measurable"
         out.reasons = [f"standard error {sigma * 1e3:.0f} ms: too few changes of yaw rate to time the wheels by"]
     elif abs(offset) > cfg.flag_s and abs(offset) > cfg.flag_sigmas * sigma:
@@ -83,21 +89,23 @@ def _rate(t: np.ndarray, stamps: np.ndarray, cumulative: np.ndarray, window_s: f
     return np.asarray((np.interp(t + h, stamps, cumulative) - np.interp(t - h, stamps, cumulative)) / window_s, float)
 
 
-def _residuals(t: np.ndarray, wheel: tuple[np.ndarray, np.ndarray, np.ndarray],
-               gyro: tuple[np.ndarray, np.ndarray], cfg: WheelClockConfig) -> tuple[np.ndarray, np.ndarray]:
+def _residuals(t: np.ndarray, wheel: tuple[np.ndarray, np.ndarray, np.ndarray], gyro: tuple[np.ndarray, np.ndarray],
+               cfg: WheelClockConfig) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """Per candidate lag and time block, the squared residual of the wheels' yaw rate regressed on
-    [gyro yaw rate at t - lag, wheel speed, 1]; and the lags (s)."""
+    [gyro yaw rate at t - lag, wheel speed, 1]; per lag the gyro's coefficient (the track factor); and
+    the lags (s)."""
     wt, wyaw, wdist = wheel
     y = _rate(t, wt, wyaw, cfg.window_s)
     speed = _rate(t, wt, wdist, cfg.window_s)
     lags = np.arange(-cfg.max_lag_s, cfg.max_lag_s + 0.5 * cfg.lag_step_s, cfg.lag_step_s)
     block = np.repeat(np.arange(cfg.blocks), [p.size for p in np.array_split(np.arange(t.size), cfg.blocks)])
-    rss = np.zeros((lags.size, cfg.blocks))
+    rss, factor = np.zeros((lags.size, cfg.blocks)), np.zeros(lags.size)
     for i, lag in enumerate(lags):
         x = np.c_[_rate(t - lag, gyro[0], gyro[1], cfg.window_s), speed, np.ones(t.size)]
         theta = np.linalg.lstsq(x, y, rcond=None)[0]
         rss[i] = np.bincount(block, weights=(y - x @ theta) ** 2, minlength=cfg.blocks)
-    return rss, lags
+        factor[i] = theta[0]
+    return rss, factor, lags
 
 
 def _argmin(cost: np.ndarray, lags: np.ndarray) -> float:

@@ -122,3 +122,12 @@ def test_wheels_on_time_or_apply_off_keep_their_stamps() -> None:
     assert clock.applied_s == 0.0
     assert kept is late
     assert "not applied" in (clock_warning(clock, 0.0) or "")
+
+
+def test_wheels_that_never_turn_are_not_timed() -> None:
+    """A frozen odometry pose (a twist-only driver read by its pose): every lag fits it equally, and a
+    jackknife over equal costs reads 0 s; it must say not measurable, not flag an offset."""
+    tw, yaw, dist, t, gyro = _drive(0.0)
+    clock = wheel_clock(tw, np.zeros_like(yaw), np.zeros_like(dist), t, gyro, WheelClockConfig())
+    assert clock.verdict == "not measurable", clock
+    assert "factor" in clock.reasons[0]
