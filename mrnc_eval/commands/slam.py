@@ -277,7 +277,7 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
         if "base_link" in frames else None
     rpy = applied_mount_rpy(cfg, ground)
     base_to_sensor = corrected_mount(base_to_sensor, rpy)
-    imu = lg.imu() if lg.has_role("imu") else None
+    imu, imu_note = _imu_in_si(lg, log_path, cfg) if lg.has_role("imu") else (None, "")
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
         sensor_to_imu = imu_in_corrected_sensor(lg.transform(lidar_frame, imu.frame_id), statics,
@@ -292,7 +292,8 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
                      gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
                      antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
-                     notes=tuple(n for n in (gnss_note, wheel_note) if n), ground_mount=ground, mount_rpy_deg=rpy,
+                     notes=tuple(n for n in (imu_note, gnss_note, wheel_note) if n), ground_mount=ground,
+                     mount_rpy_deg=rpy,
                      mount_written={"base_link", lidar_frame} <= frames, wheel=wheel)
 
 
@@ -300,6 +301,28 @@ def _with_wheel_clock(inputs: LogInputs, cfg: Config) -> LogInputs:
     """The inputs with the wheel clock checked against the gyro (commands/slam_wheels.py)."""
     wheel, clock = clock_checked(inputs.wheel, inputs.imu, inputs.base_to_sensor @ inputs.sensor_to_imu, cfg.slam)
     return dataclasses.replace(inputs, wheel=wheel, wheel_clock=clock)
+
+
+def _imu_in_si(lg: LogReader, log_path: Path, cfg: Config) -> tuple[ImuSeries, str]:
+    """The IMU with its accelerometer in m/s^2: a driver writing g is scaled (and noted); a specific
+    force that is neither (median magnitude far from gravity in both units) is an input error for
+    lio, which integrates it, and a note for kiss-icp, which does not read the IMU."""
+    from mrnc_eval.slam.imu_units import accelerometer_scale
+
+    imu = lg.imu()
+    scale, median = accelerometer_scale(imu.acc, cfg.slam.imu.gravity)
+    topic = lg.roles["imu"]
+    if scale == 1.0:
+        return imu, ""
+    if scale is not None:
+        return dataclasses.replace(imu, acc=imu.acc * scale), (
+            f"IMU {topic}: the accelerometer reads in g (median |specific force| {median:.3f}), not m/s^2 as "
+            f"sensor_msgs/Imu requires: scaled by {scale:g}")
+    problem = (f"the accelerometer's median |specific force| is {median:.3g}, neither gravity's "
+               f"{cfg.slam.imu.gravity:g} m/s^2 nor 1 g: not an accelerometer in m/s^2 or g")
+    if cfg.slam.method == "lio":
+        raise InputError(log_path, problem, topic=topic)
+    return imu, f"IMU {topic}: {problem} (kiss-icp does not read it)"
 
 
 def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> GroundMount | None:
