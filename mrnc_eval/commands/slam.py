@@ -10,7 +10,7 @@ import shutil
 import sys
 import tempfile
 import time
-from collections.abc import Generator, Iterable, Iterator
+from collections.abc import Callable, Generator, Iterable, Iterator
 from contextlib import closing
 from dataclasses import dataclass
 from pathlib import Path
@@ -227,9 +227,11 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
         hint = ("put a ground_truth.tum (TUM) in the scan folder" if "input" in result.extra
                 else ground_truth_hint(where))
         result.warnings.append(f"no ground truth: APE not computed ({hint})")
-    if inputs.gnss is not None and inputs.gnss.stamps.size > 3:
-        rmse = _add_gnss_ape(result, inputs.gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
-        _add_gnss_disagreement(result, inputs.gnss, out, rmse)
+    gnss = inputs.gnss
+    if gnss is not None and gnss.stamps.size > 3:
+        rmse = _add_gnss_ape(result, gnss, est, inputs.antenna, method, cfg.evaluation.gnss_max_diff_s)
+        _add_gnss_disagreement(result, gnss, out, rmse, clock=lambda: _gnss_clock_shift(
+            gnss, est, inputs.antenna, cfg.evaluation.gnss_max_diff_s))
     _add_time_offset(result, out, cfg)
     _add_wheel_health(result, out)
     _add_wheel_clock(result, inputs, cfg)
@@ -742,6 +744,33 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
         return Cell(None, str(err))
 
 
+GNSS_CLOCK_SHIFTS_S = np.arange(-30.0, 30.0 + 1e-9, 0.25)  # GNSS stamp offsets tried when the fixes disagree
+
+
+def _gnss_clock_shift(gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, max_diff_s: float
+                      ) -> tuple[float, float] | None:
+    """The shift of the GNSS stamps (s, within +-30 s) that brings the fixes closest to the
+    trajectory's antenna (2-D, yaw + translation aligned) with at least half the fixes still
+    matched, and the RMS then (m); None when no shift could be scored."""
+    from mrnc_eval.evaluation.ape import ape
+
+    antenna_track = Trajectory(est.stamps, est.positions + rotation.quat_to_matrix(est.quat_xyzw) @ antenna,
+                               est.quat_xyzw, name="antenna")
+    unit = np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1))
+
+    def rmse(shift: float) -> float:
+        try:
+            r = ape(Trajectory(gnss.stamps - shift, gnss.enu, unit, name="gnss"), antenna_track, align="yaw",
+                    relation="point", max_diff=max_diff_s, plane="xy")
+        except EvaluationError:
+            return np.inf
+        return float(r.stats["rmse"]) if r.errors.size >= 0.5 * gnss.stamps.size else np.inf
+
+    coarse = min(GNSS_CLOCK_SHIFTS_S, key=rmse)  # then 0.05 s steps around it
+    best = min(np.arange(coarse - 0.25, coarse + 0.25 + 1e-9, 0.05), key=rmse)
+    return (float(best), rmse(best)) if np.isfinite(rmse(best)) else None
+
+
 def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str,
                   max_diff_s: float) -> float | None:
     """2-D APE of the antenna track against the GNSS fixes (yaw + translation aligned); its RMSE (m),
@@ -761,18 +790,28 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
         return None
 
 
-def _add_gnss_disagreement(result: RunResult, gnss: GnssSeries, out: SlamOutput, rmse: float | None) -> None:
+def _add_gnss_disagreement(result: RunResult, gnss: GnssSeries, out: SlamOutput, rmse: float | None, *,
+                           clock: Callable[[], tuple[float, float] | None] | None = None) -> None:
     """A health finding when the trajectory is far from the fixes, beyond what the fixes' own sigma
-    explains, naming the likely cause: a LiDAR that saw too little structure with nothing else to
-    hold x, y and yaw (the IMU dead-reckons), or else the GNSS (antenna lever arm, fix quality).
-    `rmse`: the trajectory's 2-D APE against the fixes (_add_gnss_ape), m."""
+    explains, naming the likely cause: GNSS stamps off the LiDAR's clock (`clock`: the shift that
+    brings the fixes onto the trajectory, and the RMS then, m; asked only here), a LiDAR that saw too
+    little structure with nothing else to hold x, y and yaw (the IMU dead-reckons), or else the GNSS
+    (antenna lever arm, fix quality). `rmse`: the trajectory's 2-D APE against the fixes
+    (_add_gnss_ape), m."""
     sigma = float(np.median(np.sqrt(np.max(np.diagonal(gnss.covariance, axis1=1, axis2=2)[:, :2], axis=1))))
-    if rmse is None or not np.isfinite(rmse) or rmse <= max(GNSS_DISAGREE_MIN_M, GNSS_DISAGREE_SIGMAS * sigma):
+    limit = max(GNSS_DISAGREE_MIN_M, GNSS_DISAGREE_SIGMAS * sigma)
+    if rmse is None or not np.isfinite(rmse) or rmse <= limit:
         return
     degenerate = 0.0 if out.degenerate is None or out.degenerate.size == 0 else float(np.mean(out.degenerate))
     wheels = "wheel_odom" in result.extra.get("inputs", {})
     track = next((e.t for e in out.events if e.data.get("gnss_track") == "engaged"), None)
-    if degenerate > 0.5 and track is not None:  # x, y followed the fixes: their alignment or the fixes
+    shift = clock() if clock is not None else None
+    if shift is not None and shift[1] <= min(limit, 0.5 * rmse):  # the fixes fit once their stamps move
+        why = (f"the GNSS stamps look {shift[0]:+.2f} s off the LiDAR's (moved by that, the trajectory is "
+               f"{shift[1]:.2f} m RMS from the fixes)" + (": 18 s is GPS time against UTC (leap seconds)"
+                                                          if abs(abs(shift[0]) - 18.0) < 0.5 else "")
+               + " - check the receiver's time source and how the driver stamps the fixes")
+    elif degenerate > 0.5 and track is not None:  # x, y followed the fixes: their alignment or the fixes
         why = (f"the LiDAR saw too little structure (scan-to-map degenerate on {degenerate:.0%} of the sweeps) "
                f"and x, y followed the GNSS track from {track - out.stamps[0]:.1f} s: check the fixes (multipath, "
                "the antenna's base_link -> gnss transform) and the first seconds' dead reckoning")

@@ -298,3 +298,59 @@ def test_a_trajectory_far_from_the_fixes_is_a_finding_that_names_the_likely_culp
         assert says in result.warnings[0]
         assert "0.02 m" in result.warnings[0]  # the fixes' own sigma, for the reader to compare
         assert result.events[0].kind == "health"
+
+
+def _far_from_the_fixes(clock: object) -> list[str]:
+    """The warnings of a run 13.7 m from RTK fixes, the LiDAR degenerate, no wheels, with `clock`."""
+    import numpy as np
+
+    from mrnc_eval.commands.slam import _add_gnss_disagreement
+    from mrnc_eval.data import GnssSeries
+    from mrnc_eval.results import RunResult
+    from mrnc_eval.slam.output import SlamOutput
+
+    n = 50
+    gnss = GnssSeries(np.arange(n) * 0.2, np.zeros((n, 3)), np.zeros((n, 3)),
+                      np.tile(np.diag([4e-4, 4e-4, 1e-3]), (n, 1, 1)), np.zeros(3))
+    result = RunResult(kind="slam", log_path="x.mcap", log_id="x", extra={"inputs": {"lidar": "/points"}})
+    out = SlamOutput(stamps=np.arange(10.0), poses=np.zeros((10, 4, 4)), kf_stamps=np.zeros(0),
+                     kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)), timing_ms={}, events=[], warnings=[],
+                     n_sweeps=10, wall_s=0.0, degenerate=np.ones(10, bool))
+    _add_gnss_disagreement(result, gnss, out, 13.7, clock=clock)  # type: ignore[arg-type]
+    return result.warnings
+
+
+@pytest.mark.parametrize(("shift", "says"), [
+    ((18.1, 0.4), "18 s is GPS time against UTC"),  # a receiver stamping in GPS time
+    ((2.0, 0.5), "look +2.00 s off the LiDAR's"),
+    ((3.0, 12.0), "IMU dead reckoning"),  # negative control: no shift fits the fixes, the old diagnosis
+    (None, "IMU dead reckoning"),
+])
+def test_gnss_stamps_off_the_lidar_clock_are_named(shift: tuple[float, float] | None, says: str) -> None:
+    warnings = _far_from_the_fixes(lambda: shift)
+    assert len(warnings) == 1
+    assert says in warnings[0]
+    assert ("GNSS stamps" in warnings[0]) == (shift is not None and shift[1] < 1.0)
+
+
+@pytest.mark.parametrize("late_s", [18.0, -4.3, 0.0])
+def test_the_gnss_clock_shift_is_found_on_a_loop(late_s: float) -> None:
+    """Fixes of a 60 s weaving drive stamped late_s late: the shift that fits them back is late_s
+    within the trajectory's 0.2 s sampling (0 is the negative control: fixes on time fit best
+    unshifted). Not a circle: there a shift is a rotation, which the yaw alignment takes out."""
+    import numpy as np
+
+    from mrnc_eval.commands.slam import _gnss_clock_shift
+    from mrnc_eval.data import GnssSeries, Trajectory
+
+    t = np.arange(0.0, 60.0, 0.2)
+    pos = np.c_[t, 5.0 * np.sin(0.2 * t), np.zeros(t.size)]
+    yaw = np.arctan2(np.cos(0.2 * t), 1.0)  # the heading of the weave (dy/dx = cos(0.2 t))
+    quat = np.c_[np.zeros((t.size, 2)), np.sin(yaw / 2), np.cos(yaw / 2)]
+    est = Trajectory(t + 1000.0, pos, quat)
+    gnss = GnssSeries(t + 1000.0 + late_s, np.zeros((t.size, 3)), pos + [3.0, -2.0, 0.0],
+                      np.tile(np.eye(3) * 1e-4, (t.size, 1, 1)), np.zeros(3))
+    found = _gnss_clock_shift(gnss, est, np.zeros(3), 0.05)
+    assert found is not None
+    assert found[0] == pytest.approx(late_s, abs=0.11)
+    assert found[1] < 0.01
