@@ -235,6 +235,7 @@ def _finish(result: RunResult, out: SlamOutput, inputs: LogInputs, method: str, 
     _add_time_offset(result, out, cfg)
     _add_wheel_health(result, out)
     _add_wheel_clock(result, inputs, cfg)
+    _add_imu_axes(result, inputs, cfg)
     if "input" not in result.extra:  # a log's /tf_static mount (a scan folder has none)
         _add_mount_check(result, est, inputs, cfg)
     _add_map_quality(result, out, cfg)
@@ -300,8 +301,12 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
 
 
 def _with_wheel_clock(inputs: LogInputs, cfg: Config) -> LogInputs:
-    """The inputs with the wheel clock checked against the gyro (commands/slam_wheels.py)."""
-    wheel, clock = clock_checked(inputs.wheel, inputs.imu, inputs.base_to_sensor @ inputs.sensor_to_imu, cfg.slam)
+    """The inputs with the wheel clock checked against the gyro (commands/slam_wheels.py), the gyro in
+    base axes as the run reads it (slam.imu.extrinsic_rot, when set, over /tf_static)."""
+    from mrnc_eval.slam.imu import lidar_to_imu
+
+    imu_in_base = inputs.base_to_sensor @ lidar_to_imu(cfg.slam.imu, inputs.sensor_to_imu)
+    wheel, clock = clock_checked(inputs.wheel, inputs.imu, imu_in_base, cfg.slam)
     return dataclasses.replace(inputs, wheel=wheel, wheel_clock=clock)
 
 
@@ -878,6 +883,26 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
         result.events.append(Event(t_s=0.0, kind="health", message=text, data={"wheel_verdict": h["verdict"]}))
 
 
+def _add_imu_axes(result: RunResult, inputs: LogInputs, cfg: Config) -> None:
+    """The IMU's axes in /tf_static against the machine's turns (slam/imu_axes.py), for lio: the record
+    in metrics.json (`imu_axes`) and, when they look rotated, a warning and an event naming /tf_static."""
+    from mrnc_eval.slam.imu import lidar_to_imu
+    from mrnc_eval.slam.imu_axes import imu_axes
+
+    imu = inputs.imu
+    if imu is None or cfg.slam.method != "lio" or not cfg.slam.imu_axes.enabled:
+        return
+    imu_in_base = inputs.base_to_sensor @ lidar_to_imu(cfg.slam.imu, inputs.sensor_to_imu)
+    check = imu_axes(imu.stamps, imu.gyro @ imu_in_base[:3, :3].T, cfg.slam.imu_axes)
+    result.extra["imu_axes"] = check.as_dict()
+    if check.verdict == "rotated":
+        text = (f"the IMU's axes look rotated in /tf_static: {check.reasons[0]}; lio read its gyro and "
+                f"accelerometer in those axes - check the base_link -> {cfg.slam.sensor.lidar_frame} -> "
+                f"{printable(imu.frame_id or 'IMU')} transforms, or set slam.imu.extrinsic_rot")
+        result.warnings.append(text)
+        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"imu_axes": check.verdict}))
+
+
 def _add_wheel_clock(result: RunResult, inputs: LogInputs, cfg: Config) -> None:
     """The wheel clock check (slam/wheel_clock.py): a metric, the record in metrics.json (`wheel_clock`)
     and the result, and a warning and an event when it flagged an offset."""
@@ -1068,7 +1093,7 @@ def _write_files(result: RunResult, out_dir: Path, cfg: Config, trajectories: di
             write_pcd_xyz(tmp / "map.pcd", map_points)
             files["map.ply"], files["map.pcd"] = tmp / "map.ply", tmp / "map.pcd"
         metrics: dict[str, object] = {m.name: {"value": m.value, "unit": m.unit} for m in result.metrics}
-        for key in ("wheel_health", "wheel_clock", "mount_check"):
+        for key in ("wheel_health", "wheel_clock", "imu_axes", "mount_check"):
             if key in result.extra:
                 metrics[key] = result.extra[key]
         (tmp / "metrics.json").write_text(json.dumps(json_safe(metrics), indent=2), encoding="utf-8")

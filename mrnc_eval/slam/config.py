@@ -530,6 +530,23 @@ class WheelCalibrationConfig:
 
 
 @dataclass(frozen=True)
+class ImuAxesConfig:
+    """Whether /tf_static's mounts put the IMU's axes where the machine's turns say (slam/imu_axes.py):
+    a ground vehicle turns about base_link z."""
+
+    enabled: bool = param(True, "check the IMU's axes against the machine's turns before the run (lio stops with an "
+                          "input error naming /tf_static when they are rotated)")
+    window_s: float = param(5.0, "the gyro's net rotation over windows this long (bumps and sways net out: the open "
+                            "line's 3 m terrain waves pitch a 2 s window by up to 0.14 rad)", "s", gt=0.0, le=60.0)
+    min_window_rad: float = param(0.25, "windows that turned less than this are left out (a turn at 0.1 rad/s is 0.5 "
+                                  "rad a window)", "rad", ge=0.0, le=3.2)
+    min_turn_rad: float = param(1.0, "less turning than this over the log: verdict not measurable", "rad",
+                                ge=0.0, le=100.0)
+    max_angle_deg: float = param(30.0, "the turn axis further from base_link z than this: verdict rotated (slopes "
+                                 "do not move it: the machine turns about its own up axis)", "deg", gt=0.0, le=90.0)
+
+
+@dataclass(frozen=True)
 class WheelClockConfig:
     """The wheel odometry's stamp offset against the gyro's, from the log's turns before the run
     (slam/wheel_clock.py): a host- or PLC-stamped odometry is often tens of ms late."""
@@ -630,5 +647,6 @@ class SlamConfig:
     wheel_odom: WheelOdomConfig = section(WheelOdomConfig, "wheel odometry factors in graph #1")
     map_quality: MapQualityConfig = section(MapQualityConfig, "map quality without ground truth")
     mount_check: MountCheckConfig = section(MountCheckConfig, "the LiDAR mount's pitch and yaw from the motion")
+    imu_axes: ImuAxesConfig = section(ImuAxesConfig, "the IMU's axes in /tf_static against the machine's turns")
     ground_mount: GroundMountConfig = section(GroundMountConfig, "the LiDAR mount's roll and pitch from the "
                                               "ground at the start")
