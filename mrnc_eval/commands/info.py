@@ -97,8 +97,24 @@ def _summary(path: Path, cfg: Config) -> InfoSummary:
         _lidar_findings(lg, summary)
         _gnss_findings(lg, summary)
         imu = _validation_findings(lg, summary).get("imu")
-        _imu_noise_findings(imu if isinstance(imu, ImuSeries) else None, summary, cfg)
+        imu = _sensor_findings(lg, imu if isinstance(imu, ImuSeries) else None, summary, cfg)
+        _imu_noise_findings(imu, summary, cfg)
     return summary
+
+
+def _sensor_findings(lg: LogReader, imu: ImuSeries | None, summary: InfoSummary, cfg: Config) -> ImuSeries | None:
+    """The sensors checked against each other as the SLAM checks them (commands/info_sensors.py);
+    returns the IMU with its accelerometer in m/s^2 (None when it has neither unit)."""
+    from mrnc_eval.commands.info_sensors import finite_gyro, imu_and_wheel_findings, imu_in_si
+
+    if imu is None:
+        return None
+    imu, found = imu_in_si(imu, summary.roles["imu"], cfg)
+    usable = not any(level == "error" for level, _, _ in found)
+    if usable and finite_gyro(imu):
+        found += imu_and_wheel_findings(lg, imu, cfg)
+    summary.findings.extend(Finding(level=lv, topic=t, message=m) for lv, t, m in found)
+    return imu if usable else None
 
 
 def _imu_noise_findings(imu: ImuSeries | None, summary: InfoSummary, cfg: Config) -> None:
