@@ -16,6 +16,8 @@ a degenerate match leaves free, exactly where wheels would otherwise carry them 
   fixes jumping; or, `track_box_check_s`, when the fixes say the step ended a jump the filter had
   followed below the gate (a box offset before the step fits them better than the step held): the
   offset-free hypothesis, the offset goes to zero;
+- by default (`track_model` hypotheses) the filter is slam/gnss_bank.OffsetBank instead: the offset a
+  state, its changes weighted hypotheses, no gate and no step rule (the step filter: `track_model` steps);
 - an outage (no fix taken for `track_max_gap_s`) hands x, y back to the chain until the fixes return,
   and the filter starts again at the first of them;
 - the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
