@@ -10,7 +10,7 @@ against the log's ground truth
   are stamped gnss_latency_s = 0.12 s late): their RMS, the time a multipath jump is on (the 1 s running
   median of the error beyond 0.4 m), how many jumped fixes the track filter took and how many clean
   ones it gated out, the time it held a multipath offset;
-- the track filter alone on the fixes (slam/gnss_track.TrackFilter with the run's settings), its error
+- the track filter alone on the fixes (slam/gnss_track.track_filter, default slam.gps settings), its error
   after its own yaw + translation fit (the online APE's counterpart);
 - the scan-to-map degeneracy events by number of degenerate directions.
 

@@ -385,6 +385,18 @@ class GpsConfig:
         "long before, the step is its end and the fixes are clean now (they fit a smooth track with a box "
         "offset ending at the step better than with the offset held); then the offset goes to zero and the "
         "filter to the fixes' track; 0: off", "s", ge=0.0, le=30.0)
+    track_model: Literal["steps", "hypotheses"] = param(
+        "hypotheses", "GNSS track: the filter on the fixes. hypotheses: the multipath offset is a state and its "
+        "changes (a jump on, changed, off) are hypotheses weighted by their likelihood, the likeliest kept "
+        "(slam/gnss_bank.py); steps: one filter whose gate and step rules decide each jump once "
+        "(track_step_fixes, track_lag_check_s, track_box_check_s)")
+    track_jump_sigma_m: float = param(1.5, "GNSS track, hypotheses: prior sigma per axis of a multipath jump's "
+                                      "offset", "m", gt=0.0, le=20.0)
+    track_jump_on_hz: float = param(0.1, "GNSS track, hypotheses: prior rate of a multipath jump coming on (or "
+                                    "changing)", "1/s", gt=0.0, le=5.0)
+    track_jump_off_hz: float = param(0.25, "GNSS track, hypotheses: prior rate of a jump that is on going off",
+                                     "1/s", gt=0.0, le=5.0)
+    track_hypotheses: int = param(20, "GNSS track, hypotheses: how many are kept after each fix", ge=1, le=500)
     track_both_axes: bool = param(
         True, "GNSS track: a sweep whose match left a horizontal direction free takes x and y both from the track; "
         "on bare ground the other horizontal direction is matched against a map the track itself laid (on the "

@@ -16,6 +16,8 @@ a degenerate match leaves free, exactly where wheels would otherwise carry them 
   fixes jumping; or, `track_box_check_s`, when the fixes say the step ended a jump the filter had
   followed below the gate (a box offset before the step fits them better than the step held): the
   offset-free hypothesis, the offset goes to zero;
+- by default (`track_model` hypotheses) the filter is slam/gnss_bank.OffsetBank instead: the offset a
+  state, its changes weighted hypotheses, no gate and no step rule (the step filter: `track_model` steps);
 - an outage (no fix taken for `track_max_gap_s`) hands x, y back to the chain until the fixes return,
   and the filter starts again at the first of them;
 - the ENU -> map alignment from the fixes' own course against the gyro's heading, fixed once
@@ -35,6 +37,7 @@ import numpy as np
 from mrnc_eval.data import GnssSeries
 from mrnc_eval.geometry import rotation
 from mrnc_eval.slam.config import GpsConfig
+from mrnc_eval.slam.gnss_bank import OffsetBank
 from mrnc_eval.slam.gnss_ins import EnuAlignment, GnssIns, new_ins
 
 CHI2_2DOF = 13.8  # 0.1 % of consistent fixes rejected
@@ -243,7 +246,7 @@ class GnssTrack:
     """The filter fed with every usable fix up to each sweep, and the alignment (via GnssIns)."""
 
     ins: GnssIns
-    filter: TrackFilter
+    filter: TrackFilter | OffsetBank
     provisional_travel_m: float = 0.0  # a provisional alignment after this much travel (0: none)
     provisional: EnuAlignment | None = None  # used until the final alignment (ins.alignment) is fixed
     next_fix: int = 0
@@ -365,8 +368,13 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
                      filter=track_filter(cfg))
 
 
-def track_filter(cfg: GpsConfig) -> TrackFilter:
+def track_filter(cfg: GpsConfig) -> TrackFilter | OffsetBank:
     """The track's filter as slam.gps configures it (the run's, and a diagnosis of the fixes alone)."""
+    if cfg.track_model == "hypotheses":
+        return OffsetBank(accel_sigma=cfg.track_accel_sigma, jump_sigma_m=cfg.track_jump_sigma_m,
+                          on_rate_hz=cfg.track_jump_on_hz, off_rate_hz=cfg.track_jump_off_hz,
+                          keep=cfg.track_hypotheses, max_gap_s=cfg.track_max_gap_s,
+                          sigma_floor_m=cfg.track_sigma_floor_m)
     return TrackFilter(accel_sigma=cfg.track_accel_sigma, step_fixes=cfg.track_step_fixes,
                        max_offset_m=cfg.ins_max_offset_m, max_gap_s=cfg.track_max_gap_s,
                        sigma_floor_m=cfg.track_sigma_floor_m, lag_check_s=cfg.track_lag_check_s,

@@ -61,10 +61,11 @@ def test_combined_wheel_errors_with_float_gnss(combined_line: Path, tmp_path: Pa
 
 # No wheel odometry on the same open line (calibrated-wheel log, wheels off), float GNSS, seed 4 (a report
 # seed): the GNSS track (slam.gps.track) against IMU dead reckoning along the degenerate directions.
-# Measured (benchmarks/wheel_gnss_matrix.py, and this test): 0.689 m online APE with the track since
+# Measured (benchmarks/wheel_gnss_matrix.py): 0.473 m online APE with slam.gps.track_model=hypotheses (eighth
+# session); 0.689 m with the step filter (track_model=steps) since
 # slam.gps.track_both_axes (seventh session; 1.12 m before it, the fourth session's label gnss-prov; 1.50 m
 # before the provisional alignment); 18.7 m with slam.gps.track=never (59.1 m before the per-feature
-# re-query: dead reckoning is chaotic, single seeds move by ~0.4 m on rounding); limit ~2x the first.
+# re-query: dead reckoning is chaotic, single seeds move by ~0.4 m on rounding); limit ~2x the step filter's.
 NO_WHEELS = {"slam.wheel_odom.enabled": False}
 TRACK_LIMIT_M = 1.5
 
