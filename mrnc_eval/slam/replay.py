@@ -22,7 +22,8 @@ from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.gnss_track import GnssTrack, move_along_free
 from mrnc_eval.slam.gnss_track import build as build_gnss_track
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
-from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
+from mrnc_eval.slam.imu import (ImuOdometry, ImuTrack, clean_imu, driving_attitude, imu_track, initial_attitude,
+                                lidar_to_imu)
 from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
@@ -365,9 +366,7 @@ class _Replay:
         st, track, odom = self.st, self.track, self.odom
         st.guess_by_wheels = st.about_base = False
         if st.pose is None:
-            att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t) if self.imu is not None \
-                else np.eye(3)
-            return se3.make(att, np.zeros(3))
+            return se3.make(self.first_attitude(t), np.zeros(3))
         covered = track is not None and track.covers(st.t, t)
         if odom is not None and covered and odom.can_predict:  # also right after a loop restarted graph #2
             return self.wheel_guess(odom.predict(st.pose, st.t, t), t)
@@ -376,6 +375,40 @@ class _Replay:
         if covered and track is not None:
             rot = rot @ track.rotation_between(st.t, np.array([t]))[0]
         return se3.make(rot, st.pose[:3, 3] + step)
+
+    def first_attitude(self, t: float) -> np.ndarray:
+        """The LiDAR's roll/pitch at the first sweep: the IMU's orientation, or its accelerometer about
+        t (initial_attitude); a 6-axis IMU on a machine the wheels show already driving (a log begun
+        mid-drive) over attitude_driving_window_s instead, with the wheels' velocity change
+        (driving_attitude). A standing start keeps the 0.1 s look-ahead: start-up acceleration."""
+        if self.imu is None:
+            return np.eye(3)
+        att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t)
+        if self.track is None or self.imu.orientation_xyzw is not None:
+            return att
+        t_imu = max(t, float(self.track.stamps[0]))  # a log cut mid-drive: its first sample can follow the sweep
+        window = self.cfg.imu.attitude_driving_window_s
+        dv = self.wheel_velocity_change(t_imu, window) if t_imu - t <= 0.2 else None  # s: one wheel bin
+        driving = None if dv is None else driving_attitude(self.track, t_imu, window, dv)
+        return att if driving is None else driving
+
+    def wheel_velocity_change(self, t: float, window_s: float) -> np.ndarray | None:
+        """The base's velocity change by the wheels from t to t + window_s (m/s, LiDAR axes at t), each
+        velocity the mean over 0.2 s at that end (the calibrator's standing-start bin); None unless the
+        wheels cover the window (from their first sample when it follows t) and the first speed exceeds
+        the standing-start limit."""
+        wheel, h = self.wheel, 0.2  # s
+        if wheel is None or wheel.stamps.size < 2:
+            return None
+        t = max(t, float(wheel.stamps[0]))  # a log cut mid-drive: its first wheel sample can follow the sweep
+        if window_s <= 2 * h or not wheel.covers(t, t + window_s):
+            return None
+        p = np.array([wheel.pose_at(x)[:3, 3] for x in (t, t + h, t + window_s - h, t + window_s)])
+        v0, v1 = (p[1] - p[0]) / h, (p[3] - p[2]) / h  # odom axes
+        if np.linalg.norm(v0[:2]) <= self.cfg.wheel_odom.calibration.stationary_speed_mps:
+            return None
+        to_lidar = (wheel.pose_at(t)[:3, :3] @ self.base_to_sensor[:3, :3]).T
+        return np.asarray(to_lidar @ (v1 - v0), np.float64)
 
     def wheel_guess(self, predicted: np.ndarray, t: float) -> np.ndarray:
         """With slam.wheel_odom.guess: x, y and yaw of the base from the wheels' motion since the
