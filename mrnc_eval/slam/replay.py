@@ -22,8 +22,15 @@ from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.gnss_track import GnssTrack, move_along_free
 from mrnc_eval.slam.gnss_track import build as build_gnss_track
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
-from mrnc_eval.slam.imu import (ImuOdometry, ImuTrack, clean_imu, driving_attitude, imu_track, initial_attitude,
-                                lidar_to_imu)
+from mrnc_eval.slam.imu import (
+    ImuOdometry,
+    ImuTrack,
+    clean_imu,
+    driving_attitude,
+    imu_track,
+    initial_attitude,
+    lidar_to_imu,
+)
 from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
