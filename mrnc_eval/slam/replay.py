@@ -386,7 +386,7 @@ class _Replay:
     def first_attitude(self, t: float) -> np.ndarray:
         """The LiDAR's roll/pitch at the first sweep: the IMU's orientation, or its accelerometer about
         t (initial_attitude); a 6-axis IMU on a machine the wheels show already driving (a log begun
-        mid-drive) over attitude_driving_window_s instead, with the wheels' velocity change
+        mid-drive) over attitude_driving_window_s instead, with the IMU's velocity change
         (driving_attitude). A standing start keeps the 0.1 s look-ahead: start-up acceleration."""
         if self.imu is None:
             return np.eye(3)
@@ -395,27 +395,34 @@ class _Replay:
             return att
         t_imu = max(t, float(self.track.stamps[0]))  # a log cut mid-drive: its first sample can follow the sweep
         window = self.cfg.imu.attitude_driving_window_s
-        dv = self.wheel_velocity_change(t_imu, window) if t_imu - t <= 0.2 else None  # s: one wheel bin
+        dv = self.velocity_change(t_imu, window) if t_imu - t <= 0.2 else None  # s: one wheel bin
         driving = None if dv is None else driving_attitude(self.track, t_imu, window, dv)
         return att if driving is None else driving
 
-    def wheel_velocity_change(self, t: float, window_s: float) -> np.ndarray | None:
-        """The base's velocity change by the wheels from t to t + window_s (m/s, LiDAR axes at t), each
-        velocity the mean over 0.2 s at that end (the calibrator's standing-start bin); None unless the
-        wheels cover the window (from their first sample when it follows t) and the first speed exceeds
-        the standing-start limit."""
-        wheel, h = self.wheel, 0.2  # s
-        if wheel is None or wheel.stamps.size < 2:
+    def velocity_change(self, t: float, window_s: float) -> np.ndarray | None:
+        """The IMU's velocity change from t to t + window_s (m/s, LiDAR axes at t): the base's by the
+        wheels, each end the mean over 0.2 s (the calibrator's standing-start bin), plus the change of
+        w x r, the IMU's lever r from base_link turning at the gyro's rate w (the wheels see the base
+        only; a machine rocking on rough ground swings an IMU 1 m up by a metre per second). None
+        unless the wheels and the IMU cover the window (from the wheels' first sample when it follows
+        t) and the first speed exceeds the standing-start limit."""
+        wheel, track, h = self.wheel, self.track, 0.2  # s
+        if wheel is None or track is None or wheel.stamps.size < 2:
             return None
         t = max(t, float(wheel.stamps[0]))  # a log cut mid-drive: its first wheel sample can follow the sweep
-        if window_s <= 2 * h or not wheel.covers(t, t + window_s):
+        t1 = t + window_s
+        if window_s <= 2 * h or not wheel.covers(t, t1) or not track.covers(t, t1):
             return None
-        p = np.array([wheel.pose_at(x)[:3, 3] for x in (t, t + h, t + window_s - h, t + window_s)])
+        p = np.array([wheel.pose_at(x)[:3, 3] for x in (t, t + h, t1 - h, t1)])
         v0, v1 = (p[1] - p[0]) / h, (p[3] - p[2]) / h  # odom axes
         if np.linalg.norm(v0[:2]) <= self.cfg.wheel_odom.calibration.stationary_speed_mps:
             return None
-        to_lidar = (wheel.pose_at(t)[:3, :3] @ self.base_to_sensor[:3, :3]).T
-        return np.asarray(to_lidar @ (v1 - v0), np.float64)
+        r_bs, t_bs = self.base_to_sensor[:3, :3], self.base_to_sensor[:3, 3]
+        lever = self.extr[:3, 3] + r_bs.T @ t_bs  # IMU from base_link, LiDAR axes
+        w0, w1 = (track.gyro[(track.stamps >= a) & (track.stamps < a + h)].mean(axis=0) for a in (t, t1 - h))
+        turn = track.rotation_between(t, np.array([t1 - 0.5 * h]))[0]
+        rocking = turn @ np.cross(w1, lever) - np.cross(w0, lever)
+        return np.asarray((wheel.pose_at(t)[:3, :3] @ r_bs).T @ (v1 - v0) + rocking, np.float64)
 
     def wheel_guess(self, predicted: np.ndarray, t: float) -> np.ndarray:
         """With slam.wheel_odom.guess: x, y and yaw of the base from the wheels' motion since the
