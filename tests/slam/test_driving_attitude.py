@@ -1,5 +1,5 @@
 """The first sweep's attitude in a log begun mid-drive (slam/imu.py driving_attitude, replay's
-first_attitude): a synthetic drive on bumpy ground, rolling, accelerating, with sideways and vertical jolts."""
+first_state): a synthetic drive on bumpy ground, rolling, accelerating, with sideways and vertical jolts."""
 
 from __future__ import annotations
 
@@ -94,16 +94,16 @@ def test_first_attitude_driving_only_when_the_wheels_move() -> None:
     imu = _drive(t)
     replay = _Replay.start(imu, SlamConfig(), None, None, None, False)
     old = initial_attitude(imu, np.eye(3), ImuConfig(), -0.004)
-    assert np.array_equal(replay.first_attitude(-0.004), old)  # no wheels
+    assert np.array_equal(replay.first_state(-0.004)[0], old)  # no wheels
     replay.wheel = _wheels(t, 1.0 + ACC * t)
-    assert _tilt_error_deg(replay.first_attitude(-0.004)) < 0.3  # measured 0.14 (wheels from 0, IMU from -0.004)
+    assert _tilt_error_deg(replay.first_state(-0.004)[0]) < 0.3  # measured 0.14 (wheels from 0, IMU from -0.004)
     assert _tilt_error_deg(old) > 7.0  # measured 15.0
     replay.wheel = _wheels(t, np.where(t < 0.5, 0.0, 1.0))  # standing, then driving
-    assert np.array_equal(replay.first_attitude(-0.004), old)
+    assert np.array_equal(replay.first_state(-0.004)[0], old)
     nine_axis = ImuSeries(t, imu.acc, imu.gyro, orientation_xyzw=np.tile([0.0, 0.0, 0.0, 1.0], (t.size, 1)))
     replay = _Replay.start(nine_axis, SlamConfig(), None, None, None, False)
     replay.wheel = _wheels(t, 1.0 + ACC * t)
-    assert np.array_equal(replay.first_attitude(-0.004), np.eye(3))
+    assert np.array_equal(replay.first_state(-0.004)[0], np.eye(3))
 
 
 def test_first_attitude_adds_the_rocking_of_the_mount() -> None:
@@ -114,6 +114,6 @@ def test_first_attitude_adds_the_rocking_of_the_mount() -> None:
     replay = _Replay.start(_drive(t, 1.0), SlamConfig(), None, None, None, False)
     replay.wheel = _wheels(t, 1.0 + ACC * t)
     replay.base_to_sensor = np.eye(4)
-    assert _tilt_error_deg(replay.first_attitude(-0.004)) > 1.1
+    assert _tilt_error_deg(replay.first_state(-0.004)[0]) > 1.1
     replay.base_to_sensor[2, 3] = 1.0  # m: the LiDAR above base_link
-    assert _tilt_error_deg(replay.first_attitude(-0.004)) < 0.3
+    assert _tilt_error_deg(replay.first_state(-0.004)[0]) < 0.3
