@@ -117,3 +117,21 @@ def test_first_attitude_adds_the_rocking_of_the_mount() -> None:
     assert _tilt_error_deg(replay.first_state(-0.004)[0]) > 1.1
     replay.base_to_sensor[2, 3] = 1.0  # m: the LiDAR above base_link
     assert _tilt_error_deg(replay.first_state(-0.004)[0]) < 0.3
+
+
+def test_graph2_starts_at_the_wheels_velocity_when_driving() -> None:
+    """The first sweep's guess hands graph #2 the IMU's velocity (map axes): here the world's 1.02 m/s
+    along x (the first 0.2 s bin's mean) within 0.06 m/s (measured 0.031: the wheels' speed goes along
+    the base's x, which this drive pitches by 0.03 rad while it moves level), so the second sweep's
+    prediction moves; a standing start leaves it at rest (graph #2's loose prior, as before)."""
+    t = np.arange(0.0, 4.0, 0.01)
+    replay = _Replay.start(_drive(t), SlamConfig(), None, None, None, False)
+    assert replay.odom is not None
+    replay.wheel = _wheels(t, 1.0 + ACC * t)
+    replay.guess(0.0)
+    np.testing.assert_allclose(replay.odom.velocity, [1.0 + ACC * 0.1, 0.0, 0.0], atol=0.06)
+    standing = _Replay.start(_drive(t), SlamConfig(), None, None, None, False)
+    assert standing.odom is not None
+    standing.wheel = _wheels(t, np.where(t < 0.5, 0.0, 1.0))
+    standing.guess(0.0)
+    assert np.array_equal(standing.odom.velocity, np.zeros(3))
