@@ -49,6 +49,13 @@ class ImuConfig:
                                         "accelerates, and 0.1 m/s^2 of start-up acceleration in the average tilts the "
                                         "map by 0.6 deg, which leaks 0.1 m/s^2 of gravity into the IMU prediction "
                                         "(the 0.5 s window used before drifted 7 m in 40 s of open field)", "s")
+    attitude_driving_window_s: float = param(
+        2.0, "6-axis IMU, a log begun mid-drive (the wheels' first 0.2 s faster than "
+        "wheel_odom.calibration.stationary_speed_mps): initial roll/pitch from the specific force over this long "
+        "after the first sweep, rotated to it by the gyro, less the IMU's velocity change (the wheels' plus its "
+        "lever's rocking about base_link); the 0.1 s look-ahead reads the ground's bumps (31 deg of roll on the "
+        "open line begun at 12 s, seed 4). 0.4 s or less = off", "s",
+        ge=0.0, le=10.0)
     use_heading_init: bool = param(False, "start the map yaw at the 9-axis IMU's yaw (useImuHeadingInitialization); "
                                    "6-axis IMUs have no heading")
     use_preintegration_graph: bool = param(True, "estimate velocity and biases with gtsam ImuFactors and lidar pose "

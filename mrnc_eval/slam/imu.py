@@ -117,6 +117,25 @@ def initial_attitude(imu: ImuSeries, lidar_to_imu_rot: np.ndarray, cfg: ImuConfi
     return rotation.from_rpy([roll, pitch, 0.0])
 
 
+def driving_attitude(track: ImuTrack, t0: float, window_s: float, dv: np.ndarray) -> np.ndarray | None:
+    """Roll/pitch of the LiDAR at t0 while the machine drives (yaw 0; 3x3; None when the track does not
+    cover [t0, t0 + window_s]). The specific force, each sample rotated into the LiDAR frame at t0 by the
+    gyro, integrates over the window to the velocity change plus gravity's reaction, so its time mean less
+    dv / window_s (dv: the velocity change over the window, m/s, LiDAR axes at t0) is the up direction at
+    t0 whatever the bumps in between. A 0.1 s mean reads the bumps: 31 deg of roll on the open line's
+    seed 4 begun at 12 s (the specific force swings by 5 m/s^2 within a tenth of a second)."""
+    t1 = t0 + window_s
+    if window_s <= 0 or not track.covers(t0, t1):
+        return None
+    s = track.stamps
+    edges = np.r_[t0, s[(s > t0) & (s < t1)], t1]  # each sample holds from its stamp to the next
+    held = np.clip(np.searchsorted(s, edges[:-1], side="right") - 1, 0, s.size - 1)
+    rot = track.rotation_between(t0, 0.5 * (edges[:-1] + edges[1:]))
+    f = np.einsum("nij,nj->ni", rot, track.acc[held]) * np.diff(edges)[:, None]
+    up = (f.sum(axis=0) - np.asarray(dv, float)) / window_s
+    return rotation.from_rpy([np.arctan2(up[1], up[2]), np.arctan2(-up[0], np.hypot(up[1], up[2])), 0.0])
+
+
 class ImuOdometry:
     """LIO-SAM graph #2 on iSAM2: states X (body pose), V (velocity), B (bias) at each mapped
     sweep; ImuFactor between consecutive states from gtsam preintegration, a lidar pose prior on

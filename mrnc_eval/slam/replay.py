@@ -22,7 +22,15 @@ from mrnc_eval.slam.gnss import GnssAligner
 from mrnc_eval.slam.gnss_track import GnssTrack, move_along_free
 from mrnc_eval.slam.gnss_track import build as build_gnss_track
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
-from mrnc_eval.slam.imu import ImuOdometry, ImuTrack, clean_imu, imu_track, initial_attitude, lidar_to_imu
+from mrnc_eval.slam.imu import (
+    ImuOdometry,
+    ImuTrack,
+    clean_imu,
+    driving_attitude,
+    imu_track,
+    initial_attitude,
+    lidar_to_imu,
+)
 from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
@@ -365,8 +373,9 @@ class _Replay:
         st, track, odom = self.st, self.track, self.odom
         st.guess_by_wheels = st.about_base = False
         if st.pose is None:
-            att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t) if self.imu is not None \
-                else np.eye(3)
+            att, velocity = self.first_state(t)
+            if velocity is not None and odom is not None:  # graph #2 starts at the wheels' speed, not at rest
+                odom.velocity = att @ velocity
             return se3.make(att, np.zeros(3))
         covered = track is not None and track.covers(st.t, t)
         if odom is not None and covered and odom.can_predict:  # also right after a loop restarted graph #2
@@ -376,6 +385,48 @@ class _Replay:
         if covered and track is not None:
             rot = rot @ track.rotation_between(st.t, np.array([t]))[0]
         return se3.make(rot, st.pose[:3, 3] + step)
+
+    def first_state(self, t: float) -> tuple[np.ndarray, np.ndarray | None]:
+        """The LiDAR's roll/pitch at the first sweep (yaw 0) and, when driving, the IMU's velocity
+        then (m/s, LiDAR axes; else None). The attitude: the IMU's orientation, or its accelerometer
+        about t (initial_attitude); a 6-axis IMU on a machine the wheels show already driving (a log
+        begun mid-drive) over attitude_driving_window_s instead, with the IMU's velocity change
+        (driving_attitude). A standing start keeps the 0.1 s look-ahead: start-up acceleration."""
+        if self.imu is None:
+            return np.eye(3), None
+        att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t)
+        if self.track is None or self.imu.orientation_xyzw is not None:
+            return att, None
+        t_imu = max(t, float(self.track.stamps[0]))  # a log cut mid-drive: its first sample can follow the sweep
+        window = self.cfg.imu.attitude_driving_window_s
+        v = self.driving_velocities(t_imu, window) if t_imu - t <= 0.2 else None  # s: one wheel bin
+        driving = None if v is None else driving_attitude(self.track, t_imu, window, v[1] - v[0])
+        return (att, None) if driving is None or v is None else (driving, v[0])
+
+    def driving_velocities(self, t: float, window_s: float) -> tuple[np.ndarray, np.ndarray] | None:
+        """The IMU's velocity at t and at t + window_s (m/s, both in LiDAR axes at t): the base's by the
+        wheels, each the mean over 0.2 s (the calibrator's standing-start bin) from that end inwards,
+        plus w x r, the IMU's lever r from base_link turning at the gyro's rate w (the wheels see the
+        base only; a machine rocking on rough ground swings an IMU 1 m up by a metre per second). None
+        unless the wheels and the IMU cover the window (from the wheels' first sample when it follows
+        t) and the first speed exceeds the standing-start limit."""
+        wheel, track, h = self.wheel, self.track, 0.2  # s
+        if wheel is None or track is None or wheel.stamps.size < 2:
+            return None
+        t = max(t, float(wheel.stamps[0]))  # a log cut mid-drive: its first wheel sample can follow the sweep
+        t1 = t + window_s
+        if window_s <= 2 * h or not wheel.covers(t, t1) or not track.covers(t, t1):
+            return None
+        p = np.array([wheel.pose_at(x)[:3, 3] for x in (t, t + h, t1 - h, t1)])
+        v0, v1 = (p[1] - p[0]) / h, (p[3] - p[2]) / h  # odom axes
+        if np.linalg.norm(v0[:2]) <= self.cfg.wheel_odom.calibration.stationary_speed_mps:
+            return None
+        r_bs, t_bs = self.base_to_sensor[:3, :3], self.base_to_sensor[:3, 3]
+        lever = self.extr[:3, 3] + r_bs.T @ t_bs  # IMU from base_link, LiDAR axes
+        w0, w1 = (track.gyro[(track.stamps >= a) & (track.stamps < a + h)].mean(axis=0) for a in (t, t1 - h))
+        turn = track.rotation_between(t, np.array([t1 - 0.5 * h]))[0]
+        to_lidar = (wheel.pose_at(t)[:3, :3] @ r_bs).T
+        return to_lidar @ v0 + np.cross(w0, lever), to_lidar @ v1 + turn @ np.cross(w1, lever)
 
     def wheel_guess(self, predicted: np.ndarray, t: float) -> np.ndarray:
         """With slam.wheel_odom.guess: x, y and yaw of the base from the wheels' motion since the
