@@ -357,6 +357,9 @@ def step(ins: GnssIns, odom: ImuOdometry, matched: np.ndarray, t: float, events:
     if ins.alignment is None or fused is None:
         return matched
     z = float((fused[:3, :3] @ ins.antenna_in_lidar + fused[:3, 3])[2])
-    odom.add_fixes(ins.fixes_until(t, odom.velocity, z), ins.antenna_in_lidar, ins.judge, ins.cfg.ins_huber_k)
+    failed = odom.add_fixes(ins.fixes_until(t, odom.velocity, z), ins.antenna_in_lidar, ins.judge,
+                            ins.cfg.ins_huber_k)
+    if failed:  # said, not silent: the run goes on from the matched pose
+        events.append(SlamEvent(t=t, kind="gps", message=failed, data={"gnss_ins_failed": True}))
     out = odom.lidar_pose()
     return matched if out is None else out

@@ -272,19 +272,21 @@ class ImuOdometry:
         return None
 
     def add_fixes(self, fixes: Sequence[Any], antenna_in_lidar: np.ndarray,
-                  judge: Callable[[Any, np.ndarray, np.ndarray], tuple[bool, np.ndarray]], huber_k: float) -> int:
+                  judge: Callable[[Any, np.ndarray, np.ndarray], tuple[bool, np.ndarray]], huber_k: float
+                  ) -> str | None:
         """GNSS/INS (slam/gnss_ins.py): antenna positions (map) as GPSFactorArm on the latest key, each
         first judged by `judge(fix, predicted antenna x, y, the key's marginal covariance of them (map
         axes))`, which returns whether it enters and the x, y to use; a Huber kernel of huber_k sigmas
-        when > 0. Returns how many entered."""
+        when > 0. Returns None, or why graph #2 restarts (gtsam refused the update: the fixes are dropped
+        and the next sweep starts a new graph from the last pose, as a failed IMU update does)."""
         g, k = self.g, self.key
         if k < 0 or not fixes or self._last_pose is None:
-            return 0
+            return None
         lever = np.asarray(antenna_in_lidar, float) - self.lever[:3, 3]  # antenna in the body (LiDAR axes)
         try:
             cov_body = self.isam.marginalCovariance(g.symbol("x", k))[3:, 3:]
-        except RuntimeError:
-            return 0
+        except RuntimeError as err:
+            return f"GNSS/INS: graph #2's marginal covariance failed ({err}); the fixes were dropped"
         rot = self._last_pose.rotation().matrix()
         cov_xy = (rot @ cov_body @ rot.T)[:2, :2]
         predicted = (self._last_pose.translation() + rot @ lever)[:2]
@@ -298,17 +300,18 @@ class ImuOdometry:
                 noise = g.noiseModel.Robust.Create(g.noiseModel.mEstimator.Huber.Create(huber_k), noise)
             graph.add(g.GPSFactorArm(g.symbol("x", k), np.r_[xy, fix.position[2]], lever, noise))
         if graph.size() == 0:
-            return 0
+            return None
         try:
             self.isam.update(graph, g.Values())
             self.isam.update()
             est = self.isam.calculateEstimate()
-        except RuntimeError:
-            return 0
+        except RuntimeError as err:
+            return self._reset(self.t_last or 0.0, self._last_pose, f"GNSS/INS: graph #2 refused {graph.size()} "
+                               f"fix(es) ({err}); restarted from the last pose")
         self._last_pose = est.atPose3(g.symbol("x", k))
         self.velocity = np.asarray(est.atVector(g.symbol("v", k)))
         self.bias = est.atConstantBias(g.symbol("b", k))
-        return int(graph.size())
+        return None
 
     def lidar_pose(self) -> np.ndarray | None:
         """The LiDAR pose of the latest key as graph #2 now estimates it (None before the first key)."""

@@ -179,3 +179,43 @@ def test_a_dead_reckoned_chain_drifting_sideways_is_no_reversal(monkeypatch: pyt
     assert not gnss_ins.drove_backwards(np.array([4.6, -0.4]), heading, 5.0)
     monkeypatch.setattr(gnss_ins, "REVERSE_MAX_ANGLE_DEG", 60.0)  # negative control: the old rule's angle
     assert gnss_ins.drove_backwards(np.array([-2.53, 4.16]), heading, 5.73)
+
+
+def test_a_refused_fix_update_restarts_graph_two_and_says_so() -> None:
+    """gtsam refusing the fixes' update (an indeterminant system) left graph #2 in whatever state the
+    exception did and returned 0 without a word; now the fixes are dropped, graph #2 restarts from the
+    last pose at the next sweep (as a failed IMU update does) and the step records an event. Negative
+    control: the same fixes accepted say nothing and keep the graph."""
+    fixes = [FixUpdate(stamp=0.2, position=np.zeros(3), sigmas=np.full(3, 0.3))]
+
+    def judge(_fix: object, predicted: np.ndarray, _cov: np.ndarray) -> tuple[bool, np.ndarray]:
+        return True, predicted
+
+    def graph_two() -> ImuOdometry:
+        odom = ImuOdometry(imu_track(_imu(np.zeros(3)), np.eye(3)), replace(ImuConfig(), noise_from_log=False),
+                           np.eye(4))
+        assert odom.add_lidar_pose(np.eye(4), 0.2, False) is None
+        return odom
+
+    fine = graph_two()
+    assert fine.add_fixes(fixes, np.zeros(3), judge, 0.0) is None
+    assert fine.key == 0
+    odom = graph_two()
+
+    class Refusing:
+        def __init__(self, isam: object) -> None:
+            self.isam = isam
+
+        def marginalCovariance(self, key: int) -> np.ndarray:
+            return self.isam.marginalCovariance(key)  # type: ignore[attr-defined, no-any-return]
+
+        def update(self, *args: object) -> None:
+            raise RuntimeError("Indeterminant linear system")
+
+    odom.isam = Refusing(odom.isam)
+    why = odom.add_fixes(fixes, np.zeros(3), judge, 0.0)
+    assert why is not None
+    assert "refused 1 fix" in why
+    assert odom.key == -1
+    assert odom.resets == 1
+    assert odom.lidar_pose() is None
