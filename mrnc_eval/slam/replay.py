@@ -30,7 +30,7 @@ from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.offset_rematch import RunForOffset, SweepStore, rematch_time_offset
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage
-from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
+from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, keep_tilt, match, tilt_correction_deg
 from mrnc_eval.slam.sweep_prep import PreparedSweep, prepare_sweep
 from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
@@ -353,10 +353,18 @@ class _Replay:
         turn = np.degrees(se3.delta_angle(se3.inv(guess) @ res.pose))
         if not res.optimised or limit <= 0 or turn <= limit:
             return res
+        tilt = tilt_correction_deg(res, guess)
+        if tilt <= self.cfg.matching.max_tilt_correction_deg:  # the turn is yaw: keep what the ground measured
+            self.events.append(SlamEvent(t=stamp, kind="warning",
+                                         message=f"scan-to-map turned the IMU attitude by {turn:.1f} deg (limit "
+                                                 f"{limit:g}), its tilt by {tilt:.1f} deg: kept its roll, pitch "
+                                                 "and z, the IMU's yaw, x and y",
+                                         data={"correction_deg": turn, "tilt_correction_deg": tilt}))
+            return keep_tilt(res, guess)
         self.events.append(SlamEvent(t=stamp, kind="warning",
                                      message=f"scan-to-map turned the IMU attitude by {turn:.1f} deg "
                                              f"(limit {limit:g}): rejected, kept the IMU guess",
-                                     data={"correction_deg": turn}))
+                                     data={"correction_deg": turn, "tilt_correction_deg": tilt}))
         return replace(res, pose=guess, optimised=False, degenerate=False, degenerate_directions=None)
 
     def guess(self, t: float) -> np.ndarray:
