@@ -174,6 +174,7 @@ class _Replay:
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
     ins: gnss_ins.GnssIns | None = None  # GNSS/INS in graph #2; graph #1 then gets no GNSS factors
     gnss_track: GnssTrack | None = None  # x, y by the fixes where the match is degenerate (no wheels)
+    gate_streak: int = 0  # sweeps in a row whose match the rotation gate turned down (gate_rotation)
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -351,10 +352,15 @@ class _Replay:
         if self.wheel is not None and self.cfg.wheel_odom.guess and self.cfg.wheel_odom.max_rotation_correction_deg > 0:
             limit = self.cfg.wheel_odom.max_rotation_correction_deg  # a better guess may take a tighter gate
         turn = np.degrees(se3.delta_angle(se3.inv(guess) @ res.pose))
-        if not res.optimised or limit <= 0 or turn <= limit:
+        if not res.optimised or limit <= 0:
             return res
+        if turn <= limit:
+            self.gate_streak = 0
+            return res
+        self.gate_streak += 1
         tilt = tilt_correction_deg(res, guess)
-        if tilt <= self.cfg.matching.max_tilt_correction_deg:  # the turn is yaw: keep what the ground measured
+        if tilt <= self.cfg.matching.max_tilt_correction_deg \
+                and self.gate_streak >= self.cfg.matching.tilt_after_rejections:  # the turn is yaw: keep the ground's
             self.events.append(SlamEvent(t=stamp, kind="warning",
                                          message=f"scan-to-map turned the IMU attitude by {turn:.1f} deg (limit "
                                                  f"{limit:g}), its tilt by {tilt:.1f} deg: kept its roll, pitch "

@@ -31,7 +31,7 @@ def _drive(max_tilt_deg: float, seed: int) -> tuple[float, float]:
     match's yaw is 2.5-6 deg off. Returns the largest tilt error (deg) and |z| at the end (m)."""
     cfg = SlamConfig()
     cfg = replace(cfg, matching=replace(cfg.matching, max_tilt_correction_deg=max_tilt_deg))
-    gate = SimpleNamespace(cfg=cfg, wheel=None, events=[])
+    gate = SimpleNamespace(cfg=cfg, wheel=None, events=[], gate_streak=0)
     rng = np.random.default_rng(seed)
     out, vz, worst = np.eye(4), 0.0, 0.0
     for k in range(200):
@@ -79,7 +79,7 @@ def test_a_false_match_that_tilts_is_still_rejected() -> None:
     """A match tilting the guess by 8 deg (a false match) keeps the guess whatever its yaw."""
     guess = np.eye(4)
     seen = se3.make(rotation.from_rpy(np.radians([8.0, 0.0, 3.0])), [0.0, 0.0, 0.3])
-    res = _Replay.gate_rotation(SimpleNamespace(cfg=SlamConfig(), wheel=None, events=[]),  # type: ignore[arg-type]
+    res = _Replay.gate_rotation(SimpleNamespace(cfg=SlamConfig(), wheel=None, events=[], gate_streak=5),  # type: ignore[arg-type]
                                 _match(seen, guess), guess, 0.0)
     assert not res.optimised
     assert np.array_equal(res.pose, guess)
