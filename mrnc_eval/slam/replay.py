@@ -347,7 +347,10 @@ class _Replay:
     def gate_rotation(self, res: MatchResult, guess: np.ndarray, stamp: float) -> MatchResult:
         """A match that turns the gyro-predicted attitude by more than max_rotation_correction_deg
         is a false match (sparse structure, wrong neighbours: in an open field up to 30 deg in one
-        sweep), not a gyro error: keep the IMU guess, as for a sweep without features."""
+        sweep), not a gyro error: keep the IMU guess, as for a sweep without features. From the
+        tilt_after_rejections-th such sweep in a row, a match whose tilt is within
+        max_tilt_correction_deg keeps its roll, pitch and z (the turn was yaw; the guess's tilt
+        would drift and z walk, docs/simulation.md "the rotation gate's z walk")."""
         limit = self.cfg.matching.max_rotation_correction_deg
         if self.wheel is not None and self.cfg.wheel_odom.guess and self.cfg.wheel_odom.max_rotation_correction_deg > 0:
             limit = self.cfg.wheel_odom.max_rotation_correction_deg  # a better guess may take a tighter gate
