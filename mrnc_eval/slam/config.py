@@ -176,6 +176,15 @@ class MatchingConfig:
     max_rotation_correction_deg: float = param(2.0, "with an IMU: reject a match that turns the IMU-predicted "
                                                "attitude by more than this (a false match, not a gyro error) and keep "
                                                "the guess; 0 = off (LIO-SAM)", "deg")
+    max_tilt_correction_deg: float = param(2.0, "a match that rotation gate rejects keeps its roll, pitch and z when "
+                                           "its tilt correction (the gravity direction's) is within this: the turn "
+                                           "beyond the gate is yaw, which an open field's far poles give a degree "
+                                           "off, while the ground holds tilt and z; the IMU's yaw, x and y stay. "
+                                           "0 = the whole match rejected (z walks, docs/simulation.md)", "deg",
+                                           ge=0.0, le=90.0)
+    tilt_after_rejections: int = param(2, "max_tilt_correction_deg from the n-th sweep in a row the rotation gate "
+                                       "turns down: a single rejection (a wheel log's second sweep) keeps the "
+                                       "whole guess as before, a lock-out does not", ge=1, le=1000)
     degeneracy_eigen_threshold: float = param(100.0, "eigenvalues of J^T J below this are degenerate directions")
     converge_rot_deg: float = param(0.05, "convergence: rotation update", "deg")
     converge_trans_cm: float = param(0.05, "convergence: translation update", "cm")

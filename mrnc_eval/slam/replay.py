@@ -38,7 +38,7 @@ from mrnc_eval.slam.nearest import KdTree
 from mrnc_eval.slam.offset_rematch import RunForOffset, SweepStore, rematch_time_offset
 from mrnc_eval.slam.output import STAGES, SlamEvent, SlamOutput
 from mrnc_eval.slam.range_image import RangeImage
-from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, match
+from mrnc_eval.slam.scan_to_map import LocalMap, MatchResult, keep_tilt, match, tilt_correction_deg
 from mrnc_eval.slam.sweep_prep import PreparedSweep, prepare_sweep
 from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
@@ -182,6 +182,7 @@ class _Replay:
     wheel_cal_state: tuple[int, float] | None = None  # (bins consumed, scale information) last applied
     ins: gnss_ins.GnssIns | None = None  # GNSS/INS in graph #2; graph #1 then gets no GNSS factors
     gnss_track: GnssTrack | None = None  # x, y by the fixes where the match is degenerate (no wheels)
+    gate_streak: int = 0  # sweeps in a row whose match the rotation gate turned down (gate_rotation)
 
     @classmethod
     def start(cls, imu: ImuSeries | None, cfg: SlamConfig, sensor_to_imu: np.ndarray | None,
@@ -354,17 +355,33 @@ class _Replay:
     def gate_rotation(self, res: MatchResult, guess: np.ndarray, stamp: float) -> MatchResult:
         """A match that turns the gyro-predicted attitude by more than max_rotation_correction_deg
         is a false match (sparse structure, wrong neighbours: in an open field up to 30 deg in one
-        sweep), not a gyro error: keep the IMU guess, as for a sweep without features."""
+        sweep), not a gyro error: keep the IMU guess, as for a sweep without features. From the
+        tilt_after_rejections-th such sweep in a row, a match whose tilt is within
+        max_tilt_correction_deg keeps its roll, pitch and z (the turn was yaw; the guess's tilt
+        would drift and z walk, docs/simulation.md "the rotation gate's z walk")."""
         limit = self.cfg.matching.max_rotation_correction_deg
         if self.wheel is not None and self.cfg.wheel_odom.guess and self.cfg.wheel_odom.max_rotation_correction_deg > 0:
             limit = self.cfg.wheel_odom.max_rotation_correction_deg  # a better guess may take a tighter gate
         turn = np.degrees(se3.delta_angle(se3.inv(guess) @ res.pose))
-        if not res.optimised or limit <= 0 or turn <= limit:
+        if not res.optimised or limit <= 0:
             return res
+        if turn <= limit:
+            self.gate_streak = 0
+            return res
+        self.gate_streak += 1
+        tilt = tilt_correction_deg(res, guess)
+        if tilt <= self.cfg.matching.max_tilt_correction_deg \
+                and self.gate_streak >= self.cfg.matching.tilt_after_rejections:  # the turn is yaw: keep the ground's
+            self.events.append(SlamEvent(t=stamp, kind="warning",
+                                         message=f"scan-to-map turned the IMU attitude by {turn:.1f} deg (limit "
+                                                 f"{limit:g}), its tilt by {tilt:.1f} deg: kept its roll, pitch "
+                                                 "and z, the IMU's yaw, x and y",
+                                         data={"correction_deg": turn, "tilt_correction_deg": tilt}))
+            return keep_tilt(res, guess)
         self.events.append(SlamEvent(t=stamp, kind="warning",
                                      message=f"scan-to-map turned the IMU attitude by {turn:.1f} deg "
                                              f"(limit {limit:g}): rejected, kept the IMU guess",
-                                     data={"correction_deg": turn}))
+                                     data={"correction_deg": turn, "tilt_correction_deg": tilt}))
         return replace(res, pose=guess, optimised=False, degenerate=False, degenerate_directions=None)
 
     def guess(self, t: float) -> np.ndarray:

@@ -3,7 +3,7 @@ residuals against a local map, Gauss-Newton with degeneracy remapping."""
 
 from __future__ import annotations
 
-from dataclasses import dataclass, field
+from dataclasses import dataclass, field, replace
 from enum import Enum
 
 import numpy as np
@@ -248,3 +248,31 @@ def _stacked_rows(edge_corr: _Correspondences | None, surf_corr: _Correspondence
     m = edge_corr.rows(edges, T, pivot, J, r) if edge_corr is not None else 0
     m += surf_corr.rows(surfs, T, pivot, J[m:], r[m:])
     return J[:m], r[:m]
+
+
+_UP = np.array([0.0, 0.0, 1.0])
+_HEADING_AND_XY = np.array([[0.0, 0.0, 1.0, 0.0, 0.0, 0.0], [0.0, 0.0, 0.0, 1.0, 0.0, 0.0],
+                            [0.0, 0.0, 0.0, 0.0, 1.0, 0.0]])  # yaw, x, y ([rot, trans], map axes)
+
+
+def tilt_correction_deg(res: MatchResult, guess: np.ndarray) -> float:
+    """The angle (deg) between the gravity direction of the guess and of the match: the part of
+    the match's correction that roll and pitch make, whatever its yaw."""
+    cos = float(np.clip((guess[:3, :3].T @ _UP) @ (res.pose[:3, :3].T @ _UP), -1.0, 1.0))
+    return float(np.degrees(np.arccos(cos)))
+
+
+def keep_tilt(res: MatchResult, guess: np.ndarray) -> MatchResult:
+    """The match's roll, pitch and z on the guess's yaw, x and y: the guess turned by the smallest
+    map-frame rotation (about a horizontal axis, so no yaw) that gives it the match's gravity
+    direction. Yaw, x and y join the degenerate directions (the IMU carries them)."""
+    up_m = guess[:3, :3] @ (res.pose[:3, :3].T @ _UP)  # the matched up, seen through the guess (map axes)
+    axis = np.cross(up_m, _UP)
+    s, c = float(np.linalg.norm(axis)), float(up_m @ _UP)
+    turn = rotation.exp(axis / s * np.arctan2(s, c)) if s > 1e-12 else np.eye(3)
+    pose = se3.make(turn @ guess[:3, :3], np.r_[guess[:2, 3], res.pose[2, 3]])
+    free = _HEADING_AND_XY if res.degenerate_directions is None or not len(res.degenerate_directions) \
+        else np.vstack([res.degenerate_directions, _HEADING_AND_XY])
+    _, sv, vt = np.linalg.svd(free, full_matrices=False)
+    directions = vt[sv > 1e-6 * sv[0]]
+    return replace(res, pose=pose, degenerate=True, n_degenerate=len(directions), degenerate_directions=directions)
