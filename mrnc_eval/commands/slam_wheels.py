@@ -19,6 +19,10 @@ if TYPE_CHECKING:
     from mrnc_eval.slam.config import SlamConfig
 
 
+FROZEN_M, FROZEN_RAD = 1e-3, 1e-3  # a pose that moves less than this over the whole log does not move
+FROZEN_MOVING = 0.05  # a twist faster than this (m/s or rad/s) does
+
+
 def read_wheel_track(lg: LogReader, cfg: SlamConfig) -> tuple[WheelTrack | None, str]:
     """The wheel odometry when slam.wheel_odom.enabled, the method is lio and the log has it, its
     stamps less slam.wheel_odom.time_offset_s; and a note when its pose never moves while its twist
@@ -35,10 +39,6 @@ def read_wheel_track(lg: LogReader, cfg: SlamConfig) -> tuple[WheelTrack | None,
             note = (f"wheel odometry {lg.roles['wheel_odom']}: its pose never moves while its twist does (up to "
                     f"{np.abs(twist.v).max():.2f} m/s): the SLAM dead-reckoned the twist")
     return dataclasses.replace(track, stamps=track.stamps - cfg.wheel_odom.time_offset_s), note
-
-
-FROZEN_M, FROZEN_RAD = 1e-3, 1e-3  # a pose that moves less than this over the whole log does not move
-FROZEN_MOVING = 0.05  # a twist faster than this (m/s or rad/s) does
 
 
 def _frozen(track: WheelTrack) -> bool:
