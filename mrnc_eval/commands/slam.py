@@ -773,7 +773,8 @@ def _gnss_clock_shift(gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, ma
 
     coarse = min(GNSS_CLOCK_SHIFTS_S, key=rmse)  # then 0.05 s steps around it
     best = min(np.arange(coarse - 0.25, coarse + 0.25 + 1e-9, 0.05), key=rmse)
-    return (float(best), rmse(best)) if np.isfinite(rmse(best)) else None
+    score = rmse(best)
+    return (float(best), score) if np.isfinite(score) else None
 
 
 def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, method: str,
