@@ -54,12 +54,17 @@ def wheel_clock(wheel_t: np.ndarray, wheel_yaw: np.ndarray, wheel_dist: np.ndarr
     n = cfg.blocks
     sigma = float(np.sqrt((n - 1) / n * np.sum((jack - jack.mean()) ** 2)))
     out = WheelClock(offset_s=offset, sigma_s=sigma, samples=int(grid.size), verdict="ok")
-    f = float(factor[int(np.argmin(rss.sum(axis=1)))])
+    best = int(np.argmin(rss.sum(axis=1)))
+    f = float(factor[best])
     if not cfg.min_track_factor <= f <= 1.0 / cfg.min_track_factor:  # NaN too
         # wheels that do not turn with the gyro (a frozen pose, another machine's topic) time nothing:
         # every lag fits them equally, and a jackknife over equal costs reads 0 s
         out.verdict = "not measurable"
         out.reasons = [f"the wheels' yaw follows the gyro's by a factor of {f:.2f}: nothing to time them by"]
+    elif best in (0, lags.size - 1):  # the least residual at the edge: the offset may lie beyond the search
+        out.verdict = "not measurable"
+        out.reasons = [f"the best fit is at the edge of the searched +-{cfg.max_lag_s:g} s (slam.wheel_odom.clock."
+                       "max_lag_s): the offset may be larger"]
     elif not sigma <= cfg.max_sigma_s:  # NaN too
         out.verdict = "not measurable"
         out.reasons = [f"standard error {sigma * 1e3:.0f} ms: too few changes of yaw rate to time the wheels by"]

@@ -131,3 +131,14 @@ def test_wheels_that_never_turn_are_not_timed() -> None:
     clock = wheel_clock(tw, np.zeros_like(yaw), np.zeros_like(dist), t, gyro, WheelClockConfig())
     assert clock.verdict == "not measurable", clock
     assert "factor" in clock.reasons[0]
+
+
+def test_an_offset_beyond_the_search_is_not_applied() -> None:
+    """0.6 s late against a +-0.4 s search: the fit's best lag sits at the edge; the run must not take
+    out 0.4 s as if it were the offset. Negative control: the same lag inside a +-0.8 s search is found."""
+    clock = wheel_clock(*_drive(0.6), WheelClockConfig())
+    assert clock.verdict == "not measurable", clock
+    assert "edge" in clock.reasons[0]
+    wide = wheel_clock(*_drive(0.6), replace(WheelClockConfig(), max_lag_s=0.8))
+    assert wide.verdict == "late"
+    assert abs(wide.offset_s - 0.6) < 0.007
