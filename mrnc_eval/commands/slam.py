@@ -49,6 +49,7 @@ from mrnc_eval.slam.wheel_odometry import WheelTrack
 from mrnc_eval.text import printable
 
 if TYPE_CHECKING:
+    from mrnc_eval.evaluation.ape import ApeResult
     from mrnc_eval.io.reader import LogReader
     from mrnc_eval.slam.config import SlamConfig
     from mrnc_eval.slam.ground_mount import GroundMount
@@ -752,21 +753,27 @@ def _ape_smoothed(result: RunResult, gt: Trajectory, est: Trajectory, cfg: Confi
 GNSS_CLOCK_SHIFTS_S = np.arange(-30.0, 30.0 + 1e-9, 0.25)  # GNSS stamp offsets tried when the fixes disagree
 
 
+def _ape_against_fixes(gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, max_diff_s: float, *,
+                       shift_s: float = 0.0) -> ApeResult:
+    """2-D APE (yaw + translation aligned) of the trajectory's antenna against the GNSS fixes in ENU,
+    the fixes' stamps less shift_s; raises EvaluationError when it cannot be computed."""
+    from mrnc_eval.evaluation.ape import ape
+
+    ref = Trajectory(gnss.stamps - shift_s, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
+    antenna_track = Trajectory(est.stamps, est.positions + rotation.quat_to_matrix(est.quat_xyzw) @ antenna,
+                               est.quat_xyzw, name=est.name)
+    return ape(ref, antenna_track, align="yaw", relation="point", max_diff=max_diff_s, plane="xy")
+
+
 def _gnss_clock_shift(gnss: GnssSeries, est: Trajectory, antenna: np.ndarray, max_diff_s: float
                       ) -> tuple[float, float] | None:
     """The shift of the GNSS stamps (s, within +-30 s) that brings the fixes closest to the
     trajectory's antenna (2-D, yaw + translation aligned) with at least half the fixes still
     matched, and the RMS then (m); None when no shift could be scored."""
-    from mrnc_eval.evaluation.ape import ape
-
-    antenna_track = Trajectory(est.stamps, est.positions + rotation.quat_to_matrix(est.quat_xyzw) @ antenna,
-                               est.quat_xyzw, name="antenna")
-    unit = np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1))
 
     def rmse(shift: float) -> float:
         try:
-            r = ape(Trajectory(gnss.stamps - shift, gnss.enu, unit, name="gnss"), antenna_track, align="yaw",
-                    relation="point", max_diff=max_diff_s, plane="xy")
+            r = _ape_against_fixes(gnss, est, antenna, max_diff_s, shift_s=shift)
         except EvaluationError:
             return np.inf
         return float(r.stats["rmse"]) if r.errors.size >= 0.5 * gnss.stamps.size else np.inf
@@ -781,13 +788,8 @@ def _add_gnss_ape(result: RunResult, gnss: GnssSeries, est: Trajectory, antenna:
                   max_diff_s: float) -> float | None:
     """2-D APE of the antenna track against the GNSS fixes (yaw + translation aligned); its RMSE (m),
     None when it could not be computed."""
-    from mrnc_eval.evaluation.ape import ape
-
     try:
-        ref = Trajectory(gnss.stamps, gnss.enu, np.tile([0, 0, 0, 1.0], (gnss.stamps.size, 1)), name="gnss")
-        shifted = Trajectory(est.stamps, est.positions + rotation.quat_to_matrix(est.quat_xyzw) @ antenna,
-                             est.quat_xyzw, name=method)
-        rg = ape(ref, shifted, align="yaw", relation="point", max_diff=max_diff_s, plane="xy")
+        rg = _ape_against_fixes(gnss, dataclasses.replace(est, name=method), antenna, max_diff_s)
         result.metrics.append(Metric(name="ape_gnss_rmse_m", value=rg.stats["rmse"], unit="m", group="slam/ape",
                                      note="2-D, yaw + translation alignment, against GNSS in ENU"))
         return float(rg.stats["rmse"])
