@@ -20,7 +20,8 @@ Found = tuple[str, str, str]  # level ("ok", "warning", "error"), topic, message
 
 
 def imu_in_si(imu: ImuSeries, topic: str, cfg: Config) -> tuple[ImuSeries, list[Found]]:
-    """The IMU with its accelerometer in m/s^2 (a driver writing g scaled), and what was found."""
+    """The IMU with its accelerometer in m/s^2 (a driver writing g scaled), and what was found: a
+    warning when scaled, an error when the specific force is in neither unit (slam's lio refuses it)."""
     from mrnc_eval.slam.imu_units import accelerometer_scale
 
     scale, median = accelerometer_scale(imu.acc, cfg.slam.imu.gravity)
@@ -28,10 +29,10 @@ def imu_in_si(imu: ImuSeries, topic: str, cfg: Config) -> tuple[ImuSeries, list[
         return imu, []
     if scale is None:
         return imu, [("error", topic, f"the accelerometer's median |specific force| is {median:.3g}, neither "
-                      f"gravity's {cfg.slam.imu.gravity:g} m/s^2 nor 1 g: slam (lio) refuses it")]
+                      f"gravity's {cfg.slam.imu.gravity:g} m/s^2 nor 1 g: not an accelerometer in m/s^2 or g")]
     return dataclasses.replace(imu, acc=imu.acc * scale), [
         ("warning", topic, f"the accelerometer reads in g (median |specific force| {median:.3f}), not m/s^2 as "
-         f"sensor_msgs/Imu requires: slam scales it by {scale:g}")]
+         f"sensor_msgs/Imu requires: scaled by {scale:g}")]
 
 
 def imu_and_wheel_findings(lg: LogReader, imu: ImuSeries, cfg: Config) -> list[Found]:

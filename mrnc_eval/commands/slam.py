@@ -304,33 +304,32 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
 def _with_wheel_clock(inputs: LogInputs, cfg: Config) -> LogInputs:
     """The inputs with the wheel clock checked against the gyro (commands/slam_wheels.py), the gyro in
     base axes as the run reads it (slam.imu.extrinsic_rot, when set, over /tf_static)."""
-    from mrnc_eval.slam.imu import lidar_to_imu
-
-    imu_in_base = inputs.base_to_sensor @ lidar_to_imu(cfg.slam.imu, inputs.sensor_to_imu)
-    wheel, clock = clock_checked(inputs.wheel, inputs.imu, imu_in_base, cfg.slam)
+    wheel, clock = clock_checked(inputs.wheel, inputs.imu, _imu_in_base(inputs, cfg), cfg.slam)
     return dataclasses.replace(inputs, wheel=wheel, wheel_clock=clock)
 
 
-def _imu_in_si(lg: LogReader, log_path: Path, cfg: Config) -> tuple[ImuSeries, str]:
-    """The IMU with its accelerometer in m/s^2: a driver writing g is scaled (and noted); a specific
-    force that is neither (median magnitude far from gravity in both units) is an input error for
-    lio, which integrates it, and a note for kiss-icp, which does not read the IMU."""
-    from mrnc_eval.slam.imu_units import accelerometer_scale
+def _imu_in_base(inputs: LogInputs, cfg: Config) -> np.ndarray:
+    """The IMU's pose in base_link as the run reads it (4x4: slam.imu.extrinsic_rot, when set, over
+    /tf_static), for the checks that put its gyro into base axes."""
+    from mrnc_eval.slam.imu import lidar_to_imu
 
-    imu = lg.imu()
-    scale, median = accelerometer_scale(imu.acc, cfg.slam.imu.gravity)
+    return inputs.base_to_sensor @ lidar_to_imu(cfg.slam.imu, inputs.sensor_to_imu)
+
+
+def _imu_in_si(lg: LogReader, log_path: Path, cfg: Config) -> tuple[ImuSeries, str]:
+    """The IMU with its accelerometer in m/s^2 (commands/info_sensors.py `imu_in_si`, `info`'s rule too):
+    a driver writing g is scaled and noted; a specific force in neither unit is an input error for lio,
+    which integrates it, and a note for kiss-icp, which does not read the IMU."""
+    from mrnc_eval.commands.info_sensors import imu_in_si
+
     topic = lg.roles["imu"]
-    if scale == 1.0:
+    imu, found = imu_in_si(lg.imu(), topic, cfg)
+    if not found:
         return imu, ""
-    if scale is not None:
-        return dataclasses.replace(imu, acc=imu.acc * scale), (
-            f"IMU {topic}: the accelerometer reads in g (median |specific force| {median:.3f}), not m/s^2 as "
-            f"sensor_msgs/Imu requires: scaled by {scale:g}")
-    problem = (f"the accelerometer's median |specific force| is {median:.3g}, neither gravity's "
-               f"{cfg.slam.imu.gravity:g} m/s^2 nor 1 g: not an accelerometer in m/s^2 or g")
-    if cfg.slam.method == "lio":
-        raise InputError(log_path, problem, topic=topic)
-    return imu, f"IMU {topic}: {problem} (kiss-icp does not read it)"
+    level, _, message = found[0]
+    if level == "error" and cfg.slam.method == "lio":
+        raise InputError(log_path, message, topic=topic)
+    return imu, f"IMU {topic}: {message}" + (" (kiss-icp does not read it)" if level == "error" else "")
 
 
 def ground_check(lg: LogReader, base_to_sensor: np.ndarray, cfg: Config) -> GroundMount | None:
@@ -889,14 +888,12 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
 def _add_imu_axes(result: RunResult, inputs: LogInputs, cfg: Config) -> None:
     """The IMU's axes in /tf_static against the machine's turns (slam/imu_axes.py), for lio: the record
     in metrics.json (`imu_axes`) and, when they look rotated, a warning and an event naming /tf_static."""
-    from mrnc_eval.slam.imu import lidar_to_imu
     from mrnc_eval.slam.imu_axes import imu_axes
 
     imu = inputs.imu
     if imu is None or cfg.slam.method != "lio" or not cfg.slam.imu_axes.enabled:
         return
-    imu_in_base = inputs.base_to_sensor @ lidar_to_imu(cfg.slam.imu, inputs.sensor_to_imu)
-    check = imu_axes(imu.stamps, imu.gyro @ imu_in_base[:3, :3].T, cfg.slam.imu_axes)
+    check = imu_axes(imu.stamps, imu.gyro @ _imu_in_base(inputs, cfg)[:3, :3].T, cfg.slam.imu_axes)
     result.extra["imu_axes"] = check.as_dict()
     if check.verdict == "rotated":
         text = (f"the IMU's axes look rotated in /tf_static: {check.reasons[0]}; lio read its gyro and "
