@@ -8,8 +8,6 @@ from __future__ import annotations
 import dataclasses
 from typing import TYPE_CHECKING
 
-import numpy as np
-
 from mrnc_eval.config import Config
 from mrnc_eval.data import ImuSeries
 
@@ -67,7 +65,3 @@ def imu_and_wheel_findings(lg: LogReader, imu: ImuSeries, cfg: Config) -> list[F
                       f"{clock.sigma_s * 1e3:.0f} ms)"))
     return found
 
-
-def finite_gyro(imu: ImuSeries) -> bool:
-    """Whether the series has samples to check (the reader screens non-finite ones)."""
-    return bool(imu.stamps.size > 10 and np.all(np.isfinite(imu.gyro)))
