@@ -376,8 +376,9 @@ def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes: GnssFixes) -> dict[st
         "profile": cfg.sim.profile, "wheels": wheels.as_dict(), "track_width_m": cfg.robot.track_width_m,
         "gnss": {"mode": cfg.sim.gnss.mode, "outages_s": [list(o) for o in cfg.sim.gnss.outages_s],
                  "status_counts": {str(int(s)): int(c) for s, c in zip(status, counts, strict=True)}}}
-    if _wheel_latency(cfg):  # only then: the logs made before keep their bytes
-        drawn["clock"] = {"wheel_latency_s": _wheel_latency(cfg)}
+    latency = _wheel_latency(cfg)
+    if latency:  # only then: the logs made before keep their bytes
+        drawn["clock"] = {"wheel_latency_s": latency}
     return drawn
 
 
