@@ -62,10 +62,11 @@ def log_path(logs: Path, scene: str, wheels: str, gnss: str, seed: int) -> Path:
     return logs / f"{scene}_{wheels}_{gnss}_s{seed}.mcap"
 
 
-def generate(logs: Path, scene: str, wheels: str, gnss: str, seed: int) -> Path:
+def generate(logs: Path, scene: str, wheels: str, gnss: str, seed: int, extra: list[str]) -> Path:
+    """Simulate the cell's log unless it exists (`extra`: more simulate --set arguments)."""
     out = log_path(logs, scene, wheels, gnss, seed)
     if not out.exists():
-        args = [*CLI, "simulate", str(out), *COMMON, *SCENES[scene], *WHEELS[wheels], *GNSS[gnss],
+        args = [*CLI, "simulate", str(out), *COMMON, *SCENES[scene], *WHEELS[wheels], *GNSS[gnss], *extra,
                 "--seed", str(seed)]
         subprocess.run(["nice", "-n", "5", *args], check=True, stdout=subprocess.DEVNULL)
     return out
@@ -226,6 +227,8 @@ def main() -> None:
     p.add_argument("--start", type=float, default=None, help="slam --start S: the log cut S s after its start "
                    "(sweeps, IMU, wheels, GNSS), as a log recorded mid-drive; the label gets -start<S>")
     p.add_argument("--set", dest="sets", action="append", default=[], help="extra slam --set KEY=VALUE")
+    p.add_argument("--sim-set", dest="sim_sets", action="append", default=[], help="extra simulate --set "
+                   "KEY=VALUE for logs not yet made (log names do not carry it: give such logs their own --logs)")
     a = p.parse_args()
     a.logs.mkdir(parents=True, exist_ok=True)
     if a.start is not None:  # its own results file: never mixed with the standing-start cells
@@ -237,7 +240,8 @@ def main() -> None:
     extra = [x for s in a.sets for x in ("--set", s)] + ([] if a.start is None else ["--start", f"{a.start:g}"])
     for scene, wheels, gnss, seed in cells(a):
         gen_wheels = "calibrated" if wheels == "none" else wheels
-        log = generate(a.logs, scene, gen_wheels, "float" if gnss == "none" else gnss, seed)
+        log = generate(a.logs, scene, gen_wheels, "float" if gnss == "none" else gnss, seed,
+                       [x for s in a.sim_sets for x in ("--set", s)])
         if a.command == "generate" or (scene, wheels, gnss, seed, a.method) in done:
             continue
         r = {"scene": scene, "wheels": wheels, "gnss": gnss, "seed": seed, "method": a.method,

@@ -322,8 +322,10 @@ class GpsConfig:
         "(docs/simulation.md, issue 28)")
     ins_align_travel_m: float = param(5.0, "GNSS/INS: the fixes' travel along their course before the alignment is "
                                       "fixed", "m", gt=0.0, le=100.0)
-    ins_align_max_turn_deg: float = param(30.0, "GNSS/INS: ... over a stretch whose chain heading spans at most "
-                                          "this", "deg", gt=0.0, le=180.0)
+    ins_align_max_turn_deg: float = param(30.0, "GNSS/INS: ... against the mean heading over a stretch whose chain "
+                                          "heading spans at most this; one that turns more is aligned pair by pair "
+                                          "(each pair of fixes against the heading at its middle)", "deg", gt=0.0,
+                                          le=180.0)
     ins_jump_m: float = param(0.8, "GNSS/INS alignment: a step of the fixes (median of 3 to median of 3) this much "
                               "beyond the chain's own motion starts a new multipath segment; the course is taken "
                               "from pairs of fixes inside one segment", "m", gt=0.0, le=100.0)

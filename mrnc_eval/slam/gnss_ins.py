@@ -12,10 +12,10 @@ pairs of fixes inside one multipath segment) minus the chain's median forward-ax
 the same stamps (the gyro's yaw, good to a degree over seconds while x, y drift by metres); the
 translation puts
 the fixes of the first `ins_origin_s` on the chain's antenna there (it has hardly drifted yet).
-It is fixed once, when the fixes have travelled `ins_align_travel_m` on a near-straight stretch
-(the course equals the mean heading on a line and on a constant-curvature arc), and never
-re-fitted, so it cannot slide the chain. Whatever the alignment got wrong is rigid (a rotation and
-offset of the whole track). Before it, graph #2 runs as before (IMU dead reckoning).
+It is fixed once, when the fixes have travelled `ins_align_travel_m` (the course against the mean
+heading on a near-straight stretch; on one that turns, pair by pair: a chord runs along the heading
+at its middle), and never re-fitted, so it cannot slide the chain. Whatever the alignment got wrong
+is rigid (a rotation and offset of the whole track). Before it, graph #2 runs as before (IMU dead reckoning).
 
 Each fix is gated (GnssIns.judge): on its innovation against graph #2's own marginal covariance of
 the antenna position plus the fix's variance (chi-square, 2 dof) and against the trend of the
@@ -104,20 +104,61 @@ def robust_course(t: np.ndarray, xy: np.ndarray, sigma_m: float, segment: np.nda
     from the course (rad); fewer than min_pairs pairs: no course (pi)."""
     n = max(3, len(xy) // 5)
     travel = float(np.linalg.norm(np.median(xy[-n:], axis=0) - np.median(xy[:n], axis=0)))
-    i, j = _pairs_within(t, max_dt_s)
+    i, j = course_pairs(t, xy, sigma_m, segment, max_dt_s)
+    if i.size < max(min_pairs, 5):
+        return 0.0, 0.0, np.ones(len(xy), bool), float(np.pi)
     d = xy[j] - xy[i]
-    use = np.linalg.norm(d, axis=1) >= max(5.0 * sigma_m, 1.5)
+    ang = np.arctan2(d[:, 1], d[:, 0])
+    course = circular_median(ang)
+    near = np.abs(_wrap(ang - course)) <= np.radians(30.0)
+    inl = np.zeros(len(xy), bool)
+    inl[i[near]] = inl[j[near]] = True
+    return course, travel, inl, float(np.median(np.abs(_wrap(ang - course))))
+
+
+def course_pairs(t: np.ndarray, xy: np.ndarray, sigma_m: float, segment: np.ndarray | None,
+                 max_dt_s: float) -> tuple[np.ndarray, np.ndarray]:
+    """The pairs of fixes (i, j) a course is read from: at most max_dt_s apart in time, at least 5
+    sigma (1.5 m at least) apart in space, inside one multipath `segment` (None: one segment)."""
+    i, j = _pairs_within(t, max_dt_s)
+    use = np.linalg.norm(xy[j] - xy[i], axis=1) >= max(5.0 * sigma_m, 1.5)
     if segment is not None:
         use &= segment[i] == segment[j]
-    if use.sum() < max(min_pairs, 5):
-        return 0.0, 0.0, np.ones(len(xy), bool), float(np.pi)
-    ang = np.arctan2(d[use, 1], d[use, 0])
-    ref = np.arctan2(np.sin(ang).mean(), np.cos(ang).mean())
-    course = float(ref + np.median(np.angle(np.exp(1j * (ang - ref)))))  # median about the circular mean
-    near = np.abs(np.angle(np.exp(1j * (ang - course)))) <= np.radians(30.0)
-    inl = np.zeros(len(xy), bool)
-    inl[i[use][near]] = inl[j[use][near]] = True
-    return course, travel, inl, float(np.median(np.abs(np.angle(np.exp(1j * (ang - course))))))
+    return i[use], j[use]
+
+
+def heading_offset_turning(t: np.ndarray, xy: np.ndarray, segment: np.ndarray, sigma_m: float, *,
+                           heading: np.ndarray, moved: np.ndarray, min_pairs: int,
+                           max_dt_s: float = 3.0) -> tuple[float, float]:
+    """Chain heading minus the fixes' course (rad) on a stretch that turns, and its spread (the median
+    absolute deviation, rad; pi with fewer than min_pairs pairs). On an arc of constant curvature a
+    pair's chord runs along the heading at the pair's middle, so each pair of `course_pairs` gives its
+    own offset (`heading`: the chain's unwrapped forward-axis heading at each fix, rad); their median.
+    Reversing: most pairs' chain displacement `moved` (n, 2, m) on their backward axis (drove_backwards)."""
+    i, j = course_pairs(t, xy, sigma_m, segment, max_dt_s)
+    if i.size < max(min_pairs, 5):
+        return 0.0, float(np.pi)
+    d = xy[j] - xy[i]
+    mid = 0.5 * (heading[i] + heading[j])  # the heading at the pair's middle, fixes at a steady rate
+    offset = _wrap(mid - np.arctan2(d[:, 1], d[:, 0]))
+    back = [drove_backwards(moved[b] - moved[a], float(h), float(np.linalg.norm(c)))
+            for a, b, h, c in zip(i, j, mid, d, strict=True)]
+    if 2 * sum(back) > len(back):
+        offset = _wrap(offset + np.pi)
+    yaw = circular_median(offset)
+    return yaw, float(np.median(np.abs(_wrap(offset - yaw))))
+
+
+def circular_median(angles: np.ndarray) -> float:
+    """The median of angles (rad) about their circular mean (robust to a minority of outliers); within
+    pi of the mean, not wrapped."""
+    ref = np.arctan2(np.sin(angles).mean(), np.cos(angles).mean())
+    return float(ref + np.median(_wrap(angles - ref)))
+
+
+def _wrap(a: np.ndarray | float) -> np.ndarray:
+    """Angles (rad) into (-pi, pi]."""
+    return np.asarray(np.angle(np.exp(1j * np.asarray(a))), np.float64)
 
 
 def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarray:
@@ -136,6 +177,7 @@ def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarra
     return np.asarray(coef[0], np.float64)
 
 
+TURNING_SPREAD_DEG = 15.0  # a turning stretch's pair offsets spread (median absolute deviation) at most this
 REVERSE_MAX_ANGLE_DEG = 30.0  # the chain's displacement this close to its backward axis means reversing
 REVERSE_MIN_FRACTION = 0.5  # ... and at least this fraction of the fixes' travel (dead reckoning is metres off)
 
@@ -222,17 +264,23 @@ class GnssIns:
         sigma = float(np.sqrt(np.median(np.diagonal(self.gnss.covariance[sel], axis1=1, axis2=2)[:, :2])))
         ant = np.asarray(self.chain_antenna)
         moved = np.column_stack([np.interp(stamps, self.chain_t, ant[:, i]) for i in range(2)])
-        course, travel, inl, spread = robust_course(stamps, enu, sigma, jump_segments(enu, moved, c.ins_jump_m),
-                                                min_pairs=min_pairs)
-        if travel < travel_m or not inl.any() or spread > np.radians(max_spread_deg):
+        segments = jump_segments(enu, moved, c.ins_jump_m)
+        course, travel, inl, spread = robust_course(stamps, enu, sigma, segments, min_pairs=min_pairs)
+        if travel < travel_m or not inl.any():
             return None
-        heading = np.unwrap(np.interp(stamps[inl], self.chain_t, np.unwrap(self.chain_heading)))
-        if np.ptp(heading) > np.radians(c.ins_align_max_turn_deg):
-            return None  # turning: the course is no mean heading; wait for a straighter stretch
-        mean_heading = float(np.median(heading))  # a median: one false scan-to-map yaw is a spike
-        if drove_backwards(ant[-1, :2] - ant[0, :2], mean_heading, travel):
-            mean_heading += np.pi
-        yaw = float(np.arctan2(np.sin(mean_heading - course), np.cos(mean_heading - course)))
+        heading = np.unwrap(np.interp(stamps, self.chain_t, np.unwrap(self.chain_heading)))
+        if np.ptp(heading[inl]) > np.radians(c.ins_align_max_turn_deg):  # turning: no mean heading, pair by pair
+            yaw, spread = heading_offset_turning(stamps, enu, segments, sigma, heading=heading, moved=moved,
+                                                 min_pairs=min_pairs)
+            if spread > np.radians(min(max_spread_deg, TURNING_SPREAD_DEG)):
+                return None
+        else:
+            if spread > np.radians(max_spread_deg):
+                return None
+            mean_heading = float(np.median(heading[inl]))  # a median: one false scan-to-map yaw is a spike
+            if drove_backwards(ant[-1, :2] - ant[0, :2], mean_heading, travel):
+                mean_heading += np.pi
+            yaw = float(np.arctan2(np.sin(mean_heading - course), np.cos(mean_heading - course)))
         rot = np.array([[np.cos(yaw), -np.sin(yaw)], [np.sin(yaw), np.cos(yaw)]])
         early = sel & (self.gnss.stamps <= self.chain_t[0] + c.ins_origin_s)
         if early.sum() == 0:
