@@ -544,6 +544,10 @@ class WheelCalibrationConfig:
                                       "over-read came from its wet patch instead, which scale_gate_chi2 handles)",
                                       "rad", ge=0.0)
     scale_min_distance_m: float = param(0.5, "keyframe steps shorter than this do not enter the scale fit", "m", ge=0.0)
+    gnss_scale_min_span_m: float = param(5.0, "when no LiDAR step measured the scale (bare ground), wheel_health "
+                                         "reads it from the GNSS fixes against the calibrated wheel track after the "
+                                         "run (slam/wheel_gnss_scale.py) once the fixes spread this far (RMS from "
+                                         "their centroid); 0 = never", "m", ge=0.0, le=10_000.0)
     scale_gate_chi2: float = param(9.0, "a distance step whose wheel-minus-LiDAR residual against the fit of the "
                                    "others exceeds this normalised square (1 dof) is slip (soft or wet ground: the "
                                    "wheels turn, the ground does not move as far), not scale: left out of the fit "

@@ -43,6 +43,7 @@ from mrnc_eval.slam.sweep_prep import PreparedSweep, prepare_sweep
 from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, imu_time_offset
 from mrnc_eval.slam.warmup import warm_up
 from mrnc_eval.slam.wheel_calibration import WheelCalibrator
+from mrnc_eval.slam.wheel_gnss_scale import GnssScale, gnss_scale
 from mrnc_eval.slam.wheel_health import wheel_health
 from mrnc_eval.slam.wheel_odometry import WheelTrack, base_velocity, blend_planar, relative_motion, wheel_factor
 
@@ -106,7 +107,7 @@ def run_slam(sweeps: Iterable[Sweep | PreparedSweep], imu: ImuSeries | None, cfg
         replay.calibrate_wheels(stamp)
         replay.map_sweep(item if isinstance(item, PreparedSweep) else prepare_sweep(item, cfg))
         t_read, c_read = time.perf_counter(), time.thread_time()
-    health = wheel_health(replay.wheel_cal) if replay.wheel_cal is not None else None
+    health = wheel_health(replay.wheel_cal, replay.wheel_gnss_scale()) if replay.wheel_cal is not None else None
     return replace(replay.output(n_sweeps, wall0), warmup_ms=warmup_ms, empty_sweeps=n_empty, wheel_health=health)
 
 
@@ -346,6 +347,15 @@ class _Replay:
             self.events.append(SlamEvent(t=t, kind="wheel_health", message=f"wheel odometry {health['verdict']}: "
                                          + "; ".join(health["reasons"]) + " (calibrated online)",
                                          data={k: v for k, v in health.items() if isinstance(v, float)}))
+
+    def wheel_gnss_scale(self) -> GnssScale | None:
+        """The wheels' scale from the fixes against the calibrated wheel track (slam/wheel_gnss_scale.py),
+        for wheel_health when no LiDAR step measured it; None without GNSS in use."""
+        cal, span = self.wheel_cal, self.cfg.wheel_odom.calibration.gnss_scale_min_span_m
+        if cal is None or self.aligner is None or span <= 0 or (cal.scale_fit is not None and cal.scale_fit.steps):
+            return None
+        return gnss_scale(cal.track(), self.aligner.gnss, max_var_m2=self.cfg.gps.gps_cov_threshold_m2,
+                          min_span_m=span)
 
     def match_pivot(self) -> np.ndarray | None:
         """The base origin in the sensor frame when the wheels placed the base (wheel_guess): scan-to-map

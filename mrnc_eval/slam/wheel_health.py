@@ -15,22 +15,28 @@ import numpy as np
 
 from mrnc_eval.slam.config import WheelCalibrationConfig
 from mrnc_eval.slam.wheel_calibration import WheelCalibrator
+from mrnc_eval.slam.wheel_gnss_scale import GnssScale
 
 
-def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
-    """The estimates with their 1-sigma, innovation statistics, rejected fraction and the verdict."""
+def wheel_health(cal: WheelCalibrator, gnss_scale: GnssScale | None = None) -> dict[str, Any]:
+    """The estimates with their 1-sigma, innovation statistics, rejected fraction and the verdict. The
+    scale is the LiDAR steps' (the one the run used); without any, `gnss_scale`'s (read after the run
+    against the fixes, reported only), else the prior's."""
     cfg = cal.cfg
     cov = cal.covariance
     lr, lr_sigma = cal.lr_mismatch()
     fit = cal.scale_fit
-    scale_sigma = fit.sigma if fit is not None else cal.cfg.scale_prior_sigma
+    scale, scale_sigma, source = cal.scale, fit.sigma if fit is not None else cal.cfg.scale_prior_sigma, "lidar"
+    if fit is None or fit.steps == 0:
+        scale, scale_sigma, source = (1.0, scale_sigma, "prior") if gnss_scale is None \
+            else (gnss_scale.scale, gnss_scale.sigma, "gnss")
     res = np.asarray(cal.res, float)
     raw = np.asarray(cal.raw_res, float)
     rejected = cal.n_rejected / cal.n_bins if cal.n_bins else 0.0
     est = {"track_factor": cal.track_factor, "track_factor_sigma": float(np.sqrt(cov[0, 0])),
            "lr_mismatch": lr, "lr_mismatch_sigma": lr_sigma,
            "yaw_rate_offset_rad_s": float(cal.theta[2]), "yaw_rate_offset_sigma_rad_s": float(np.sqrt(cov[2, 2])),
-           "scale_error": cal.scale - 1.0, "scale_error_sigma": scale_sigma,
+           "scale_error": scale - 1.0, "scale_error_sigma": scale_sigma,
            "rejected_fraction_sigma": rejected_sigma(cal.n_bins, cfg)}
     reasons = flags(est, rejected, cfg)
     unreliable = too_many_rejected(rejected, est["rejected_fraction_sigma"], cfg)
@@ -40,7 +46,8 @@ def wheel_health(cal: WheelCalibrator) -> dict[str, Any]:
             "innovation_rms_rad_s": float(np.sqrt(np.mean(res ** 2))) if res.size else None,
             "innovation_nis_mean": float(np.mean(cal.nis)) if cal.nis else None,
             "raw_yaw_rate_minus_gyro_rms_rad_s": float(np.sqrt(np.mean(raw ** 2))) if raw.size else None,
-            "yaw_hold_scale": cal.yaw_quality(), "scale_steps": fit.steps if fit is not None else 0,
+            "yaw_hold_scale": cal.yaw_quality(), "scale_source": source,
+            "scale_steps": fit.steps if fit is not None else 0,
             "slip_steps": fit.slip_steps if fit is not None else 0,
             "slip_mean_over_read": fit.slip_mean if fit is not None else None,
             "verdict": verdict, "reasons": reasons}
