@@ -141,9 +141,8 @@ def heading_offset_turning(t: np.ndarray, xy: np.ndarray, segment: np.ndarray, s
     d = xy[j] - xy[i]
     mid = 0.5 * (heading[i] + heading[j])  # the heading at the pair's middle, fixes at a steady rate
     offset = _wrap(mid - np.arctan2(d[:, 1], d[:, 0]))
-    back = [drove_backwards(moved[b] - moved[a], float(h), float(np.linalg.norm(c)))
-            for a, b, h, c in zip(i, j, mid, d, strict=True)]
-    if 2 * sum(back) > len(back):
+    back = backwards_each(moved[j] - moved[i], mid, np.linalg.norm(d, axis=1))
+    if 2 * int(back.sum()) > back.size:
         offset = _wrap(offset + np.pi)
     yaw = circular_median(offset)
     return yaw, float(np.median(np.abs(_wrap(offset - yaw))))
@@ -188,11 +187,15 @@ def drove_backwards(moved: np.ndarray, heading: float, travel: float) -> bool:
     wheels, its direction 60-120 deg off the truth on some logs (open line seeds 3 / 4): only a
     displacement near the backward axis and comparable to the fixes' travel (m) counts; a ground
     vehicle otherwise drives forward (a sideways-drifting chain flipped seed 3's alignment by 180 deg)."""
-    length = float(np.linalg.norm(moved))
-    if length < max(1.0, REVERSE_MIN_FRACTION * travel):
-        return False
-    fwd = np.array([np.cos(heading), np.sin(heading)])
-    return bool(moved @ fwd < -np.cos(np.radians(REVERSE_MAX_ANGLE_DEG)) * length)
+    return bool(backwards_each(np.reshape(moved, (1, 2)), np.array([heading]), np.array([travel]))[0])
+
+
+def backwards_each(moved: np.ndarray, heading: np.ndarray, travel: np.ndarray) -> np.ndarray:
+    """drove_backwards for n stretches at once: displacements (n, 2) m, headings (n,) rad, travels (n,) m."""
+    length = np.linalg.norm(moved, axis=1)
+    along = moved[:, 0] * np.cos(heading) + moved[:, 1] * np.sin(heading)
+    return np.asarray((length >= np.maximum(1.0, REVERSE_MIN_FRACTION * travel))
+                      & (along < -np.cos(np.radians(REVERSE_MAX_ANGLE_DEG)) * length))
 
 
 def gate_fix(innovation: np.ndarray, chain_cov: np.ndarray, fix_var: np.ndarray, chi2: float) -> tuple[bool, float]:
