@@ -19,7 +19,7 @@ from mrnc_eval.slam.config import SlamConfig
 from mrnc_eval.slam.deskew import deskew
 from mrnc_eval.slam.features import Features, extract_features, voxel_downsample
 from mrnc_eval.slam.gnss import GnssAligner
-from mrnc_eval.slam.gnss_track import GnssTrack, move_along_free
+from mrnc_eval.slam.gnss_track import GnssTrack, move_along_free, track_filter
 from mrnc_eval.slam.gnss_track import build as build_gnss_track
 from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candidate, register_loop
 from mrnc_eval.slam.imu import (
@@ -355,7 +355,7 @@ class _Replay:
         if cal is None or self.aligner is None or span <= 0 or (cal.scale_fit is not None and cal.scale_fit.steps):
             return None
         return gnss_scale(cal.track(), self.aligner.gnss, max_var_m2=self.cfg.gps.gps_cov_threshold_m2,
-                          min_span_m=span)
+                          min_span_m=span, track=track_filter(self.cfg.gps))
 
     def match_pivot(self) -> np.ndarray | None:
         """The base origin in the sensor frame when the wheels placed the base (wheel_guess): scan-to-map

@@ -5,9 +5,12 @@ The online calibration takes the wheels' scale from distance steps the LiDAR odo
 its prior, so a rolling-radius error of 1.5 % (0.6 m along a 40 m line) went unnamed. Here, after the
 run, the calibrated wheel track (yaw from the calibrated wheels and the gyro) is fitted to the fixes
 by a 2-D similarity (yaw, translation, scale): fixes = k R wheels + t, so the wheels' scale is 1 / k.
-Multipath jumps (0.5-3 m for seconds) are cut by a robust refit (fixes beyond 3 robust sigmas plus
-0.3 m of the fit); the standard error is a delete-one-block jackknife over time blocks (the fixes'
-errors are correlated for seconds, so the formal one would be too small). A constant GNSS latency
+Multipath jumps (0.5-3 m for seconds) are first taken out by the GNSS track's filter when one is given
+(the multipath hypotheses, slam/gnss_bank.py: each fix replaced by the filter's position at its stamp;
+on the open line's float logs the scale's sigma 1.4-3.0 % -> 0.2-0.8 %), then cut by a robust refit
+(fixes beyond 3 robust sigmas plus 0.3 m of the fit); the standard error is a delete-one-block
+jackknife over time blocks (the fixes' errors are correlated for seconds, so the formal one would be
+too small). A constant GNSS latency
 shifts every fix along the track by the same distance and leaves the scale; a wheel heading error
 bends the track and is what the jackknife's spread then carries."""
 
@@ -18,6 +21,8 @@ from dataclasses import dataclass
 import numpy as np
 
 from mrnc_eval.data import GnssSeries
+from mrnc_eval.slam.gnss_bank import OffsetBank
+from mrnc_eval.slam.gnss_track import TrackFilter
 from mrnc_eval.slam.wheel_odometry import WheelTrack
 
 OUTLIER_SIGMAS = 3.0  # a fix this many robust sigmas (plus OUTLIER_FLOOR_M) off the fit is multipath
@@ -33,16 +38,20 @@ class GnssScale:
     span_m: float  # RMS distance of those fixes from their centroid, m
 
 
-def gnss_scale(wheel: WheelTrack, gnss: GnssSeries, *, max_var_m2: float, min_span_m: float) -> GnssScale | None:
+def gnss_scale(wheel: WheelTrack, gnss: GnssSeries, *, max_var_m2: float, min_span_m: float,
+               track: TrackFilter | OffsetBank | None = None) -> GnssScale | None:
     """The wheels' scale against the usable fixes (horizontal variance at most max_var_m2, m^2) inside
-    the wheel track's time span; None when fewer than 20 fixes or their spread (RMS from the centroid)
-    is under min_span_m (m): the scale is not observable."""
+    the wheel track's time span, through `track` (a fresh GNSS track filter) when given; None when
+    fewer than 20 fixes or their spread (RMS from the centroid) is under min_span_m (m): the scale is
+    not observable."""
     var = np.diagonal(gnss.covariance, axis1=1, axis2=2)[:, :2]
     use = np.all(np.isfinite(gnss.enu[:, :2]), axis=1) & np.all(var <= max_var_m2, axis=1) \
         & (gnss.stamps >= wheel.stamps[0]) & (gnss.stamps <= wheel.stamps[-1])
     if use.sum() < 20:
         return None
     t, fixes = gnss.stamps[use], gnss.enu[use, :2]
+    if track is not None:
+        fixes = _filtered(track, t, fixes, np.sqrt(np.max(var[use], axis=1)))
     wheels = np.column_stack([np.interp(t, wheel.stamps, wheel.positions[:, i]) for i in range(2)])
     keep = _robust_inliers(wheels, fixes)
     span = float(np.sqrt(np.mean(np.sum((wheels[keep] - wheels[keep].mean(axis=0)) ** 2, axis=1))))
@@ -55,6 +64,15 @@ def gnss_scale(wheel: WheelTrack, gnss: GnssSeries, *, max_var_m2: float, min_sp
     n = len(blocks)
     sigma_k = float(np.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2)))
     return GnssScale(scale=1.0 / k, sigma=sigma_k / k ** 2, fixes=int(keep.sum()), span_m=span)
+
+
+def _filtered(track: TrackFilter | OffsetBank, t: np.ndarray, fixes: np.ndarray, sigma: np.ndarray) -> np.ndarray:
+    """Each fix (n, 2) replaced by the filter's position at its stamp once the filter has taken it."""
+    out = np.empty_like(fixes)
+    for k in range(t.size):
+        track.update(float(t[k]), fixes[k], float(sigma[k]))
+        out[k] = track.predict(float(t[k]))[0][:2]
+    return out
 
 
 def _robust_inliers(wheels: np.ndarray, fixes: np.ndarray) -> np.ndarray:
