@@ -377,6 +377,11 @@ class GpsConfig:
         "without_wheels", "without_wheels: when no wheel odometry is used, the x, y that a degenerate scan-to-map "
         "leaves to the IMU come from a Kalman filter on the fixes (slam/gnss_track.py), as the wheels would "
         "otherwise give them; never: IMU dead reckoning there (LIO-SAM)")
+    track_cov_threshold_m2: float = param(
+        25.0, "GNSS track: it takes fixes up to this horizontal variance, beyond gps_cov_threshold_m2 (which "
+        "drops single-point fixes of 1.5 m): without wheels, on bare ground, the alternative is IMU dead "
+        "reckoning (the open line with single-point fixes: 15-135 m online APE with them dropped)", "m^2",
+        gt=0.0, le=10_000.0)
     track_accel_sigma: float = param(0.3, "GNSS track: the filter's white acceleration (a skid-steer at walking "
                                      "pace)", "m/s^2", gt=0.0, le=20.0)
     track_max_gap_s: float = param(2.0, "GNSS track: without a fix taken for this long (an outage) the sweeps keep "

@@ -176,6 +176,9 @@ def robust_line(dt: np.ndarray, values: np.ndarray, sigma_m: float) -> np.ndarra
     return np.asarray(coef[0], np.float64)
 
 
+JUMP_SIGMAS = 2.5  # a multipath segment starts at a step of at least this many fix sigmas (float: ins_jump_m)
+PAIR_WINDOW_S = 3.0  # a course's pairs of fixes are at most this far apart in time (s) ...
+PAIR_WINDOW_S_PER_M = 10.0  # ... or this many seconds per metre of the fixes' sigma (single point, 1.5 m: 15 s)
 TURNING_SPREAD_DEG = 15.0  # a turning stretch's pair offsets spread (median absolute deviation) at most this
 REVERSE_MAX_ANGLE_DEG = 30.0  # the chain's displacement this close to its backward axis means reversing
 REVERSE_MIN_FRACTION = 0.5  # ... and at least this fraction of the fixes' travel (dead reckoning is metres off)
@@ -214,6 +217,7 @@ class GnssIns:
     cfg: GpsConfig
     forward_in_lidar: np.ndarray  # (3,) the vehicle's forward axis in the LiDAR frame
     antenna_in_lidar: np.ndarray  # (3,) m
+    max_var_m2: float | None = None  # fixes with a larger horizontal variance are not used (None: gps_cov_threshold_m2)
     alignment: EnuAlignment | None = None
     usable: np.ndarray = field(default_factory=lambda: np.zeros(0, bool))
     next_fix: int = 0  # the first fix not consumed yet
@@ -232,7 +236,8 @@ class GnssIns:
 
     def __post_init__(self) -> None:
         var = np.diagonal(self.gnss.covariance, axis1=1, axis2=2)
-        self.usable = np.all(var[:, :2] <= self.cfg.gps_cov_threshold_m2, axis=1) & \
+        limit = self.cfg.gps_cov_threshold_m2 if self.max_var_m2 is None else self.max_var_m2
+        self.usable = np.all(var[:, :2] <= limit, axis=1) & \
             np.all(np.isfinite(self.gnss.enu), axis=1) & np.all(np.isfinite(var[:, :2]), axis=1)
 
     def observe(self, t: float, lidar_pose: np.ndarray) -> None:
@@ -267,14 +272,16 @@ class GnssIns:
         sigma = float(np.sqrt(np.median(np.diagonal(self.gnss.covariance[sel], axis1=1, axis2=2)[:, :2])))
         ant = np.asarray(self.chain_antenna)
         moved = np.column_stack([np.interp(stamps, self.chain_t, ant[:, i]) for i in range(2)])
-        segments = jump_segments(enu, moved, c.ins_jump_m)
-        course, travel, inl, spread = robust_course(stamps, enu, sigma, segments, min_pairs=min_pairs)
+        segments = jump_segments(enu, moved, max(c.ins_jump_m, JUMP_SIGMAS * sigma))
+        window = max(PAIR_WINDOW_S, PAIR_WINDOW_S_PER_M * sigma)  # pairs 5 sigma apart need time to get there
+        course, travel, inl, spread = robust_course(stamps, enu, sigma, segments, max_dt_s=window,
+                                                    min_pairs=min_pairs)
         if travel < travel_m or not inl.any():
             return None
         heading = np.unwrap(np.interp(stamps, self.chain_t, np.unwrap(self.chain_heading)))
         if np.ptp(heading[inl]) > np.radians(c.ins_align_max_turn_deg):  # turning: no mean heading, pair by pair
             yaw, spread = heading_offset_turning(stamps, enu, segments, sigma, heading=heading, moved=moved,
-                                                 min_pairs=min_pairs)
+                                                 min_pairs=min_pairs, max_dt_s=window)
             if spread > np.radians(min(max_spread_deg, TURNING_SPREAD_DEG)):
                 return None
         else:
@@ -383,12 +390,13 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
 
 
 def new_ins(gnss: GnssSeries, cfg: GpsConfig, antenna_in_sensor: np.ndarray | None,
-            base_to_sensor: np.ndarray | None) -> GnssIns:
-    """A GnssIns for the log's frames (no antenna: at the sensor; no base_link: the sensor's x forward)."""
+            base_to_sensor: np.ndarray | None, max_var_m2: float | None = None) -> GnssIns:
+    """A GnssIns for the log's frames (no antenna: at the sensor; no base_link: the sensor's x forward);
+    `max_var_m2`: the fixes' variance limit when not gps_cov_threshold_m2."""
     base = np.eye(4) if base_to_sensor is None else np.asarray(base_to_sensor, float)
     antenna = np.zeros(3) if antenna_in_sensor is None else np.asarray(antenna_in_sensor, float)
     return GnssIns(gnss=gnss, cfg=cfg, forward_in_lidar=base[:3, :3].T @ np.array([1.0, 0.0, 0.0]),
-                   antenna_in_lidar=antenna)
+                   antenna_in_lidar=antenna, max_var_m2=max_var_m2)
 
 
 def step(ins: GnssIns, odom: ImuOdometry, matched: np.ndarray, t: float, events: list[SlamEvent]) -> np.ndarray:

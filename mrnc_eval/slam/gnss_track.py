@@ -361,7 +361,8 @@ def build(gnss: GnssSeries | None, cfg: GpsConfig, antenna_in_sensor: np.ndarray
     if gnss is None or not gnss.stamps.size or not cfg.enabled or cfg.track != "without_wheels" or with_wheels:
         return None
     base = np.eye(4) if base_to_sensor is None else np.asarray(base_to_sensor, float)
-    return GnssTrack(ins=new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor),
+    limit = max(cfg.gps_cov_threshold_m2, cfg.track_cov_threshold_m2)
+    return GnssTrack(ins=new_ins(gnss, cfg, antenna_in_sensor, base_to_sensor, limit),
                      up_in_lidar=base[:3, :3].T @ np.array([0.0, 0.0, 1.0]), level_antenna=cfg.track_level_antenna,
                      both_axes=cfg.track_both_axes,
                      provisional_travel_m=cfg.track_provisional_travel_m,

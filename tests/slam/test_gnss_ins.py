@@ -274,3 +274,45 @@ def test_the_alignment_is_fixed_on_a_turning_stretch_pair_by_pair(seed: int, rev
     mean_rule = _arc_alignment(yaw, reverse=reverse, seed=seed, max_turn_deg=180.0)
     assert mean_rule is not None
     assert abs(np.degrees(gnss_ins._wrap(mean_rule.yaw_rad - yaw))) > 2.0
+
+
+def _single_point_line(seed: int) -> gnss_ins.GnssIns:
+    """30 s of a straight drive at 1 m/s (after 1 s standing) with single-point fixes (1.5 m, variance
+    2.25 m^2 > gps_cov_threshold_m2) through the GNSS track's variance limit, the chain observed at 10 Hz
+    in a map turned by -70 deg, drifting sideways."""
+    rng = np.random.default_rng(seed)
+    yaw, h0, sigma = np.radians(-70.0), np.radians(40.0), 1.5
+    t_fix = np.arange(0.0, 31.0, 0.2)
+    s = np.clip(t_fix - 1.0, 0.0, None)
+    enu = np.c_[s * np.cos(h0), s * np.sin(h0)] + rng.normal(0.0, sigma, (t_fix.size, 2))
+    cov = np.tile(np.diag([sigma ** 2, sigma ** 2, 9.0]), (t_fix.size, 1, 1))
+    fixes = GnssSeries(stamps=t_fix, lla=np.zeros((t_fix.size, 3)), enu=np.c_[enu, np.zeros(t_fix.size)],
+                       covariance=cov, origin_lla=np.zeros(3))
+    cfg = GpsConfig()
+    ins = gnss_ins.new_ins(fixes, cfg, None, None, max(cfg.gps_cov_threshold_m2, cfg.track_cov_threshold_m2))
+    for t in np.arange(0.1, 30.0, 0.1):
+        pose = np.eye(4)
+        head = h0 + yaw + rng.normal(0.0, np.radians(0.3))
+        pose[:2, :2] = [[np.cos(head), -np.sin(head)], [np.sin(head), np.cos(head)]]
+        pose[:2, 3] = [0.0, 0.02 * t * t]
+        ins.observe(t, pose)
+    return ins
+
+
+@pytest.mark.parametrize("seed", [0, 1, 2])
+def test_single_point_fixes_align_the_track(seed: int, monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without wheels on bare ground, single-point fixes (1.5 m) were dropped by gps_cov_threshold_m2 and
+    the chain dead-reckoned (open line 15-135 m online APE). The track takes them (track_cov_threshold_m2)
+    and pairs them over a window that grows with their sigma (5 sigma apart needs 7.5 m: 7.5 s at 1 m/s):
+    the alignment within 3 deg. Negative controls: the run's own limit takes no fix; the 3 s window pairs
+    only fixes that noise put 7.5 m apart (5-26 deg off)."""
+    ins = _single_point_line(seed)
+    assert ins.usable.all()
+    al = ins.fit_alignment(29.9, 5.0)
+    assert al is not None
+    assert abs(np.degrees(gnss_ins._wrap(al.yaw_rad - np.radians(-70.0)))) < 3.0
+    dropped = gnss_ins.new_ins(ins.gnss, ins.cfg, None, None)
+    assert not dropped.usable.any()
+    monkeypatch.setattr(gnss_ins, "PAIR_WINDOW_S_PER_M", 0.0)
+    short = _single_point_line(seed).fit_alignment(29.9, 5.0)
+    assert short is None or abs(np.degrees(gnss_ins._wrap(short.yaw_rad - np.radians(-70.0)))) > 3.0
