@@ -136,6 +136,22 @@ def driving_attitude(track: ImuTrack, t0: float, window_s: float, dv: np.ndarray
     return rotation.from_rpy([np.arctan2(up[1], up[2]), np.arctan2(-up[0], np.hypot(up[1], up[2])), 0.0])
 
 
+# a first tilt from the 0.1 s look-ahead this far (deg) from the window's steady-driving mean read bumps: a
+# 4.8 t machine's start-up acceleration (<= 0.8 m/s^2) tilts the mean by at most 4.7 deg
+BUMPY_START_DEG = 5.0
+
+
+def bumpy_start_attitude(look_ahead: np.ndarray, track: ImuTrack, t0: float, window_s: float) -> np.ndarray | None:
+    """Without wheels nothing says whether the machine drives at t0: the window's steady-driving tilt
+    (driving_attitude with no velocity change, 3x3) when the look-ahead's (3x3) differs from it by more
+    than BUMPY_START_DEG (the look-ahead read the ground's bumps: the open line begun at 5 s, seed 3:
+    online APE 45 m), else None (a standing or calm start keeps the look-ahead)."""
+    steady = driving_attitude(track, t0, window_s, np.zeros(3))
+    if steady is None or float(rotation.angle(look_ahead.T @ steady)) <= np.radians(BUMPY_START_DEG):
+        return None
+    return steady
+
+
 class ImuOdometry:
     """LIO-SAM graph #2 on iSAM2: states X (body pose), V (velocity), B (bias) at each mapped
     sweep; ImuFactor between consecutive states from gtsam preintegration, a lidar pose prior on

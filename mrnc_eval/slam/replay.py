@@ -25,6 +25,7 @@ from mrnc_eval.slam.graph import KeyframeGraph, icp_min_eigenvalue, loop_candida
 from mrnc_eval.slam.imu import (
     ImuOdometry,
     ImuTrack,
+    bumpy_start_attitude,
     clean_imu,
     driving_attitude,
     imu_track,
@@ -418,7 +419,10 @@ class _Replay:
         then (m/s, LiDAR axes; else None). The attitude: the IMU's orientation, or its accelerometer
         about t (initial_attitude); a 6-axis IMU on a machine the wheels show already driving (a log
         begun mid-drive) over attitude_driving_window_s instead, with the IMU's velocity change
-        (driving_attitude). A standing start keeps the 0.1 s look-ahead: start-up acceleration."""
+        (driving_attitude). A standing start keeps the 0.1 s look-ahead: start-up acceleration.
+        Without wheels nothing says whether the machine drives: the window's mean with no velocity
+        change (steady driving) replaces the look-ahead when the two tilts differ by more than a
+        start-up acceleration can (imu.bumpy_start_attitude): the look-ahead then read bumps."""
         if self.imu is None:
             return np.eye(3), None
         att = initial_attitude(self.imu, self.extr[:3, :3], self.cfg.imu, t)
@@ -428,6 +432,10 @@ class _Replay:
         window = self.cfg.imu.attitude_driving_window_s
         v = self.driving_velocities(t_imu, window) if t_imu - t <= 0.2 else None  # s: one wheel bin
         driving = None if v is None else driving_attitude(self.track, t_imu, window, v[1] - v[0])
+        if driving is None and self.wheel is None and window > 0.4:
+            steady = bumpy_start_attitude(att, self.track, t_imu, window)
+            if steady is not None:
+                return steady, None
         return (att, None) if driving is None or v is None else (driving, v[0])
 
     def driving_velocities(self, t: float, window_s: float) -> tuple[np.ndarray, np.ndarray] | None:

@@ -4,9 +4,11 @@ first_state): a synthetic drive on bumpy ground, rolling, accelerating, with sid
 from __future__ import annotations
 
 import numpy as np
+import pytest
 from scipy.spatial.transform import Rotation
 
 from mrnc_eval.data import ImuSeries
+from mrnc_eval.slam import imu as imu_module
 from mrnc_eval.slam.config import ImuConfig, SlamConfig
 from mrnc_eval.slam.imu import driving_attitude, imu_track, initial_attitude
 from mrnc_eval.slam.replay import _Replay
@@ -88,13 +90,14 @@ def _wheels(t: np.ndarray, speed: np.ndarray) -> WheelTrack:
 def test_first_attitude_driving_only_when_the_wheels_move() -> None:
     """The replay takes the driving attitude (within 0.3 deg, measured 0.14; the 0.1 s look-ahead 15
     deg) when the wheels' first 0.2 s exceed the standing-start speed (and its first IMU sample may
-    follow the sweep by a few ms); a standing start, a 9-axis IMU or no wheels keep initial_attitude
-    bit for bit (the standing-start matrix cells stay identical)."""
+    follow the sweep by a few ms); a standing start or a 9-axis IMU keep initial_attitude bit for bit
+    (the standing-start matrix cells stay identical). Without wheels this bumpy drive takes the window's
+    steady mean (test_without_wheels_a_bumpy_start_takes_the_steady_mean)."""
     t = np.arange(0.0, 4.0, 0.01)
     imu = _drive(t)
     replay = _Replay.start(imu, SlamConfig(), None, None, None, False)
     old = initial_attitude(imu, np.eye(3), ImuConfig(), -0.004)
-    assert np.array_equal(replay.first_state(-0.004)[0], old)  # no wheels
+    assert 0.9 < _tilt_error_deg(replay.first_state(-0.004)[0]) < 1.4  # no wheels: the steady mean
     replay.wheel = _wheels(t, 1.0 + ACC * t)
     assert _tilt_error_deg(replay.first_state(-0.004)[0]) < 0.3  # measured 0.14 (wheels from 0, IMU from -0.004)
     assert _tilt_error_deg(old) > 7.0  # measured 15.0
@@ -135,3 +138,22 @@ def test_graph2_starts_at_the_wheels_velocity_when_driving() -> None:
     standing.wheel = _wheels(t, np.where(t < 0.5, 0.0, 1.0))
     standing.guess(0.0)
     assert np.array_equal(standing.odom.velocity, np.zeros(3))
+
+
+def test_without_wheels_a_bumpy_start_takes_the_steady_mean(monkeypatch: pytest.MonkeyPatch) -> None:
+    """Without wheels nothing says whether a log begins mid-drive: the open line begun at 5 s, seed 3, took
+    its first tilt from the 0.1 s look-ahead reading the bumps (online APE 45 m; 1.0 m now). When the
+    look-ahead's tilt is more than 5 deg from the 2 s window's steady mean (no velocity change), the mean
+    is taken: on the bumpy drive within 1.4 deg (its 0.2 m/s^2 speed-up: 1.17 deg) against the look-ahead's
+    15 deg. A calm standing start that speeds up at 0.5 m/s^2 (the mean then 2.2 deg off) keeps the
+    look-ahead bit for bit. Negative control: a 90 deg limit keeps the look-ahead on the bumpy drive."""
+    t = np.arange(0.0, 4.0, 0.01)
+    bumpy = _Replay.start(_drive(t), SlamConfig(), None, None, None, False)
+    assert _tilt_error_deg(bumpy.first_state(0.0)[0]) < 1.4
+    assert bumpy.first_state(0.0)[1] is None  # no wheels: no velocity
+    speed_up = np.where(t < 0.5, 0.0, np.where(t < 2.5, 0.5, 0.0))  # m/s^2 along x, level, no jolts
+    calm = ImuSeries(t, np.c_[speed_up, np.zeros(t.size), np.full(t.size, G)], np.zeros((t.size, 3)))
+    replay = _Replay.start(calm, SlamConfig(), None, None, None, False)
+    assert np.array_equal(replay.first_state(0.0)[0], initial_attitude(calm, np.eye(3), ImuConfig(), 0.0))
+    monkeypatch.setattr(imu_module, "BUMPY_START_DEG", 90.0)
+    assert _tilt_error_deg(bumpy.first_state(0.0)[0]) > 7.0
