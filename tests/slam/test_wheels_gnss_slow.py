@@ -162,3 +162,48 @@ def calibrated_loop_s4(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_without_wheels_the_track_holds_the_open_loop(calibrated_loop_s4: Path, tmp_path: Path) -> None:
     _holds_and_its_control_fails(calibrated_loop_s4, tmp_path, {"slam.gps.track": "never"}, LOOP_LIMIT_M)
+
+
+# Single-point fixes (sim.gnss.mode=single, 1.5 m) without wheels, open line, seed 40 (ninth session): LIO-SAM's
+# gps_cov_threshold_m2 (2 m^2) dropped every fix and the chain dead-reckoned (15.4 m online APE); the track now
+# takes them (slam.gps.track_cov_threshold_m2): 1.31 m. Negative control: the track held to the 2 m^2 limit.
+SINGLE_LIMIT_M = 2.6
+
+
+@pytest.fixture(scope="module")
+def single_point_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return simulate_open_line(tmp_path_factory.mktemp("single") / "line_calibrated_single_s40.mcap", seed=40,
+                              wheels={"sim.gnss.mode": "single"})
+
+
+def test_without_wheels_single_point_fixes_hold_the_line(single_point_line: Path, tmp_path: Path) -> None:
+    _holds_and_its_control_fails(single_point_line, tmp_path, {"slam.gps.track_cov_threshold_m2": 2.0},
+                                 SINGLE_LIMIT_M)
+
+
+# The open line begun at 5 s without wheels, float, report seed 3 (ninth session): the first tilt from the 0.1 s
+# look-ahead read the bumps (45.4 m online APE); the 2 s steady mean instead (imu.bumpy_start_attitude): 0.997 m.
+# Negative control: a 90 deg limit (the look-ahead always kept).
+BUMPY_LIMIT_M = 2.0
+
+
+@pytest.fixture(scope="module")
+def calibrated_line_s3(tmp_path_factory: pytest.TempPathFactory) -> Path:
+    return simulate_open_line(tmp_path_factory.mktemp("bumpy") / "line_calibrated_float_s3.mcap", seed=3)
+
+
+def test_without_wheels_a_log_begun_mid_drive_starts_level(calibrated_line_s3: Path, tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    from mrnc_eval.commands.slam import SweepWindow, run_log
+    from mrnc_eval.slam import imu
+
+    def online_ape(out: Path) -> float:
+        r = run_log(calibrated_line_s3, replace_paths(Config(), NO_WHEELS), out, method="lio",
+                    window=SweepWindow(start_s=5.0))
+        return next(float(m.value) for m in r.metrics if m.name == "ape_online_rmse_m")
+
+    kept = online_ape(tmp_path / "default")
+    print(f"no wheels, begun at 5 s, seed 3: online APE {kept:.3f} m")
+    assert kept < BUMPY_LIMIT_M
+    monkeypatch.setattr(imu, "BUMPY_START_DEG", 90.0)
+    assert online_ape(tmp_path / "control") > BUMPY_LIMIT_M
