@@ -3,6 +3,7 @@ when stderr is a terminal."""
 
 from __future__ import annotations
 
+import logging
 import os
 import sys
 from pathlib import Path
@@ -14,6 +15,8 @@ from mrnc_eval.io.containers import FORMAT_NAMES, FORMAT_SUFFIX, SUFFIX_FORMAT
 
 if TYPE_CHECKING:
     from mrnc_eval.recording.recorder import SimRequest
+
+log = logging.getLogger(__name__)
 
 SIM_OUTPUT_BYTES = 100_000_000  # free space asked for before simulating (a minute of OS0-128 is ~50 MB)
 _BAG_FILES = (".mcap", ".db3", ".yaml")  # what a ROS 2 bag folder written by this tool holds
@@ -86,6 +89,22 @@ def main(out: str | Path, cfg: Config, *, scene: str, path: str, duration: float
             task = bar.add_task(f"simulating {req.lidar} sweeps ({req.profile or cfg.sim.profile} profile)", total=None)
             written = simulate_log(target, cfg, req, lambda n, total: bar.update(task, completed=n, total=total))
     sys.stderr.write(wrote_line(Path(written), req, cfg) + "\n")
+    for line in drive_warnings(Path(written)):
+        log.warning("%s", line)
+
+
+def drive_warnings(written: Path) -> list[str]:
+    """The simulated drive's safety stops (from <log>.errors.json): the log then shows a machine that
+    stops mid-path, which a user who asked for the path should hear about."""
+    import json
+
+    from mrnc_eval.recording.recorder import errors_json_path
+
+    f = errors_json_path(written)
+    drive = json.loads(f.read_text(encoding="utf-8")).get("drive", {}) if f.is_file() else {}
+    return [f"{written.name}: the simulated machine stopped at {e['t_s']:.1f} s ({e['message']}): RAID's safety "
+            "constraint; the log stands still from there. A speed beyond what control.actuator.u_max_rpm allows "
+            "(control.pure_pursuit.desired_speed_mps) does this" for e in drive.get("safety_stops", [])]
 
 
 def _size_text(path: Path) -> str:

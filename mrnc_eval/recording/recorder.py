@@ -139,7 +139,7 @@ def simulate_log(out: Path, cfg: Config, req: SimRequest,
         wheel_errors = draw_wheel_errors(cfg.sim.wheels, errors_on, np.random.default_rng([seed, WHEEL_STREAM]))
         _write_drive(writer, world.trace, run.stamps(cfg.sim.wheel_rate_hz, world), cfg, LOG_EPOCH_S, run.host_stamps,
                      wheel_errors, np.random.default_rng([seed, WHEEL_STREAM, 1]), latency_s=_wheel_latency(cfg))
-        drawn = _errors_drawn(cfg, wheel_errors, fixes)
+        drawn = _errors_drawn(cfg, wheel_errors, fixes, world.trace)
         writer.write_strings(TOPICS["sim_errors"], np.array([LOG_EPOCH_S]), [json.dumps(drawn, sort_keys=True)])
         gt = _write_ground_truth(writer, world.traj, run.stamps(cfg.sim.ground_truth_rate_hz, world), LOG_EPOCH_S)
         _write_sweeps(writer, run, world, frames, progress)
@@ -368,9 +368,10 @@ def _write_imu(writer: LogWriter, topic: str, imu: ImuSeries, noise: ImuNoise, t
     writer.write_imu(topic, replace(imu, stamps=imu.stamps + t0), acc_var=acc_var, gyro_var=gyro_var)
 
 
-def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes: GnssFixes) -> dict[str, Any]:
+def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes: GnssFixes, trace: ClosedLoopTrace) -> dict[str, Any]:
     """What the log's sensors got wrong on purpose, for tests and benchmarks (the /sim/errors_drawn
-    topic, a std_msgs/String of JSON, and <log>.errors.json beside the log)."""
+    topic, a std_msgs/String of JSON, and <log>.errors.json beside the log), and the drive's safety stops
+    (RAID's barrier: the machine then stands for the rest of the log)."""
     status, counts = np.unique(np.asarray(fixes.status), return_counts=True)
     drawn: dict[str, Any] = {
         "profile": cfg.sim.profile, "wheels": wheels.as_dict(), "track_width_m": cfg.robot.track_width_m,
@@ -379,6 +380,9 @@ def _errors_drawn(cfg: Config, wheels: WheelErrors, fixes: GnssFixes) -> dict[st
     latency = _wheel_latency(cfg)
     if latency:  # only then: the logs made before keep their bytes
         drawn["clock"] = {"wheel_latency_s": latency}
+    stops = [e for e in trace.events if e.get("kind") == "safety_stop"]
+    if stops:  # likewise
+        drawn["drive"] = {"safety_stops": stops, "completed": bool(trace.completed)}
     return drawn
 
 

@@ -15,7 +15,8 @@ _HELD = ("x", "y", "yaw")
 
 def hold_start(trace: Any, seconds: float) -> Any:
     """The control trace (control.closed_loop.ClosedLoopTrace) delayed by `seconds` (s), with the
-    start pose held and every speed, command and slip zero before it. 0 returns the trace as is."""
+    start pose held and every speed, command and slip zero before it, and its events (t_s) delayed
+    alike. 0 returns the trace as is."""
     if seconds <= 0:
         return trace
     t = np.asarray(trace.t, float)
@@ -30,4 +31,5 @@ def hold_start(trace: Any, seconds: float) -> Any:
         head = np.full(n_pre, a[0]) if f.name in _HELD else np.zeros(n_pre)
         changes[f.name] = np.r_[head, a]
     changes["completion_time_s"] = float(trace.completion_time_s) + seconds
+    changes["events"] = [{**e, "t_s": float(e["t_s"]) + seconds} if "t_s" in e else e for e in trace.events]
     return replace(trace, **changes)

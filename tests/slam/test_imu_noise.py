@@ -97,6 +97,8 @@ def test_hold_start_delays_the_drive_and_holds_the_pose() -> None:
     assert np.all(held.x[before] == trace.x[0])
     np.testing.assert_allclose(held.x[~before], trace.x)
     assert hold_start(trace, 0.0) is trace
+    stopped = replace(trace, events=[{"t_s": 1.5, "kind": "safety_stop"}, {"kind": "note"}])
+    assert hold_start(stopped, 1.0).events == [{"t_s": 2.5, "kind": "safety_stop"}, {"kind": "note"}]  # delayed too
 
 
 @pytest.mark.parametrize("standstill_s", [3.0, 0.0])
