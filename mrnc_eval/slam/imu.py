@@ -139,17 +139,29 @@ def driving_attitude(track: ImuTrack, t0: float, window_s: float, dv: np.ndarray
 # a first tilt from the 0.1 s look-ahead this far (deg) from the window's steady-driving mean read bumps: a
 # 4.8 t machine's start-up acceleration (<= 0.8 m/s^2) tilts the mean by at most 4.7 deg
 BUMPY_START_DEG = 5.0
+MOVING_START_DEG = 1.0  # ... this far when the gyro shows the machine moving at t0 (no start-up to explain it)
+MOVING_GYRO_RATIO = 2.0  # moving: the gyro's spread over its first 0.5 s beyond this times its standing spread
 
 
-def bumpy_start_attitude(look_ahead: np.ndarray, track: ImuTrack, t0: float, window_s: float) -> np.ndarray | None:
+def bumpy_start_attitude(look_ahead: np.ndarray, track: ImuTrack, t0: float, window_s: float, *,
+                         standing_gyro_std: float | None = None) -> np.ndarray | None:
     """Without wheels nothing says whether the machine drives at t0: the window's steady-driving tilt
     (driving_attitude with no velocity change, 3x3) when the look-ahead's (3x3) differs from it by more
     than BUMPY_START_DEG (the look-ahead read the ground's bumps: the open line begun at 5 s, seed 3:
-    online APE 45 m), else None (a standing or calm start keeps the look-ahead)."""
+    online APE 45 m), or by more than MOVING_START_DEG when the gyro's per-sample spread over the first
+    0.5 s exceeds MOVING_GYRO_RATIO times `standing_gyro_std` (rad/s, the log's stationary stretches;
+    None: not judged) - the machine turns or rocks, it is not starting up (the open loop begun at 5 s,
+    seed 3: 44 m); else None (a standing or calm start keeps the look-ahead)."""
     steady = driving_attitude(track, t0, window_s, np.zeros(3))
-    if steady is None or float(rotation.angle(look_ahead.T @ steady)) <= np.radians(BUMPY_START_DEG):
+    if steady is None:
         return None
-    return steady
+    limit = BUMPY_START_DEG
+    if standing_gyro_std is not None:
+        first = (track.stamps >= t0) & (track.stamps < t0 + 0.5)
+        spread = float(np.max(np.std(track.gyro[first], axis=0))) if first.sum() >= 10 else 0.0
+        if spread > MOVING_GYRO_RATIO * standing_gyro_std:
+            limit = MOVING_START_DEG
+    return steady if float(rotation.angle(look_ahead.T @ steady)) > np.radians(limit) else None
 
 
 class ImuOdometry:

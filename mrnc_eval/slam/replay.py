@@ -433,7 +433,8 @@ class _Replay:
         v = self.driving_velocities(t_imu, window) if t_imu - t <= 0.2 else None  # s: one wheel bin
         driving = None if v is None else driving_attitude(self.track, t_imu, window, v[1] - v[0])
         if driving is None and self.wheel is None and window > 0.4:
-            steady = bumpy_start_attitude(att, self.track, t_imu, window)
+            standing = None if self.imu_noise is None else self.imu_noise.gyro_sample_std
+            steady = bumpy_start_attitude(att, self.track, t_imu, window, standing_gyro_std=standing)
             if steady is not None:
                 return steady, None
         return (att, None) if driving is None or v is None else (driving, v[0])
