@@ -874,8 +874,7 @@ def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:
                        Metric(name="wheel_lr_mismatch", value=h["lr_mismatch"], unit="", group="slam/health",
                               note=f"right-minus-left radius mismatch +- {h['lr_mismatch_sigma']:.4f}"),
                        Metric(name="wheel_scale_error", value=h["scale_error"], unit="", group="slam/health",
-                              note=f"wheel distance / LiDAR distance - 1 +- {h['scale_error_sigma']:.4f}"
-                                   + _slip_note(h)),
+                              note=_scale_note(h) + _slip_note(h)),
                        Metric(name="wheel_rejected_fraction", value=h["rejected_fraction"], unit="",
                               group="slam/health")]
     if h["verdict"] != "ok":
@@ -1046,6 +1045,16 @@ def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config, *,
     return (f"{mount} looks off by {'; '.join(check.reasons)} (the machine's motion, "
             f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
             f"base_link poses and the end drift carry it; {fix}")
+
+
+def _scale_note(h: dict[str, Any]) -> str:
+    """What the wheel scale error was measured against (wheel_health's scale_source)."""
+    sigma = f" +- {h['scale_error_sigma']:.4f}"
+    source = h.get("scale_source", "lidar")
+    if source == "prior":
+        return f"not measured (no LiDAR distance step, no GNSS spread): the prior, 0{sigma}"
+    against = "LiDAR distance" if source == "lidar" else "GNSS distance, read after the run (not used by it)"
+    return f"wheel distance / {against} - 1{sigma}"
 
 
 def _slip_note(h: dict[str, Any]) -> str:

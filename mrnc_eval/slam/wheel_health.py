@@ -38,7 +38,7 @@ def wheel_health(cal: WheelCalibrator, gnss_scale: GnssScale | None = None) -> d
            "yaw_rate_offset_rad_s": float(cal.theta[2]), "yaw_rate_offset_sigma_rad_s": float(np.sqrt(cov[2, 2])),
            "scale_error": scale - 1.0, "scale_error_sigma": scale_sigma,
            "rejected_fraction_sigma": rejected_sigma(cal.n_bins, cfg)}
-    reasons = flags(est, rejected, cfg)
+    reasons = flags(est, rejected, cfg, scale_source=source)
     unreliable = too_many_rejected(rejected, est["rejected_fraction_sigma"], cfg)
     verdict = "ok" if not reasons else "unreliable" if unreliable else "miscalibrated"
     return {**est, "gyro_bias_at_start_rad_s": cal.gyro_bias if cal.standing_start else 0.0, **gyro_bias_record(cal),
@@ -66,9 +66,11 @@ def gyro_bias_record(cal: WheelCalibrator) -> dict[str, Any]:
             if late and cal.gyro_bias_t is not None else None}
 
 
-def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibrationConfig) -> list[str]:
+def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibrationConfig, *,
+          scale_source: str = "lidar") -> list[str]:
     """Why the wheels disagree: each estimate beyond its limit by more than flag_sigmas sigma, the
-    rejected fraction beyond its limit by more than flag_sigmas binomial sigmas."""
+    rejected fraction beyond its limit by more than flag_sigmas binomial sigmas. A scale read from
+    GNSS after the run says so: the run did not use it."""
     k = cfg.flag_sigmas
     out = []
 
@@ -81,7 +83,8 @@ def flags(est: dict[str, float], rejected_fraction: float, cfg: WheelCalibration
         out.append(f"effective track factor {est['track_factor']:.2f} +- {est['track_factor_sigma']:.2f} "
                    "(wheel yaw / gyro yaw)")
     if off(est["scale_error"], 0.0, est["scale_error_sigma"], cfg.flag_scale):
-        out.append(f"scale error {est['scale_error'] * 100:+.2f} % +- {est['scale_error_sigma'] * 100:.2f} %")
+        out.append(f"scale error {est['scale_error'] * 100:+.2f} % +- {est['scale_error_sigma'] * 100:.2f} %"
+                   + (" (from the GNSS fixes after the run; the run did not use it)" if scale_source == "gnss" else ""))
     if too_many_rejected(rejected_fraction, est["rejected_fraction_sigma"], cfg):
         out.append(f"{rejected_fraction * 100:.0f} % of the wheel increments failed the gate against the gyro")
     return out

@@ -598,3 +598,23 @@ def test_a_circle_is_not_taken_for_a_straight_stretch(w_const: float) -> None:
     fooled, _, _ = _begun_mid_drive(w_const, wide)
     assert fooled.gyro_bias_source == "straight drive"
     assert abs(fooled.gyro_bias - GYRO_BIAS) > 0.8 * abs(w_const)
+
+
+def test_wheel_health_names_a_gnss_scale_and_says_it_was_not_used() -> None:
+    """Without LiDAR distance steps (bare ground) the scale comes from the fixes after the run
+    (slam/wheel_gnss_scale.py): a significant 2 % is flagged and its reason says the run did not use it;
+    a 0.3 % one is reported and not flagged; without one the source is the prior (0 +- 5 %)."""
+    from mrnc_eval.slam.wheel_gnss_scale import GnssScale
+
+    cal = _calibrate(CASES["exact"][0])
+    assert cal.scale_fit is None or cal.scale_fit.steps == 0  # no LiDAR step fed here
+    bad = wheel_health(cal, GnssScale(scale=1.02, sigma=0.002, fixes=200, span_m=12.0))
+    assert bad["scale_source"] == "gnss"
+    assert bad["scale_error"] == pytest.approx(0.02)
+    assert bad["verdict"] == "miscalibrated"
+    assert any("scale error +2.00 %" in r and "did not use it" in r for r in bad["reasons"])
+    fine = wheel_health(cal, GnssScale(scale=1.003, sigma=0.002, fixes=200, span_m=12.0))
+    assert fine["verdict"] == "ok"
+    prior = wheel_health(cal)
+    assert prior["scale_source"] == "prior"
+    assert prior["scale_error"] == 0.0
