@@ -329,7 +329,7 @@ def test_wrong_dtypes_shapes_layouts_and_indices_raise(pk: ModuleType) -> None:
     n = 50
     p, r, t = np.zeros((n, 3)), np.ones(n), np.zeros(n)
     ring, col = np.zeros(n, np.int64), np.arange(n, dtype=np.int64)
-    keep, out3 = np.ones(n, bool), np.empty((n, 3))
+    keep, out3 = np.ones(n, bool), np.zeros((n, 3))  # not empty: garbage cast to float32 overflows
     cases = [
         (TypeError, lambda: pk.range_and_keep(p.astype(np.int32), keep, r.copy(), 0.0, 1.0, None)),  # dtype
         (TypeError, lambda: pk.range_and_keep(p, keep.astype(np.int8), r.copy(), 0.0, 1.0, None)),
