@@ -33,10 +33,11 @@ def combined_line(tmp_path_factory: pytest.TempPathFactory) -> Path:
                               wheels=COMBINED_WHEELS)
 
 
-def _run(log: Path, out: Path, rules: dict[str, object]) -> tuple[dict[str, float], dict]:
-    from mrnc_eval.commands.slam import run_log
+def _run(log: Path, out: Path, rules: dict[str, object], start_s: float | None = None) -> tuple[dict[str, float], dict]:
+    from mrnc_eval.commands.slam import SweepWindow, run_log
 
-    r = run_log(log, replace_paths(Config(), rules), out, method="lio")
+    window = None if start_s is None else SweepWindow(start_s=start_s)
+    r = run_log(log, replace_paths(Config(), rules), out, method="lio", window=window)
     metrics = {m.name: float(m.value) for m in r.metrics if isinstance(m.value, (int, float))}
     return metrics, r.extra.get("wheel_health", {})
 
@@ -192,21 +193,24 @@ def calibrated_line_s3(tmp_path_factory: pytest.TempPathFactory) -> Path:
     return simulate_open_line(tmp_path_factory.mktemp("bumpy") / "line_calibrated_float_s3.mcap", seed=3)
 
 
-def test_without_wheels_a_log_begun_mid_drive_starts_level(calibrated_line_s3: Path, tmp_path: Path,
-                                                           monkeypatch: pytest.MonkeyPatch) -> None:
-    from mrnc_eval.commands.slam import SweepWindow, run_log
+def _begun_at_5_s_holds_and_its_control_fails(log: Path, out: Path, monkeypatch: pytest.MonkeyPatch,
+                                              control: tuple[str, float], limit_m: float) -> None:
+    """Without wheels, float GNSS, the log cut 5 s after its start: the defaults' online APE under limit_m,
+    and with the imu module's constant `control` (name, value) set, over it."""
     from mrnc_eval.slam import imu
 
-    def online_ape(out: Path) -> float:
-        r = run_log(calibrated_line_s3, replace_paths(Config(), NO_WHEELS), out, method="lio",
-                    window=SweepWindow(start_s=5.0))
-        return next(float(m.value) for m in r.metrics if m.name == "ape_online_rmse_m")
+    m, _ = _run(log, out / "default", NO_WHEELS, start_s=5.0)
+    print(f"no wheels, begun at 5 s, {log.stem}: online APE {m['ape_online_rmse_m']:.3f} m")
+    assert m["ape_online_rmse_m"] < limit_m
+    monkeypatch.setattr(imu, *control)
+    c, _ = _run(log, out / "control", NO_WHEELS, start_s=5.0)
+    assert c["ape_online_rmse_m"] > limit_m
 
-    kept = online_ape(tmp_path / "default")
-    print(f"no wheels, begun at 5 s, seed 3: online APE {kept:.3f} m")
-    assert kept < BUMPY_LIMIT_M
-    monkeypatch.setattr(imu, "BUMPY_START_DEG", 90.0)
-    assert online_ape(tmp_path / "control") > BUMPY_LIMIT_M
+
+def test_without_wheels_a_log_begun_mid_drive_starts_level(calibrated_line_s3: Path, tmp_path: Path,
+                                                           monkeypatch: pytest.MonkeyPatch) -> None:
+    _begun_at_5_s_holds_and_its_control_fails(calibrated_line_s3, tmp_path, monkeypatch, ("BUMPY_START_DEG", 90.0),
+                                              BUMPY_LIMIT_M)
 
 
 # The open loop begun at 5 s without wheels, float, report seed 3: the look-ahead's tilt 3.4 deg off, under the
@@ -225,16 +229,7 @@ def calibrated_loop_s3(tmp_path_factory: pytest.TempPathFactory) -> Path:
 
 def test_without_wheels_a_loop_begun_turning_starts_level(calibrated_loop_s3: Path, tmp_path: Path,
                                                           monkeypatch: pytest.MonkeyPatch) -> None:
-    from mrnc_eval.commands.slam import SweepWindow, run_log
     from mrnc_eval.slam import imu
 
-    def online_ape(out: Path) -> float:
-        r = run_log(calibrated_loop_s3, replace_paths(Config(), NO_WHEELS), out, method="lio",
-                    window=SweepWindow(start_s=5.0))
-        return next(float(m.value) for m in r.metrics if m.name == "ape_online_rmse_m")
-
-    kept = online_ape(tmp_path / "default")
-    print(f"no wheels, loop begun at 5 s, seed 3: online APE {kept:.3f} m")
-    assert kept < MOVING_LIMIT_M
-    monkeypatch.setattr(imu, "MOVING_START_DEG", imu.BUMPY_START_DEG)
-    assert online_ape(tmp_path / "control") > MOVING_LIMIT_M
+    _begun_at_5_s_holds_and_its_control_fails(calibrated_loop_s3, tmp_path, monkeypatch,
+                                              ("MOVING_START_DEG", imu.BUMPY_START_DEG), MOVING_LIMIT_M)
