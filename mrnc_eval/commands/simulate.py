@@ -103,8 +103,17 @@ def drive_warnings(written: Path) -> list[str]:
     f = errors_json_path(written)
     drive = json.loads(f.read_text(encoding="utf-8")).get("drive", {}) if f.is_file() else {}
     return [f"{written.name}: the simulated machine stopped at {e['t_s']:.1f} s ({e['message']}): RAID's safety "
-            "constraint; the log stands still from there. A speed beyond what control.actuator.u_max_rpm allows "
-            "(control.pure_pursuit.desired_speed_mps) does this" for e in drive.get("safety_stops", [])]
+            f"constraint; the log stands still from there. {_STOP_HINT.get(e.get('cause', ''), '')}".rstrip()
+            for e in drive.get("safety_stops", [])]
+
+
+# What makes each stop cause (control.controllers.STOP_CAUSES) happen, for the user who asked for the drive.
+_STOP_HINT = {
+    "barrier_at_clamp": "The command sat at control.actuator.u_max_rpm: a speed beyond what it allows "
+                        "(control.pure_pursuit.desired_speed_mps) does this",
+    "barrier": "The side's speed error outgrew the funnel below the clamp: a speed or a turn the drive cannot "
+               "follow does this (in a turn the outer side runs faster than control.pure_pursuit.desired_speed_mps)",
+}
 
 
 def _size_text(path: Path) -> str:

@@ -40,3 +40,34 @@ def test_a_safety_stop_in_the_simulated_drive_is_said(tmp_path: Path, capsys: py
     _, calm = _simulate(tmp_path, 1.0, capsys)
     assert not calm  # the negative control: 1 m/s is within the clamp
     assert "drive" not in json.loads((tmp_path / "line_1.errors.json").read_text())
+
+
+def _loop_stops(speed: float) -> list[dict[str, object]]:
+    """The claims matrix's open loop (20 x 12 m, 4 m corners) driven by RAID at `speed` (m/s), field seed 3."""
+    from mrnc_eval.config import Config, replace_paths
+    from mrnc_eval.control.closed_loop import run_closed_loop
+    from mrnc_eval.control.scenario import scripted_scenario
+
+    cfg = replace_paths(Config(), {"control.pure_pursuit.desired_speed_mps": speed,
+                                   "control.pure_pursuit.max_speed_mps": speed,
+                                   "control.pure_pursuit.speed_cap": False, "control.actuator.u_max_rpm": 4000.0})
+    trace = run_closed_loop(scripted_scenario("loop", cfg.control, size_m=20.0), cfg.control, cfg.robot, "raid",
+                            duration_s=40.0, seed=3)
+    return [e for e in trace.events if e.get("kind") == "safety_stop"]
+
+
+def test_a_turn_the_drive_cannot_follow_is_named_as_such(tmp_path: Path) -> None:
+    """Tenth session: the claims matrix's loop at 1 m/s stopped in its first corners below the clamp
+    (every loop cell was a 13 m drive and a stand); the hint named the clamp, which was not the cause.
+    The benchmark's 0.7 m/s drives the loop without a stop (the control for the turn's cause)."""
+    from mrnc_eval.commands.simulate import drive_warnings
+
+    stops = _loop_stops(1.0)
+    assert stops
+    assert {s["cause"] for s in stops} == {"barrier"}
+    assert min(float(s["t_s"]) for s in stops) < 20.0  # in the first corners, not at the path's end
+    (tmp_path / "loop.errors.json").write_text(json.dumps({"drive": {"safety_stops": stops}}))
+    warning = drive_warnings(tmp_path / "loop.mcap")[0]
+    assert "a speed or a turn the drive cannot follow" in warning
+    assert "u_max_rpm" not in warning  # the clamp was not reached
+    assert _loop_stops(0.7) == []
