@@ -553,6 +553,10 @@ class WheelCalibrationConfig:
                                          "reads it from the GNSS fixes against the calibrated wheel track after the "
                                          "run (slam/wheel_gnss_scale.py) once the fixes spread this far (RMS from "
                                          "their centroid); 0 = never", "m", ge=0.0, le=10_000.0)
+    gnss_scale_correlation_s: float = param(10.0, "... its sigma is at least what the fixes' own sigmas give with one "
+                                            "independent error per this much time (RTK float and multipath errors "
+                                            "stay correlated for seconds to minutes; 0 = every fix independent)",
+                                            "s", ge=0.0, le=3600.0)
     scale_gate_chi2: float = param(9.0, "a distance step whose wheel-minus-LiDAR residual against the fit of the "
                                    "others exceeds this normalised square (1 dof) is slip (soft or wet ground: the "
                                    "wheels turn, the ground does not move as far), not scale: left out of the fit "

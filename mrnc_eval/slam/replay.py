@@ -356,7 +356,8 @@ class _Replay:
         if cal is None or self.aligner is None or span <= 0 or (cal.scale_fit is not None and cal.scale_fit.steps):
             return None
         return gnss_scale(cal.track(), self.aligner.gnss, max_var_m2=self.cfg.gps.gps_cov_threshold_m2,
-                          min_span_m=span, track=track_filter(self.cfg.gps))
+                          min_span_m=span, correlation_s=self.cfg.wheel_odom.calibration.gnss_scale_correlation_s,
+                          track=track_filter(self.cfg.gps))
 
     def match_pivot(self) -> np.ndarray | None:
         """The base origin in the sensor frame when the wheels placed the base (wheel_guess): scan-to-map
