@@ -17,6 +17,7 @@ from mrnc_eval.text import printable
 
 if TYPE_CHECKING:
     from mrnc_eval.io.reader import LogReader, TopicInfo
+    from mrnc_eval.slam.config import ImuConfig
 
 log = logging.getLogger(__name__)
 
@@ -117,6 +118,19 @@ def _sensor_findings(lg: LogReader, imu: ImuSeries | None, summary: InfoSummary,
     return imu if usable else None
 
 
+def _standing_start_text(imu: ImuSeries, icfg: ImuConfig) -> str:
+    """What a standing start too short for the noise gives (slam/imu_noise.py standing_start_bias), or ''."""
+    from mrnc_eval.slam.imu_noise import standing_start_bias
+
+    if icfg.standing_start_min_s <= 0:
+        return ""
+    start = standing_start_bias(imu.stamps, imu.gyro, min_s=icfg.standing_start_min_s,
+                                max_rate=icfg.standing_start_max_rate_rad_s)
+    return "" if start is None else (
+        f"; the {start.duration_s:.1f} s standing start gives the gyro bias "
+        f"[{', '.join(f'{v:+.4f}' for v in start.gyro_bias)}] rad/s (+-{start.sigma:.1g}), graph #2's start")
+
+
 def _imu_noise_findings(imu: ImuSeries | None, summary: InfoSummary, cfg: Config) -> None:
     """The IMU's noise densities and biases from the log's stationary stretches (slam/imu_noise.py),
     beside the preintegration's configured noise. `imu`: the series the validation read (None
@@ -132,7 +146,7 @@ def _imu_noise_findings(imu: ImuSeries | None, summary: InfoSummary, cfg: Config
         summary.findings.append(Finding(
             level="warning", topic=topic, message=f"no stationary stretch of {icfg.stationary_min_s:g} s or more: the "
             "IMU's noise and biases cannot be measured; the SLAM uses the configured noise (slam.imu.acc_noise, "
-            "gyro_noise)"))
+            f"gyro_noise){_standing_start_text(imu, icfg)}"))
         return
     summary.imu_noise = est.summary()
     b = ", ".join(f"{v:+.4f}" for v in est.gyro_bias)

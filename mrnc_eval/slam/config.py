@@ -87,6 +87,15 @@ class ImuConfig:
         "and end (constant acceleration over the sweep); last = the velocity of the last mapped sweep, constant")
     stationary_min_s: float = param(1.5, "shortest stationary stretch the IMU noise is measured from", "s",
                                     gt=0.0, le=3600.0)
+    standing_start_min_s: float = param(0.3, "without such a stretch, graph #2's initial gyro bias is the gyro's mean "
+                                        "over a standing start at least this long (slam/imu_noise.py "
+                                        "standing_start_bias: without wheels on bare ground the heading is the "
+                                        "gyro's, and the field IMU's turn-on bias turns it by a degree a second); "
+                                        "0 = off", "s", ge=0.0, le=3600.0)
+    standing_start_max_rate_rad_s: float = param(0.03, "... not when that mean exceeds this on any axis (a log begun "
+                                                 "mid-turn; 1.7 deg/s: consumer MEMS turn-on offsets are 0.5-1 "
+                                                 "deg/s, the ICM-20948's board-level bound +-5)", "rad/s", gt=0.0,
+                                                 le=10.0)
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "
                                         "more than this; smaller corrections are absorbed by its pose prior (a "
                                         "restart in a degenerate stretch costs more than it gains)", "m")

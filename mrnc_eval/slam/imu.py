@@ -16,7 +16,7 @@ from mrnc_eval.data import ImuSeries
 from mrnc_eval.geometry import rotation
 from mrnc_eval.slam import _prep_kernels
 from mrnc_eval.slam.config import ImuConfig
-from mrnc_eval.slam.imu_noise import ImuNoiseEstimate
+from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, StandingStartBias
 
 MIN_ACC_DENSITY = 1e-4  # m/s^2/sqrt(Hz): below the best tactical-grade parts
 MIN_GYRO_DENSITY = 1e-6  # rad/s/sqrt(Hz)
@@ -171,9 +171,10 @@ class ImuOdometry:
     (accelerations are rotated into LiDAR axes), so body = lidar_pose * [I, t_imu]."""
 
     def __init__(self, track: ImuTrack, cfg: ImuConfig, imu_in_lidar: np.ndarray,
-                 measured: ImuNoiseEstimate | None = None) -> None:
+                 measured: ImuNoiseEstimate | None = None, start_bias: StandingStartBias | None = None) -> None:
         """`measured`: the IMU's noise and biases from the log's stationary stretches (IMU axes),
-        used when cfg.noise_from_log."""
+        used when cfg.noise_from_log; without them, `start_bias`: the gyro bias of a shorter standing
+        start (IMU axes), held by its own sigma."""
         import gtsam
 
         self.g = gtsam
@@ -190,6 +191,9 @@ class ImuOdometry:
             gyro_noise = max(measured.gyro_noise_density, MIN_GYRO_DENSITY)
             gyro_bias = imu_in_lidar[:3, :3] @ measured.gyro_bias  # LiDAR axes, as the track
             self.first_bias_sigmas = np.r_[[cfg.acc_turn_on_sigma] * 3, [max(measured.gyro_bias_sigma, 1e-5)] * 3]
+        elif cfg.noise_from_log and start_bias is not None:
+            gyro_bias = imu_in_lidar[:3, :3] @ start_bias.gyro_bias
+            self.first_bias_sigmas[3:] = max(start_bias.sigma, 1e-5)
         if min(acc_noise, gyro_noise, cfg.integration_noise) <= 0:
             raise ValueError("IMU noise sigmas must be > 0 (zero noise gives NaN, LIO-SAM#427)")
         p.setAccelerometerCovariance(np.eye(3) * acc_noise ** 2)

@@ -140,3 +140,47 @@ def estimate_imu_noise(stamps: np.ndarray, acc: np.ndarray, gyro: np.ndarray, *,
                             # the tau-average spread, over the number of tau-windows
                             gyro_bias_sigma=float(gyro_d / np.sqrt(total / rate)),
                             acc_bias_along_gravity=float(np.linalg.norm(f) - gravity), tau_s=tau_s)
+
+
+@dataclass(frozen=True, kw_only=True)
+class StandingStartBias:
+    """The gyro's bias from a standing start too short for the noise (IMU axes)."""
+
+    gyro_bias: np.ndarray  # (3,) rad/s
+    sigma: float  # standard error of each component, rad/s
+    duration_s: float  # the standing stretch at the log's start, s
+
+    def summary(self) -> dict[str, object]:
+        return {"gyro_bias": [float(v) for v in self.gyro_bias], "gyro_bias_sigma": self.sigma,
+                "duration_s": round(self.duration_s, 3)}
+
+
+def standing_start_bias(stamps: np.ndarray, gyro: np.ndarray, *, min_s: float, max_rate: float,
+                        block_s: float = 0.1, max_gyro_step: float = 0.005) -> StandingStartBias | None:
+    """The mean gyro (rad/s) over the log's first stretch of `block_s` blocks whose means stay within
+    max_gyro_step per axis of the mean of the blocks before them: the machine has not started to turn
+    or pitch yet (engine vibration mostly averages out within a block: its remainder, 0.002-0.003
+    rad/s with 9-11 samples a block, sets the step; the specific force does not tell: a heavy machine
+    moves off with a slow ramp of acceleration from the first sample, and the vibration's remainder
+    in a block is 0.05 m/s^2). Without wheels on bare ground the heading is the gyro's, and it drifts
+    with the whole turn-on bias (field IMU: 0.01 rad/s, 1 deg/s of the open loop's heading) when the
+    start is shorter than the noise estimate's stationary_min_s. None when that stretch is shorter
+    than min_s (s) or its rate exceeds max_rate (rad/s, any axis: a log begun mid-turn). The sigma is
+    the spread of the block means over the square root of their number."""
+    if stamps.size < 3:
+        return None
+    block = np.floor((stamps - stamps[0]) / block_s).astype(np.int64)
+    n = int(block[-1]) + 1
+    count = np.bincount(block, minlength=n).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        mg = np.column_stack([np.bincount(block, gyro[:, a], n) for a in range(3)]) / count[:, None]
+    k = 1  # the first block that turned: its mean off the mean of the blocks before it
+    while k < n and count[k] > 0 and np.abs(mg[k] - mg[:k].mean(axis=0)).max() < max_gyro_step:
+        k += 1
+    if k * block_s < min_s or k < 2:
+        return None
+    bias = gyro[block < k].mean(axis=0)
+    if float(np.abs(bias).max()) > max_rate:
+        return None
+    sigma = float(np.sqrt(np.mean(mg[:k].var(axis=0, ddof=1)) / k))
+    return StandingStartBias(gyro_bias=np.asarray(bias, np.float64), sigma=sigma, duration_s=k * block_s)

@@ -32,7 +32,7 @@ from mrnc_eval.slam.imu import (
     initial_attitude,
     lidar_to_imu,
 )
-from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, estimate_imu_noise
+from mrnc_eval.slam.imu_noise import ImuNoiseEstimate, StandingStartBias, estimate_imu_noise, standing_start_bias
 from mrnc_eval.slam.map_quality import MapQuality, map_quality
 from mrnc_eval.slam.mapping_interval import MappingInterval
 from mrnc_eval.slam.nearest import KdTree
@@ -175,6 +175,7 @@ class _Replay:
     base_to_sensor: np.ndarray = field(default_factory=lambda: np.eye(4))
     gyro_bias: np.ndarray | None = None  # subtracted from the gyro in the track (slam.gyro_bias_init_s), rad/s
     imu_noise: ImuNoiseEstimate | None = None  # from the log's stationary stretches, IMU axes
+    imu_start_bias: StandingStartBias | None = None  # without those: a shorter standing start's gyro bias
     offset: _OffsetRefinement = field(default_factory=_OffsetRefinement)
     offset_cpu_ms: float = 0.0  # CPU time of the offset's re-match after the run, ms
     offset_sweeps: SweepStore = field(default_factory=lambda: SweepStore(max_sweeps=0))  # set in start()
@@ -193,12 +194,15 @@ class _Replay:
         extr = lidar_to_imu(cfg.imu, sensor_to_imu)
         if imu is not None and cfg.imu.time_offset_s != 0.0:  # a known IMU clock lag, before anything else
             imu = replace(imu, stamps=imu.stamps - cfg.imu.time_offset_s)
-        noise = None
+        noise, start_bias = None, None
         if imu is not None and imu.stamps.size >= 3:
             clean = clean_imu(imu)
             noise = estimate_imu_noise(clean.stamps, clean.acc, clean.gyro, gravity=cfg.imu.gravity,
                                        min_s=cfg.imu.stationary_min_s)
-        track, odom, imu, bias = _imu_setup(imu, extr, cfg, warnings, noise)
+            if noise is None and cfg.imu.standing_start_min_s > 0:
+                start_bias = standing_start_bias(clean.stamps, clean.gyro, min_s=cfg.imu.standing_start_min_s,
+                                                 max_rate=cfg.imu.standing_start_max_rate_rad_s)
+        track, odom, imu, bias = _imu_setup(imu, extr, cfg, warnings, noise, start_bias)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0
         aligner = GnssAligner(gnss, cfg.gps, antenna_in_sensor) if use_gnss and gnss is not None else None
         if aligner is not None and cfg.gps.use_elevation and cfg.gps.gate == "residual":
@@ -209,6 +213,7 @@ class _Replay:
         graph = KeyframeGraph(cfg=cfg.graph, anchored=anchored)
         return cls(cfg=cfg, extr=extr, imu=imu, track=track, odom=odom, graph=graph, aligner=aligner,
                    timing={s: [] for s in STAGES}, warnings=warnings, gyro_bias=bias, imu_noise=noise,
+                   imu_start_bias=start_bias,
                    offset_sweeps=SweepStore(max_sweeps=cfg.imu.time_offset_rematch_max_sweeps,
                                              max_points=cfg.imu.time_offset_rematch_max_points))
 
@@ -662,6 +667,8 @@ class _Replay:
         if self.track is None:
             return None
         out: dict[str, Any] = {"stationary": None if self.imu_noise is None else self.imu_noise.summary()}
+        if self.imu_start_bias is not None:
+            out["standing_start"] = self.imu_start_bias.summary()
         if self.odom is not None:
             out.update(used_from_log=bool(self.cfg.imu.noise_from_log and self.imu_noise is not None),
                        acc_noise_used=self.odom.noise_used[0], gyro_noise_used=self.odom.noise_used[1],
@@ -693,7 +700,7 @@ class _Clock:
 
 
 def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warnings: list[str],
-               noise: ImuNoiseEstimate | None = None
+               noise: ImuNoiseEstimate | None = None, start_bias: StandingStartBias | None = None
                ) -> tuple[ImuTrack | None, ImuOdometry | None, ImuSeries | None, np.ndarray | None]:
     if imu is None or imu.stamps.size < 3:
         warnings.append("no IMU: no deskew rotation, no attitude initialisation, constant-velocity guess only")
@@ -703,7 +710,7 @@ def _imu_setup(imu: ImuSeries | None, extr: np.ndarray, cfg: SlamConfig, warning
     if cfg.gyro_bias_init_s > 0:
         bias = imu.gyro[imu.stamps <= imu.stamps[0] + cfg.gyro_bias_init_s].mean(axis=0)
     track = imu_track(imu, extr[:3, :3], bias, cfg.imu.sample_hold)
-    odom = ImuOdometry(track, cfg.imu, extr, noise) if cfg.imu.use_preintegration_graph else None
+    odom = ImuOdometry(track, cfg.imu, extr, noise, start_bias) if cfg.imu.use_preintegration_graph else None
     return track, odom, imu, bias
 
 

@@ -1,6 +1,7 @@
 """The claims matrix's open line and loop (benchmarks/wheel_gnss_matrix.py): field profile, OS0-32 x 512,
-40 s, a 40 m line (a 20 m loop) at 1 m/s, low-bandwidth packets, float GNSS; the slow tests simulate
-them with their own wheels and seed."""
+40 s, a 40 m line at 1 m/s (the 20 m loop at 0.7 m/s: at 1 m/s RAID's safety constraint stops the
+machine in the loop's first corners), low-bandwidth packets, float GNSS; the slow tests simulate them
+with their own wheels and seed."""
 
 from __future__ import annotations
 
@@ -12,6 +13,7 @@ DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
          "control.pure_pursuit.max_speed_mps": 1.0, "control.pure_pursuit.speed_cap": False,
          "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8",
          "sim.gnss.mode": "float"}
+LOOP_SPEED = {"control.pure_pursuit.desired_speed_mps": 0.7, "control.pure_pursuit.max_speed_mps": 0.7}
 COMBINED_WHEELS = {"sim.wheels.scale_error": 0.02, "sim.wheels.lr_mismatch": 0.02, "sim.wheels.track_factor": 1.6}
 
 
@@ -26,9 +28,9 @@ def simulate_open_line(path: Path, seed: int, wheels: dict[str, object] | None =
 
 
 def simulate_open_loop(path: Path, seed: int, sets: dict[str, object] | None = None) -> Path:
-    """The open loop (20 m) at `path`; `sets`: config overrides (sim.wheels.*, sim.field.clock.*)."""
+    """The open loop (20 m, 0.7 m/s) at `path`; `sets`: config overrides (sim.wheels.*, sim.field.clock.*)."""
     from mrnc_eval.recording.recorder import SimRequest, simulate_log
 
-    return simulate_log(path, replace_paths(Config(), {**DRIVE, "sim.path_size_m": 20.0, **(sets or {})}),
+    return simulate_log(path, replace_paths(Config(), {**DRIVE, **LOOP_SPEED, "sim.path_size_m": 20.0, **(sets or {})}),
                         SimRequest(scene="open_field", path="loop", duration_s=40.0, lidar="os0-32", columns=512,
                                    seed=seed, profile="field"))
