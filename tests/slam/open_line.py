@@ -14,6 +14,11 @@ DRIVE = {"sim.path_size_m": 40.0, "control.pure_pursuit.desired_speed_mps": 1.0,
          "control.actuator.u_max_rpm": 4000.0, "sim.lidar.packet_profile": "RNG15_RFL8_NIR8",
          "sim.gnss.mode": "float"}
 LOOP_SPEED = {"control.pure_pursuit.desired_speed_mps": 0.7, "control.pure_pursuit.max_speed_mps": 0.7}
+# The loop asked for at 1 m/s, as the claims matrix had it until the tenth session: RAID's safety constraint
+# stops the machine in the first corners after 13 m and it stands for the rest of the log. Two slow tests keep
+# it on purpose: the moving-start rule needs the gyro's standing spread from a stationary stretch in the log,
+# and a 100 ms wheel lag costs APE there (on the 0.7 m/s loop, seed 1, it does not; docs/simulation.md).
+STOPPING_LOOP = {"control.pure_pursuit.desired_speed_mps": 1.0, "control.pure_pursuit.max_speed_mps": 1.0}
 COMBINED_WHEELS = {"sim.wheels.scale_error": 0.02, "sim.wheels.lr_mismatch": 0.02, "sim.wheels.track_factor": 1.6}
 
 
