@@ -174,7 +174,9 @@ class ImuOdometry:
                  measured: ImuNoiseEstimate | None = None, start_bias: StandingStartBias | None = None) -> None:
         """`measured`: the IMU's noise and biases from the log's stationary stretches (IMU axes),
         used when cfg.noise_from_log; without them, `start_bias`: the gyro bias of a shorter standing
-        start (IMU axes), held by its own sigma."""
+        start (IMU axes) as the start value, held no tighter than bias_prior_sigmas (3-8 block means
+        cannot say how well they know it; held by their own 0.0003 rad/s the IMU-LiDAR offset estimates
+        moved further, docs/simulation.md)."""
         import gtsam
 
         self.g = gtsam
@@ -193,7 +195,7 @@ class ImuOdometry:
             self.first_bias_sigmas = np.r_[[cfg.acc_turn_on_sigma] * 3, [max(measured.gyro_bias_sigma, 1e-5)] * 3]
         elif cfg.noise_from_log and start_bias is not None:
             gyro_bias = imu_in_lidar[:3, :3] @ start_bias.gyro_bias
-            self.first_bias_sigmas[3:] = max(start_bias.sigma, 1e-5)
+            self.first_bias_sigmas[3:] = max(start_bias.sigma, cfg.bias_prior_sigmas[1])
         if min(acc_noise, gyro_noise, cfg.integration_noise) <= 0:
             raise ValueError("IMU noise sigmas must be > 0 (zero noise gives NaN, LIO-SAM#427)")
         p.setAccelerometerCovariance(np.eye(3) * acc_noise ** 2)
