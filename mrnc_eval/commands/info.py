@@ -124,7 +124,7 @@ def _standing_start_text(imu: ImuSeries, icfg: ImuConfig) -> str:
 
     if icfg.standing_start_min_s <= 0:
         return ""
-    start = standing_start_bias(imu.stamps, imu.gyro, min_s=icfg.standing_start_min_s,
+    start = standing_start_bias(imu.stamps, imu.acc, imu.gyro, min_s=icfg.standing_start_min_s,
                                 max_rate=icfg.standing_start_max_rate_rad_s)
     return "" if start is None else (
         f"; the {start.duration_s:.1f} s standing start gives the gyro bias "

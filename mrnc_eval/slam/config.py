@@ -92,8 +92,8 @@ class ImuConfig:
                                         "standing_start_bias: without wheels on bare ground the heading is the "
                                         "gyro's, and the field IMU's turn-on bias turns it by a degree a second); "
                                         "0 = off", "s", ge=0.0, le=3600.0)
-    standing_start_max_rate_rad_s: float = param(0.03, "... not when that mean exceeds this on any axis (a log begun "
-                                                 "mid-turn; 1.7 deg/s: consumer MEMS turn-on offsets are 0.5-1 "
+    standing_start_max_rate_rad_s: float = param(0.03, "... not when that mean about the vertical exceeds this (a log "
+                                                 "begun mid-turn; 1.7 deg/s: consumer MEMS turn-on offsets are 0.5-1 "
                                                  "deg/s, the ICM-20948's board-level bound +-5)", "rad/s", gt=0.0,
                                                  le=10.0)
     restart_after_loop_m: float = param(0.1, "restart graph #2 after a loop closure that moved the current keyframe "

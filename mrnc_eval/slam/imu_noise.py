@@ -155,7 +155,7 @@ class StandingStartBias:
                 "duration_s": round(self.duration_s, 3)}
 
 
-def standing_start_bias(stamps: np.ndarray, gyro: np.ndarray, *, min_s: float, max_rate: float,
+def standing_start_bias(stamps: np.ndarray, acc: np.ndarray, gyro: np.ndarray, *, min_s: float, max_rate: float,
                         block_s: float = 0.1, max_gyro_step: float = 0.005) -> StandingStartBias | None:
     """The mean gyro (rad/s) over the log's first stretch of `block_s` blocks whose means stay within
     max_gyro_step per axis of the mean of the blocks before them: the machine has not started to turn
@@ -165,8 +165,10 @@ def standing_start_bias(stamps: np.ndarray, gyro: np.ndarray, *, min_s: float, m
     in a block is 0.05 m/s^2). Without wheels on bare ground the heading is the gyro's, and it drifts
     with the whole turn-on bias (field IMU: 0.01 rad/s, 1 deg/s of the open loop's heading) when the
     start is shorter than the noise estimate's stationary_min_s. None when that stretch is shorter
-    than min_s (s) or its rate exceeds max_rate (rad/s, any axis: a log begun mid-turn). The sigma is
-    the spread of the block means over the square root of their number."""
+    than min_s (s) or its rate about the vertical (the mean specific force's axis, `acc` m/s^2) exceeds
+    max_rate (rad/s): a log begun mid-turn (a steady rate about a level axis is no turn: a stress IMU
+    with a 0.044 rad/s roll-axis offset and a 0.014 rad/s yaw-axis one was refused for its roll axis).
+    The sigma is the spread of the block means over the square root of their number."""
     if stamps.size < 3:
         return None
     block = np.floor((stamps - stamps[0]) / block_s).astype(np.int64)
@@ -180,7 +182,8 @@ def standing_start_bias(stamps: np.ndarray, gyro: np.ndarray, *, min_s: float, m
     if k * block_s < min_s or k < 2:
         return None
     bias = gyro[block < k].mean(axis=0)
-    if float(np.abs(bias).max()) > max_rate:
+    up = acc[block < k].mean(axis=0)
+    if abs(float(bias @ up)) > max_rate * float(np.linalg.norm(up)):
         return None
     sigma = float(np.sqrt(np.mean(mg[:k].var(axis=0, ddof=1)) / k))
     return StandingStartBias(gyro_bias=np.asarray(bias, np.float64), sigma=sigma, duration_s=k * block_s)

@@ -200,7 +200,8 @@ class _Replay:
             noise = estimate_imu_noise(clean.stamps, clean.acc, clean.gyro, gravity=cfg.imu.gravity,
                                        min_s=cfg.imu.stationary_min_s)
             if noise is None and cfg.imu.standing_start_min_s > 0:
-                start_bias = standing_start_bias(clean.stamps, clean.gyro, min_s=cfg.imu.standing_start_min_s,
+                start_bias = standing_start_bias(clean.stamps, clean.acc, clean.gyro,
+                                                 min_s=cfg.imu.standing_start_min_s,
                                                  max_rate=cfg.imu.standing_start_max_rate_rad_s)
         track, odom, imu, bias = _imu_setup(imu, extr, cfg, warnings, noise, start_bias)
         use_gnss = gnss is not None and cfg.gps.enabled and gnss.stamps.size > 0

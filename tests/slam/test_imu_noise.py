@@ -193,12 +193,12 @@ def test_a_short_standing_start_gives_the_gyro_bias_and_a_turning_start_does_not
     from mrnc_eval.slam.imu_noise import standing_start_bias
 
     s, _, _ = _log(FieldImuConfig(), seed, still_s=0.4, move_s=4.0)
-    est = standing_start_bias(s.times, s.gyro, min_s=0.3, max_rate=0.05)
+    est = standing_start_bias(s.times, s.acc, s.gyro, min_s=0.3, max_rate=0.05)
     assert est is not None
     assert 0.3 <= est.duration_s <= 0.5
     assert np.abs(est.gyro_bias - s.gyro_turn_on_bias).max() < 4 * est.sigma + 1e-4
     assert np.abs(est.gyro_bias - s.gyro_turn_on_bias).max() < 0.1 * np.abs(s.gyro_turn_on_bias).max()
     turning, _, _ = _log(FieldImuConfig(), seed, still_s=0.0, move_s=4.0)
-    assert standing_start_bias(turning.times, turning.gyro, min_s=0.3, max_rate=0.05) is None
+    assert standing_start_bias(turning.times, turning.acc, turning.gyro, min_s=0.3, max_rate=0.05) is None
     first = s.times < s.times[0] + 2.0
     assert np.abs(s.gyro[first].mean(axis=0) - s.gyro_turn_on_bias).max() > 4 * est.sigma + 1e-4
