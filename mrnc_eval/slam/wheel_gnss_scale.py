@@ -59,7 +59,7 @@ def gnss_scale(wheel: WheelTrack, gnss: GnssSeries, *, max_var_m2: float, min_sp
     wheels = np.column_stack([np.interp(t, wheel.stamps, wheel.positions[:, i]) for i in range(2)])
     keep = _robust_inliers(wheels, fixes)
     span = float(np.sqrt(np.mean(np.sum((wheels[keep] - wheels[keep].mean(axis=0)) ** 2, axis=1))))
-    if keep.sum() < 20 or span < min_span_m:
+    if keep.sum() < 20 or span < min_span_m or span <= 0:
         return None
     k = _similarity_scale(wheels[keep], fixes[keep])
     blocks = np.array_split(np.flatnonzero(keep), JACKKNIFE_BLOCKS)
