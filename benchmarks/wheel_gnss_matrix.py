@@ -40,12 +40,13 @@ from pathlib import Path
 
 COMMON = ["--profile", "field", "--lidar", "os0-32", "--columns", "512", "--duration", "40",
           "--set", "sim.lidar.packet_profile=RNG15_RFL8_NIR8"]
+
+
 def drive(speed_mps: float) -> list[str]:
     """Pure pursuit at a constant speed (the paper's speed cap off, the actuator's clamp raised)."""
     return ["--set", f"control.pure_pursuit.desired_speed_mps={speed_mps}", "--set",
             f"control.pure_pursuit.max_speed_mps={speed_mps}", "--set", "control.pure_pursuit.speed_cap=false",
             "--set", "control.actuator.u_max_rpm=4000"]
-
 
 
 SCENES = {
