@@ -75,12 +75,13 @@ def main(out: str | Path, cfg: Config, *, scene: str, path: str, duration: float
     """The `simulate` verb: the format from OUT's name and --format (log_target), checked before
     any work; the log and its ground truth written atomically."""
     from mrnc_eval.commands.progress import progress_bar
-    from mrnc_eval.recording.recorder import SimRequest, simulate_log, validate
+    from mrnc_eval.recording.recorder import SimRequest, check_lidar_sets, simulate_log, validate
 
     target, log_format = log_target(out, fmt)
     req = SimRequest(scene=scene, path=path, duration_s=duration, lidar=lidar, columns=columns, rate_hz=rate,
                      fmt=log_format, seed=seed, profile=profile)
     validate(req)  # a UsageError naming every unsupported choice, before any work
+    check_lidar_sets(cfg, req)
     check_target(target, force=force)
     with progress_bar(total=1) as bar:  # the sweep count is known once the mission has been driven
         if bar is None:

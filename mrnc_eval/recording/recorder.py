@@ -104,6 +104,26 @@ def validate(req: SimRequest) -> None:
         raise UsageError("unsupported simulation request: " + "; ".join(problems))
 
 
+def check_lidar_sets(cfg: Config, req: SimRequest) -> None:
+    """--lidar, --columns and --rate set the sensor's beams, columns and rate, whatever
+    sim.lidar.* says: a --set of those keys that the options would silently override is refused
+    (`--set sim.lidar.rate_hz=20` with the default --rate wrote a 10 Hz log)."""
+    from mrnc_eval.sim.config import LidarSimConfig
+
+    default, given = LidarSimConfig(), cfg.sim.lidar
+    models = {beams: name for name, beams in LIDAR_MODELS.items()}
+    wanted = {"beams": ("--lidar", LIDAR_MODELS.get(req.lidar)), "columns": ("--columns", req.columns),
+              "rate_hz": ("--rate", req.rate_hz)}
+    problems = []
+    for key, (option, value) in wanted.items():
+        asked = getattr(given, key)
+        if value is not None and asked != getattr(default, key) and asked != value:
+            use = models.get(int(asked), f"(no OS0 has {asked:g} beams)") if key == "beams" else f"{asked:g}"
+            problems.append(f"sim.lidar.{key}={asked:g} is set by {option} ({value:g}): use {option} {use}")
+    if problems:
+        raise UsageError("; ".join(problems))
+
+
 def _driven_path(trace: ClosedLoopTrace) -> np.ndarray:
     """The driven xy (m) every ~0.1 m: what the scene must leave clear."""
     xy = np.c_[trace.x, trace.y]
