@@ -58,12 +58,8 @@ def stationary_mask(stamps: np.ndarray, acc: np.ndarray, gyro: np.ndarray, *, gr
     out = np.zeros(n, bool)
     if n < 3:
         return out
-    win = np.floor((stamps - stamps[0]) / window_s).astype(np.int64)
-    n_win = int(win[-1]) + 1
-    count = np.bincount(win, minlength=n_win).astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mg = np.column_stack([np.bincount(win, gyro[:, a], n_win) for a in range(3)]) / count[:, None]
-        ma = np.column_stack([np.bincount(win, acc[:, a], n_win) for a in range(3)]) / count[:, None]
+    win, count, (mg, ma) = _window_means(stamps, window_s, gyro, acc)
+    n_win = count.size
     full = count >= 0.8 * np.median(count)
     still = full & (np.abs(np.linalg.norm(ma, axis=1) - gravity) < max_gravity_error)
     step_ok = np.ones(n_win, bool)
@@ -86,6 +82,18 @@ def stationary_mask(stamps: np.ndarray, acc: np.ndarray, gyro: np.ndarray, *, gr
             keep[k:j + 1] = True
         k = j + 1
     return np.asarray(keep[win], bool)
+
+
+def _window_means(stamps: np.ndarray, width_s: float, *series: np.ndarray
+                  ) -> tuple[np.ndarray, np.ndarray, list[np.ndarray]]:
+    """Each sample's window (`width_s` wide from the first stamp), the samples per window, and each
+    (N, 3) series' mean per window (NaN where a window is empty)."""
+    win = np.floor((stamps - stamps[0]) / width_s).astype(np.int64)
+    n = int(win[-1]) + 1
+    count = np.bincount(win, minlength=n).astype(float)
+    with np.errstate(invalid="ignore", divide="ignore"):
+        means = [np.column_stack([np.bincount(win, x[:, a], n) for a in range(3)]) / count[:, None] for x in series]
+    return win, count, means
 
 
 def _runs(mask: np.ndarray) -> list[tuple[int, int]]:
@@ -171,11 +179,8 @@ def standing_start_bias(stamps: np.ndarray, acc: np.ndarray, gyro: np.ndarray, *
     The sigma is the spread of the block means over the square root of their number."""
     if stamps.size < 3:
         return None
-    block = np.floor((stamps - stamps[0]) / block_s).astype(np.int64)
-    n = int(block[-1]) + 1
-    count = np.bincount(block, minlength=n).astype(float)
-    with np.errstate(invalid="ignore", divide="ignore"):
-        mg = np.column_stack([np.bincount(block, gyro[:, a], n) for a in range(3)]) / count[:, None]
+    block, count, (mg,) = _window_means(stamps, block_s, gyro)
+    n = count.size
     k = 1  # the first block that turned: its mean off the mean of the blocks before it
     while k < n and count[k] > 0 and np.abs(mg[k] - mg[:k].mean(axis=0)).max() < max_gyro_step:
         k += 1
