@@ -17,7 +17,7 @@ import numpy as np
 import pytest
 
 from mrnc_eval.config import Config, replace_paths
-from tests.slam.open_line import COMBINED_WHEELS, simulate_open_line
+from tests.slam.open_line import COMBINED_WHEELS, STOPPING_LOOP, simulate_open_line, simulate_open_loop
 
 pytestmark = pytest.mark.slow
 
@@ -161,8 +161,6 @@ LOOP_LIMIT_M = 1.5
 
 @pytest.fixture(scope="module")
 def calibrated_loop_s4(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from tests.slam.open_line import simulate_open_loop
-
     return simulate_open_loop(tmp_path_factory.mktemp("loop") / "loop_calibrated_float_s4.mcap", seed=4)
 
 
@@ -179,8 +177,6 @@ START_BIAS_LIMIT_M = 1.3
 
 @pytest.fixture(scope="module")
 def calibrated_loop_s5(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from tests.slam.open_line import simulate_open_loop
-
     return simulate_open_loop(tmp_path_factory.mktemp("loop5") / "loop_calibrated_float_s5.mcap", seed=5)
 
 
@@ -248,8 +244,6 @@ MOVING_LIMIT_M = 1.6
 
 @pytest.fixture(scope="module")
 def calibrated_loop_s3(tmp_path_factory: pytest.TempPathFactory) -> Path:
-    from tests.slam.open_line import STOPPING_LOOP, simulate_open_loop
-
     return simulate_open_loop(tmp_path_factory.mktemp("moving") / "loop_calibrated_float_s3.mcap", seed=3,
                               sets=STOPPING_LOOP)
 
