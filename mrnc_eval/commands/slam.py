@@ -88,6 +88,21 @@ class LogInputs:
     mount_written: bool = True  # /tf_static has a base_link -> LiDAR mount (False: the LiDAR pose is the base)
     wheel: WheelTrack | None = None  # the wheel odometry lio reads (stamps corrected: commands/slam_wheels.py)
     wheel_clock: WheelClock | None = None  # the wheel stamps' offset against the gyro, before the run
+    motion_mount: MountCheck | None = None  # a first pass's motion check whose correction this run's mount carries
+
+    @property
+    def applied_rpy_deg(self) -> tuple[float, float, float]:
+        """The whole rotation applied to /tf_static's mount (deg, LiDAR axes): mount_rpy_deg, then the
+        correction of motion_mount (slam.mount_check.apply)."""
+        return with_motion_correction(self.mount_rpy_deg, self.motion_mount)
+
+
+def with_motion_correction(rpy: tuple[float, float, float], motion: MountCheck | None) -> tuple[float, float, float]:
+    """`rpy` (deg, the correction applied to /tf_static's mount before the run), then `motion`'s."""
+    if motion is None:
+        return rpy
+    a = _composed_rpy(rpy, motion.correction_rpy_deg)
+    return float(a[0]), float(a[1]), float(a[2])
 
 
 @dataclass(frozen=True, kw_only=True)
@@ -164,7 +179,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         if window is not None and window.active:
             result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
             result.warnings.append(window.describe())
-        out = _replay_offset_passes(lg, inputs, cfg, progress, window)
+        out, inputs = _replay_passes(lg, log_path, inputs, cfg, progress, window)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
         read_notes += container_notes(Path(log_path), lg.container)  # lost or unverifiable data
     if out.stamps.size < 2:
@@ -267,8 +282,9 @@ def with_method(cfg: Config, method: str | None) -> Config:
     return cfg
 
 
-def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
-    """IMU, GNSS, /tf_static and ground truth: the overview pass keeps them in memory."""
+def _read_inputs(lg: LogReader, log_path: Path, cfg: Config, *, motion: MountCheck | None = None) -> LogInputs:
+    """IMU, GNSS, /tf_static and ground truth: the overview pass keeps them in memory; `motion`: a
+    first pass's mount check, whose correction the mount takes after the user's or the ground's."""
     duration = lg.duration_s  # the overview pass first
     lidar_frame = cfg.slam.sensor.lidar_frame
     statics = lg.static_transforms()
@@ -280,13 +296,14 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     ground = ground_check(lg, corrected_mount(base_to_sensor, cfg.slam.sensor.mount_rpy_correction_deg), cfg) \
         if "base_link" in frames else None
     rpy = applied_mount_rpy(cfg, ground)
-    base_to_sensor = corrected_mount(base_to_sensor, rpy)
+    mount = with_motion_correction(rpy, motion)
+    base_to_sensor = corrected_mount(base_to_sensor, mount)
     imu, imu_note = _imu_in_si(lg, log_path, cfg) if lg.has_role("imu") else (None, "")
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
         sensor_to_imu = imu_in_corrected_sensor(lg.transform(lidar_frame, imu.frame_id), statics,
                                                 lidar_frame=lidar_frame, imu_frame=imu.frame_id,
-                                                rpy_deg=rpy, where=log_path)
+                                                rpy_deg=mount, where=log_path)
     gnss, gnss_note = _gnss_or_none(lg, cfg)
     has_antenna = "gnss" in frames and "base_link" in frames
     antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
@@ -297,7 +314,7 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
                      gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
                      antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
                      notes=tuple(n for n in (imu_note, gnss_note, wheel_note) if n), ground_mount=ground,
-                     mount_rpy_deg=rpy,
+                     mount_rpy_deg=rpy, motion_mount=motion,
                      mount_written={"base_link", lidar_frame} <= frames, wheel=wheel)
 
 
@@ -449,6 +466,46 @@ def _run_items(stream: Iterator[Sweep], cfg: SlamConfig, *, prepare: bool
         close = getattr(stream, "close", None)
         if close is not None:
             close()
+
+
+def _replay_passes(lg: LogReader, log_path: Path, inputs: LogInputs, cfg: Config, progress: bool,
+                   window: SweepWindow | None) -> tuple[SlamOutput, LogInputs]:
+    """The replay with its IMU offset passes, and once more with the LiDAR mount corrected when the
+    first pass's motion flags it (slam.mount_check.apply): the output and the inputs it ran on."""
+    out = _replay_offset_passes(lg, inputs, cfg, progress, window)
+    motion = _mount_to_apply(out, inputs, cfg)
+    if motion is None:
+        return out, inputs
+    inputs = _with_wheel_clock(_inputs_from(_read_inputs(lg, log_path, cfg, motion=motion), window, lg.start_s),
+                               cfg)
+    value = _rpy_text(inputs.applied_rpy_deg)
+    log.info("%s: LiDAR mount off by %s: pass with /tf_static's mount turned by %s deg", log_path,
+             "; ".join(motion.reasons), value)
+    out = _replay_offset_passes(lg, inputs, cfg, progress, window)
+    note = SlamEvent(t=float(out.stamps[0]) if out.stamps.size else 0.0, kind="mount",
+                     message=f"pass of the log with the LiDAR mount turned by {value} deg (slam.mount_check.apply: "
+                     f"the first pass's motion read {'; '.join(motion.reasons)})",
+                     data={"applied_rpy_deg": list(inputs.applied_rpy_deg)})
+    return dataclasses.replace(out, events=[note, *out.events]), inputs
+
+
+def _mount_to_apply(out: SlamOutput, inputs: LogInputs, cfg: Config) -> MountCheck | None:
+    """The motion check of a lio pass's trajectory when it flags the mount and slam.mount_check.apply
+    may act on it: no user correction set (the user's word stands) and a correction within the range
+    slam.sensor.mount_rpy_correction_deg takes; else None."""
+    from mrnc_eval.geometry import lie
+    from mrnc_eval.slam.mount_check import mount_check
+
+    mcfg = cfg.slam.mount_check
+    if (cfg.slam.method != "lio" or not (mcfg.enabled and mcfg.apply) or not inputs.mount_written
+            or any(cfg.slam.sensor.mount_rpy_correction_deg) or out.stamps.size < 2):
+        return None
+    est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, "first pass")
+    check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
+    total = with_motion_correction(inputs.mount_rpy_deg, check)
+    if check.verdict != "misaligned" or np.any(np.abs(total) > _correction_limit(cfg)):
+        return None
+    return check
 
 
 def _replay_offset_passes(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool,
@@ -958,12 +1015,17 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
     t0 = time.process_time()
     check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
     cpu_ms = (time.process_time() - t0) * 1e3
-    applied = inputs.mount_rpy_deg
+    applied = inputs.applied_rpy_deg
     total = _composed_rpy(applied, check.correction_rpy_deg)
     ground = result.extra.get("mount_check", {}).get("ground")
+    first = inputs.motion_mount
     result.extra["mount_check"] = {**check.as_dict(), "applied_rpy_deg": list(applied),
                                    "suggested_rpy_deg": [float(a) for a in total], "cpu_ms": cpu_ms,
-                                   **({"ground": ground} if ground is not None else {})}
+                                   **({"ground": ground} if ground is not None else {}),
+                                   **({"first_pass": first.as_dict()} if first is not None else {})}
+    if first is not None:  # /tf_static is off although this pass ran on the corrected mount: the user fixes it
+        _warn_mount(result, _mount_warning(first, np.asarray(applied), cfg, applied=inputs.mount_rpy_deg,
+                                           by=_applied_by(cfg, inputs.mount_rpy_deg, motion=False), repeated=True))
     if check.verdict == "insufficient":  # too little straight motion: no numbers to show
         return
     result.metrics += [Metric(name="mount_pitch_error_deg", value=check.pitch_deg, unit="deg", group="slam/health",
@@ -973,9 +1035,13 @@ def _add_mount_check(result: RunResult, est: Trajectory, inputs: LogInputs, cfg:
                               note=f"LiDAR mount yaw error from the motion +- {check.yaw_sigma_deg:.2f} deg "
                                    "(with wheel factors, their hold on the lateral motion hides it)")]
     if check.verdict == "misaligned":
-        text = _mount_warning(check, total, cfg, applied=applied)
-        result.warnings.append(text)
-        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": check.verdict}))
+        _warn_mount(result, _mount_warning(check, total, cfg, applied=applied,
+                                           by=_applied_by(cfg, inputs.mount_rpy_deg, motion=first is not None)))
+
+
+def _warn_mount(result: RunResult, text: str) -> None:
+    result.warnings.append(text)
+    result.events.append(Event(t_s=0.0, kind="health", message=text, data={"mount_verdict": "misaligned"}))
 
 
 def _add_ground_check(result: RunResult, inputs: LogInputs, cfg: Config) -> None:
@@ -1028,23 +1094,34 @@ def _correction_limit(cfg: Config) -> float:
     return float(param.metadata["bounds"]["le"])
 
 
+def _applied_by(cfg: Config, before: tuple[float, float, float], *, motion: bool) -> str:
+    """Who turned /tf_static's mount before the run: the user's correction or else the ground check
+    (by `before`, deg), and (`motion`) a first pass's motion check."""
+    who = ["slam.sensor.mount_rpy_correction_deg" if any(cfg.slam.sensor.mount_rpy_correction_deg)
+           else "the ground check"] if any(before) else []
+    return " and ".join(who + (["the first pass's motion (slam.mount_check.apply)"] if motion else []))
+
+
 def _mount_warning(check: MountCheck, total: np.ndarray, cfg: Config, *,
-                   applied: tuple[float, float, float] = (0.0, 0.0, 0.0)) -> str:
+                   applied: tuple[float, float, float] = (0.0, 0.0, 0.0), by: str = "the ground check",
+                   repeated: bool = False) -> str:
     """The misaligned mount check's warning, with the slam.sensor.mount_rpy_correction_deg that undoes it
     (`total`: the applied correction and the check's, deg) when the parameter's range admits it; the
-    mount named is the one the motion was read through (/tf_static's turned by `applied`, deg)."""
+    mount named is the one the motion was read through (/tf_static's turned by `applied`, deg, `by`
+    whom). `repeated`: `check` is a first pass's, and the run was repeated on the corrected mount."""
     limit = _correction_limit(cfg)
-    who = "slam.sensor.mount_rpy_correction_deg" if any(cfg.slam.sensor.mount_rpy_correction_deg) \
-        else "the ground check"
-    mount = (f"the LiDAR mount (/tf_static's turned by {_rpy_text(applied)} deg by {who} before the run)"
+    mount = (f"the LiDAR mount (/tf_static's turned by {_rpy_text(applied)} deg by {by} before the run)"
              if any(applied) else "the LiDAR mount in /tf_static")
     value = _rpy_text(total)
     fix = (f"correct /tf_static or set slam.sensor.mount_rpy_correction_deg={value}" if np.all(np.abs(total) <= limit)
            else f"correct /tf_static (by {value} deg, beyond what slam.sensor.mount_rpy_correction_deg takes: "
            f"+-{limit:g} deg)")
+    carried = ("the run was repeated on the mount corrected by that (slam.mount_check.apply): its base_link poses, "
+               "wheel and GNSS factors read the corrected mount" if repeated
+               else "base_link poses and the end drift carry it")
     return (f"{mount} looks off by {'; '.join(check.reasons)} (the machine's motion, "
             f"{check.distance_m:.0f} m of it, is off its base x axis by that much; roll is not observable): "
-            f"base_link poses and the end drift carry it; {fix}")
+            f"{carried}; {fix}")
 
 
 def _scale_note(h: dict[str, Any]) -> str:

@@ -459,6 +459,9 @@ class MountCheckConfig:
     direction in the estimated base frame shows how far /tf_static's mount is rotated."""
 
     enabled: bool = param(True, "estimate the mount's pitch and yaw error after the run (mount_check in metrics.json)")
+    apply: bool = param(True, "lio: when the check flags the mount and slam.sensor.mount_rpy_correction_deg is not "
+                        "set, run the log once more with the correction (the base_link poses, the wheel and GNSS "
+                        "factors read the corrected mount; twice the run time on such a log; the warning stays)")
     span_s: float = param(1.0, "each motion sample is the chord over this long around a pose", "s", gt=0.0, le=10.0)
     min_speed_mps: float = param(0.3, "samples slower than this are left out (standing, creeping)", "m/s",
                                  ge=0.0, le=10.0)
