@@ -110,13 +110,24 @@ def run_cell(log: Path, wheels: str, gnss: str, method: str, extra: list[str]) -
             row = {**row, **row.get("stats", {})}  # the metrics moved under "stats"
         except (json.JSONDecodeError, IndexError, KeyError, TypeError):
             return {"error": proc.stderr.strip().splitlines()[-1] if proc.stderr.strip() else "failed"}
-        health = {}
+        metrics = {}
         mfile = Path(row["run_dir"]) / "metrics.json"
         if mfile.exists():
-            health = json.loads(mfile.read_text()).get("wheel_health", {})
+            metrics = json.loads(mfile.read_text())
         return {"ape_online_m": row.get("ape_online_rmse_m"), "end_drift_online_m": row.get("end_drift_online_m"),
-                "ape_smoothed_m": row.get("ape_rmse_m"), "wheel_health": health,
+                "ape_smoothed_m": row.get("ape_rmse_m"), "wheel_health": metrics.get("wheel_health", {}),
+                "mount_check": mount_record(metrics.get("mount_check", {})),
                 "end_split": end_split(log.with_suffix(".gt.tum"), Path(row["run_dir"]) / "trajectory_online.tum")}
+
+
+def mount_record(check: dict) -> dict:
+    """The motion check of the LiDAR mount (the final pass's and, when slam.mount_check.apply ran the log
+    again, the first pass's): verdict, pitch and yaw with their sigmas (deg)."""
+    keys = ("verdict", "pitch_deg", "pitch_sigma_deg", "yaw_deg", "yaw_sigma_deg")
+    out = {k: check.get(k) for k in keys}
+    if "first_pass" in check:
+        out["first_pass"] = {k: check["first_pass"].get(k) for k in keys}
+    return out
 
 
 def end_split(gt_file: Path, online_file: Path) -> dict[str, float] | None:

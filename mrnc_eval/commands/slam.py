@@ -491,8 +491,9 @@ def _replay_passes(lg: LogReader, log_path: Path, inputs: LogInputs, cfg: Config
 
 def _mount_to_apply(out: SlamOutput, inputs: LogInputs, cfg: Config) -> MountCheck | None:
     """The motion check of a lio pass's trajectory when it flags the mount and slam.mount_check.apply
-    may act on it: no user correction set (the user's word stands) and a correction within the range
-    slam.sensor.mount_rpy_correction_deg takes; else None."""
+    may act on it: no user correction set (the user's word stands), the flagged angles known to
+    apply_max_sigma_deg and a correction within the range slam.sensor.mount_rpy_correction_deg takes;
+    else None."""
     from mrnc_eval.geometry import lie
     from mrnc_eval.slam.mount_check import mount_check
 
@@ -503,7 +504,8 @@ def _mount_to_apply(out: SlamOutput, inputs: LogInputs, cfg: Config) -> MountChe
     est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, "first pass")
     check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
     total = with_motion_correction(inputs.mount_rpy_deg, check)
-    if check.verdict != "misaligned" or np.any(np.abs(total) > _correction_limit(cfg)):
+    if (check.verdict != "misaligned" or check.flagged_sigma_deg() > mcfg.apply_max_sigma_deg
+            or np.any(np.abs(total) > _correction_limit(cfg))):
         return None
     return check
 

@@ -462,6 +462,10 @@ class MountCheckConfig:
     apply: bool = param(True, "lio: when the check flags the mount and slam.sensor.mount_rpy_correction_deg is not "
                         "set, run the log once more with the correction (the base_link poses, the wheel and GNSS "
                         "factors read the corrected mount; twice the run time on such a log; the warning stays)")
+    apply_max_sigma_deg: float = param(0.25, "... and only when every flagged angle is known to this standard error "
+                                       "or better (a heading that drifts, no wheels on open ground, reads the "
+                                       "motion 3-9 deg off at 2-3 deg sigmas; with wheels or structure the field "
+                                       "profile's 0.4-0.5 deg read at 0.07-0.12 deg)", "deg", gt=0.0, le=10.0)
     span_s: float = param(1.0, "each motion sample is the chord over this long around a pose", "s", gt=0.0, le=10.0)
     min_speed_mps: float = param(0.3, "samples slower than this are left out (standing, creeping)", "m/s",
                                  ge=0.0, le=10.0)

@@ -33,7 +33,13 @@ class MountCheck:
     # axes, deg): the correction that removes the error found; roll is not observable and stays 0
     correction_rpy_deg: tuple[float, float, float] = (0.0, 0.0, 0.0)
     verdict: str = "insufficient"  # "ok", "misaligned" or "insufficient" (too little straight motion)
+    flagged: tuple[str, ...] = ()  # the angles beyond the flag ("pitch", "yaw")
     reasons: list[str] = field(default_factory=list)
+
+    def flagged_sigma_deg(self) -> float:
+        """The largest standard error among the flagged angles, deg (0 when none is)."""
+        sigma = {"pitch": self.pitch_sigma_deg, "yaw": self.yaw_sigma_deg}
+        return max((sigma[a] for a in self.flagged), default=0.0)
 
     def as_dict(self) -> dict[str, object]:
         return {"pitch_deg": self.pitch_deg, "pitch_sigma_deg": self.pitch_sigma_deg, "yaw_deg": self.yaw_deg,
@@ -60,6 +66,7 @@ def mount_check(stamps: np.ndarray, base_poses: np.ndarray, mount_rotation: np.n
     flagged = [_off(a, s, cfg) for a, s in zip(angles, sigma, strict=True)]
     out.reasons = [f"{name} {a:+.2f} +- {s:.2f} deg" for name, a, s, f
                    in zip(("pitch", "yaw"), angles, sigma, flagged, strict=True) if f]
+    out.flagged = tuple(name for name, f in zip(("pitch", "yaw"), flagged, strict=True) if f)
     out.verdict = "misaligned" if out.reasons else "ok"
     # only the flagged angles enter the correction, turned from base into LiDAR axes
     w_base = np.radians([0.0, angles[0] * flagged[0], angles[1] * flagged[1]])
