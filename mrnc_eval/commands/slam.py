@@ -94,10 +94,10 @@ class LogInputs:
     def applied_rpy_deg(self) -> tuple[float, float, float]:
         """The whole rotation applied to /tf_static's mount (deg, LiDAR axes): mount_rpy_deg, then the
         correction of motion_mount (slam.mount_check.apply)."""
-        return with_motion_correction(self.mount_rpy_deg, self.motion_mount)
+        return _with_motion_correction(self.mount_rpy_deg, self.motion_mount)
 
 
-def with_motion_correction(rpy: tuple[float, float, float], motion: MountCheck | None) -> tuple[float, float, float]:
+def _with_motion_correction(rpy: tuple[float, float, float], motion: MountCheck | None) -> tuple[float, float, float]:
     """`rpy` (deg, the correction applied to /tf_static's mount before the run), then `motion`'s."""
     if motion is None:
         return rpy
@@ -296,7 +296,7 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config, *, motion: MountChe
     ground = ground_check(lg, corrected_mount(base_to_sensor, cfg.slam.sensor.mount_rpy_correction_deg), cfg) \
         if "base_link" in frames else None
     rpy = applied_mount_rpy(cfg, ground)
-    mount = with_motion_correction(rpy, motion)
+    mount = _with_motion_correction(rpy, motion)
     base_to_sensor = corrected_mount(base_to_sensor, mount)
     imu, imu_note = _imu_in_si(lg, log_path, cfg) if lg.has_role("imu") else (None, "")
     sensor_to_imu = np.eye(4)
@@ -503,7 +503,7 @@ def _mount_to_apply(out: SlamOutput, inputs: LogInputs, cfg: Config) -> MountChe
         return None
     est = _to_base(out.stamps, out.poses, inputs.base_to_sensor, "first pass")
     check = mount_check(est.stamps, lie.poses(est), inputs.base_to_sensor[:3, :3], mcfg)
-    total = with_motion_correction(inputs.mount_rpy_deg, check)
+    total = _with_motion_correction(inputs.mount_rpy_deg, check)
     if (check.verdict != "misaligned" or check.flagged_sigma_deg() > mcfg.apply_max_sigma_deg
             or np.any(np.abs(total) > _correction_limit(cfg))):
         return None
