@@ -222,10 +222,12 @@ class GraphConfig:
                                    "(surroundingkeyframeAddingDistThreshold)", "m")
     keyframe_angle_rad: float = param(0.2, "... or this rotation", "rad")
     prior_variances: tuple[float, float, float, float, float, float] = param(
-        (1e-2, 1e-2, 3.141592653589793 ** 2, 1e8, 1e8, 1e8), "first-pose prior variances [rot, trans] (LIO-SAM: "
-        "x, y and yaw free, so GNSS fixes place the whole chain)")
+        (1e-4, 1e-4, 3.141592653589793 ** 2, 1e8, 1e8, 1e8), "first-pose prior variances [rot, trans]: x, y and "
+        "yaw free, so GNSS fixes place the whole chain (LIO-SAM); roll and pitch 0.01 rad, the gravity the IMU's "
+        "initial attitude is read from (a consumer MEMS's 0.1 m/s^2 turn-on bias tilts it 0.01 rad; LIO-SAM's "
+        "1e-2 rad^2 let one GNSS factor on a 2.2 m mast tilt the whole chain 10 deg: docs/simulation.md)")
     anchored_prior_variances: tuple[float, float, float, float, float, float] = param(
-        (1e-2, 1e-2, 1e-6, 1e-6, 1e-6, 1e-6), "... when anchor_start applies: the first keyframe is the map's origin "
+        (1e-4, 1e-4, 1e-6, 1e-6, 1e-6, 1e-6), "... when anchor_start applies: the first keyframe is the map's origin "
         "and heading, and GNSS factors enter only once the drift since the start exceeds gps.pose_cov_threshold_m2")
     anchor_start: Literal["with_wheels", "always", "never"] = param(
         "with_wheels", "anchor the first keyframe (anchored_prior_variances) instead of LIO-SAM's free start; "
