@@ -167,7 +167,8 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
             raise InputError(log_path, "no LiDAR topic (sensor_msgs/PointCloud2): nothing to run SLAM on")
         log.info("%s: %s, %.1f s; roles %s", log_path, lg.container, lg.duration_s,
                  ", ".join(f"{r} {t}" for r, t in sorted(lg.roles.items())))
-        inputs = _with_wheel_clock(_inputs_from(_read_inputs(lg, log_path, cfg), window, lg.start_s), cfg)
+        read = _inputs_from(_read_inputs(lg, log_path, cfg), window, lg.start_s)
+        inputs = _with_wheel_clock(read, cfg)
         log.debug("inputs: IMU %s samples, GNSS %s fixes, ground truth %s poses",
                   None if inputs.imu is None else inputs.imu.stamps.size,
                   None if inputs.gnss is None else inputs.gnss.stamps.size,
@@ -179,7 +180,7 @@ def run_log(log_path: Path, cfg: Config, out_dir: Path, *, method: str | None = 
         if window is not None and window.active:
             result.extra["window"] = {"start_s": window.start_s, "end_s": window.end_s, "n_scans": window.n_scans}
             result.warnings.append(window.describe())
-        out, inputs = _replay_passes(lg, log_path, inputs, cfg, progress, window)
+        out, inputs = _replay_passes(lg, log_path, read, inputs, cfg, progress, window)
         read_notes = [*inputs.notes, *lg.health_notes()]  # samples dropped, stamps sorted, sweeps skipped
         read_notes += container_notes(Path(log_path), lg.container)  # lost or unverifiable data
     if out.stamps.size < 2:
@@ -282,9 +283,8 @@ def with_method(cfg: Config, method: str | None) -> Config:
     return cfg
 
 
-def _read_inputs(lg: LogReader, log_path: Path, cfg: Config, *, motion: MountCheck | None = None) -> LogInputs:
-    """IMU, GNSS, /tf_static and ground truth: the overview pass keeps them in memory; `motion`: a
-    first pass's mount check, whose correction the mount takes after the user's or the ground's."""
+def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
+    """IMU, GNSS, /tf_static and ground truth: the overview pass keeps them in memory."""
     duration = lg.duration_s  # the overview pass first
     lidar_frame = cfg.slam.sensor.lidar_frame
     statics = lg.static_transforms()
@@ -292,30 +292,53 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config, *, motion: MountChe
     if "base_link" in frames and lidar_frame not in frames:  # never fall back to identity silently
         raise InputError(log_path, f"slam.sensor.lidar_frame {lidar_frame!r} is not in the static transforms "
                          f"(frames: {', '.join(sorted(frames))}); set it to the clouds' frame", topic="/tf_static")
-    base_to_sensor = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
-    ground = ground_check(lg, corrected_mount(base_to_sensor, cfg.slam.sensor.mount_rpy_correction_deg), cfg) \
+    written = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
+    ground = ground_check(lg, corrected_mount(written, cfg.slam.sensor.mount_rpy_correction_deg), cfg) \
         if "base_link" in frames else None
     rpy = applied_mount_rpy(cfg, ground)
-    mount = _with_motion_correction(rpy, motion)
-    base_to_sensor = corrected_mount(base_to_sensor, mount)
     imu, imu_note = _imu_in_si(lg, log_path, cfg) if lg.has_role("imu") else (None, "")
+    base_to_sensor, sensor_to_imu, antenna_in_sensor = _mount_frames(lg, log_path, cfg, imu, rpy)
+    gnss, gnss_note = _gnss_or_none(lg, cfg)
+    lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
+    wheel, wheel_note = read_wheel_track(lg, cfg.slam)
+    return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
+                     gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=_antenna(lg),
+                     antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
+                     notes=tuple(n for n in (imu_note, gnss_note, wheel_note) if n), ground_mount=ground,
+                     mount_rpy_deg=rpy, mount_written={"base_link", lidar_frame} <= frames, wheel=wheel)
+
+
+def _antenna(lg: LogReader) -> np.ndarray:
+    """The GNSS antenna in base_link (/tf_static), m; the origin without one."""
+    statics = lg.static_transforms()
+    frames = {c for _, c in statics} | {p for p, _ in statics}
+    return lg.transform("base_link", "gnss")[:3, 3] if {"gnss", "base_link"} <= frames else np.zeros(3)
+
+
+def _mount_frames(lg: LogReader, log_path: Path, cfg: Config, imu: ImuSeries | None,
+                  rpy: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+    """/tf_static's base_link -> LiDAR mount turned by `rpy` (deg, LiDAR axes), the IMU's pose in that
+    LiDAR frame (4x4, identity without a frame for it) and the GNSS antenna in it (m)."""
+    lidar_frame = cfg.slam.sensor.lidar_frame
+    statics = lg.static_transforms()
+    frames = {c for _, c in statics} | {p for p, _ in statics}
+    written = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
+    base_to_sensor = corrected_mount(written, rpy)
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
         sensor_to_imu = imu_in_corrected_sensor(lg.transform(lidar_frame, imu.frame_id), statics,
                                                 lidar_frame=lidar_frame, imu_frame=imu.frame_id,
-                                                rpy_deg=mount, where=log_path)
-    gnss, gnss_note = _gnss_or_none(lg, cfg)
-    has_antenna = "gnss" in frames and "base_link" in frames
-    antenna = lg.transform("base_link", "gnss")[:3, 3] if has_antenna else np.zeros(3)
-    antenna_in_sensor = (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
-    lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
-    wheel, wheel_note = read_wheel_track(lg, cfg.slam)
-    return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
-                     gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
-                     antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
-                     notes=tuple(n for n in (imu_note, gnss_note, wheel_note) if n), ground_mount=ground,
-                     mount_rpy_deg=rpy, motion_mount=motion,
-                     mount_written={"base_link", lidar_frame} <= frames, wheel=wheel)
+                                                rpy_deg=rpy, where=log_path)
+    return base_to_sensor, sensor_to_imu, (np.linalg.inv(base_to_sensor) @ np.r_[_antenna(lg), 1.0])[:3]
+
+
+def _remounted(inputs: LogInputs, lg: LogReader, log_path: Path, cfg: Config, motion: MountCheck) -> LogInputs:
+    """`inputs` (as read, before the wheel clock) on the mount turned further by a first pass's motion
+    check: what depends on the mount anew, the rest as read."""
+    base_to_sensor, sensor_to_imu, antenna_in_sensor = _mount_frames(
+        lg, log_path, cfg, inputs.imu, _with_motion_correction(inputs.mount_rpy_deg, motion))
+    return dataclasses.replace(inputs, base_to_sensor=base_to_sensor, sensor_to_imu=sensor_to_imu,
+                               antenna_in_sensor=antenna_in_sensor, motion_mount=motion)
 
 
 def _with_wheel_clock(inputs: LogInputs, cfg: Config) -> LogInputs:
@@ -468,16 +491,16 @@ def _run_items(stream: Iterator[Sweep], cfg: SlamConfig, *, prepare: bool
             close()
 
 
-def _replay_passes(lg: LogReader, log_path: Path, inputs: LogInputs, cfg: Config, progress: bool,
-                   window: SweepWindow | None) -> tuple[SlamOutput, LogInputs]:
+def _replay_passes(lg: LogReader, log_path: Path, read: LogInputs, inputs: LogInputs, cfg: Config,
+                   progress: bool, window: SweepWindow | None) -> tuple[SlamOutput, LogInputs]:
     """The replay with its IMU offset passes, and once more with the LiDAR mount corrected when the
-    first pass's motion flags it (slam.mount_check.apply): the output and the inputs it ran on."""
+    first pass's motion flags it (slam.mount_check.apply): the output and the inputs it ran on.
+    `read`: the inputs as read (before the wheel clock), `inputs`: as the first pass runs on them."""
     out = _replay_offset_passes(lg, inputs, cfg, progress, window)
     motion = _mount_to_apply(out, inputs, cfg)
     if motion is None:
         return out, inputs
-    inputs = _with_wheel_clock(_inputs_from(_read_inputs(lg, log_path, cfg, motion=motion), window, lg.start_s),
-                               cfg)
+    inputs = _with_wheel_clock(_remounted(read, lg, log_path, cfg, motion), cfg)
     value = _rpy_text(inputs.applied_rpy_deg)
     log.info("%s: LiDAR mount off by %s: pass with /tf_static's mount turned by %s deg", log_path,
              "; ".join(motion.reasons), value)
