@@ -58,7 +58,8 @@ def gnss_scale(wheel: WheelTrack, gnss: GnssSeries, *, max_var_m2: float, min_sp
         fixes = _filtered(track, t, fixes, np.sqrt(np.max(var[use], axis=1)))
     wheels = np.column_stack([np.interp(t, wheel.stamps, wheel.positions[:, i]) for i in range(2)])
     keep = _robust_inliers(wheels, fixes)
-    span = float(np.sqrt(np.mean(np.sum((wheels[keep] - wheels[keep].mean(axis=0)) ** 2, axis=1))))
+    spread = float(np.sum((wheels[keep] - wheels[keep].mean(axis=0)) ** 2))  # m^2, summed over the fixes kept
+    span = float(np.sqrt(spread / max(int(keep.sum()), 1)))
     if keep.sum() < 20 or span < min_span_m or span <= 0:
         return None
     k = _similarity_scale(wheels[keep], fixes[keep])
@@ -66,7 +67,6 @@ def gnss_scale(wheel: WheelTrack, gnss: GnssSeries, *, max_var_m2: float, min_sp
     loo = np.array([_similarity_scale(np.delete(wheels, b, axis=0)[np.delete(keep, b)],
                                       np.delete(fixes, b, axis=0)[np.delete(keep, b)]) for b in blocks])
     n = len(blocks)
-    spread = float(np.sum((wheels[keep] - wheels[keep].mean(axis=0)) ** 2))
     independent = max(1.0, float(t[keep][-1] - t[keep][0]) / correlation_s) if correlation_s > 0 else keep.sum()
     floor = float(np.median(np.sqrt(var[use][keep].max(axis=1)))) * np.sqrt(keep.sum() / independent / spread)
     sigma_k = max(float(np.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2))), float(floor))
