@@ -493,23 +493,55 @@ def _run_items(stream: Iterator[Sweep], cfg: SlamConfig, *, prepare: bool
 
 def _replay_passes(lg: LogReader, log_path: Path, read: LogInputs, inputs: LogInputs, cfg: Config,
                    progress: bool, window: SweepWindow | None) -> tuple[SlamOutput, LogInputs]:
-    """The replay with its IMU offset passes, and once more with the LiDAR mount corrected when the
-    first pass's motion flags it (slam.mount_check.apply): the output and the inputs it ran on.
-    `read`: the inputs as read (before the wheel clock), `inputs`: as the first pass runs on them."""
-    out = _replay_offset_passes(lg, inputs, cfg, progress, window)
+    """The replay, and again with everything found so far applied while a pass finds something to
+    correct: the IMU-LiDAR offset left standing out (up to slam.imu.time_offset_passes runs; one pass
+    reads only part of a lag, its deskew and keyframes ran on the lagged IMU) and, once, the LiDAR mount
+    the first pass's motion flags (slam.mount_check.apply). One second run corrects both. The output is
+    the last pass's, with the offset as all passes found it (after the configured
+    slam.imu.time_offset_s), and the inputs it ran on. `read`: the inputs as read (before the wheel
+    clock), `inputs`: as the first pass runs on them."""
+    out = _replay(lg, inputs, cfg, progress, window)
     motion = _mount_to_apply(out, inputs, cfg)
-    if motion is None:
-        return out, inputs
-    inputs = _with_wheel_clock(_remounted(read, lg, log_path, cfg, motion), cfg)
-    value = _rpy_text(inputs.applied_rpy_deg)
-    log.info("%s: LiDAR mount off by %s: pass with /tf_static's mount turned by %s deg", log_path,
-             "; ".join(motion.reasons), value)
-    out = _replay_offset_passes(lg, inputs, cfg, progress, window)
-    note = SlamEvent(t=float(out.stamps[0]) if out.stamps.size else 0.0, kind="mount",
-                     message=f"pass of the log with the LiDAR mount turned by {value} deg (slam.mount_check.apply: "
-                     f"the first pass's motion read {'; '.join(motion.reasons)})",
-                     data={"applied_rpy_deg": list(inputs.applied_rpy_deg)})
-    return dataclasses.replace(out, events=[note, *out.events]), inputs
+    applied, runs, mount_note = 0.0, 1, None
+    while True:
+        left = out.imu_time_offset_s  # this pass's own estimate, against the IMU as it ran
+        more = (runs < cfg.slam.imu.time_offset_passes and cfg.slam.method == "lio" and left is not None
+                and _offset_stands_out(left, out.imu_time_offset_sigma_s))
+        if not more and motion is None:
+            break
+        runs += 1
+        if more and left is not None:
+            applied += left
+            log.info("IMU-LiDAR offset %.1f ms left: pass %d with %.1f ms applied", left * 1e3, runs, applied * 1e3)
+        if motion is not None:
+            inputs = _with_wheel_clock(_remounted(read, lg, log_path, cfg, motion), cfg)
+            value = _rpy_text(inputs.applied_rpy_deg)
+            log.info("%s: LiDAR mount off by %s: pass with /tf_static's mount turned by %s deg", log_path,
+                     "; ".join(motion.reasons), value)
+            mount_note = (f"pass of the log with the LiDAR mount turned by {value} deg (slam.mount_check.apply: "
+                          f"the first pass's motion read {'; '.join(motion.reasons)})")
+            motion = None
+        shifted = replace_path(cfg, "slam.imu.time_offset_s", cfg.slam.imu.time_offset_s + applied)
+        out = _replay(lg, inputs, shifted, progress, window)
+    return _with_pass_notes(out, runs, applied, mount_note, inputs), inputs
+
+
+def _with_pass_notes(out: SlamOutput, runs: int, applied: float, mount_note: str | None,
+                     inputs: LogInputs) -> SlamOutput:
+    """The last pass's output with the offset all passes found (a pass without an estimate keeps what was
+    applied) and events that say what it ran with."""
+    t = float(out.stamps[0]) if out.stamps.size else 0.0
+    notes = []
+    if mount_note is not None:
+        notes.append(SlamEvent(t=t, kind="mount", message=mount_note,
+                               data={"applied_rpy_deg": list(inputs.applied_rpy_deg)}))
+    if applied != 0.0:
+        notes.append(SlamEvent(t=t, kind="imu_time_offset", message=f"pass {runs} of the log with the IMU stamps "
+                               f"{applied * 1e3:+.1f} ms earlier (slam.imu.time_offset_passes)",
+                               data={"pass": runs, "applied_s": applied}))
+    left = out.imu_time_offset_s
+    found = left if applied == 0.0 else applied + (0.0 if left is None else left)
+    return dataclasses.replace(out, imu_time_offset_s=found, events=[*notes, *out.events]) if notes else out
 
 
 def _mount_to_apply(out: SlamOutput, inputs: LogInputs, cfg: Config) -> MountCheck | None:
@@ -531,29 +563,6 @@ def _mount_to_apply(out: SlamOutput, inputs: LogInputs, cfg: Config) -> MountChe
             or np.any(np.abs(total) > _correction_limit(cfg))):
         return None
     return check
-
-
-def _replay_offset_passes(lg: LogReader, inputs: LogInputs, cfg: Config, progress: bool,
-                          window: SweepWindow | None) -> SlamOutput:
-    """slam.imu.time_offset_passes: while the IMU-LiDAR offset left stands out, run the log again
-    with what was found so far subtracted from the IMU stamps; the result is the last pass's, with
-    the offset as all passes found it (after the configured slam.imu.time_offset_s)."""
-    out = _replay(lg, inputs, cfg, progress, window)
-    applied, left, sigma = 0.0, out.imu_time_offset_s, out.imu_time_offset_sigma_s
-    for k in range(2, cfg.slam.imu.time_offset_passes + 1):
-        if cfg.slam.method != "lio" or left is None or not _offset_stands_out(left, sigma):
-            break
-        applied += left
-        log.info("IMU-LiDAR offset %.1f ms left: pass %d with %.1f ms applied", left * 1e3, k, applied * 1e3)
-        shifted = replace_path(cfg, "slam.imu.time_offset_s", cfg.slam.imu.time_offset_s + applied)
-        out = _replay(lg, inputs, shifted, progress, window)
-        left, sigma = out.imu_time_offset_s, out.imu_time_offset_sigma_s
-        found = applied if left is None else applied + left  # a pass without an estimate keeps what was applied
-        note = SlamEvent(t=float(out.stamps[0]) if out.stamps.size else 0.0, kind="imu_time_offset",
-                         message=f"pass {k} of the log with the IMU stamps {applied * 1e3:+.1f} ms earlier "
-                         f"(slam.imu.time_offset_passes)", data={"pass": k, "applied_s": applied})
-        out = dataclasses.replace(out, imu_time_offset_s=found, events=[note, *out.events])
-    return out
 
 
 def _offset_stands_out(offset: float, sigma: float | None) -> bool:

@@ -229,38 +229,62 @@ def test_time_offset_ignores_poses_that_were_only_the_imu_guess() -> None:
     assert abs(without_mask - lag) > 2e-3
 
 
-def test_offset_passes_rerun_while_the_offset_left_stands_out(monkeypatch: pytest.MonkeyPatch) -> None:
-    """slam.imu.time_offset_passes: each later pass runs with the offset found so far applied, stops
-    once what is left is within 2 ms or 2 standard errors, and reports the sum of all passes."""
-    from dataclasses import replace
-
+def _fake_replays(true_lag: float, kept: float, seen: list[float]):
+    """A stand-in for commands.slam._replay: each pass reads (1 - kept) of the lag it is left with."""
     import numpy as np
 
-    from mrnc_eval.commands import slam as slam_command
-    from mrnc_eval.config import Config, replace_path
     from mrnc_eval.slam.output import SlamOutput
 
-    true_lag, kept = 0.030, 0.2  # each pass reads 80 % of the lag it is left with
-    applied_seen: list[float] = []
-
     def fake_replay(lg, inputs, cfg, progress, window):
-        applied_seen.append(cfg.slam.imu.time_offset_s)
+        seen.append(cfg.slam.imu.time_offset_s)
         left = true_lag - cfg.slam.imu.time_offset_s
         return SlamOutput(stamps=np.array([0.0, 1.0]), poses=np.zeros((2, 4, 4)), kf_stamps=np.zeros(0),
                           kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)), timing_ms={}, events=[],
                           warnings=[], n_sweeps=2, wall_s=0.0, imu_time_offset_s=(1 - kept) * left,
                           imu_time_offset_sigma_s=0.001)
 
-    monkeypatch.setattr(slam_command, "_replay", fake_replay)
-    cfg = replace_path(Config(), "slam.imu.time_offset_passes", 5)
-    out = slam_command._replay_offset_passes(None, None, cfg, False, None)
+    return fake_replay
+
+
+def test_offset_passes_rerun_while_the_offset_left_stands_out(monkeypatch: pytest.MonkeyPatch) -> None:
+    """slam.imu.time_offset_passes: each later pass runs with the offset found so far applied, stops
+    once what is left is within 2 ms or 2 standard errors, and reports the sum of all passes."""
+    from mrnc_eval.commands import slam as slam_command
+    from mrnc_eval.config import Config, replace_path
+
+    applied_seen: list[float] = []
+    monkeypatch.setattr(slam_command, "_replay", _fake_replays(0.030, 0.2, applied_seen))
+    cfg = replace_path(replace_path(Config(), "slam.imu.time_offset_passes", 5), "slam.mount_check.apply", False)
+    out, _ = slam_command._replay_passes(None, None, None, None, cfg, False, None)
     # 30 -> 24 found; 6 left -> 4.8 (28.8); 1.2 left -> 0.96 (< 2 ms: the last pass)
     assert applied_seen == pytest.approx([0.0, 0.024, 0.0288])
     assert out.imu_time_offset_s == pytest.approx(0.0288 + 0.8 * 0.0012)
     assert [e.data["pass"] for e in out.events] == [3]  # each pass's output is its own run's, noted
-    one = slam_command._replay_offset_passes(None, None, replace(cfg, slam=replace(cfg.slam, imu=replace(
-        cfg.slam.imu, time_offset_passes=1))), False, None)
+    one, _ = slam_command._replay_passes(None, None, None, None, replace_path(cfg, "slam.imu.time_offset_passes", 1),
+                                         False, None)
     assert one.imu_time_offset_s == pytest.approx(0.024)  # negative control: one pass under-reads
+
+
+def test_a_flagged_mount_and_an_offset_are_corrected_in_one_second_run(monkeypatch: pytest.MonkeyPatch) -> None:
+    """The first pass flags the mount and leaves an offset standing out: the second run carries both
+    corrections (not a mount pass followed by its own offset passes), and the output says so."""
+    from types import SimpleNamespace
+
+    from mrnc_eval.commands import slam as slam_command
+    from mrnc_eval.config import Config
+
+    applied_seen: list[float] = []
+    monkeypatch.setattr(slam_command, "_replay", _fake_replays(0.030, 0.0, applied_seen))
+    motions = iter([SimpleNamespace(reasons=["pitch -0.40 +- 0.05 deg"])])
+    monkeypatch.setattr(slam_command, "_mount_to_apply", lambda out, inputs, cfg: next(motions, None))
+    remounted = SimpleNamespace(applied_rpy_deg=(0.0, -0.4, 0.0))
+    monkeypatch.setattr(slam_command, "_remounted", lambda read, lg, path, cfg, motion: remounted)
+    monkeypatch.setattr(slam_command, "_with_wheel_clock", lambda inputs, cfg: inputs)
+    out, inputs = slam_command._replay_passes(None, "x.mcap", None, None, Config(), False, None)
+    assert applied_seen == pytest.approx([0.0, 0.030])  # one second run, the offset applied in it
+    assert inputs is remounted
+    assert out.imu_time_offset_s == pytest.approx(0.030)
+    assert [e.kind for e in out.events] == ["mount", "imu_time_offset"]
 
 
 @pytest.mark.parametrize(("rmse_m", "degenerate", "wheels", "says", "track"), [
