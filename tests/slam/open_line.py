@@ -39,3 +39,16 @@ def simulate_open_loop(path: Path, seed: int, sets: dict[str, object] | None = N
     return simulate_log(path, replace_paths(Config(), {**DRIVE, **LOOP_SPEED, "sim.path_size_m": 20.0, **(sets or {})}),
                         SimRequest(scene="open_field", path="loop", duration_s=40.0, lidar="os0-32", columns=512,
                                    seed=seed, profile="field"))
+
+
+def simulate_structured(path: Path, scene: str, seed: int, sets: dict[str, object] | None = None) -> Path:
+    """The claims matrix's yard (its circle) or forest (a 5 m loop among the trees) at `path`, field profile,
+    OS0-32 x 512, 40 s, low-bandwidth packets, float GNSS; `sets`: config overrides (sim.wheels.*)."""
+    from mrnc_eval.recording.recorder import SimRequest, simulate_log
+
+    drive = {"yard": ("circle", {}), "forest": ("loop", {"sim.path_size_m": 5.0})}
+    route, size = drive[scene]
+    cfg = replace_paths(Config(), {"sim.lidar.packet_profile": "RNG15_RFL8_NIR8", "sim.gnss.mode": "float", **size,
+                                   **(sets or {})})
+    return simulate_log(path, cfg, SimRequest(scene=scene, path=route, duration_s=40.0, lidar="os0-32", columns=512,
+                                              seed=seed, profile="field"))
