@@ -2,13 +2,18 @@
 
 The online poses are not the LiDAR's alone: the IMU-driven guess, the wheels' yaw hold and graph
 #1's wheel and GNSS factors pull them towards the (mis-timed) IMU and wheels, so an offset read from
-them reads 0.65-0.95 of a lag and carries the wheels' timing. After the run every mapped sweep that
-is not a keyframe's is matched again, without any prior, from its final pose against one map of all
-keyframes in their final poses. Their rotation increments are compared with the gyro over 0.35-0.85 s,
-not between consecutive sweeps: over 0.2 s the re-matched poses still carry part of a lag (forest seed
-2: 30 ms read as 22.8 ms; over 0.35-0.85 s 28.7 ms): their short-term errors move with the motion.
-Still IMU-timed: the features' rotation deskew and the keyframe poses the map is built from (a lag
-reads ~3 % short; docs/simulation.md)."""
+them reads 0.65-0.95 of a lag and carries the wheels' timing. After the run every kept mapped sweep is
+matched again, without any prior, from its final pose against a map of keyframes in their final poses.
+Their rotation increments are compared with the gyro over 0.35-0.85 s, not between consecutive sweeps:
+over 0.2 s the re-matched poses still carry part of a lag (forest seed 2: 30 ms read as 22.8 ms; over
+0.35-0.85 s 28.7 ms): their short-term errors move with the motion.
+
+The keyframes' own poses lag the motion too (their yaw error follows the yaw rate, -2 ms on the forest
+loop, and stays correlated for about 5 s), and a sweep matched against keyframes of the same moments
+inherits part of it (the forest read -0.6 ms at no lag, the yard +0.9): each 2 s stretch of sweeps is
+matched against the keyframes more than EXCLUDE_S away from it in time (their errors share nothing with
+its motion), which also lets keyframes' own sweeps be matched. Still IMU-timed: the features'
+rotation deskew (a second pass with the offset applied removes that; commands/slam.py)."""
 
 from __future__ import annotations
 
@@ -25,6 +30,9 @@ from mrnc_eval.slam.scan_to_map import LocalMap, match
 from mrnc_eval.slam.time_offset import SEARCH_S, OffsetEstimate, offset_from_overlapping
 
 BASELINE_S = (0.35, 0.85)  # rotation increments between re-matched sweeps this far apart (s) are compared
+EXCLUDE_S = 5.0  # a stretch is matched against keyframes at least this far from it in time (s): the online
+# yaw errors' autocorrelation is 0.3-0.5 at 3 s, 0.3 at 5 s, 0.0-0.2 at 8 s (forest loop, tuning seeds 0-2)
+MIN_MAP_KEYFRAMES = 3  # fewer such keyframes (a short log): the stretch meets every keyframe but its own
 JACKKNIFE_BLOCKS = 10  # contiguous stretches of the log left out in turn for the standard error
 STRETCH_S = 2.0  # the sweeps kept for the re-match come in stretches of this much log time (s)
 MIN_SPACING_S = 0.19  # a sweep closer than this to the last one kept is not kept (s): mapped every
@@ -79,46 +87,75 @@ def _every_kth(points: np.ndarray, at_most: int) -> np.ndarray:
 @dataclass(frozen=True, kw_only=True)
 class RunForOffset:
     """What the run leaves for the re-match: every mapped sweep's stamp (s) and final pose (4x4), the
-    kept sweeps' compact features by index (sensor frame, deskewed as in the run; SweepStore), whether
-    each sweep is a keyframe's own; every keyframe's final pose and features."""
+    kept sweeps' compact features by index (sensor frame, deskewed as in the run; SweepStore); every
+    keyframe's stamp (s, its own sweep's), final pose and features."""
 
     stamps: np.ndarray
     poses: np.ndarray
     feats: dict[int, Features]
-    is_keyframe: np.ndarray
+    kf_stamps: np.ndarray
     kf_poses: np.ndarray
     kf_feats: list[Features]
 
 
-def global_map(run: RunForOffset, cfg: MatchingConfig) -> LocalMap:
-    """Every keyframe's features in its final pose, voxelised as the local map is."""
-    edges = [se3.apply(p, f.edges) for p, f in zip(run.kf_poses, run.kf_feats, strict=True)]
-    surfs = [se3.apply(p, f.surfs) for p, f in zip(run.kf_poses, run.kf_feats, strict=True)]
+def keyframe_map(run: RunForOffset, cfg: MatchingConfig, keyframes: np.ndarray) -> LocalMap:
+    """The given keyframes' features in their final poses, voxelised as the local map is."""
+    edges = [se3.apply(run.kf_poses[k], run.kf_feats[k].edges) for k in keyframes]
+    surfs = [se3.apply(run.kf_poses[k], run.kf_feats[k].surfs) for k in keyframes]
     return LocalMap.build(voxel_downsample(np.vstack(edges), cfg.corner_leaf_m),
                           voxel_downsample(np.vstack(surfs), cfg.surf_leaf_m))
 
 
+def stretch_keyframes(run: RunForOffset, sweeps: list[int], map_radius_m: float) -> np.ndarray:
+    """The keyframes a stretch of sweeps is matched against: more than EXCLUDE_S from the stretch in time
+    and within map_radius_m of one of its sweeps; when fewer than MIN_MAP_KEYFRAMES are, every keyframe
+    within reach but a sweep's own (the stretch's keyframe sweeps are then not matched)."""
+    t0, t1 = run.stamps[sweeps[0]], run.stamps[sweeps[-1]]
+    gap = np.maximum(t0 - run.kf_stamps, run.kf_stamps - t1)  # s from the stretch; negative inside it
+    near = np.linalg.norm(run.kf_poses[:, None, :3, 3] - run.poses[sweeps][None, :, :3, 3], axis=2).min(axis=1)
+    reach = near <= map_radius_m
+    apart = np.flatnonzero(reach & (gap > EXCLUDE_S))
+    return apart if apart.size >= MIN_MAP_KEYFRAMES else np.flatnonzero(reach)
+
+
 def rematched_rotations(run: RunForOffset, cfg: MatchingConfig, keep: np.ndarray, workers: int = 1
                         ) -> tuple[np.ndarray, np.ndarray]:
-    """(indices, (M, 3, 3) rotations) of the kept sweeps in `keep` (bool per sweep) that are not
-    keyframes and match the whole map again without a degenerate direction (a keyframe's sweep would
-    meet its own cloud and keep its pose). The sweeps are independent: `workers` threads match them
-    (the kernels release the GIL), the same rotations in the same order whatever the number."""
-    whole = global_map(run, cfg)
-    todo = [j for j in (int(k) for k in np.flatnonzero(keep & ~run.is_keyframe)) if j in run.feats]
+    """(indices, (M, 3, 3) rotations) of the kept sweeps in `keep` (bool per sweep) that match their
+    stretch's keyframes again (`stretch_keyframes`; a sweep never meets its own keyframe's cloud, where it
+    would keep its pose) without a degenerate direction. The sweeps are independent: `workers` threads
+    match them (the kernels release the GIL), the same rotations in the same order whatever the number."""
+    if run.kf_stamps.size == 0:
+        return np.zeros(0, np.int64), np.zeros((0, 3, 3))
+    kf_of_sweep = {int(j): int(k) for k, j in enumerate(np.searchsorted(run.stamps, run.kf_stamps))
+                   if j < run.stamps.size and run.stamps[j] == run.kf_stamps[k]}
+    todo = [int(j) for j in np.flatnonzero(keep) if int(j) in run.feats]
+    stretches: dict[int, list[int]] = {}
+    for j in todo:
+        stretches.setdefault(int((run.stamps[j] - run.stamps[0]) // STRETCH_S), []).append(j)
+    jobs: list[tuple[int, LocalMap]] = []
+    for sweeps in stretches.values():
+        keyframes = stretch_keyframes(run, sweeps, cfg.map_radius_m)
+        own = {kf_of_sweep[j] for j in sweeps if j in kf_of_sweep}
+        if own & set(keyframes.tolist()):  # the keyframes of the stretch's own moments: its keyframe sweeps stay out
+            sweeps = [j for j in sweeps if j not in kf_of_sweep]
+        if keyframes.size and sweeps:
+            whole = keyframe_map(run, cfg, keyframes)
+            jobs += [(j, whole) for j in sweeps]
 
-    def one(j: int) -> np.ndarray | None:
+    def one(job: tuple[int, LocalMap]) -> np.ndarray | None:
+        j, whole = job
         f = run.feats[j]
         res = match(np.asarray(f.edges, np.float64), np.asarray(f.surfs, np.float64), whole, run.poses[j], cfg)
         return res.pose[:3, :3] if res.optimised and not res.degenerate else None
 
-    if workers > 1 and len(todo) > 1:
+    if workers > 1 and len(jobs) > 1:
         with ThreadPoolExecutor(max_workers=workers) as pool:
-            found = list(pool.map(one, todo))
+            found = list(pool.map(one, jobs))
     else:
-        found = [one(j) for j in todo]
-    idx = [j for j, r in zip(todo, found, strict=True) if r is not None]
-    rots = [r for r in found if r is not None]
+        found = [one(job) for job in jobs]
+    order = np.argsort([j for j, _ in jobs], kind="stable")
+    idx = [jobs[i][0] for i in order if found[i] is not None]
+    rots = [found[i] for i in order if found[i] is not None]
     return np.asarray(idx, np.int64), np.asarray(rots, np.float64).reshape(-1, 3, 3)
 
 

@@ -616,7 +616,7 @@ class _Replay:
             return None
         c0 = time.process_time()  # the re-match's worker threads included (the reader is done by now)
         run = RunForOffset(stamps=stamps, poses=poses, feats=self.offset_sweeps.feats,
-                           is_keyframe=np.isin(stamps, np.asarray(self.graph.stamps)),
+                           kf_stamps=np.asarray(self.graph.stamps, np.float64),
                            kf_poses=np.array(self.graph.poses), kf_feats=self.kf_features)
         found = rematch_time_offset(run, self.track, self.cfg.matching, np.asarray(self.trace.measured, bool),
                                     self.workers)

@@ -145,3 +145,81 @@ def test_baseline_pairs_are_every_pair_035_to_085_s_apart_in_order() -> None:
     assert (0.0, 0.35) in pairs
     assert (0.0, 0.85) in pairs
     assert ((dt >= 0.3) & (dt <= 0.9)).sum() > ok.sum()
+
+
+def _room_run(kf_yaw_error: float) -> tuple[object, np.ndarray]:
+    """A 20 s drive across the synthetic hall (tests/slam/test_slam_modules.py), sweeps 0.25 s apart from
+    their true poses, a keyframe every 1 s; the keyframes of 8-12 s stored with `kf_yaw_error` (rad) of
+    yaw, as online keyframes whose yaw lags a turn. Returns the run and the sweeps' true yaws."""
+    from scipy.spatial.transform import Rotation
+
+    from mrnc_eval.geometry import se3
+    from mrnc_eval.slam.offset_rematch import RunForOffset
+    from tests.slam.test_slam_modules import _features, _room, _scan
+
+    scene = _room()
+    stamps = np.arange(0.0, 20.0, 0.25)
+    yaw = 0.2 * np.sin(2 * np.pi * stamps / 7.0)
+    poses = np.array([se3.make(Rotation.from_euler("z", a).as_matrix(), np.array([-8.0 + 0.8 * t, 0.5, 1.0]))
+                      for t, a in zip(stamps, yaw, strict=True)])
+    feats = {}
+    for i, p in enumerate(poses):
+        f = _features(_scan(scene, p, cols=512))
+        feats[i] = type(f)(edges=f.edges.astype(np.float32), surfs=f.surfs.astype(np.float32))
+    kf = np.arange(0, stamps.size, 4)
+    kf_poses = poses[kf].copy()
+    lagging = (stamps[kf] >= 8.0) & (stamps[kf] <= 12.0)
+    kf_poses[lagging, :3, :3] = Rotation.from_euler("z", kf_yaw_error).as_matrix() @ kf_poses[lagging, :3, :3]
+    run = RunForOffset(stamps=stamps, poses=poses, feats=feats, kf_stamps=stamps[kf], kf_poses=kf_poses,
+                       kf_feats=[feats[int(k)] for k in kf])
+    return run, yaw
+
+
+def test_a_stretch_is_rematched_against_keyframes_far_from_it_in_time_not_the_lagging_ones_of_its_moment(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """Keyframes of 8-12 s carry 0.01 rad of yaw error (the online poses' lag through a turn): the sweeps
+    of those seconds re-matched against keyframes more than EXCLUDE_S away keep their true yaw (within 1
+    mrad), keyframe sweeps included; negative control: against every keyframe (the exclusion off) they
+    inherit part of the error."""
+    from mrnc_eval.geometry import rotation
+    from mrnc_eval.slam import offset_rematch
+    from mrnc_eval.slam.config import MatchingConfig
+
+    run, yaw = _room_run(0.01)
+    keep = np.ones(run.stamps.size, bool)
+
+    def yaw_errors() -> tuple[np.ndarray, np.ndarray]:
+        idx, rots = offset_rematch.rematched_rotations(run, MatchingConfig(), keep)
+        inside = (run.stamps[idx] >= 8.0) & (run.stamps[idx] < 12.0)
+        return idx[inside], rotation.rpy(rots[inside])[:, 2] - yaw[idx[inside]]
+
+    idx, err = yaw_errors()
+    assert idx.size >= 14  # of 16 sweeps
+    assert np.isin(idx, [32, 36, 40, 44]).sum() >= 3  # the keyframes' own sweeps
+    assert np.abs(err).max() < 1e-3
+    monkeypatch.setattr(offset_rematch, "EXCLUDE_S", -1e9)  # every keyframe but a sweep's own
+    _, pulled = yaw_errors()
+    assert np.median(pulled) > 2e-3
+
+
+def test_the_keyframes_of_a_stretch_are_those_far_in_time_and_within_the_map_radius() -> None:
+    """EXCLUDE_S apart in time and within map_radius_m of a sweep of the stretch; too few such (a short
+    log): every keyframe within reach."""
+    from mrnc_eval.slam.features import Features
+    from mrnc_eval.slam.offset_rematch import EXCLUDE_S, RunForOffset, stretch_keyframes
+
+    stamps = np.arange(0.0, 40.0, 0.5)
+    poses = np.repeat(np.eye(4)[None], stamps.size, axis=0)
+    poses[:, 0, 3] = 2.0 * stamps  # 2 m/s along x
+    kf = np.arange(0, stamps.size, 2)  # a keyframe a second
+    empty = Features(edges=np.zeros((0, 3)), surfs=np.zeros((0, 3)))
+    run = RunForOffset(stamps=stamps, poses=poses, feats={}, kf_stamps=stamps[kf], kf_poses=poses[kf],
+                       kf_feats=[empty] * kf.size)
+    chosen = stretch_keyframes(run, [40, 41, 42, 43], map_radius_m=30.0)  # 20-21.5 s, x 40-43 m
+    t = run.kf_stamps[chosen]
+    assert chosen.size > 0
+    assert np.all((t < 20.0 - EXCLUDE_S) | (t > 21.5 + EXCLUDE_S))
+    assert np.all(np.abs(run.kf_poses[chosen, 0, 3] - 41.5) <= 31.5)
+    assert set(run.kf_stamps[chosen]) == {*np.arange(5.0, 15.0), *np.arange(27.0, 37.0)}
+    near = stretch_keyframes(run, [40, 41, 42, 43], map_radius_m=12.0)  # 14 and 27 s are apart: 2, too few
+    assert set(run.kf_stamps[near]) == set(np.arange(14.0, 28.0))
