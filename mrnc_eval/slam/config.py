@@ -108,9 +108,10 @@ class ImuConfig:
                                        "(imu_time_offset_s in metrics.json)")
     time_offset_from: Literal["rematch", "online"] = param(
         "rematch", "with estimate_time_offset: the LiDAR rotations the offset is read from. rematch = after the "
-        "run, every mapped sweep that is not a keyframe matched again without any prior from its final pose "
-        "against all keyframes in their final poses (neither the IMU nor the wheels move them; slam/"
-        "offset_rematch.py); online = the poses as the run estimated them (they keep part of the IMU-driven "
+        "run, the kept mapped sweeps matched again without any prior from their final poses against the "
+        "keyframes more than 5 s from them in time, in their final poses (neither the IMU nor the wheels move "
+        "them, nor the keyframes' own lag through the same turn; slam/offset_rematch.py); online = the poses "
+        "as the run estimated them (they keep part of the IMU-driven "
         "guess and the wheels' yaw: a lag reads 0.65-1.0 of itself on the field logs)")
     time_offset_rematch_max_sweeps: int = param(
         600, "with time_offset_from=rematch: at most this many mapped sweeps kept for the re-match (their "
