@@ -19,6 +19,7 @@ from __future__ import annotations
 
 from concurrent.futures import ThreadPoolExecutor
 from dataclasses import dataclass, field
+from functools import partial
 
 import numpy as np
 
@@ -33,6 +34,8 @@ BASELINE_S = (0.35, 0.85)  # rotation increments between re-matched sweeps this 
 EXCLUDE_S = 5.0  # a stretch is matched against keyframes at least this far from it in time (s): the online
 # yaw errors' autocorrelation is 0.3-0.5 at 3 s, 0.3 at 5 s, 0.0-0.2 at 8 s (forest loop, tuning seeds 0-2)
 MIN_MAP_KEYFRAMES = 3  # fewer such keyframes (a short log): the stretch meets every keyframe but its own
+MAP_KEYFRAMES = 50  # at most this many in a stretch's map, the nearest to it: a map per stretch stays the size
+# of the run's local map on an hour-long log (the 40 s field logs have 20-40 keyframes in all)
 JACKKNIFE_BLOCKS = 10  # contiguous stretches of the log left out in turn for the standard error
 STRETCH_S = 2.0  # the sweeps kept for the re-match come in stretches of this much log time (s)
 MIN_SPACING_S = 0.19  # a sweep closer than this to the last one kept is not kept (s): mapped every
@@ -107,55 +110,51 @@ def keyframe_map(run: RunForOffset, cfg: MatchingConfig, keyframes: np.ndarray) 
 
 
 def stretch_keyframes(run: RunForOffset, sweeps: list[int], map_radius_m: float) -> np.ndarray:
-    """The keyframes a stretch of sweeps is matched against: more than EXCLUDE_S from the stretch in time
-    and within map_radius_m of one of its sweeps; when fewer than MIN_MAP_KEYFRAMES are, every keyframe
-    within reach but a sweep's own (the stretch's keyframe sweeps are then not matched)."""
+    """The keyframes a stretch of sweeps is matched against, ascending: more than EXCLUDE_S from the
+    stretch in time and within map_radius_m of one of its sweeps, at most MAP_KEYFRAMES of them, the
+    nearest; when fewer than MIN_MAP_KEYFRAMES are that far apart, the nearest within reach whenever they
+    were recorded (the stretch's keyframe sweeps are then not matched: they would meet their own cloud)."""
     t0, t1 = run.stamps[sweeps[0]], run.stamps[sweeps[-1]]
     gap = np.maximum(t0 - run.kf_stamps, run.kf_stamps - t1)  # s from the stretch; negative inside it
     near = np.linalg.norm(run.kf_poses[:, None, :3, 3] - run.poses[sweeps][None, :, :3, 3], axis=2).min(axis=1)
     reach = near <= map_radius_m
     apart = np.flatnonzero(reach & (gap > EXCLUDE_S))
-    return apart if apart.size >= MIN_MAP_KEYFRAMES else np.flatnonzero(reach)
+    chosen = apart if apart.size >= MIN_MAP_KEYFRAMES else np.flatnonzero(reach)
+    return np.sort(chosen[np.argsort(near[chosen], kind="stable")[:MAP_KEYFRAMES]])
 
 
 def rematched_rotations(run: RunForOffset, cfg: MatchingConfig, keep: np.ndarray, workers: int = 1
                         ) -> tuple[np.ndarray, np.ndarray]:
     """(indices, (M, 3, 3) rotations) of the kept sweeps in `keep` (bool per sweep) that match their
     stretch's keyframes again (`stretch_keyframes`; a sweep never meets its own keyframe's cloud, where it
-    would keep its pose) without a degenerate direction. The sweeps are independent: `workers` threads
-    match them (the kernels release the GIL), the same rotations in the same order whatever the number."""
-    if run.kf_stamps.size == 0:
-        return np.zeros(0, np.int64), np.zeros((0, 3, 3))
-    kf_of_sweep = {int(j): int(k) for k, j in enumerate(np.searchsorted(run.stamps, run.kf_stamps))
+    would keep its pose) without a degenerate direction. One stretch's map at a time (bounded memory);
+    its sweeps are independent: `workers` threads match them (the kernels release the GIL), the same
+    rotations in the same order whatever the number."""
+    kf_of_sweep = {int(j): k for k, j in enumerate(np.searchsorted(run.stamps, run.kf_stamps))
                    if j < run.stamps.size and run.stamps[j] == run.kf_stamps[k]}
-    todo = [int(j) for j in np.flatnonzero(keep) if int(j) in run.feats]
     stretches: dict[int, list[int]] = {}
-    for j in todo:
-        stretches.setdefault(int((run.stamps[j] - run.stamps[0]) // STRETCH_S), []).append(j)
-    jobs: list[tuple[int, LocalMap]] = []
-    for sweeps in stretches.values():
-        keyframes = stretch_keyframes(run, sweeps, cfg.map_radius_m)
-        own = {kf_of_sweep[j] for j in sweeps if j in kf_of_sweep}
-        if own & set(keyframes.tolist()):  # the keyframes of the stretch's own moments: its keyframe sweeps stay out
-            sweeps = [j for j in sweeps if j not in kf_of_sweep]
-        if keyframes.size and sweeps:
-            whole = keyframe_map(run, cfg, keyframes)
-            jobs += [(j, whole) for j in sweeps]
+    for j in (int(k) for k in np.flatnonzero(keep)):
+        if j in run.feats:
+            stretches.setdefault(int((run.stamps[j] - run.stamps[0]) // STRETCH_S), []).append(j)
 
-    def one(job: tuple[int, LocalMap]) -> np.ndarray | None:
-        j, whole = job
+    def one(whole: LocalMap, j: int) -> np.ndarray | None:
         f = run.feats[j]
         res = match(np.asarray(f.edges, np.float64), np.asarray(f.surfs, np.float64), whole, run.poses[j], cfg)
         return res.pose[:3, :3] if res.optimised and not res.degenerate else None
 
-    if workers > 1 and len(jobs) > 1:
-        with ThreadPoolExecutor(max_workers=workers) as pool:
-            found = list(pool.map(one, jobs))
-    else:
-        found = [one(job) for job in jobs]
-    order = np.argsort([j for j, _ in jobs], kind="stable")
-    idx = [jobs[i][0] for i in order if found[i] is not None]
-    rots = [found[i] for i in order if found[i] is not None]
+    idx: list[int] = []
+    rots: list[np.ndarray] = []
+    with ThreadPoolExecutor(max_workers=workers) as pool:
+        for sweeps in stretches.values():
+            keyframes = stretch_keyframes(run, sweeps, cfg.map_radius_m)
+            if {kf_of_sweep.get(j) for j in sweeps} & set(keyframes.tolist()):  # the fallback: own keyframes in
+                sweeps = [j for j in sweeps if j not in kf_of_sweep]
+            if not keyframes.size or not sweeps:
+                continue
+            whole = keyframe_map(run, cfg, keyframes)
+            found = list(pool.map(partial(one, whole), sweeps)) if workers > 1 else [one(whole, j) for j in sweeps]
+            idx += [j for j, r in zip(sweeps, found, strict=True) if r is not None]
+            rots += [r for r in found if r is not None]
     return np.asarray(idx, np.int64), np.asarray(rots, np.float64).reshape(-1, 3, 3)
 
 

@@ -202,9 +202,11 @@ def test_a_stretch_is_rematched_against_keyframes_far_from_it_in_time_not_the_la
     assert np.median(pulled) > 2e-3
 
 
-def test_the_keyframes_of_a_stretch_are_those_far_in_time_and_within_the_map_radius() -> None:
-    """EXCLUDE_S apart in time and within map_radius_m of a sweep of the stretch; too few such (a short
-    log): every keyframe within reach."""
+def test_the_keyframes_of_a_stretch_are_those_far_in_time_and_within_the_map_radius(
+        monkeypatch: pytest.MonkeyPatch) -> None:
+    """EXCLUDE_S apart in time and within map_radius_m of a sweep of the stretch, at most MAP_KEYFRAMES,
+    the nearest; too few such (a short log): every keyframe within reach."""
+    from mrnc_eval.slam import offset_rematch
     from mrnc_eval.slam.features import Features
     from mrnc_eval.slam.offset_rematch import EXCLUDE_S, RunForOffset, stretch_keyframes
 
@@ -223,3 +225,5 @@ def test_the_keyframes_of_a_stretch_are_those_far_in_time_and_within_the_map_rad
     assert set(run.kf_stamps[chosen]) == {*np.arange(5.0, 15.0), *np.arange(27.0, 37.0)}
     near = stretch_keyframes(run, [40, 41, 42, 43], map_radius_m=12.0)  # 14 and 27 s are apart: 2, too few
     assert set(run.kf_stamps[near]) == set(np.arange(14.0, 28.0))
+    monkeypatch.setattr(offset_rematch, "MAP_KEYFRAMES", 4)  # the nearest 4 of those apart: 13-14 and 27-28 s
+    assert set(run.kf_stamps[stretch_keyframes(run, [40, 41, 42, 43], map_radius_m=30.0)]) == {13.0, 14.0, 27.0, 28.0}
