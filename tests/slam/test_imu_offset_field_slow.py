@@ -48,8 +48,8 @@ def _offset(log: Path, lag_s: float, passes: int, out: Path) -> float:
     return float(m.value)
 
 
-def test_8_and_30_ms_lags_are_read_within_2_ms_on_7_of_8_in_two_passes_and_not_in_one(logs: dict[tuple[str, int], Path],
-                                                                           tmp_path: Path) -> None:
+def test_8_and_30_ms_lags_are_read_within_2_ms_on_7_of_8_in_two_passes_and_not_in_one(
+        logs: dict[tuple[str, int], Path], tmp_path: Path) -> None:
     errors: dict[int, dict[tuple[str, int, float], float]] = {1: {}, 2: {}}
     for (scene, seed), log in logs.items():
         for lag in (0.008, 0.030):
