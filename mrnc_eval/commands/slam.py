@@ -29,6 +29,7 @@ from mrnc_eval.evaluation.comparison import Cell, judge, table_one
 from mrnc_eval.geometry import rotation
 from mrnc_eval.io.ground_truth import ground_truth_of, ground_truth_spec
 from mrnc_eval.io.prefetch import Prefetched
+from mrnc_eval.io.tf_tree import StaticTransforms, static_pose
 from mrnc_eval.results import (
     Event,
     Metric,
@@ -288,55 +289,61 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     duration = lg.duration_s  # the overview pass first
     lidar_frame = cfg.slam.sensor.lidar_frame
     statics = lg.static_transforms()
-    frames = {c for _, c in statics} | {p for p, _ in statics}
+    frames = _static_frames(statics)
     if "base_link" in frames and lidar_frame not in frames:  # never fall back to identity silently
         raise InputError(log_path, f"slam.sensor.lidar_frame {lidar_frame!r} is not in the static transforms "
                          f"(frames: {', '.join(sorted(frames))}); set it to the clouds' frame", topic="/tf_static")
-    written = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
+    written = static_pose(statics, "base_link", lidar_frame, where=log_path) \
+        if {"base_link", lidar_frame} <= frames else np.eye(4)
     ground = ground_check(lg, corrected_mount(written, cfg.slam.sensor.mount_rpy_correction_deg), cfg) \
         if "base_link" in frames else None
     rpy = applied_mount_rpy(cfg, ground)
     imu, imu_note = _imu_in_si(lg, log_path, cfg) if lg.has_role("imu") else (None, "")
-    base_to_sensor, sensor_to_imu, antenna_in_sensor = _mount_frames(lg, log_path, cfg, imu, rpy)
+    antenna = _antenna(statics, log_path)
+    base_to_sensor, sensor_to_imu, antenna_in_sensor = _mount_frames(statics, log_path, cfg, imu, rpy, antenna)
     gnss, gnss_note = _gnss_or_none(lg, cfg)
     lidar = next(t for t in lg.topics if t.topic == lg.roles["lidar"])
     wheel, wheel_note = read_wheel_track(lg, cfg.slam)
     return LogInputs(duration_s=duration, base_to_sensor=base_to_sensor, imu=imu, sensor_to_imu=sensor_to_imu,
-                     gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=_antenna(lg),
+                     gnss=gnss, ground_truth=ground_truth_of(lg, log_path), antenna=antenna,
                      antenna_in_sensor=antenna_in_sensor, n_sweeps=lidar.count, max_sweep_gap_s=lidar.max_gap_s,
                      notes=tuple(n for n in (imu_note, gnss_note, wheel_note) if n), ground_mount=ground,
                      mount_rpy_deg=rpy, mount_written={"base_link", lidar_frame} <= frames, wheel=wheel)
 
 
-def _antenna(lg: LogReader) -> np.ndarray:
+def _static_frames(statics: StaticTransforms) -> set[str]:
+    return {c for _, c in statics} | {p for p, _ in statics}
+
+
+def _antenna(statics: StaticTransforms, log_path: Path) -> np.ndarray:
     """The GNSS antenna in base_link (/tf_static), m; the origin without one."""
-    statics = lg.static_transforms()
-    frames = {c for _, c in statics} | {p for p, _ in statics}
-    return lg.transform("base_link", "gnss")[:3, 3] if {"gnss", "base_link"} <= frames else np.zeros(3)
+    has = {"gnss", "base_link"} <= _static_frames(statics)
+    return static_pose(statics, "base_link", "gnss", where=log_path)[:3, 3] if has else np.zeros(3)
 
 
-def _mount_frames(lg: LogReader, log_path: Path, cfg: Config, imu: ImuSeries | None,
-                  rpy: tuple[float, float, float]) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
+def _mount_frames(statics: StaticTransforms, log_path: Path, cfg: Config, imu: ImuSeries | None,
+                  rpy: tuple[float, float, float], antenna: np.ndarray) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
     """/tf_static's base_link -> LiDAR mount turned by `rpy` (deg, LiDAR axes), the IMU's pose in that
-    LiDAR frame (4x4, identity without a frame for it) and the GNSS antenna in it (m)."""
+    LiDAR frame (4x4, identity without a frame for it) and the GNSS antenna (base_link, m) in it (m)."""
     lidar_frame = cfg.slam.sensor.lidar_frame
-    statics = lg.static_transforms()
-    frames = {c for _, c in statics} | {p for p, _ in statics}
-    written = lg.transform("base_link", lidar_frame) if {"base_link", lidar_frame} <= frames else np.eye(4)
+    frames = _static_frames(statics)
+    written = static_pose(statics, "base_link", lidar_frame, where=log_path) \
+        if {"base_link", lidar_frame} <= frames else np.eye(4)
     base_to_sensor = corrected_mount(written, rpy)
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
-        sensor_to_imu = imu_in_corrected_sensor(lg.transform(lidar_frame, imu.frame_id), statics,
-                                                lidar_frame=lidar_frame, imu_frame=imu.frame_id,
+        sensor_to_imu = imu_in_corrected_sensor(static_pose(statics, lidar_frame, imu.frame_id, where=log_path),
+                                                statics, lidar_frame=lidar_frame, imu_frame=imu.frame_id,
                                                 rpy_deg=rpy, where=log_path)
-    return base_to_sensor, sensor_to_imu, (np.linalg.inv(base_to_sensor) @ np.r_[_antenna(lg), 1.0])[:3]
+    return base_to_sensor, sensor_to_imu, (np.linalg.inv(base_to_sensor) @ np.r_[antenna, 1.0])[:3]
 
 
 def _remounted(inputs: LogInputs, lg: LogReader, log_path: Path, cfg: Config, motion: MountCheck) -> LogInputs:
     """`inputs` (as read, before the wheel clock) on the mount turned further by a first pass's motion
     check: what depends on the mount anew, the rest as read."""
     base_to_sensor, sensor_to_imu, antenna_in_sensor = _mount_frames(
-        lg, log_path, cfg, inputs.imu, _with_motion_correction(inputs.mount_rpy_deg, motion))
+        lg.static_transforms(), log_path, cfg, inputs.imu, _with_motion_correction(inputs.mount_rpy_deg, motion),
+        inputs.antenna)
     return dataclasses.replace(inputs, base_to_sensor=base_to_sensor, sensor_to_imu=sensor_to_imu,
                                antenna_in_sensor=antenna_in_sensor, motion_mount=motion)
 
