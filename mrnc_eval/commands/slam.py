@@ -953,7 +953,8 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
         result.metrics.append(Metric(name="imu_time_offset_cpu_ms", value=out.imu_time_offset_cpu_ms, unit="ms",
                                      group="slam/timing", note="CPU time of the offset's re-match after the run"))
     if _offset_stands_out(offset, sigma):
-        text = (f"IMU-LiDAR time offset {offset * 1e3:.1f} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
+        spread = f" +- {sigma * 1e3:.1f}" if sigma is not None and np.isfinite(sigma) else ""
+        text = (f"IMU-LiDAR time offset {offset * 1e3:.1f}{spread} ms (> {IMU_OFFSET_FINDING_S * 1e3:.0f} ms): the IMU "
                 f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
                 f"{cfg.slam.imu.time_offset_s + offset:.4f}")
         result.warnings.append(text)

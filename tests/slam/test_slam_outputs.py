@@ -287,6 +287,35 @@ def test_a_flagged_mount_and_an_offset_are_corrected_in_one_second_run(monkeypat
     assert [e.kind for e in out.events] == ["mount", "imu_time_offset"]
 
 
+@pytest.mark.parametrize(("offset_s", "sigma_s", "says"), [
+    (0.0058, 0.0009, "IMU-LiDAR time offset 5.8 +- 0.9 ms (> 2 ms): the IMU stamps look late; "
+                     "set slam.imu.time_offset_s=0.0058"),
+    (-0.0031, None, "IMU-LiDAR time offset -3.1 ms (> 2 ms): the IMU stamps look early"),  # online: no sigma
+    (0.0015, 0.0002, None),  # negative controls: within 2 ms, and within 2 standard errors
+    (0.0035, 0.0020, None),
+])
+def test_the_offset_finding_gives_the_standard_error_the_reading_carries(offset_s: float, sigma_s: float | None,
+                                                                          says: str | None) -> None:
+    """A 40 s log reads its offset to about 1 ms (docs/simulation.md, "Thirteenth session"): the finding
+    that asks the user to set slam.imu.time_offset_s says how sure the value is."""
+    from mrnc_eval.commands.slam import _add_time_offset
+    from mrnc_eval.results import RunResult
+    from mrnc_eval.slam.output import SlamOutput
+
+    out = SlamOutput(stamps=np.array([0.0, 1.0]), poses=np.zeros((2, 4, 4)), kf_stamps=np.zeros(0),
+                     kf_poses=np.zeros((0, 4, 4)), map_points=np.zeros((0, 3)), timing_ms={}, events=[], warnings=[],
+                     n_sweeps=2, wall_s=0.0, imu_time_offset_s=offset_s, imu_time_offset_sigma_s=sigma_s)
+    result = RunResult(kind="slam", log_path="x.mcap", log_id="x")
+    _add_time_offset(result, out, Config())
+    if says is None:
+        assert result.warnings == []
+        assert [e.kind for e in result.events] == []
+    else:
+        assert len(result.warnings) == 1
+        assert result.warnings[0].startswith(says)
+        assert [e.message for e in result.events] == result.warnings
+
+
 @pytest.mark.parametrize(("rmse_m", "degenerate", "wheels", "says", "track"), [
     (13.7, 0.82, False, "IMU dead reckoning", False),  # the open line without wheels, RTK fixes
     (13.7, 0.82, True, "the trajectory, not the GNSS", False),
