@@ -958,7 +958,8 @@ def _add_time_offset(result: RunResult, out: SlamOutput, cfg: Config) -> None:
                 f"stamps look {'late' if offset > 0 else 'early'}; set slam.imu.time_offset_s="
                 f"{cfg.slam.imu.time_offset_s + offset:.4f}")
         result.warnings.append(text)
-        result.events.append(Event(t_s=0.0, kind="health", message=text, data={"imu_time_offset_s": offset}))
+        data = {"imu_time_offset_s": offset} | ({"imu_time_offset_sigma_s": sigma} if spread else {})
+        result.events.append(Event(t_s=0.0, kind="health", message=text, data=data))
 
 
 def _add_wheel_health(result: RunResult, out: SlamOutput) -> None:

@@ -314,6 +314,7 @@ def test_the_offset_finding_gives_the_standard_error_the_reading_carries(offset_
         assert len(result.warnings) == 1
         assert result.warnings[0].startswith(says)
         assert [e.message for e in result.events] == result.warnings
+        assert result.events[0].data.get("imu_time_offset_sigma_s") == sigma_s
 
 
 @pytest.mark.parametrize(("rmse_m", "degenerate", "wheels", "says", "track"), [
