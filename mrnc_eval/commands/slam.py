@@ -293,8 +293,7 @@ def _read_inputs(lg: LogReader, log_path: Path, cfg: Config) -> LogInputs:
     if "base_link" in frames and lidar_frame not in frames:  # never fall back to identity silently
         raise InputError(log_path, f"slam.sensor.lidar_frame {lidar_frame!r} is not in the static transforms "
                          f"(frames: {', '.join(sorted(frames))}); set it to the clouds' frame", topic="/tf_static")
-    written = static_pose(statics, "base_link", lidar_frame, where=log_path) \
-        if {"base_link", lidar_frame} <= frames else np.eye(4)
+    written = _written_mount(statics, lidar_frame, log_path)
     ground = ground_check(lg, corrected_mount(written, cfg.slam.sensor.mount_rpy_correction_deg), cfg) \
         if "base_link" in frames else None
     rpy = applied_mount_rpy(cfg, ground)
@@ -315,6 +314,12 @@ def _static_frames(statics: StaticTransforms) -> set[str]:
     return {c for _, c in statics} | {p for p, _ in statics}
 
 
+def _written_mount(statics: StaticTransforms, lidar_frame: str, log_path: Path) -> np.ndarray:
+    """/tf_static's base_link -> LiDAR (4x4); identity when either frame is missing."""
+    known = {"base_link", lidar_frame} <= _static_frames(statics)
+    return static_pose(statics, "base_link", lidar_frame, where=log_path) if known else np.eye(4)
+
+
 def _antenna(statics: StaticTransforms, log_path: Path) -> np.ndarray:
     """The GNSS antenna in base_link (/tf_static), m; the origin without one."""
     has = {"gnss", "base_link"} <= _static_frames(statics)
@@ -327,9 +332,7 @@ def _mount_frames(statics: StaticTransforms, log_path: Path, cfg: Config, imu: I
     LiDAR frame (4x4, identity without a frame for it) and the GNSS antenna (base_link, m) in it (m)."""
     lidar_frame = cfg.slam.sensor.lidar_frame
     frames = _static_frames(statics)
-    written = static_pose(statics, "base_link", lidar_frame, where=log_path) \
-        if {"base_link", lidar_frame} <= frames else np.eye(4)
-    base_to_sensor = corrected_mount(written, rpy)
+    base_to_sensor = corrected_mount(_written_mount(statics, lidar_frame, log_path), rpy)
     sensor_to_imu = np.eye(4)
     if imu is not None and imu.frame_id and imu.frame_id in frames and lidar_frame in frames:
         sensor_to_imu = imu_in_corrected_sensor(static_pose(statics, lidar_frame, imu.frame_id, where=log_path),
