@@ -36,7 +36,8 @@ EXCLUDE_S = 5.0  # a stretch is matched against keyframes at least this far from
 MIN_MAP_KEYFRAMES = 3  # fewer such keyframes (a short log): the stretch meets every keyframe but its own
 MAP_KEYFRAMES = 50  # at most this many in a stretch's map, the nearest to it: a map per stretch stays the size
 # of the run's local map on an hour-long log (the 40 s field logs have 20-40 keyframes in all)
-JACKKNIFE_BLOCKS = 10  # contiguous stretches of the log left out in turn for the standard error
+JACKKNIFE_BLOCKS = 10  # contiguous stretches of the log (equal shares of the information) left out in turn
+# for the standard error
 STRETCH_S = 2.0  # the sweeps kept for the re-match come in stretches of this much log time (s)
 MIN_SPACING_S = 0.19  # a sweep closer than this to the last one kept is not kept (s): mapped every
 # sweep at 10 Hz, every other one (LIO-SAM's 0.15 s rate keeps each): half the memory and CPU

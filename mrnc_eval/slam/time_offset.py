@@ -17,6 +17,7 @@ SEARCH_S = 0.1  # offsets searched in [-SEARCH_S, SEARCH_S], s
 MAX_INTERVAL_S = 0.3  # median spacing of the mapped sweeps above which rates are too smoothed to time
 STEP_S = 5e-4  # grid step before the parabolic refinement, s
 GRID_S = np.arange(-SEARCH_S, SEARCH_S + STEP_S / 2, STEP_S)  # the candidate offsets, s
+RATE_SMOOTH_S = 0.05  # the gyro averaged over +-this when the information per interval is weighed, s
 
 
 def lidar_angular_rates(stamps: np.ndarray, rotations: np.ndarray) -> np.ndarray:
@@ -125,20 +126,33 @@ def _grid_minimum(cost: np.ndarray) -> tuple[float, bool]:
     return float(GRID_S[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S), False
 
 
-def _block_sums(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack,
-                blocks: int) -> tuple[np.ndarray, np.ndarray, np.ndarray]:
-    """Per grid offset, per time block of the intervals (by t0) and per axis: the sum and the sum of
-    squares of the rate difference (gyro - LiDAR, rad/s), and the intervals per block; (G, B, 3) x2, (B,)."""
+def _mismatches(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack) -> np.ndarray:
+    """(G, N, 3) rate difference (gyro - LiDAR, rad/s) of every interval at every grid offset."""
     t_imu, integral = _gyro_integral(track)
-    span = max(float(np.ptp(t0)), 1e-9)
-    block = np.minimum(((t0 - t0.min()) / span * blocks).astype(np.int64), blocks - 1)
-    s1, s2 = np.zeros((GRID_S.size, blocks, 3)), np.zeros((GRID_S.size, blocks, 3))
-    for g, o in enumerate(GRID_S):
-        diff = _imu_rates(t_imu, integral, t0 + o, t1 + o) - lidar
-        for a in range(3):
-            s1[g, :, a] = np.bincount(block, diff[:, a], minlength=blocks)
-            s2[g, :, a] = np.bincount(block, diff[:, a] ** 2, minlength=blocks)
-    return s1, s2, np.bincount(block, minlength=blocks).astype(np.float64)
+    return np.stack([_imu_rates(t_imu, integral, t0 + o, t1 + o) - lidar for o in GRID_S])
+
+
+def _information_blocks(t0: np.ndarray, t1: np.ndarray, mismatch: np.ndarray, track: ImuTrack,
+                        blocks: int) -> np.ndarray:
+    """Block index per interval: contiguous runs of intervals (in t0 order) carrying equal shares of the
+    offset's information. An interval's: the squared change of its gyro mean rate per second of offset
+    (the rate at t1 minus at t0, over t1 - t0, each averaged over +-RATE_SMOOTH_S), per axis over that
+    axis's `mismatch` variance (N, 3; at the estimate, the noise). Blocks of equal log time misjudge a
+    log that mostly stands still: its still blocks carry nothing, the replicates without them equal the
+    estimate, and the standard error came out 1.5x too small (a simulated 100 s log driving for 32 s)."""
+    t_imu, integral = _gyro_integral(track)
+    h = RATE_SMOOTH_S
+    slope = (_imu_rates(t_imu, integral, t1 - h, t1 + h) - _imu_rates(t_imu, integral, t0 - h, t0 + h)) \
+        / (t1 - t0)[:, None]  # rad/s per s of offset
+    info = np.sum(slope * slope / np.maximum(np.var(mismatch, axis=0), 1e-12), axis=1)
+    order = np.argsort(t0, kind="stable")
+    cum = np.cumsum(info[order])
+    share = info[order]
+    if cum[-1] <= 0.0:  # no rotation change anywhere: blocks of equal count
+        cum, share = np.arange(1.0, t0.size + 1.0), np.ones(t0.size)
+    block = np.empty(t0.size, np.int64)
+    block[order] = np.minimum(((cum - share / 2) / cum[-1] * blocks).astype(np.int64), blocks - 1)
+    return block
 
 
 def _offset_from_sums(s1: np.ndarray, s2: np.ndarray, n: np.ndarray) -> tuple[float, bool]:
@@ -153,14 +167,21 @@ def offset_from_overlapping(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t
                             blocks: int = 10) -> OffsetEstimate | None:
     """The fit of `offset_from_rates` on intervals that may share their ends (each pose in several
     intervals: their residuals are correlated, the formal error would be too small), with a
-    delete-one-block jackknife standard error over `blocks` contiguous stretches of the log. None
-    under 10 intervals or without rotation; sigma inf when the estimate lies on the search bound."""
+    delete-one-block jackknife standard error over `blocks` contiguous stretches of the log carrying equal
+    shares of the information (`_information_blocks`). None under 10 intervals or without rotation; sigma
+    inf when the estimate lies on the search bound."""
     if t0.size < max(10, blocks) or float(np.std(lidar, axis=0).max()) < 1e-3:
         return None
-    s1, s2, n = _block_sums(t0, t1, lidar, track, blocks)
-    found, on_bound = _offset_from_sums(s1, s2, n)
+    diffs = _mismatches(t0, t1, lidar, track)
+    found, on_bound = _offset_from_sums(diffs.sum(axis=1)[:, None], (diffs * diffs).sum(axis=1)[:, None],
+                                        np.array([float(t0.size)]))
     if on_bound:
         return OffsetEstimate(offset_s=found, sigma_s=float("inf"), intervals=int(t0.size))
+    at = diffs[int(np.argmin(np.abs(GRID_S - found)))]
+    member = np.eye(blocks)[_information_blocks(t0, t1, at, track, blocks)]  # (N, B)
+    s1 = np.einsum("gna,nb->gba", diffs, member)
+    s2 = np.einsum("gna,nb->gba", diffs * diffs, member)
+    n = member.sum(axis=0)
     keep = n > 0
     reps = np.array([_offset_from_sums(np.delete(s1, b, axis=1), np.delete(s2, b, axis=1), np.delete(n, b))[0]
                      for b in np.flatnonzero(keep)])
