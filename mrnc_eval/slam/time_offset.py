@@ -177,14 +177,14 @@ def offset_from_overlapping(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t
                                         np.array([float(t0.size)]))
     if on_bound:
         return OffsetEstimate(offset_s=found, sigma_s=float("inf"), intervals=int(t0.size))
-    at = diffs[int(np.argmin(np.abs(GRID_S - found)))]
-    member = np.eye(blocks)[_information_blocks(t0, t1, at, track, blocks)]  # (N, B)
-    s1 = np.einsum("gna,nb->gba", diffs, member)
-    s2 = np.einsum("gna,nb->gba", diffs * diffs, member)
-    n = member.sum(axis=0)
-    keep = n > 0
+    block = _information_blocks(t0, t1, diffs[int(np.argmin(np.abs(GRID_S - found)))], track, blocks)
+    order = np.argsort(block, kind="stable")
+    starts = np.flatnonzero(np.diff(block[order], prepend=-1))  # the blocks that hold intervals
+    s1 = np.add.reduceat(diffs[:, order], starts, axis=1)  # (G, B', 3)
+    s2 = np.add.reduceat(diffs[:, order] ** 2, starts, axis=1)
+    n = np.diff(np.append(starts, t0.size)).astype(np.float64)
     reps = np.array([_offset_from_sums(np.delete(s1, b, axis=1), np.delete(s2, b, axis=1), np.delete(n, b))[0]
-                     for b in np.flatnonzero(keep)])
+                     for b in range(n.size)])
     m = reps.size
     sigma = float(np.sqrt((m - 1) / m * np.sum((reps - reps.mean()) ** 2))) if m > 1 else float("inf")
     return OffsetEstimate(offset_s=found, sigma_s=sigma, intervals=int(t0.size))
