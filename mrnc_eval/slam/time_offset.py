@@ -139,7 +139,8 @@ def _information_blocks(t0: np.ndarray, t1: np.ndarray, mismatch: np.ndarray, tr
     (the rate at t1 minus at t0, over t1 - t0, each averaged over +-RATE_SMOOTH_S), per axis over that
     axis's `mismatch` variance (N, 3; at the estimate, the noise). Blocks of equal log time misjudge a
     log that mostly stands still: its still blocks carry nothing, the replicates without them equal the
-    estimate, and the standard error came out 1.5x too small (a simulated 100 s log driving for 32 s)."""
+    estimate, and the standard error came out too small and erratic (a simulated 100 s log driving for
+    22.5 s, 30 noise draws: error / sigma rms 4.97; 1.28 with these blocks)."""
     t_imu, integral = _gyro_integral(track)
     h = RATE_SMOOTH_S
     slope = (_imu_rates(t_imu, integral, t1 - h, t1 + h) - _imu_rates(t_imu, integral, t0 - h, t0 + h)) \
