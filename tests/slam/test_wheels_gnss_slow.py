@@ -118,10 +118,15 @@ def test_without_wheels_multipath_hypotheses_hold_the_line_under_1_m(calibrated_
 # turn matches down (z error 0.104 m kept, 0.088 m whole): both runs leave the standing start off
 # (slam.imu.standing_start_min_s=0) to meet the drifting heading the rule is for. Eleventh session: the first
 # keyframe's roll and pitch held to 0.01 rad keep the tilt too (z error 0.162 m either way, no match turned down):
-# both runs take LIO-SAM's 0.1 rad prior, where the rule is what keeps it.
-Z_WALK_LIMIT_M = 0.4  # the z error's RMS: 0.178 m with the tilt kept (2.2x), 0.979 m with the whole match rejected
+# both runs take LIO-SAM's 0.1 rad prior, where the rule is what keeps it. Fourteenth session: whether the 2 deg
+# gate locks out on this log depends on the machine (the eleventh session's: 0.178 / 0.979 m; a 2-core machine
+# of the fourteenth: 7 single rejections of 2.1-3.5 deg, never two in a row, so the rule never acted and both
+# runs read 0.160 m to the bit): both runs take a 1 deg gate, which locked out on both seeds tried there (seed 3:
+# 0.138 m kept, 6.69 m whole; seed 4: 0.123 / 3.00 m), and the test asserts the rule acted.
+Z_WALK_LIMIT_M = 0.3  # the z error's RMS: 0.138 m with the tilt kept (2.2x), 6.69 m with the whole match rejected
 LIOSAM_TILT_PRIOR = {"slam.graph.prior_variances": (1e-2, 1e-2, 3.141592653589793 ** 2, 1e8, 1e8, 1e8)}
-DRIFTING_HEADING = {**NO_WHEELS, "slam.imu.standing_start_min_s": 0.0, **LIOSAM_TILT_PRIOR}
+DRIFTING_HEADING = {**NO_WHEELS, "slam.imu.standing_start_min_s": 0.0, **LIOSAM_TILT_PRIOR,
+                    "slam.matching.max_rotation_correction_deg": 1.0}
 
 
 @pytest.fixture(scope="module")
@@ -146,6 +151,8 @@ def test_without_wheels_the_rotation_gate_keeps_the_tilt_and_z_does_not_walk(rtk
     z = _z_error_rms(rtk_line_s3, tmp_path / "tilt")
     print(f"no wheels, RTK, seed 3, tilt kept: online APE {m['ape_online_rmse_m']:.3f} m, z error RMS {z:.3f} m")
     assert z < Z_WALK_LIMIT_M
+    events = json.loads(next((tmp_path / "tilt").rglob("result.json")).read_text())["events"]
+    assert any("kept its roll, pitch and z" in e["message"] for e in events)  # the rule acted (36 sweeps measured)
     whole, _ = _run(rtk_line_s3, tmp_path / "whole", {**DRIFTING_HEADING, "slam.matching.max_tilt_correction_deg": 0.0})
     z_whole = _z_error_rms(rtk_line_s3, tmp_path / "whole")
     print(f"no wheels, RTK, seed 3, whole match rejected: online APE {whole['ape_online_rmse_m']:.3f} m, "
