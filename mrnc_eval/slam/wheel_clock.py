@@ -22,6 +22,7 @@ from dataclasses import dataclass, field
 import numpy as np
 
 from mrnc_eval.slam.config import WheelClockConfig
+from mrnc_eval.slam.jackknife import jackknife_sigma
 
 
 @dataclass(kw_only=True)
@@ -50,9 +51,7 @@ def wheel_clock(wheel_t: np.ndarray, wheel_yaw: np.ndarray, wheel_dist: np.ndarr
     rss, factor, lags = _residuals(grid, (wheel_t, wheel_yaw, wheel_dist),
                                    (gyro_t, _cumulative(gyro_t, gyro_yaw_rate)), cfg)
     offset = _argmin(rss.sum(axis=1), lags)
-    jack = np.array([_argmin(rss.sum(axis=1) - rss[:, j], lags) for j in range(cfg.blocks)])
-    n = cfg.blocks
-    sigma = float(np.sqrt((n - 1) / n * np.sum((jack - jack.mean()) ** 2)))
+    sigma = jackknife_sigma(np.array([_argmin(rss.sum(axis=1) - rss[:, j], lags) for j in range(cfg.blocks)]))
     out = WheelClock(offset_s=offset, sigma_s=sigma, samples=int(grid.size), verdict="ok")
     best = int(np.argmin(rss.sum(axis=1)))
     f = float(factor[best])

@@ -25,6 +25,7 @@ import numpy as np
 from mrnc_eval.data import GnssSeries
 from mrnc_eval.slam.gnss_bank import OffsetBank
 from mrnc_eval.slam.gnss_track import TrackFilter
+from mrnc_eval.slam.jackknife import jackknife_sigma
 from mrnc_eval.slam.wheel_odometry import WheelTrack
 
 OUTLIER_SIGMAS = 3.0  # a fix this many robust sigmas (plus OUTLIER_FLOOR_M) off the fit is multipath
@@ -66,10 +67,9 @@ def gnss_scale(wheel: WheelTrack, gnss: GnssSeries, *, max_var_m2: float, min_sp
     blocks = np.array_split(np.flatnonzero(keep), JACKKNIFE_BLOCKS)
     loo = np.array([_similarity_scale(np.delete(wheels, b, axis=0)[np.delete(keep, b)],
                                       np.delete(fixes, b, axis=0)[np.delete(keep, b)]) for b in blocks])
-    n = len(blocks)
     independent = max(1.0, float(t[keep][-1] - t[keep][0]) / correlation_s) if correlation_s > 0 else keep.sum()
     floor = float(np.median(np.sqrt(var[use][keep].max(axis=1)))) * np.sqrt(keep.sum() / independent / spread)
-    sigma_k = max(float(np.sqrt((n - 1) / n * np.sum((loo - loo.mean()) ** 2))), float(floor))
+    sigma_k = max(jackknife_sigma(loo), float(floor))
     return GnssScale(scale=1.0 / k, sigma=sigma_k / k ** 2, fixes=int(keep.sum()), span_m=span)
 
 
