@@ -175,8 +175,9 @@ def offset_from_overlapping(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t
     block = _information_blocks(t0, t1, diffs[int(np.argmin(np.abs(GRID_S - found)))], track, blocks)
     order = np.argsort(block, kind="stable")
     starts = np.flatnonzero(np.diff(block[order], prepend=-1))  # the blocks that hold intervals
-    s1 = np.add.reduceat(diffs[:, order], starts, axis=1)  # (G, B', 3)
-    s2 = np.add.reduceat(diffs[:, order] ** 2, starts, axis=1)
+    ordered = diffs[:, order]
+    s1 = np.add.reduceat(ordered, starts, axis=1)  # (G, B', 3)
+    s2 = np.add.reduceat(ordered * ordered, starts, axis=1)
     n = np.diff(np.append(starts, t0.size)).astype(np.float64)
     reps = np.array([_offset_from_sums(np.delete(s1, b, axis=1), np.delete(s2, b, axis=1), np.delete(n, b))[0]
                      for b in range(n.size)])
