@@ -127,19 +127,18 @@ def _grid_minimum(cost: np.ndarray) -> tuple[float, bool]:
     return float(GRID_S[k] + parabola_vertex(cost[k - 1], cost[k], cost[k + 1]) * STEP_S), False
 
 
-def _mismatches(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, track: ImuTrack) -> np.ndarray:
+def _mismatches(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t_imu: np.ndarray,
+                integral: np.ndarray) -> np.ndarray:
     """(G, N, 3) rate difference (gyro - LiDAR, rad/s) of every interval at every grid offset."""
-    t_imu, integral = _gyro_integral(track)
     return np.stack([_imu_rates(t_imu, integral, t0 + o, t1 + o) - lidar for o in GRID_S])
 
 
-def _information_blocks(t0: np.ndarray, t1: np.ndarray, mismatch: np.ndarray, track: ImuTrack,
-                        blocks: int) -> np.ndarray:
+def _information_blocks(t0: np.ndarray, t1: np.ndarray, mismatch: np.ndarray, t_imu: np.ndarray,
+                        integral: np.ndarray, blocks: int) -> np.ndarray:
     """Block index per interval for the jackknife (`equal_share_blocks` in t0 order). An interval's
     information: the squared change of its gyro mean rate per second of offset (the rate at t1 minus at t0,
     over t1 - t0, each averaged over +-RATE_SMOOTH_S), per axis over that axis's `mismatch` variance (N, 3;
-    at the estimate, the noise)."""
-    t_imu, integral = _gyro_integral(track)
+    at the estimate, the noise); `t_imu`, `integral` the gyro's (`_gyro_integral`)."""
     h = RATE_SMOOTH_S
     slope = (_imu_rates(t_imu, integral, t1 - h, t1 + h) - _imu_rates(t_imu, integral, t0 - h, t0 + h)) \
         / (t1 - t0)[:, None]  # rad/s per s of offset
@@ -167,12 +166,13 @@ def offset_from_overlapping(t0: np.ndarray, t1: np.ndarray, lidar: np.ndarray, t
     inf when the estimate lies on the search bound."""
     if t0.size < max(10, blocks) or float(np.std(lidar, axis=0).max()) < 1e-3:
         return None
-    diffs = _mismatches(t0, t1, lidar, track)
+    t_imu, integral = _gyro_integral(track)
+    diffs = _mismatches(t0, t1, lidar, t_imu, integral)
     found, on_bound = _offset_from_sums(diffs.sum(axis=1)[:, None], (diffs * diffs).sum(axis=1)[:, None],
                                         np.array([float(t0.size)]))
     if on_bound:
         return OffsetEstimate(offset_s=found, sigma_s=float("inf"), intervals=int(t0.size))
-    block = _information_blocks(t0, t1, diffs[int(np.argmin(np.abs(GRID_S - found)))], track, blocks)
+    block = _information_blocks(t0, t1, diffs[int(np.argmin(np.abs(GRID_S - found)))], t_imu, integral, blocks)
     order = np.argsort(block, kind="stable")
     starts = np.flatnonzero(np.diff(block[order], prepend=-1))  # the blocks that hold intervals
     ordered = diffs[:, order]

@@ -105,7 +105,8 @@ def test_the_jackknife_error_holds_on_a_log_that_mostly_stands_still(monkeypatch
 
     assert sound(*_mostly_still_errors(range(12)))
 
-    def equal_time(t0: np.ndarray, t1: np.ndarray, mismatch: np.ndarray, track: object, blocks: int) -> np.ndarray:
+    def equal_time(t0: np.ndarray, t1: np.ndarray, mismatch: np.ndarray, t_imu: np.ndarray, integral: np.ndarray,
+                   blocks: int) -> np.ndarray:
         return np.minimum(((t0 - t0.min()) / np.ptp(t0) * blocks).astype(np.int64), blocks - 1)
 
     monkeypatch.setattr(time_offset, "_information_blocks", equal_time)
